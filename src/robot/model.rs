@@ -1,0 +1,571 @@
+//! The immutable robot model: joints, links with inertial parameters, drives
+//! (rotor inertia, gear ratio, friction), joint coupling, named frames, and the
+//! layout of the standard parameter vector.
+
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Unit, Vector3};
+use serde::Serialize;
+
+/// Joint type of an actuated joint (fixed joints are merged at load time).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum JointKind {
+    /// Rotation about the axis, q in rad.
+    Revolute,
+    /// Translation along the axis, q in m.
+    Prismatic,
+}
+
+/// Joint limits (SI units; rad or m). Unknown limits are `f64::INFINITY`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct JointLimits {
+    /// Lower position limit.
+    pub lower: f64,
+    /// Upper position limit.
+    pub upper: f64,
+    /// Velocity limit (symmetric).
+    pub velocity: f64,
+    /// Acceleration limit (symmetric).
+    pub acceleration: f64,
+    /// Effort (torque/force) limit (symmetric), on the motor side referred to the joint.
+    pub effort: f64,
+}
+
+impl Default for JointLimits {
+    fn default() -> Self {
+        JointLimits {
+            lower: f64::NEG_INFINITY,
+            upper: f64::INFINITY,
+            velocity: f64::INFINITY,
+            acceleration: f64::INFINITY,
+            effort: f64::INFINITY,
+        }
+    }
+}
+
+/// An actuated joint. The transform from the parent link frame to this joint's
+/// link frame is `placement · motion(q + offset) · post`, where `motion` is a
+/// rotation about (revolute) or translation along (prismatic) `axis`.
+/// `post` is the identity except for standard-DH robots.
+#[derive(Debug, Clone)]
+pub struct Joint {
+    /// Joint name.
+    pub name: String,
+    /// Revolute or prismatic.
+    pub kind: JointKind,
+    /// Parent link index (`None`: the robot base).
+    pub parent: Option<usize>,
+    /// Parent link frame → joint frame, before the motion.
+    pub placement: Isometry3<f64>,
+    /// Unit axis in the joint frame.
+    pub axis: Unit<Vector3<f64>>,
+    /// Joint frame after the motion → link frame.
+    pub post: Isometry3<f64>,
+    /// Constant added to q before the motion (DH θ or d offset).
+    pub offset: f64,
+    /// Limits.
+    pub limits: JointLimits,
+}
+
+/// Inertial parameters of a link about the link frame origin, in link coordinates.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Inertial {
+    /// Mass m (kg).
+    pub mass: f64,
+    /// First moment m·c (kg·m), c the centre of mass in link coordinates.
+    pub first_moment: Vector3<f64>,
+    /// Inertia tensor about the link frame origin (kg·m²).
+    pub inertia: Matrix3<f64>,
+}
+
+impl Inertial {
+    /// Zero inertia (massless link).
+    pub fn zero() -> Self {
+        Inertial { mass: 0.0, first_moment: Vector3::zeros(), inertia: Matrix3::zeros() }
+    }
+
+    /// From mass, centre of mass (link coordinates) and the inertia tensor about
+    /// the centre of mass expressed in a frame rotated by `rot` from the link frame.
+    pub fn from_com(mass: f64, com: Vector3<f64>, inertia_com: Matrix3<f64>, rot: Matrix3<f64>) -> Self {
+        let ic = rot * inertia_com * rot.transpose();
+        // parallel-axis theorem to the link origin: I_O = I_C + m (|c|² 1 − c cᵀ)
+        let io = ic + mass * (com.norm_squared() * Matrix3::identity() - com * com.transpose());
+        Inertial { mass, first_moment: mass * com, inertia: io }
+    }
+
+    /// The 10 standard parameters XX, XY, XZ, YY, YZ, ZZ, MX, MY, MZ, M.
+    pub fn to_params(&self) -> [f64; 10] {
+        let i = &self.inertia;
+        let h = &self.first_moment;
+        [i[(0, 0)], i[(0, 1)], i[(0, 2)], i[(1, 1)], i[(1, 2)], i[(2, 2)], h.x, h.y, h.z, self.mass]
+    }
+
+    /// Inverse of [`Inertial::to_params`].
+    pub fn from_params(p: &[f64]) -> Self {
+        let inertia = Matrix3::new(p[0], p[1], p[2], p[1], p[3], p[4], p[2], p[4], p[5]);
+        Inertial { mass: p[9], first_moment: Vector3::new(p[6], p[7], p[8]), inertia }
+    }
+
+    /// Expresses these parameters (given in frame B) in frame A, where `a_t_b`
+    /// maps B coordinates to A coordinates (used to merge fixed links).
+    pub fn transformed(&self, a_t_b: &Isometry3<f64>) -> Self {
+        let r = a_t_b.rotation.to_rotation_matrix().into_inner();
+        let p = a_t_b.translation.vector;
+        let m = self.mass;
+        if m == 0.0 && self.inertia == Matrix3::zeros() {
+            return *self;
+        }
+        // inertia about B origin, in A orientation
+        let io_b = r * self.inertia * r.transpose();
+        let h_b = r * self.first_moment; // m c_B (c relative to B origin), A orientation
+        // I_A = I_B + m(|p|²1 − ppᵀ) + (S(p)ᵀ S(h) + S(h)ᵀ S(p)) with c_A = p + c_B
+        let sp = p.cross_matrix();
+        let sh = h_b.cross_matrix();
+        let io_a = io_b + m * (p.norm_squared() * Matrix3::identity() - p * p.transpose()) - (sp * sh + sh * sp);
+        Inertial { mass: m, first_moment: m * p + h_b, inertia: io_a }
+    }
+
+    /// Sum of two inertials expressed in the same frame.
+    pub fn add(&self, o: &Inertial) -> Inertial {
+        Inertial { mass: self.mass + o.mass, first_moment: self.first_moment + o.first_moment, inertia: self.inertia + o.inertia }
+    }
+}
+
+/// A moving link (one per actuated joint, same index).
+#[derive(Debug, Clone)]
+pub struct Link {
+    /// Link name.
+    pub name: String,
+    /// Nominal inertial parameters (fixed children already merged).
+    pub inertial: Inertial,
+}
+
+/// Friction model of one drive, torque referred to the joint side.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "model", rename_all = "snake_case")]
+pub enum Friction {
+    /// No friction parameters.
+    None,
+    /// τ_f = Fc·sign(q̇) + Fv·q̇ (+ F0 when `offset` is Some): paper 000 eq. 2.
+    Symmetric {
+        /// Coulomb coefficient Fc.
+        fc: f64,
+        /// Viscous coefficient Fv.
+        fv: f64,
+        /// Constant offset F0, if modelled.
+        offset: Option<f64>,
+    },
+    /// Paper 002 eq. 2: Fv⁺q̇ + Fc⁺ for q̇ > 0, Fv⁻q̇ + Fc⁻ for q̇ < 0, 0 at rest.
+    Asymmetric {
+        /// Coulomb term for positive velocity.
+        fc_pos: f64,
+        /// Coulomb term for negative velocity (a negative number for the usual model).
+        fc_neg: f64,
+        /// Viscous coefficient for positive velocity.
+        fv_pos: f64,
+        /// Viscous coefficient for negative velocity.
+        fv_neg: f64,
+        /// Constant offset F0, if modelled.
+        offset: Option<f64>,
+    },
+}
+
+/// Drive-side data of one joint.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Drive {
+    /// Reflected rotor inertia Ia (kg·m², joint side); `None`: not modelled.
+    pub rotor_inertia: Option<f64>,
+    /// Gear ratio (motor turns per joint turn); informative (Ia is already reflected).
+    pub gear_ratio: f64,
+    /// Friction model and nominal coefficients.
+    pub friction: Friction,
+}
+
+impl Default for Drive {
+    fn default() -> Self {
+        Drive { rotor_inertia: None, gear_ratio: 1.0, friction: Friction::Symmetric { fc: 0.0, fv: 0.0, offset: None } }
+    }
+}
+
+/// A named frame rigidly attached to a link (or the base): end effector, tool,
+/// merged fixed links.
+#[derive(Debug, Clone)]
+pub struct Frame {
+    /// Frame name.
+    pub name: String,
+    /// Link it is attached to (`None`: base).
+    pub link: Option<usize>,
+    /// Link frame → this frame.
+    pub placement: Isometry3<f64>,
+}
+
+/// What a standard parameter is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+pub enum ParamKind {
+    /// Inertia tensor element XX about the link origin.
+    XX,
+    /// Product of inertia XY.
+    XY,
+    /// Product of inertia XZ.
+    XZ,
+    /// Inertia YY.
+    YY,
+    /// Product of inertia YZ.
+    YZ,
+    /// Inertia ZZ.
+    ZZ,
+    /// First moment m·cx.
+    MX,
+    /// First moment m·cy.
+    MY,
+    /// First moment m·cz.
+    MZ,
+    /// Mass.
+    M,
+    /// Reflected rotor inertia.
+    Ia,
+    /// Coulomb friction (symmetric).
+    Fc,
+    /// Viscous friction (symmetric).
+    Fv,
+    /// Friction offset.
+    F0,
+    /// Coulomb friction, positive velocity.
+    FcPos,
+    /// Coulomb friction, negative velocity.
+    FcNeg,
+    /// Viscous friction, positive velocity.
+    FvPos,
+    /// Viscous friction, negative velocity.
+    FvNeg,
+}
+
+impl ParamKind {
+    /// Short label used in parameter names (`ZZ2`, `Fc3`, ...).
+    pub fn label(self) -> &'static str {
+        use ParamKind::*;
+        match self {
+            XX => "XX",
+            XY => "XY",
+            XZ => "XZ",
+            YY => "YY",
+            YZ => "YZ",
+            ZZ => "ZZ",
+            MX => "MX",
+            MY => "MY",
+            MZ => "MZ",
+            M => "M",
+            Ia => "Ia",
+            Fc => "Fc",
+            Fv => "Fv",
+            F0 => "F0",
+            FcPos => "Fcp",
+            FcNeg => "Fcn",
+            FvPos => "Fvp",
+            FvNeg => "Fvn",
+        }
+    }
+    /// True for the 10 rigid-body inertial parameters.
+    pub fn is_inertial(self) -> bool {
+        matches!(self as u8, 0..=9)
+    }
+    /// True for friction parameters.
+    pub fn is_friction(self) -> bool {
+        use ParamKind::*;
+        matches!(self, Fc | Fv | F0 | FcPos | FcNeg | FvPos | FvNeg)
+    }
+    /// The 10 inertial kinds in the standard order.
+    pub const INERTIAL: [ParamKind; 10] = [
+        ParamKind::XX,
+        ParamKind::XY,
+        ParamKind::XZ,
+        ParamKind::YY,
+        ParamKind::YZ,
+        ParamKind::ZZ,
+        ParamKind::MX,
+        ParamKind::MY,
+        ParamKind::MZ,
+        ParamKind::M,
+    ];
+}
+
+/// One entry of the standard parameter vector.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParamInfo {
+    /// Name such as `ZZ2` or `Fc3` (1-based joint number).
+    pub name: String,
+    /// Joint/link index (0-based).
+    pub joint: usize,
+    /// Kind.
+    pub kind: ParamKind,
+}
+
+/// The robot: built once, never mutated; algorithms take it by reference.
+#[derive(Debug, Clone)]
+pub struct Robot {
+    /// Robot name.
+    pub name: String,
+    /// Actuated joints; joint i moves link i. Parents come before children.
+    pub joints: Vec<Joint>,
+    /// Moving links.
+    pub links: Vec<Link>,
+    /// Drives, one per joint.
+    pub drives: Vec<Drive>,
+    /// Coupling matrix C: motor positions (joint-side units) θ = C q. `None`: identity.
+    pub coupling: Option<DMatrix<f64>>,
+    /// Named frames (end effector, tool, merged fixed links).
+    pub frames: Vec<Frame>,
+    /// Gravity acceleration vector in base coordinates (default (0, 0, −9.81)).
+    pub gravity: Vector3<f64>,
+    /// Where the model came from (file names, references).
+    pub source: String,
+    pub(crate) coupling_inv_t: Option<DMatrix<f64>>,
+    pub(crate) params: Vec<ParamInfo>,
+    pub(crate) drive_offset: Vec<usize>,
+    pub(crate) s_ang: Vec<Vector3<f64>>,
+    pub(crate) s_lin: Vec<Vector3<f64>>,
+}
+
+impl Robot {
+    /// Assembles and checks a robot. Called by the loaders; validates the
+    /// topology (parents before children), the coupling matrix (n×n,
+    /// invertible), masses (≥ 0) and builds the parameter layout.
+    pub fn new(
+        name: String,
+        joints: Vec<Joint>,
+        links: Vec<Link>,
+        drives: Vec<Drive>,
+        coupling: Option<DMatrix<f64>>,
+        frames: Vec<Frame>,
+        gravity: Vector3<f64>,
+        source: String,
+    ) -> crate::Result<Robot> {
+        use crate::Error;
+        let n = joints.len();
+        let ctx = || format!("robot `{name}`");
+        if n == 0 {
+            return Err(Error::invalid(ctx(), "joints", "the robot has no actuated joint"));
+        }
+        if links.len() != n || drives.len() != n {
+            return Err(Error::invalid(ctx(), "links", format!("expected {n} links and drives, found {} and {}", links.len(), drives.len())));
+        }
+        for (i, j) in joints.iter().enumerate() {
+            if let Some(p) = j.parent {
+                if p >= i {
+                    return Err(Error::invalid(ctx(), format!("joints[{}].parent", j.name), "a joint's parent link must come before it"));
+                }
+            }
+            let l = &j.limits;
+            if l.lower.is_nan() || l.upper.is_nan() || l.lower > l.upper {
+                return Err(Error::invalid(ctx(), format!("joint `{}` limits", j.name), format!("lower ({}) must be ≤ upper ({})", l.lower, l.upper)));
+            }
+            for (what, v) in [("velocity", l.velocity), ("acceleration", l.acceleration), ("effort", l.effort)] {
+                if v.is_nan() || v <= 0.0 {
+                    return Err(Error::invalid(ctx(), format!("joint `{}` {what} limit", j.name), format!("expected a positive number, found {v}")));
+                }
+            }
+        }
+        for l in &links {
+            let m = l.inertial.mass;
+            if !m.is_finite() || m < 0.0 {
+                return Err(Error::invalid(ctx(), format!("link `{}` mass", l.name), format!("expected a non-negative finite mass, found {m}")));
+            }
+            if l.inertial.inertia.iter().chain(l.inertial.first_moment.iter()).any(|v| !v.is_finite()) {
+                return Err(Error::invalid(ctx(), format!("link `{}` inertia", l.name), "expected finite values"));
+            }
+        }
+        let coupling_inv_t = match &coupling {
+            None => None,
+            Some(c) => {
+                if c.nrows() != n || c.ncols() != n {
+                    return Err(Error::invalid(ctx(), "coupling", format!("expected a {n}×{n} matrix, found {}×{}", c.nrows(), c.ncols())));
+                }
+                let inv = c.clone().try_inverse().ok_or_else(|| Error::invalid(ctx(), "coupling", "the coupling matrix is singular"))?;
+                Some(inv.transpose())
+            }
+        };
+        let mut params = Vec::new();
+        let mut drive_offset = Vec::with_capacity(n);
+        for i in 0..n {
+            for k in ParamKind::INERTIAL {
+                params.push(ParamInfo { name: format!("{}{}", k.label(), i + 1), joint: i, kind: k });
+            }
+            drive_offset.push(params.len());
+            let d = &drives[i];
+            let mut push = |k: ParamKind| params.push(ParamInfo { name: format!("{}{}", k.label(), i + 1), joint: i, kind: k });
+            if d.rotor_inertia.is_some() {
+                push(ParamKind::Ia);
+            }
+            match d.friction {
+                Friction::None => {}
+                Friction::Symmetric { offset, .. } => {
+                    push(ParamKind::Fc);
+                    push(ParamKind::Fv);
+                    if offset.is_some() {
+                        push(ParamKind::F0);
+                    }
+                }
+                Friction::Asymmetric { offset, .. } => {
+                    push(ParamKind::FcPos);
+                    push(ParamKind::FcNeg);
+                    push(ParamKind::FvPos);
+                    push(ParamKind::FvNeg);
+                    if offset.is_some() {
+                        push(ParamKind::F0);
+                    }
+                }
+            }
+        }
+        let (s_ang, s_lin) = joints
+            .iter()
+            .map(|j| {
+                let r = j.post.rotation.to_rotation_matrix().into_inner().transpose();
+                let p = j.post.translation.vector;
+                let a = j.axis.into_inner();
+                match j.kind {
+                    JointKind::Revolute => (r * a, r * a.cross(&p)),
+                    JointKind::Prismatic => (Vector3::zeros(), r * a),
+                }
+            })
+            .unzip();
+        Ok(Robot { name, joints, links, drives, coupling, frames, gravity, source, coupling_inv_t, params, drive_offset, s_ang, s_lin })
+    }
+
+    /// Number of actuated joints n.
+    pub fn dof(&self) -> usize {
+        self.joints.len()
+    }
+
+    /// The standard parameter layout: per joint XX..M, then Ia, friction terms.
+    pub fn params(&self) -> &[ParamInfo] {
+        &self.params
+    }
+
+    /// Number of standard parameters p.
+    pub fn n_params(&self) -> usize {
+        self.params.len()
+    }
+
+    /// Parameter names in order.
+    pub fn param_names(&self) -> Vec<String> {
+        self.params.iter().map(|p| p.name.clone()).collect()
+    }
+
+    /// Nominal values of the standard parameters, in layout order.
+    pub fn nominal_params(&self) -> DVector<f64> {
+        let mut v = Vec::with_capacity(self.params.len());
+        for (i, l) in self.links.iter().enumerate() {
+            v.extend_from_slice(&l.inertial.to_params());
+            let d = &self.drives[i];
+            if let Some(ia) = d.rotor_inertia {
+                v.push(ia);
+            }
+            match d.friction {
+                Friction::None => {}
+                Friction::Symmetric { fc, fv, offset } => {
+                    v.extend([fc, fv]);
+                    if let Some(o) = offset {
+                        v.push(o);
+                    }
+                }
+                Friction::Asymmetric { fc_pos, fc_neg, fv_pos, fv_neg, offset } => {
+                    v.extend([fc_pos, fc_neg, fv_pos, fv_neg]);
+                    if let Some(o) = offset {
+                        v.push(o);
+                    }
+                }
+            }
+        }
+        DVector::from_vec(v)
+    }
+
+    /// Index of the first drive parameter of joint `j` in the layout.
+    pub fn drive_param_offset(&self, j: usize) -> usize {
+        self.drive_offset[j]
+    }
+
+    /// Index of the first inertial parameter of link `i` in the layout.
+    pub fn link_param_offset(&self, i: usize) -> usize {
+        if i == 0 {
+            0
+        } else {
+            self.drive_offset[i - 1] + self.n_drive_params(i - 1)
+        }
+    }
+
+    /// Number of drive (Ia + friction) parameters of joint `j`.
+    pub fn n_drive_params(&self, j: usize) -> usize {
+        let end = if j + 1 < self.dof() { self.drive_offset[j + 1] - 10 } else { self.params.len() };
+        end - self.drive_offset[j]
+    }
+
+    /// Mask of the inertial (rigid-body) parameters in the layout.
+    pub fn inertial_mask(&self) -> Vec<bool> {
+        self.params.iter().map(|p| p.kind.is_inertial()).collect()
+    }
+
+    /// Coupling matrix C (identity when the robot has none).
+    pub fn coupling_matrix(&self) -> DMatrix<f64> {
+        self.coupling.clone().unwrap_or_else(|| DMatrix::identity(self.dof(), self.dof()))
+    }
+
+    /// Index of a frame or link by name: links first (`Some(link)` frames with
+    /// identity placement), then named frames.
+    pub fn find_frame(&self, name: &str) -> Option<Frame> {
+        if let Some(i) = self.links.iter().position(|l| l.name == name) {
+            return Some(Frame { name: name.to_string(), link: Some(i), placement: Isometry3::identity() });
+        }
+        self.frames.iter().find(|f| f.name == name).cloned()
+    }
+
+    /// The default end-effector frame: a frame named `ee`, `tool0`, `flange` or
+    /// `end_effector` if present, otherwise the origin of the last link.
+    pub fn end_effector(&self) -> Frame {
+        for n in ["ee", "end_effector", "tool0", "flange", "tool", "ee_link"] {
+            if let Some(f) = self.frames.iter().find(|f| f.name == n) {
+                return f.clone();
+            }
+        }
+        // the last frame attached to the last link, if any
+        let last = self.dof() - 1;
+        if let Some(f) = self.frames.iter().rev().find(|f| f.link == Some(last)) {
+            return f.clone();
+        }
+        Frame { name: self.links[last].name.clone(), link: Some(last), placement: Isometry3::identity() }
+    }
+
+    /// Joint position limits as (lower, upper) vectors.
+    pub fn position_limits(&self) -> (Vec<f64>, Vec<f64>) {
+        (self.joints.iter().map(|j| j.limits.lower).collect(), self.joints.iter().map(|j| j.limits.upper).collect())
+    }
+
+    /// A copy of this robot with different standard parameters (for simulation
+    /// with perturbed "true" parameters). Friction/Ia entries update the drives.
+    pub fn with_params(&self, theta: &[f64]) -> crate::Result<Robot> {
+        if theta.len() != self.n_params() {
+            return Err(crate::Error::dim("parameter vector", self.n_params(), theta.len()));
+        }
+        let mut r = self.clone();
+        for i in 0..self.dof() {
+            let o = self.link_param_offset(i);
+            r.links[i].inertial = Inertial::from_params(&theta[o..o + 10]);
+            let mut k = self.drive_offset[i];
+            let d = &mut r.drives[i];
+            if d.rotor_inertia.is_some() {
+                d.rotor_inertia = Some(theta[k]);
+                k += 1;
+            }
+            d.friction = match d.friction {
+                Friction::None => Friction::None,
+                Friction::Symmetric { offset, .. } => Friction::Symmetric { fc: theta[k], fv: theta[k + 1], offset: offset.map(|_| theta[k + 2]) },
+                Friction::Asymmetric { offset, .. } => Friction::Asymmetric {
+                    fc_pos: theta[k],
+                    fc_neg: theta[k + 1],
+                    fv_pos: theta[k + 2],
+                    fv_neg: theta[k + 3],
+                    offset: offset.map(|_| theta[k + 4]),
+                },
+            };
+        }
+        Ok(r)
+    }
+}
