@@ -9,6 +9,7 @@ pub mod excitation;
 pub mod frf;
 pub mod ident;
 pub mod io;
+pub mod linalg;
 pub mod params;
 pub mod positions;
 pub mod robot;

@@ -1,6 +1,22 @@
 //! Robot models: the immutable [`Robot`], loaders (URDF, DH tables in TOML),
-//! kinematics, rigid-body dynamics (RNEA, CRBA, derivatives), the regressor.
+//! kinematics, rigid-body dynamics (RNEA, CRBA, derivatives), the regressor,
+//! Cartesian workspace constraints.
+//!
+//! Habit: model apart from data. [`Robot`] is built once and never mutated;
+//! [`Workspace`] holds every buffer; algorithms are free functions
+//! (`regressor(&robot, &mut ws, q, qd, qdd, &mut out)`).
 
+pub mod cartesian;
+pub mod dynamics;
+pub mod file;
+pub mod kinematics;
 pub mod model;
+pub mod urdf;
 
+pub use dynamics::{
+    bias_forces, forward_dynamics, friction_torque, gravity, id_derivatives, inverse_dynamics, mass_matrix, mass_matrix_with, motor_inertia, regressor,
+    regressor_derivatives, regressor_rows, rnea, Workspace,
+};
+pub use file::load;
+pub use kinematics::{frame_jacobian, frame_pose, link_poses, Real};
 pub use model::*;

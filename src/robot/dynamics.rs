@@ -1,0 +1,630 @@
+//! Rigid-body dynamics: recursive Newton–Euler inverse dynamics (RNEA), the
+//! joint-torque regressor, the composite-rigid-body mass matrix (CRBA),
+//! forward dynamics, and the derivatives of inverse dynamics and of the
+//! regressor with respect to q, q̇, q̈ (forward-mode dual numbers through the
+//! same generic kernels).
+//!
+//! # Model
+//!
+//! Motor-side torques, referred to the joint side, with coupling matrix C
+//! (motor positions θ = C q):
+//!
+//! τ = C⁻ᵀ τ_rb(q, q̇, q̈) + Ia ⊙ (C q̈) + f(C q̇),
+//!
+//! τ_rb the rigid-body joint torques, Ia the reflected rotor inertias and f
+//! the friction model of each drive. The regressor Y (n × p) satisfies
+//! τ = Y(q, q̇, q̈) θ for the standard parameter vector θ in the layout of
+//! [`Robot::params`].
+//!
+//! Link quantities are expressed in link coordinates about the link origin
+//! (Khalil–Gautier parameters XX…ZZ about the origin, first moments MX, MY, MZ,
+//! mass M). Gravity enters as a base acceleration −g.
+
+use super::kinematics::{joint_transforms, lift3, Kin, Real};
+use super::model::{Friction, Inertial, Robot};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Vector3};
+use num_dual::Dual64;
+
+/// Per-thread buffers for every kernel. Create one per thread
+/// (e.g. rayon `map_init`) and reuse it: the kernels do not allocate.
+#[derive(Debug, Clone)]
+pub struct Workspace {
+    pub(crate) kin: Kin<f64>,
+    pub(crate) dual: Kin<Dual64>,
+    pub(crate) qd_dual: Vec<Dual64>,
+    pub(crate) q_dual: Vec<Dual64>,
+    pub(crate) qdd_dual: Vec<Dual64>,
+    pub(crate) tau_dual: Vec<Dual64>,
+    pub(crate) y_dual: Vec<Dual64>,
+    pub(crate) y: Vec<f64>,
+    pub(crate) inertials: Vec<Inertial>,
+    ic: Vec<Matrix6<f64>>,
+}
+
+impl Workspace {
+    /// Buffers sized for `robot`.
+    pub fn new(robot: &Robot) -> Self {
+        let n = robot.dof();
+        let p = robot.n_params();
+        Workspace {
+            kin: Kin::new(n),
+            dual: Kin::new(n),
+            q_dual: vec![Dual64::from(0.0); n],
+            qd_dual: vec![Dual64::from(0.0); n],
+            qdd_dual: vec![Dual64::from(0.0); n],
+            tau_dual: vec![Dual64::from(0.0); n],
+            y_dual: vec![Dual64::from(0.0); n * p],
+            y: vec![0.0; n * p],
+            inertials: robot.links.iter().map(|l| l.inertial).collect(),
+            ic: vec![Matrix6::zeros(); n],
+        }
+    }
+}
+
+/// Which terms of the dynamics to include.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Terms {
+    pub gravity: bool,
+    pub drive: bool,
+}
+
+const ALL: Terms = Terms { gravity: true, drive: true };
+
+/// Forward pass: link velocities and accelerations.
+fn forward_pass<T: Real>(robot: &Robot, q: &[T], qd: &[T], qdd: &[T], gravity: bool, kin: &mut Kin<T>) {
+    joint_transforms(robot, q, kin);
+    let g = if gravity { -lift3::<T>(&robot.gravity) } else { Vector3::zeros() };
+    for i in 0..robot.dof() {
+        let rt = kin.rot[i].transpose();
+        let r = kin.pos[i];
+        let (wp, vp, dwp, dvp) = match robot.joints[i].parent {
+            None => (Vector3::zeros(), Vector3::zeros(), Vector3::zeros(), g),
+            Some(p) => (kin.w[p], kin.v[p], kin.dw[p], kin.dv[p]),
+        };
+        let sa = lift3::<T>(&robot.s_ang[i]);
+        let sl = lift3::<T>(&robot.s_lin[i]);
+        let w = rt * wp + sa * qd[i];
+        let v = rt * (vp + wp.cross(&r)) + sl * qd[i];
+        // a_i = X a_p + S q̈ + v_i ×m (S q̇)
+        let sqa = sa * qd[i];
+        let sql = sl * qd[i];
+        kin.dw[i] = rt * dwp + sa * qdd[i] + w.cross(&sqa);
+        kin.dv[i] = rt * (dvp + dwp.cross(&r)) + sl * qdd[i] + w.cross(&sql) + v.cross(&sqa);
+        kin.w[i] = w;
+        kin.v[i] = v;
+    }
+}
+
+/// Rigid-body link-side torques for inertials `inert` (generic), into `out`.
+fn rnea_rigid<T: Real>(robot: &Robot, inert: &[Inertial], q: &[T], qd: &[T], qdd: &[T], gravity: bool, kin: &mut Kin<T>, out: &mut [T]) {
+    forward_pass(robot, q, qd, qdd, gravity, kin);
+    let n = robot.dof();
+    for i in 0..n {
+        let ine = &inert[i];
+        let io: Matrix3<T> = ine.inertia.map(T::c);
+        let h = lift3::<T>(&ine.first_moment);
+        let m = T::c(ine.mass);
+        let (w, v, dw, dv) = (kin.w[i], kin.v[i], kin.dw[i], kin.dv[i]);
+        let beta = dv + w.cross(&v);
+        kin.n[i] = io * dw + w.cross(&(io * w)) + h.cross(&beta);
+        kin.f[i] = beta * m + dw.cross(&h) + w.cross(&w.cross(&h));
+    }
+    for i in (0..n).rev() {
+        out[i] = lift3::<T>(&robot.s_ang[i]).dot(&kin.n[i]) + lift3::<T>(&robot.s_lin[i]).dot(&kin.f[i]);
+        if let Some(p) = robot.joints[i].parent {
+            let rf = kin.rot[i] * kin.f[i];
+            let rn = kin.rot[i] * kin.n[i] + kin.pos[i].cross(&rf);
+            kin.f[p] += rf;
+            kin.n[p] += rn;
+        }
+    }
+}
+
+#[inline]
+fn sgn<T: Real>(x: T) -> T {
+    let r = x.re_();
+    if r > 0.0 {
+        T::one()
+    } else if r < 0.0 {
+        -T::one()
+    } else {
+        T::zero()
+    }
+}
+
+/// Motor positions-like product C·x (identity when no coupling), into `out`.
+fn couple<T: Real>(robot: &Robot, x: &[T], out: &mut [T]) {
+    match &robot.coupling {
+        None => out.copy_from_slice(x),
+        Some(c) => {
+            for i in 0..x.len() {
+                let mut s = T::zero();
+                for j in 0..x.len() {
+                    let cij = c[(i, j)];
+                    if cij != 0.0 {
+                        s += x[j] * T::c(cij);
+                    }
+                }
+                out[i] = s;
+            }
+        }
+    }
+}
+
+/// In place: tau ← C⁻ᵀ tau (no-op without coupling). `scratch` has length n.
+fn couple_inv_t<T: Real>(robot: &Robot, tau: &mut [T], scratch: &mut [T]) {
+    if let Some(ct) = &robot.coupling_inv_t {
+        scratch.copy_from_slice(tau);
+        for i in 0..tau.len() {
+            let mut s = T::zero();
+            for j in 0..tau.len() {
+                let cij = ct[(i, j)];
+                if cij != 0.0 {
+                    s += scratch[j] * T::c(cij);
+                }
+            }
+            tau[i] = s;
+        }
+    }
+}
+
+/// Generic inverse dynamics (motor side) with arbitrary standard parameters
+/// `theta` (f64 constants) at a generic-scalar state.
+pub(crate) fn inverse_dynamics_generic<T: Real>(
+    robot: &Robot,
+    inert: &mut Vec<Inertial>,
+    theta: &[f64],
+    q: &[T],
+    qd: &[T],
+    qdd: &[T],
+    terms: Terms,
+    kin: &mut Kin<T>,
+    out: &mut [T],
+) {
+    let n = robot.dof();
+    for (i, slot) in inert.iter_mut().enumerate().take(n) {
+        let o = robot.link_param_offset(i);
+        *slot = Inertial::from_params(&theta[o..o + 10]);
+    }
+    rnea_rigid(robot, inert, q, qd, qdd, terms.gravity, kin, out);
+    let mut s1 = std::mem::take(&mut kin.s1);
+    let mut s2 = std::mem::take(&mut kin.s2);
+    couple_inv_t(robot, out, &mut s1);
+    if terms.drive {
+        couple(robot, qdd, &mut s1); // motor accelerations
+        couple(robot, qd, &mut s2); // motor velocities
+        for j in 0..n {
+            let mut k = robot.drive_param_offset(j);
+            let d = &robot.drives[j];
+            if d.rotor_inertia.is_some() {
+                out[j] += s1[j] * T::c(theta[k]);
+                k += 1;
+            }
+            let w = s2[j];
+            match d.friction {
+                Friction::None => {}
+                Friction::Symmetric { offset, .. } => {
+                    out[j] += sgn(w) * T::c(theta[k]) + w * T::c(theta[k + 1]);
+                    if offset.is_some() {
+                        out[j] += T::c(theta[k + 2]);
+                    }
+                }
+                Friction::Asymmetric { offset, .. } => {
+                    let r = w.re_();
+                    if r > 0.0 {
+                        out[j] += T::c(theta[k]) + w * T::c(theta[k + 2]);
+                    } else if r < 0.0 {
+                        out[j] += T::c(theta[k + 1]) + w * T::c(theta[k + 3]);
+                    }
+                    if offset.is_some() {
+                        out[j] += T::c(theta[k + 4]);
+                    }
+                }
+            }
+        }
+    }
+    kin.s1 = s1;
+    kin.s2 = s2;
+}
+
+fn check_state(robot: &Robot, q: &[f64], qd: &[f64], qdd: &[f64]) {
+    let n = robot.dof();
+    assert!(q.len() == n && qd.len() == n && qdd.len() == n, "state vectors must have length n = {n}");
+}
+
+/// Inverse dynamics τ (motor side, n) for standard parameters `theta` (p).
+/// Equals `regressor(q, q̇, q̈) · theta` for any `theta`.
+///
+/// # Panics
+/// If slice lengths differ from n and p (a programming error, not user input:
+/// loaders and CSV readers check dimensions first).
+pub fn inverse_dynamics(robot: &Robot, ws: &mut Workspace, theta: &[f64], q: &[f64], qd: &[f64], qdd: &[f64], tau: &mut [f64]) {
+    check_state(robot, q, qd, qdd);
+    assert_eq!(theta.len(), robot.n_params(), "parameter vector length");
+    let mut inert = std::mem::take(&mut ws.inertials);
+    inverse_dynamics_generic(robot, &mut inert, theta, q, qd, qdd, ALL, &mut ws.kin, tau);
+    ws.inertials = inert;
+}
+
+/// Inverse dynamics with the robot's nominal parameters (no parameter vector
+/// needed): rigid body + drives + friction, motor side.
+pub fn rnea(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64], qdd: &[f64], tau: &mut [f64]) {
+    check_state(robot, q, qd, qdd);
+    let inert: Vec<Inertial> = std::mem::take(&mut ws.inertials);
+    rnea_rigid(robot, &inert, q, qd, qdd, true, &mut ws.kin, tau);
+    ws.inertials = inert;
+    let n = robot.dof();
+    let mut s1 = std::mem::take(&mut ws.kin.s1);
+    let mut s2 = std::mem::take(&mut ws.kin.s2);
+    couple_inv_t(robot, tau, &mut s1);
+    couple(robot, qdd, &mut s1);
+    couple(robot, qd, &mut s2);
+    for j in 0..n {
+        let d = &robot.drives[j];
+        if let Some(ia) = d.rotor_inertia {
+            tau[j] += ia * s1[j];
+        }
+        tau[j] += friction_torque(&d.friction, s2[j]);
+    }
+    ws.kin.s1 = s1;
+    ws.kin.s2 = s2;
+}
+
+/// Friction torque of a drive at motor velocity `w` (joint-side units).
+pub fn friction_torque(f: &Friction, w: f64) -> f64 {
+    match *f {
+        Friction::None => 0.0,
+        Friction::Symmetric { fc, fv, offset } => fc * sgn(w) + fv * w + offset.unwrap_or(0.0),
+        Friction::Asymmetric { fc_pos, fc_neg, fv_pos, fv_neg, offset } => {
+            offset.unwrap_or(0.0)
+                + if w > 0.0 {
+                    fc_pos + fv_pos * w
+                } else if w < 0.0 {
+                    fc_neg + fv_neg * w
+                } else {
+                    0.0
+                }
+        }
+    }
+}
+
+/// Rigid-body regressor (link side, inertial columns only) into the row-major
+/// n×p buffer `y` (drive columns left untouched), generic scalar.
+fn rigid_regressor<T: Real>(robot: &Robot, q: &[T], qd: &[T], qdd: &[T], gravity: bool, kin: &mut Kin<T>, y: &mut [T]) {
+    forward_pass(robot, q, qd, qdd, gravity, kin);
+    let n = robot.dof();
+    let p = robot.n_params();
+    for j in 0..n {
+        // propagate S_j down the subtree of j (parents come first)
+        kin.sa[j] = lift3::<T>(&robot.s_ang[j]);
+        kin.sl[j] = lift3::<T>(&robot.s_lin[j]);
+        // mark: s1[i] = 1 if i in subtree(j)
+        for i in 0..n {
+            kin.s1[i] = T::zero();
+        }
+        kin.s1[j] = T::one();
+        for i in j..n {
+            if i > j {
+                match robot.joints[i].parent {
+                    Some(par) if kin.s1[par].re_() == 1.0 => {
+                        kin.s1[i] = T::one();
+                        let rt = kin.rot[i].transpose();
+                        let (pa, pl) = (kin.sa[par], kin.sl[par]);
+                        kin.sa[i] = rt * pa;
+                        kin.sl[i] = rt * (pl + pa.cross(&kin.pos[i]));
+                    }
+                    _ => continue,
+                }
+            }
+            let (u, sl) = (kin.sa[i], kin.sl[i]);
+            let (w, v, dw, dv) = (kin.w[i], kin.v[i], kin.dw[i], kin.dv[i]);
+            let beta = dv + w.cross(&v);
+            let uxw = u.cross(&w);
+            let row = &mut y[j * p + robot.link_param_offset(i)..];
+            // u^T (L(α) + S(ω)L(ω)) = u^T L(α) + (u×ω)^T L(ω)
+            let l = |a: &Vector3<T>, b: &Vector3<T>| [a.x * b.x, a.x * b.y + a.y * b.x, a.x * b.z + a.z * b.x, a.y * b.y, a.y * b.z + a.z * b.y, a.z * b.z];
+            let l1 = l(&u, &dw);
+            let l2 = l(&uxw, &w);
+            for k in 0..6 {
+                row[k] = l1[k] + l2[k];
+            }
+            let hc = beta.cross(&u) + sl.cross(&dw) + w.cross(&w.cross(&sl));
+            row[6] = hc.x;
+            row[7] = hc.y;
+            row[8] = hc.z;
+            row[9] = sl.dot(&beta);
+        }
+    }
+}
+
+/// Full regressor (motor side, coupling and drive columns) into row-major `y` (n×p).
+pub(crate) fn regressor_generic<T: Real>(robot: &Robot, q: &[T], qd: &[T], qdd: &[T], terms: Terms, kin: &mut Kin<T>, y: &mut [T]) {
+    let n = robot.dof();
+    let p = robot.n_params();
+    for v in y.iter_mut() {
+        *v = T::zero();
+    }
+    rigid_regressor(robot, q, qd, qdd, terms.gravity, kin, y);
+    if let Some(ct) = &robot.coupling_inv_t {
+        // rows ← C⁻ᵀ rows, column by column of inertial parameters
+        let mut col = std::mem::take(&mut kin.s1);
+        for i in 0..n {
+            let o = robot.link_param_offset(i);
+            for c in o..o + 10 {
+                for r in 0..n {
+                    col[r] = y[r * p + c];
+                }
+                for r in 0..n {
+                    let mut s = T::zero();
+                    for k in 0..n {
+                        let v = ct[(r, k)];
+                        if v != 0.0 {
+                            s += col[k] * T::c(v);
+                        }
+                    }
+                    y[r * p + c] = s;
+                }
+            }
+        }
+        kin.s1 = col;
+    }
+    if terms.drive {
+        let mut s1 = std::mem::take(&mut kin.s1);
+        let mut s2 = std::mem::take(&mut kin.s2);
+        couple(robot, qdd, &mut s1);
+        couple(robot, qd, &mut s2);
+        for j in 0..n {
+            let mut k = robot.drive_param_offset(j);
+            let d = &robot.drives[j];
+            let row = j * p;
+            if d.rotor_inertia.is_some() {
+                y[row + k] = s1[j];
+                k += 1;
+            }
+            let w = s2[j];
+            match d.friction {
+                Friction::None => {}
+                Friction::Symmetric { offset, .. } => {
+                    y[row + k] = sgn(w);
+                    y[row + k + 1] = w;
+                    if offset.is_some() {
+                        y[row + k + 2] = T::one();
+                    }
+                }
+                Friction::Asymmetric { offset, .. } => {
+                    let r = w.re_();
+                    if r > 0.0 {
+                        y[row + k] = T::one();
+                        y[row + k + 2] = w;
+                    } else if r < 0.0 {
+                        y[row + k + 1] = T::one();
+                        y[row + k + 3] = w;
+                    }
+                    if offset.is_some() {
+                        y[row + k + 4] = T::one();
+                    }
+                }
+            }
+        }
+        kin.s1 = s1;
+        kin.s2 = s2;
+    }
+}
+
+/// The regressor Y(q, q̇, q̈) (n × p, motor side): τ = Y θ for every standard
+/// parameter vector θ. `out` must be n × p.
+pub fn regressor(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64], qdd: &[f64], out: &mut DMatrix<f64>) {
+    check_state(robot, q, qd, qdd);
+    let (n, p) = (robot.dof(), robot.n_params());
+    assert!(out.nrows() == n && out.ncols() == p, "regressor output must be n×p");
+    let mut y = std::mem::take(&mut ws.y);
+    regressor_generic(robot, q, qd, qdd, ALL, &mut ws.kin, &mut y);
+    for r in 0..n {
+        for c in 0..p {
+            out[(r, c)] = y[r * p + c];
+        }
+    }
+    ws.y = y;
+}
+
+/// Regressor into a row-major slice of length n·p (no copy into a matrix):
+/// the kernel for stacking millions of rows.
+pub fn regressor_rows(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64], qdd: &[f64], out: &mut [f64]) {
+    check_state(robot, q, qd, qdd);
+    assert_eq!(out.len(), robot.dof() * robot.n_params(), "output length n·p");
+    regressor_generic(robot, q, qd, qdd, ALL, &mut ws.kin, out);
+}
+
+/// Derivatives of the regressor: `dq[k]`, `dqd[k]`, `dqdd[k]` receive
+/// ∂Y/∂q_k, ∂Y/∂q̇_k, ∂Y/∂q̈_k (each row-major n×p, in slices of length n·p),
+/// and `y` receives Y itself. Sign-function columns have zero derivative.
+pub fn regressor_derivatives(
+    robot: &Robot,
+    ws: &mut Workspace,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    y: &mut [f64],
+    dq: &mut [Vec<f64>],
+    dqd: &mut [Vec<f64>],
+    dqdd: &mut [Vec<f64>],
+) {
+    check_state(robot, q, qd, qdd);
+    let n = robot.dof();
+    let np = n * robot.n_params();
+    regressor_generic(robot, q, qd, qdd, ALL, &mut ws.kin, y);
+    let mut yd = std::mem::take(&mut ws.y_dual);
+    for (which, outs) in [(0usize, dq), (1, dqd), (2, dqdd)] {
+        for k in 0..n {
+            for i in 0..n {
+                let seed = |x: f64, on: bool| Dual64::new(x, if on { 1.0 } else { 0.0 });
+                ws.q_dual[i] = seed(q[i], which == 0 && i == k);
+                ws.qd_dual[i] = seed(qd[i], which == 1 && i == k);
+                ws.qdd_dual[i] = seed(qdd[i], which == 2 && i == k);
+            }
+            regressor_generic(robot, &ws.q_dual, &ws.qd_dual, &ws.qdd_dual, ALL, &mut ws.dual, &mut yd);
+            let o = &mut outs[k];
+            debug_assert_eq!(o.len(), np);
+            for (d, s) in o.iter_mut().zip(yd.iter()) {
+                *d = s.eps;
+            }
+        }
+    }
+    ws.y_dual = yd;
+}
+
+/// Derivatives of inverse dynamics (motor side) with parameters `theta`:
+/// returns (∂τ/∂q, ∂τ/∂q̇), each n×n. (∂τ/∂q̈ is [`motor_inertia`].)
+pub fn id_derivatives(robot: &Robot, ws: &mut Workspace, theta: &[f64], q: &[f64], qd: &[f64], qdd: &[f64]) -> (DMatrix<f64>, DMatrix<f64>) {
+    check_state(robot, q, qd, qdd);
+    let n = robot.dof();
+    let mut dq = DMatrix::zeros(n, n);
+    let mut dqd = DMatrix::zeros(n, n);
+    let mut inert = std::mem::take(&mut ws.inertials);
+    let mut tau = std::mem::take(&mut ws.tau_dual);
+    for which in 0..2 {
+        for k in 0..n {
+            for i in 0..n {
+                ws.q_dual[i] = Dual64::new(q[i], if which == 0 && i == k { 1.0 } else { 0.0 });
+                ws.qd_dual[i] = Dual64::new(qd[i], if which == 1 && i == k { 1.0 } else { 0.0 });
+                ws.qdd_dual[i] = Dual64::from(qdd[i]);
+            }
+            inverse_dynamics_generic(robot, &mut inert, theta, &ws.q_dual, &ws.qd_dual, &ws.qdd_dual, ALL, &mut ws.dual, &mut tau);
+            let m = if which == 0 { &mut dq } else { &mut dqd };
+            for i in 0..n {
+                m[(i, k)] = tau[i].eps;
+            }
+        }
+    }
+    ws.inertials = inert;
+    ws.tau_dual = tau;
+    (dq, dqd)
+}
+
+fn spatial_inertia(ine: &Inertial) -> Matrix6<f64> {
+    let sh = ine.first_moment.cross_matrix();
+    let mut m = Matrix6::zeros();
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&ine.inertia);
+    m.fixed_view_mut::<3, 3>(0, 3).copy_from(&sh);
+    m.fixed_view_mut::<3, 3>(3, 0).copy_from(&sh.transpose());
+    m.fixed_view_mut::<3, 3>(3, 3).copy_from(&(Matrix3::identity() * ine.mass));
+    m
+}
+
+/// Motion transform parent → child (6×6) from child orientation `r` and position `p` in parent.
+fn motion_x(r: &Matrix3<f64>, p: &Vector3<f64>) -> Matrix6<f64> {
+    let rt = r.transpose();
+    let mut x = Matrix6::zeros();
+    x.fixed_view_mut::<3, 3>(0, 0).copy_from(&rt);
+    x.fixed_view_mut::<3, 3>(3, 3).copy_from(&rt);
+    x.fixed_view_mut::<3, 3>(3, 0).copy_from(&(-rt * p.cross_matrix()));
+    x
+}
+
+/// Link-side mass matrix for parameters `theta`: M_rb(q) + Cᵀ diag(Ia) C
+/// (n×n, symmetric, positive definite for physical parameters). Composite
+/// rigid-body algorithm.
+pub fn mass_matrix_with(robot: &Robot, ws: &mut Workspace, theta: &[f64], q: &[f64]) -> DMatrix<f64> {
+    let n = robot.dof();
+    assert_eq!(theta.len(), robot.n_params(), "parameter vector length");
+    assert_eq!(q.len(), n, "q length");
+    joint_transforms(robot, q, &mut ws.kin);
+    for i in 0..n {
+        let o = robot.link_param_offset(i);
+        ws.ic[i] = spatial_inertia(&Inertial::from_params(&theta[o..o + 10]));
+    }
+    let xs: Vec<Matrix6<f64>> = (0..n).map(|i| motion_x(&ws.kin.rot[i], &ws.kin.pos[i])).collect();
+    for i in (0..n).rev() {
+        if let Some(p) = robot.joints[i].parent {
+            let add = xs[i].transpose() * ws.ic[i] * xs[i];
+            ws.ic[p] += add;
+        }
+    }
+    let s: Vec<nalgebra::Vector6<f64>> = (0..n)
+        .map(|i| {
+            let (a, l) = (robot.s_ang[i], robot.s_lin[i]);
+            nalgebra::Vector6::new(a.x, a.y, a.z, l.x, l.y, l.z)
+        })
+        .collect();
+    let mut m = DMatrix::zeros(n, n);
+    for i in 0..n {
+        let mut f = ws.ic[i] * s[i];
+        m[(i, i)] = s[i].dot(&f);
+        let mut j = i;
+        while let Some(p) = robot.joints[j].parent {
+            f = xs[j].transpose() * f;
+            j = p;
+            m[(i, j)] = s[j].dot(&f);
+            m[(j, i)] = m[(i, j)];
+        }
+    }
+    // rotor inertias: Cᵀ diag(Ia) C
+    let c = robot.coupling_matrix();
+    for j in 0..n {
+        if robot.drives[j].rotor_inertia.is_some() {
+            let ia = theta[robot.drive_param_offset(j)];
+            for a in 0..n {
+                for b in 0..n {
+                    m[(a, b)] += c[(j, a)] * ia * c[(j, b)];
+                }
+            }
+        }
+    }
+    m
+}
+
+/// Link-side mass matrix with the nominal parameters.
+pub fn mass_matrix(robot: &Robot, ws: &mut Workspace, q: &[f64]) -> DMatrix<f64> {
+    let theta = robot.nominal_params();
+    mass_matrix_with(robot, ws, theta.as_slice(), q)
+}
+
+/// ∂τ/∂q̈ of the motor-side torque: C⁻ᵀ M_rb + diag(Ia) C (n×n; equals the
+/// mass matrix when there is no coupling).
+pub fn motor_inertia(robot: &Robot, ws: &mut Workspace, theta: &[f64], q: &[f64]) -> DMatrix<f64> {
+    match &robot.coupling_inv_t {
+        None => mass_matrix_with(robot, ws, theta, q),
+        // M_total = M_rb + Cᵀ D C  ⇒  C⁻ᵀ M_total = C⁻ᵀ M_rb + D C
+        Some(ct) => ct * mass_matrix_with(robot, ws, theta, q),
+    }
+}
+
+/// Link-side gravity torques g(q) (nominal parameters).
+pub fn gravity(robot: &Robot, ws: &mut Workspace, q: &[f64]) -> DVector<f64> {
+    let n = robot.dof();
+    let z = vec![0.0; n];
+    let mut out = vec![0.0; n];
+    let inert = std::mem::take(&mut ws.inertials);
+    rnea_rigid(robot, &inert, q, &z, &z, true, &mut ws.kin, &mut out);
+    ws.inertials = inert;
+    DVector::from_vec(out)
+}
+
+/// Link-side Coriolis, centrifugal and gravity torques c(q, q̇) + g(q) (nominal parameters, no friction).
+pub fn bias_forces(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64]) -> DVector<f64> {
+    let n = robot.dof();
+    let z = vec![0.0; n];
+    let mut out = vec![0.0; n];
+    let inert = std::mem::take(&mut ws.inertials);
+    rnea_rigid(robot, &inert, q, qd, &z, true, &mut ws.kin, &mut out);
+    ws.inertials = inert;
+    DVector::from_vec(out)
+}
+
+/// Forward dynamics: joint accelerations q̈ for motor torques `tau_motor`
+/// (nominal parameters, friction included):
+/// (M_rb + CᵀIaC) q̈ = Cᵀ(τ_m − f(C q̇)) − c(q, q̇) − g(q).
+/// Returns an error if the mass matrix is not positive definite.
+pub fn forward_dynamics(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64], tau_motor: &[f64]) -> crate::Result<DVector<f64>> {
+    let n = robot.dof();
+    let m = mass_matrix(robot, ws, q);
+    let c = robot.coupling_matrix();
+    let w = &c * DVector::from_column_slice(qd);
+    let mut tm = DVector::from_column_slice(tau_motor);
+    for j in 0..n {
+        tm[j] -= friction_torque(&robot.drives[j].friction, w[j]);
+    }
+    let rhs = c.transpose() * tm - bias_forces(robot, ws, q, qd);
+    let chol = m.cholesky().ok_or_else(|| crate::Error::Numerical("mass matrix is not positive definite".into()))?;
+    Ok(chol.solve(&rhs))
+}

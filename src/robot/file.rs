@@ -1,0 +1,413 @@
+//! Robot files in TOML: either a DH table (standard or modified convention)
+//! with the inertial parameters of every link, or a pointer to a URDF; either
+//! way with the drive side URDF lacks (rotor inertia, gear ratio, friction,
+//! acceleration limits), a joint coupling matrix and named frames.
+//! The format is documented in the README ("Robot files").
+
+use super::model::{Drive, Frame, Friction, Inertial, Joint, JointKind, JointLimits, Link, Robot};
+use super::urdf::{load_urdf, pose_to_iso};
+use crate::error::{Error, Result};
+use nalgebra::{DMatrix, Isometry3, Matrix3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
+use serde::Deserialize;
+use std::path::Path;
+
+/// Friction model names in robot files.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum FrictionName {
+    /// No friction parameters.
+    None,
+    /// Fc·sign(q̇) + Fv·q̇.
+    Symmetric,
+    /// Paper 002 eq. 2.
+    Asymmetric,
+}
+
+/// DH conventions.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum DhConvention {
+    /// T = Rz(θ) Tz(d) Tx(a) Rx(α) (Denavit–Hartenberg, as in Corke's toolbox).
+    Standard,
+    /// T = Rx(α) Tx(a) Rz(θ) Tz(d) (Craig / Khalil–Kleinfinger): row i holds a_{i−1}, α_{i−1}.
+    Modified,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RobotFile {
+    name: Option<String>,
+    source: Option<String>,
+    gravity: Option<[f64; 3]>,
+    friction: Option<FrictionName>,
+    urdf: Option<String>,
+    base_link: Option<String>,
+    tip_link: Option<String>,
+    dh: Option<DhConvention>,
+    #[serde(default)]
+    joint: Vec<DhJoint>,
+    #[serde(default)]
+    drive: Vec<DriveSpec>,
+    coupling: Option<Vec<Vec<f64>>>,
+    #[serde(default)]
+    frame: Vec<FrameSpec>,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "snake_case")]
+enum JointType {
+    #[default]
+    Revolute,
+    Prismatic,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DhJoint {
+    name: String,
+    link: Option<String>,
+    #[serde(default, rename = "type")]
+    kind: JointType,
+    #[serde(default)]
+    a: f64,
+    #[serde(default)]
+    alpha: f64,
+    #[serde(default)]
+    d: f64,
+    #[serde(default)]
+    theta: f64,
+    lower: Option<f64>,
+    upper: Option<f64>,
+    velocity: Option<f64>,
+    acceleration: Option<f64>,
+    effort: Option<f64>,
+    inertial: Option<InertialSpec>,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "snake_case")]
+enum InertiaAt {
+    #[default]
+    Com,
+    Origin,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct InertialSpec {
+    mass: f64,
+    #[serde(default)]
+    com: [f64; 3],
+    #[serde(default)]
+    inertia: [f64; 6],
+    #[serde(default)]
+    inertia_at: InertiaAt,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DriveSpec {
+    joint: String,
+    ia: Option<f64>,
+    gear_ratio: Option<f64>,
+    friction: Option<FrictionName>,
+    fc: Option<f64>,
+    fv: Option<f64>,
+    f0: Option<f64>,
+    fc_pos: Option<f64>,
+    fc_neg: Option<f64>,
+    fv_pos: Option<f64>,
+    fv_neg: Option<f64>,
+    lower: Option<f64>,
+    upper: Option<f64>,
+    velocity: Option<f64>,
+    acceleration: Option<f64>,
+    effort: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FrameSpec {
+    name: String,
+    link: Option<String>,
+    #[serde(default)]
+    xyz: [f64; 3],
+    #[serde(default)]
+    rpy: [f64; 3],
+}
+
+fn finite(ctx: &str, field: &str, v: f64) -> Result<f64> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(Error::invalid(ctx, field, format!("expected a finite number, found {v}")))
+    }
+}
+
+/// Loads a robot from a `.urdf` file (drives with zero friction) or a `.toml`
+/// robot file.
+pub fn load(path: &Path) -> Result<Robot> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    match ext.as_str() {
+        "urdf" | "xml" => {
+            let parts = load_urdf(path, None, None)?;
+            Robot::new(
+                parts.name,
+                parts.joints,
+                parts.links,
+                parts.drives,
+                None,
+                parts.frames,
+                Vector3::new(0.0, 0.0, -9.81),
+                format!("URDF {}", path.display()),
+            )
+        }
+        "toml" => {
+            let text = crate::io::read_to_string(path)?;
+            parse_robot_toml(path, &text)
+        }
+        _ => Err(Error::parse(path, "unknown robot file type: expected a .urdf or a .toml robot file")),
+    }
+}
+
+/// Parses a TOML robot file; `path` locates a referenced URDF and names the file in messages.
+pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
+    let f: RobotFile = crate::io::parse_toml(path, text)?;
+    let ctx = path.display().to_string();
+    let default_friction = f.friction.unwrap_or(FrictionName::Symmetric);
+    let (name, mut joints, links, mut drives, mut frames) = match (&f.urdf, &f.dh) {
+        (Some(_), Some(_)) => return Err(Error::invalid(&ctx, "urdf", "give either `urdf` or a `dh` table, not both")),
+        (None, None) => return Err(Error::invalid(&ctx, "urdf", "expected `urdf = \"file.urdf\"` or `dh = \"standard\"|\"modified\"` with [[joint]] rows")),
+        (Some(u), None) => {
+            if !f.joint.is_empty() {
+                return Err(Error::invalid(&ctx, "joint", "[[joint]] rows are for DH robots; a URDF robot takes its joints from the URDF"));
+            }
+            let upath = path.parent().unwrap_or(Path::new(".")).join(u);
+            let parts = load_urdf(&upath, f.base_link.as_deref(), f.tip_link.as_deref())?;
+            (parts.name, parts.joints, parts.links, parts.drives, parts.frames)
+        }
+        (None, Some(conv)) => {
+            if f.base_link.is_some() || f.tip_link.is_some() {
+                return Err(Error::invalid(&ctx, "base_link", "base_link/tip_link apply to URDF robots only"));
+            }
+            let (j, l) = dh_robot(&ctx, *conv, &f.joint)?;
+            let n = j.len();
+            (String::new(), j, l, vec![Drive::default(); n], Vec::new())
+        }
+    };
+    let n = joints.len();
+    for d in drives.iter_mut() {
+        d.friction = match default_friction {
+            FrictionName::None => Friction::None,
+            FrictionName::Symmetric => d.friction,
+            FrictionName::Asymmetric => Friction::Asymmetric { fc_pos: 0.0, fc_neg: 0.0, fv_pos: 0.0, fv_neg: 0.0, offset: None },
+        };
+    }
+    let mut seen = vec![false; n];
+    for (k, ds) in f.drive.iter().enumerate() {
+        let field = |s: &str| format!("drive[{k}] (joint `{}`).{s}", ds.joint);
+        let j = joints
+            .iter()
+            .position(|j| j.name == ds.joint)
+            .ok_or_else(|| Error::invalid(&ctx, format!("drive[{k}].joint"), format!("no actuated joint named `{}`; joints are: {}", ds.joint, joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>().join(", "))))?;
+        if seen[j] {
+            return Err(Error::invalid(&ctx, format!("drive[{k}].joint"), format!("joint `{}` has two [[drive]] entries", ds.joint)));
+        }
+        seen[j] = true;
+        let d = &mut drives[j];
+        if let Some(ia) = ds.ia {
+            if !(ia.is_finite() && ia >= 0.0) {
+                return Err(Error::invalid(&ctx, field("ia"), format!("expected a non-negative rotor inertia, found {ia}")));
+            }
+            d.rotor_inertia = Some(ia);
+        }
+        if let Some(g) = ds.gear_ratio {
+            if !(g.is_finite() && g != 0.0) {
+                return Err(Error::invalid(&ctx, field("gear_ratio"), format!("expected a non-zero finite ratio, found {g}")));
+            }
+            d.gear_ratio = g;
+        }
+        let model = ds.friction.unwrap_or(default_friction);
+        let val = |v: Option<f64>, s: &str| -> Result<f64> { finite(&ctx, &field(s), v.unwrap_or(0.0)) };
+        let offset = match ds.f0 {
+            Some(v) => Some(finite(&ctx, &field("f0"), v)?),
+            None => None,
+        };
+        let asym_given = ds.fc_pos.is_some() || ds.fc_neg.is_some() || ds.fv_pos.is_some() || ds.fv_neg.is_some();
+        d.friction = match model {
+            FrictionName::None => {
+                if ds.fc.is_some() || ds.fv.is_some() || asym_given || offset.is_some() {
+                    return Err(Error::invalid(&ctx, field("friction"), "friction = \"none\" but friction coefficients are given"));
+                }
+                Friction::None
+            }
+            FrictionName::Symmetric => {
+                if asym_given {
+                    return Err(Error::invalid(&ctx, field("fc_pos"), "fc_pos/fc_neg/fv_pos/fv_neg need friction = \"asymmetric\""));
+                }
+                let (fc0, fv0) = match d.friction {
+                    Friction::Symmetric { fc, fv, .. } => (fc, fv),
+                    _ => (0.0, 0.0),
+                };
+                Friction::Symmetric { fc: val(ds.fc.or(Some(fc0)), "fc")?, fv: val(ds.fv.or(Some(fv0)), "fv")?, offset }
+            }
+            FrictionName::Asymmetric => {
+                if ds.fc.is_some() || ds.fv.is_some() {
+                    return Err(Error::invalid(&ctx, field("fc"), "the asymmetric model takes fc_pos, fc_neg, fv_pos, fv_neg"));
+                }
+                Friction::Asymmetric {
+                    fc_pos: val(ds.fc_pos, "fc_pos")?,
+                    fc_neg: val(ds.fc_neg, "fc_neg")?,
+                    fv_pos: val(ds.fv_pos, "fv_pos")?,
+                    fv_neg: val(ds.fv_neg, "fv_neg")?,
+                    offset,
+                }
+            }
+        };
+        let lim = &mut joints[j].limits;
+        if let Some(v) = ds.lower {
+            lim.lower = finite(&ctx, &field("lower"), v)?;
+        }
+        if let Some(v) = ds.upper {
+            lim.upper = finite(&ctx, &field("upper"), v)?;
+        }
+        for (s, src, dst) in [
+            ("velocity", ds.velocity, &mut lim.velocity),
+            ("acceleration", ds.acceleration, &mut lim.acceleration),
+            ("effort", ds.effort, &mut lim.effort),
+        ] {
+            if let Some(v) = src {
+                if !(v > 0.0) {
+                    return Err(Error::invalid(&ctx, field(s), format!("expected a positive limit, found {v}")));
+                }
+                *dst = v;
+            }
+        }
+    }
+    let coupling = match &f.coupling {
+        None => None,
+        Some(rows) => {
+            if rows.len() != n || rows.iter().any(|r| r.len() != n) {
+                return Err(Error::invalid(&ctx, "coupling", format!("expected {n} rows of {n} numbers (one per actuated joint)")));
+            }
+            let m = DMatrix::from_fn(n, n, |i, j| rows[i][j]);
+            if m.iter().any(|v| !v.is_finite()) {
+                return Err(Error::invalid(&ctx, "coupling", "expected finite numbers"));
+            }
+            Some(m)
+        }
+    };
+    for (k, fs) in f.frame.iter().enumerate() {
+        let link = match &fs.link {
+            None => None,
+            Some(l) => Some(
+                links
+                    .iter()
+                    .position(|x| &x.name == l)
+                    .or_else(|| frames.iter().find(|fr| &fr.name == l).and_then(|fr| fr.link))
+                    .ok_or_else(|| Error::invalid(&ctx, format!("frame[{k}].link"), format!("no link named `{l}`")))?,
+            ),
+        };
+        // a frame relative to a merged (fixed) URDF link composes with that link's placement
+        let base = fs
+            .link
+            .as_ref()
+            .and_then(|l| if links.iter().any(|x| &x.name == l) { None } else { frames.iter().find(|fr| &fr.name == l).map(|fr| fr.placement) })
+            .unwrap_or_else(Isometry3::identity);
+        frames.push(Frame { name: fs.name.clone(), link, placement: base * pose_to_iso(fs.xyz, fs.rpy) });
+    }
+    let gravity = match f.gravity {
+        Some(g) => {
+            for (i, v) in g.iter().enumerate() {
+                finite(&ctx, &format!("gravity[{i}]"), *v)?;
+            }
+            Vector3::from(g)
+        }
+        None => Vector3::new(0.0, 0.0, -9.81),
+    };
+    let name = f.name.clone().unwrap_or(if name.is_empty() { path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default() } else { name });
+    let source = f.source.clone().unwrap_or_else(|| path.display().to_string());
+    Robot::new(name, joints, links, drives, coupling, frames, gravity, source)
+}
+
+fn rot_x(a: f64) -> Isometry3<f64> {
+    Isometry3::from_parts(Translation3::identity(), UnitQuaternion::from_axis_angle(&Vector3::x_axis(), a))
+}
+fn rot_z(a: f64) -> Isometry3<f64> {
+    Isometry3::from_parts(Translation3::identity(), UnitQuaternion::from_axis_angle(&Vector3::z_axis(), a))
+}
+fn tr(x: f64, y: f64, z: f64) -> Isometry3<f64> {
+    Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::identity())
+}
+
+fn dh_robot(ctx: &str, conv: DhConvention, rows: &[DhJoint]) -> Result<(Vec<Joint>, Vec<Link>)> {
+    if rows.is_empty() {
+        return Err(Error::invalid(ctx, "joint", "a DH robot needs at least one [[joint]] row"));
+    }
+    let mut joints = Vec::new();
+    let mut links = Vec::new();
+    for (i, r) in rows.iter().enumerate() {
+        let field = |s: &str| format!("joint[{i}] (`{}`).{s}", r.name);
+        for (s, v) in [("a", r.a), ("alpha", r.alpha), ("d", r.d), ("theta", r.theta)] {
+            finite(ctx, &field(s), v)?;
+        }
+        if rows[..i].iter().any(|o| o.name == r.name) {
+            return Err(Error::invalid(ctx, field("name"), "duplicate joint name"));
+        }
+        let (placement, post, offset) = match (conv, r.kind) {
+            (DhConvention::Standard, JointType::Revolute) => (Isometry3::identity(), tr(0.0, 0.0, r.d) * tr(r.a, 0.0, 0.0) * rot_x(r.alpha), r.theta),
+            (DhConvention::Standard, JointType::Prismatic) => (rot_z(r.theta), tr(r.a, 0.0, 0.0) * rot_x(r.alpha), r.d),
+            (DhConvention::Modified, JointType::Revolute) => (rot_x(r.alpha) * tr(r.a, 0.0, 0.0) * tr(0.0, 0.0, r.d), Isometry3::identity(), r.theta),
+            (DhConvention::Modified, JointType::Prismatic) => (rot_x(r.alpha) * tr(r.a, 0.0, 0.0) * rot_z(r.theta), Isometry3::identity(), r.d),
+        };
+        let lower = r.lower.unwrap_or(f64::NEG_INFINITY);
+        let upper = r.upper.unwrap_or(f64::INFINITY);
+        if lower.is_nan() || upper.is_nan() || lower > upper {
+            return Err(Error::invalid(ctx, field("lower"), format!("expected lower ≤ upper, found {lower} > {upper}")));
+        }
+        let pos_lim = |s: &str, v: Option<f64>| -> Result<f64> {
+            match v {
+                None => Ok(f64::INFINITY),
+                Some(v) if v > 0.0 => Ok(v),
+                Some(v) => Err(Error::invalid(ctx, field(s), format!("expected a positive limit, found {v}"))),
+            }
+        };
+        let limits = JointLimits {
+            lower,
+            upper,
+            velocity: pos_lim("velocity", r.velocity)?,
+            acceleration: pos_lim("acceleration", r.acceleration)?,
+            effort: pos_lim("effort", r.effort)?,
+        };
+        let spec = r.inertial.as_ref().ok_or_else(|| Error::invalid(ctx, field("inertial"), "missing [joint.inertial] block: expected mass, com and inertia of the link"))?;
+        if !(spec.mass.is_finite() && spec.mass >= 0.0) {
+            return Err(Error::invalid(ctx, field("inertial.mass"), format!("expected a non-negative mass, found {}", spec.mass)));
+        }
+        for v in spec.com.iter().chain(spec.inertia.iter()) {
+            finite(ctx, &field("inertial"), *v)?;
+        }
+        let [xx, xy, xz, yy, yz, zz] = spec.inertia;
+        let im = Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
+        let com = Vector3::from(spec.com);
+        let inertial = match spec.inertia_at {
+            InertiaAt::Com => Inertial::from_com(spec.mass, com, im, Matrix3::identity()),
+            InertiaAt::Origin => Inertial { mass: spec.mass, first_moment: spec.mass * com, inertia: im },
+        };
+        joints.push(Joint {
+            name: r.name.clone(),
+            kind: match r.kind {
+                JointType::Revolute => JointKind::Revolute,
+                JointType::Prismatic => JointKind::Prismatic,
+            },
+            parent: if i == 0 { None } else { Some(i - 1) },
+            placement,
+            axis: Unit::new_unchecked(Vector3::z()),
+            post,
+            offset,
+            limits,
+        });
+        links.push(Link { name: r.link.clone().unwrap_or_else(|| format!("link{}", i + 1)), inertial });
+    }
+    let _ = Rotation3::<f64>::identity();
+    Ok((joints, links))
+}

@@ -1,0 +1,233 @@
+//! URDF loader: revolute, continuous, prismatic and fixed joints; arbitrary
+//! joint origins and axes; fixed children merged into their parent body's
+//! inertia (and kept as named frames); joint limits.
+
+use super::model::{Drive, Frame, Friction, Inertial, Joint, JointKind, JointLimits, Link};
+use crate::error::{Error, Result};
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
+use std::collections::HashMap;
+use std::path::Path;
+
+/// Pieces of a robot read from a URDF, before the robot file adds drives.
+#[derive(Debug)]
+pub struct UrdfParts {
+    /// Robot name in the URDF.
+    pub name: String,
+    /// Actuated joints (parents first).
+    pub joints: Vec<Joint>,
+    /// Moving links with merged inertia.
+    pub links: Vec<Link>,
+    /// Drives from `<dynamics damping friction>` (Fv, Fc).
+    pub drives: Vec<Drive>,
+    /// Frames of links attached by fixed joints.
+    pub frames: Vec<Frame>,
+}
+
+pub(crate) fn pose_to_iso(xyz: [f64; 3], rpy: [f64; 3]) -> Isometry3<f64> {
+    let rot = Rotation3::from_euler_angles(rpy[0], rpy[1], rpy[2]);
+    Isometry3::from_parts(Translation3::new(xyz[0], xyz[1], xyz[2]), UnitQuaternion::from_rotation_matrix(&rot))
+}
+
+/// Names of the links that have an `<inertial>` element (urdf-rs fills a
+/// default when it is missing, so this is read from the text).
+fn links_with_inertial(text: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut rest = text;
+    while let Some(pos) = rest.find("<link") {
+        rest = &rest[pos + 5..];
+        let head_end = rest.find('>').unwrap_or(rest.len());
+        let head = &rest[..head_end];
+        let name = head.split("name=").nth(1).and_then(|s| {
+            let q = s.chars().next()?;
+            let s = &s[1..];
+            s.find(q).map(|e| s[..e].to_string())
+        });
+        let self_closing = head.trim_end().ends_with('/');
+        let body = if self_closing { "" } else { &rest[..rest.find("</link>").unwrap_or(rest.len())] };
+        if let Some(n) = name {
+            if body.contains("<inertial") {
+                out.push(n);
+            }
+        }
+    }
+    out
+}
+
+/// Reads a URDF file. `base_link` and `tip_link` restrict the model to the
+/// chain between them (default: the root link and the whole tree).
+pub fn load_urdf(path: &Path, base_link: Option<&str>, tip_link: Option<&str>) -> Result<UrdfParts> {
+    let text = crate::io::read_to_string(path)?;
+    parse_urdf(path, &text, base_link, tip_link)
+}
+
+/// Parses URDF text (see [`load_urdf`]); `path` is used in messages.
+pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Option<&str>) -> Result<UrdfParts> {
+    let u = urdf_rs::read_from_string(text).map_err(|e| Error::parse(path, format!("malformed URDF: {e}")))?;
+    let has_inertial = links_with_inertial(text);
+    let link_idx: HashMap<&str, usize> = u.links.iter().enumerate().map(|(i, l)| (l.name.as_str(), i)).collect();
+    let ctx = path.display().to_string();
+    // children of each link
+    let mut children: HashMap<&str, Vec<usize>> = HashMap::new();
+    let mut is_child = vec![false; u.links.len()];
+    for (k, j) in u.joints.iter().enumerate() {
+        let c = *link_idx
+            .get(j.child.link.as_str())
+            .ok_or_else(|| Error::invalid(&ctx, format!("joint `{}` child", j.name), format!("unknown link `{}`", j.child.link)))?;
+        if !link_idx.contains_key(j.parent.link.as_str()) {
+            return Err(Error::invalid(&ctx, format!("joint `{}` parent", j.name), format!("unknown link `{}`", j.parent.link)));
+        }
+        if is_child[c] {
+            return Err(Error::invalid(&ctx, format!("joint `{}`", j.name), format!("link `{}` has two parent joints", j.child.link)));
+        }
+        is_child[c] = true;
+        children.entry(j.parent.link.as_str()).or_default().push(k);
+    }
+    let root = match base_link {
+        Some(b) => {
+            if !link_idx.contains_key(b) {
+                return Err(Error::invalid(&ctx, "base_link", format!("no link named `{b}` in the URDF")));
+            }
+            b.to_string()
+        }
+        None => {
+            let roots: Vec<&str> = u.links.iter().enumerate().filter(|(i, _)| !is_child[*i]).map(|(_, l)| l.name.as_str()).collect();
+            if roots.len() != 1 {
+                return Err(Error::invalid(&ctx, "links", format!("expected exactly one root link, found {}: {}", roots.len(), roots.join(", "))));
+            }
+            roots[0].to_string()
+        }
+    };
+    // restrict to the root→tip chain when a tip is given
+    let allowed: Option<Vec<String>> = match tip_link {
+        None => None,
+        Some(t) => {
+            if !link_idx.contains_key(t) {
+                return Err(Error::invalid(&ctx, "tip_link", format!("no link named `{t}` in the URDF")));
+            }
+            let mut chain = vec![t.to_string()];
+            let mut cur = t.to_string();
+            while cur != root {
+                let j = u
+                    .joints
+                    .iter()
+                    .find(|j| j.child.link == cur)
+                    .ok_or_else(|| Error::invalid(&ctx, "tip_link", format!("`{t}` is not below `{root}`")))?;
+                cur = j.parent.link.clone();
+                chain.push(cur.clone());
+            }
+            Some(chain)
+        }
+    };
+
+    let mut joints = Vec::new();
+    let mut links: Vec<Link> = Vec::new();
+    let mut drives = Vec::new();
+    let mut frames = Vec::new();
+    // DFS stack: (urdf link name, moving link index it belongs to, placement of this urdf link in that moving link's frame)
+    let mut stack: Vec<(String, Option<usize>, Isometry3<f64>)> = vec![(root.clone(), None, Isometry3::identity())];
+    while let Some((lname, owner, placement)) = stack.pop() {
+        let li = link_idx[lname.as_str()];
+        let ul = &u.links[li];
+        // inertia of this urdf link, expressed in the owner's frame
+        let ine = &ul.inertial;
+        let rot = Rotation3::from_euler_angles(ine.origin.rpy[0], ine.origin.rpy[1], ine.origin.rpy[2]).into_inner();
+        let i = &ine.inertia;
+        let ic = Matrix3::new(i.ixx, i.ixy, i.ixz, i.ixy, i.iyy, i.iyz, i.ixz, i.iyz, i.izz);
+        let m = ine.mass.value;
+        if !m.is_finite() || m < 0.0 {
+            return Err(Error::invalid(&ctx, format!("link `{lname}` <mass>"), format!("expected a non-negative mass, found {m}")));
+        }
+        if m == 0.0 && owner.is_some() && ic != Matrix3::zeros() {
+            return Err(Error::invalid(&ctx, format!("link `{lname}` <mass>"), "zero mass with a non-zero inertia tensor"));
+        }
+        let local = Inertial::from_com(m, Vector3::from(ine.origin.xyz.0), ic, rot);
+        match owner {
+            Some(o) => {
+                let add = local.transformed(&placement);
+                links[o].inertial = links[o].inertial.add(&add);
+            }
+            None => {}
+        }
+        for &k in children.get(lname.as_str()).map(|v| v.as_slice()).unwrap_or(&[]).iter().rev() {
+            let j = &u.joints[k];
+            if let Some(a) = &allowed {
+                if !a.contains(&j.child.link) {
+                    continue;
+                }
+            }
+            let origin = pose_to_iso(j.origin.xyz.0, j.origin.rpy.0);
+            let kind = match j.joint_type {
+                urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => Some(JointKind::Revolute),
+                urdf_rs::JointType::Prismatic => Some(JointKind::Prismatic),
+                urdf_rs::JointType::Fixed => None,
+                ref other => {
+                    return Err(Error::invalid(
+                        &ctx,
+                        format!("joint `{}` type", j.name),
+                        format!("unsupported joint type {other:?}; expected revolute, continuous, prismatic or fixed"),
+                    ))
+                }
+            };
+            match kind {
+                None => {
+                    let pl = placement * origin;
+                    frames.push(Frame { name: j.child.link.clone(), link: owner, placement: pl });
+                    stack.push((j.child.link.clone(), owner, pl));
+                }
+                Some(kind) => {
+                    let axis = Vector3::from(j.axis.xyz.0);
+                    if !(axis.norm() > 1e-12) || axis.iter().any(|v| !v.is_finite()) {
+                        return Err(Error::invalid(&ctx, format!("joint `{}` <axis>", j.name), "expected a non-zero axis"));
+                    }
+                    let continuous = j.joint_type == urdf_rs::JointType::Continuous;
+                    let l = &j.limit;
+                    let pos = |v: f64| if v > 0.0 && v.is_finite() { v } else { f64::INFINITY };
+                    let limits = JointLimits {
+                        lower: if continuous { f64::NEG_INFINITY } else { l.lower },
+                        upper: if continuous { f64::INFINITY } else { l.upper },
+                        velocity: pos(l.velocity),
+                        acceleration: pos(l.acceleration),
+                        effort: pos(l.effort),
+                    };
+                    if limits.lower > limits.upper {
+                        return Err(Error::invalid(&ctx, format!("joint `{}` <limit>", j.name), format!("lower {} > upper {}", l.lower, l.upper)));
+                    }
+                    let idx = joints.len();
+                    joints.push(Joint {
+                        name: j.name.clone(),
+                        kind,
+                        parent: owner,
+                        placement: placement * origin,
+                        axis: Unit::new_normalize(axis),
+                        post: Isometry3::identity(),
+                        offset: 0.0,
+                        limits,
+                    });
+                    links.push(Link { name: j.child.link.clone(), inertial: Inertial::zero() });
+                    let (fv, fc) = j.dynamics.as_ref().map(|d| (d.damping, d.friction)).unwrap_or((0.0, 0.0));
+                    drives.push(Drive { rotor_inertia: None, gear_ratio: 1.0, friction: Friction::Symmetric { fc, fv, offset: None } });
+                    if !has_inertial.contains(&j.child.link) {
+                        // allowed only if a fixed child brings mass; checked below
+                    }
+                    stack.push((j.child.link.clone(), Some(idx), Isometry3::identity()));
+                }
+            }
+        }
+    }
+    // a moving link with no inertial data at all (its own or merged) is an error
+    for (i, l) in links.iter().enumerate() {
+        if l.inertial.mass == 0.0 && l.inertial.inertia == Matrix3::zeros() {
+            let own = if has_inertial.contains(&l.name) { "has zero mass and inertia" } else { "has no <inertial> block" };
+            return Err(Error::invalid(
+                &ctx,
+                format!("link `{}`", l.name),
+                format!("moving link (joint `{}`) {own}; expected its mass, centre of mass and inertia", joints[i].name),
+            ));
+        }
+    }
+    if joints.is_empty() {
+        return Err(Error::invalid(&ctx, "joints", "no revolute, continuous or prismatic joint found"));
+    }
+    // topological order is guaranteed by the DFS (parents pushed before children)
+    Ok(UrdfParts { name: u.name.clone(), joints, links, drives, frames })
+}
