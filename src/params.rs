@@ -173,7 +173,7 @@ impl BaseParams {
         // rank cross-check with column-pivoted QR on the normalised columns
         let wn = DMatrix::from_fn(w.nrows(), considered.len(), |i, j| {
             let c = considered[j];
-            if norms[c] > 0.0 {
+            if norms[c] > 1e-12 * scale.max(1e-300) {
                 w[(i, c)] / norms[c]
             } else {
                 0.0

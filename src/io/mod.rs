@@ -6,12 +6,14 @@
 //! output behind.
 
 pub mod plot;
+pub mod states;
 pub mod table;
 
 use crate::error::{Error, Result};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+pub use states::States;
 pub use table::Table;
 
 /// Writes `bytes` to `path` atomically (temp file in the same folder, fsync, rename).

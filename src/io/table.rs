@@ -28,6 +28,7 @@ impl Table {
         let mut rdr = csv::ReaderBuilder::new()
             .has_headers(true)
             .trim(csv::Trim::All)
+            .flexible(true)
             .comment(Some(b'#'))
             .from_reader(text.as_bytes());
         let headers = rdr.headers().map_err(|e| Error::parse(path, format!("header: {e}")))?.clone();
