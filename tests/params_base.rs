@@ -45,12 +45,26 @@ fn base_parameter_counts_of_the_shipped_robots() {
         let Some((_, r)) = shipped.iter().find(|(n, _)| n == name) else {
             panic!("designs/robots/{name}.toml is missing");
         };
-        let bp = BaseParams::compute(r, &BaseOptions { inertial_only: true, ..Default::default() }).unwrap();
+        let bp = BaseParams::compute(
+            r,
+            &BaseOptions {
+                inertial_only: true,
+                ..Default::default()
+            },
+        )
+        .unwrap();
         assert_eq!(bp.n_base(), count, "{name}: inertial base parameters");
     }
     // the iiwa URDF on its own (no robot file) gives the same count
     let r = robot::load(&root("designs/robots/iiwa14_no_collision.urdf")).unwrap();
-    let bp = BaseParams::compute(&r, &BaseOptions { inertial_only: true, ..Default::default() }).unwrap();
+    let bp = BaseParams::compute(
+        &r,
+        &BaseOptions {
+            inertial_only: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     assert_eq!(bp.n_base(), 43);
 }
 
@@ -60,9 +74,22 @@ fn base_parameter_counts_of_the_shipped_robots() {
 #[test]
 fn groupings_follow_the_regrouping_rules() {
     let r = robot::load(&root("tests/data/coupled6_modified.toml")).unwrap();
-    let bp = BaseParams::compute(&r, &BaseOptions { inertial_only: true, ..Default::default() }).unwrap();
+    let bp = BaseParams::compute(
+        &r,
+        &BaseOptions {
+            inertial_only: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     assert_eq!(bp.n_base(), 36);
-    let g = |name: &str| bp.names.iter().position(|n| n == name).map(|i| bp.groupings[i].clone()).unwrap_or_else(|| panic!("no base parameter {name}: {:?}", bp.names));
+    let g = |name: &str| {
+        bp.names
+            .iter()
+            .position(|n| n == name)
+            .map(|i| bp.groupings[i].clone())
+            .unwrap_or_else(|| panic!("no base parameter {name}: {:?}", bp.names))
+    };
     assert!(g("ZZ1R").starts_with("ZZ1 + YY2"), "{}", g("ZZ1R"));
     assert!(g("XX2R").starts_with("XX2 - YY2"), "{}", g("XX2R"));
     assert!(g("MX2R").contains("0.6*M3"), "{}", g("MX2R"));
@@ -74,6 +101,20 @@ fn groupings_follow_the_regrouping_rules() {
 #[test]
 fn rank_tolerance_is_validated() {
     let r = robot::load(&root("tests/data/rpr_standard.toml")).unwrap();
-    assert!(BaseParams::compute(&r, &BaseOptions { tol: 0.0, ..Default::default() }).is_err());
-    assert!(BaseParams::compute(&r, &BaseOptions { samples: 1, ..Default::default() }).is_err());
+    assert!(BaseParams::compute(
+        &r,
+        &BaseOptions {
+            tol: 0.0,
+            ..Default::default()
+        }
+    )
+    .is_err());
+    assert!(BaseParams::compute(
+        &r,
+        &BaseOptions {
+            samples: 1,
+            ..Default::default()
+        }
+    )
+    .is_err());
 }

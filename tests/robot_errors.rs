@@ -61,7 +61,11 @@ fn missing_inertial_block_is_rejected() {
 #[test]
 fn non_positive_mass_is_rejected() {
     let d = tempfile::tempdir().unwrap();
-    let p = write(d.path(), "neg.toml", &format!("dh = \"standard\"\n{}", JOINT.replace("mass = 1.0", "mass = -2.0")));
+    let p = write(
+        d.path(),
+        "neg.toml",
+        &format!("dh = \"standard\"\n{}", JOINT.replace("mass = 1.0", "mass = -2.0")),
+    );
     let e = err_of(&p);
     assert!(e.contains("neg.toml") && e.contains("mass") && e.contains("-2"), "{e}");
     let u = write(
@@ -77,7 +81,11 @@ fn non_positive_mass_is_rejected() {
 #[test]
 fn unknown_joint_types_are_rejected() {
     let d = tempfile::tempdir().unwrap();
-    let p = write(d.path(), "kind.toml", &format!("dh = \"standard\"\n{}", JOINT.replace("d = 0.3", "d = 0.3\ntype = \"spherical\"")));
+    let p = write(
+        d.path(),
+        "kind.toml",
+        &format!("dh = \"standard\"\n{}", JOINT.replace("d = 0.3", "d = 0.3\ntype = \"spherical\"")),
+    );
     let e = err_of(&p);
     assert!(e.contains("kind.toml") && e.contains("spherical"), "{e}");
     let u = write(
@@ -99,7 +107,11 @@ fn malformed_urdf_and_bad_references_are_rejected() {
     let p = write(d.path(), "ref.toml", "urdf = \"missing.urdf\"\n");
     let e = err_of(&p);
     assert!(e.contains("missing.urdf"), "{e}");
-    let p = write(d.path(), "drive.toml", &format!("dh = \"standard\"\n{JOINT}\n[[drive]]\njoint = \"j9\"\nfc = 1.0\n"));
+    let p = write(
+        d.path(),
+        "drive.toml",
+        &format!("dh = \"standard\"\n{JOINT}\n[[drive]]\njoint = \"j9\"\nfc = 1.0\n"),
+    );
     let e = err_of(&p);
     assert!(e.contains("drive.toml") && e.contains("j9") && e.contains("j1"), "{e}");
     let p = write(d.path(), "coup.toml", &format!("dh = \"standard\"\ncoupling = [[1.0, 0.0]]\n{JOINT}"));
@@ -138,7 +150,13 @@ fn cli_reports_errors_without_panicking() {
     let d = tempfile::tempdir().unwrap();
     let p = write(d.path(), "nan.csv", "q1,q2,q3,qd1,qd2,qd3,qdd1,qdd2,qdd3\n0,0,0,0,0,0,0,inf,0\n");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_idexp"))
-        .args(["robot", "torques", common::root("tests/data/rpr_standard.toml").to_str().unwrap(), "--states", p.to_str().unwrap()])
+        .args([
+            "robot",
+            "torques",
+            common::root("tests/data/rpr_standard.toml").to_str().unwrap(),
+            "--states",
+            p.to_str().unwrap(),
+        ])
         .output()
         .unwrap();
     assert!(!out.status.success());

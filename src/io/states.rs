@@ -33,7 +33,12 @@ impl States {
         let iqd = t.numbered("qd", n)?;
         let iqdd = t.numbered("qdd", n)?;
         let pick = |idx: &[usize]| t.rows.iter().map(|r| idx.iter().map(|&i| r[i]).collect()).collect::<Vec<Vec<f64>>>();
-        Ok(States { t: t.index("t").map(|i| t.column(i)), q: pick(&iq), qd: pick(&iqd), qdd: pick(&iqdd) })
+        Ok(States {
+            t: t.index("t").map(|i| t.column(i)),
+            q: pick(&iq),
+            qd: pick(&iqd),
+            qdd: pick(&iqdd),
+        })
     }
 
     /// Number of rows.

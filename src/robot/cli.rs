@@ -83,7 +83,11 @@ pub fn run(args: &RobotArgs) -> Result<()> {
         RobotCmd::Regressor { robot, states, base, out } => {
             let r = load(robot)?;
             let s = States::read(states, r.dof())?;
-            let bp = if *base { Some(BaseParams::compute(&r, &BaseOptions::default())?) } else { None };
+            let bp = if *base {
+                Some(BaseParams::compute(&r, &BaseOptions::default())?)
+            } else {
+                None
+            };
             let (header, rows) = regressor_table(&r, &s, bp.as_ref());
             emit(out.as_deref(), &header, &rows)
         }
@@ -223,7 +227,11 @@ fn fin(v: f64) -> Option<f64> {
 impl RobotInfo {
     /// Collects the summary; computes base parameters with tolerance `tol`.
     pub fn new(r: &Robot, tol: f64, samples: usize) -> Result<RobotInfo> {
-        let opts = BaseOptions { tol, samples, ..Default::default() };
+        let opts = BaseOptions {
+            tol,
+            samples,
+            ..Default::default()
+        };
         let base = BaseParams::compute(r, &opts)?;
         let inertial = BaseParams::compute(r, &BaseOptions { inertial_only: true, ..opts })?;
         Ok(RobotInfo {
@@ -264,7 +272,11 @@ impl RobotInfo {
         let _ = writeln!(s, "robot: {}", self.name);
         let _ = writeln!(s, "source: {}", self.source);
         let _ = writeln!(s, "\njoints ({}):", self.joints.len());
-        let _ = writeln!(s, "  {:<3} {:<22} {:<9} {:>9} {:>9} {:>8} {:>8} {:>8}  drive", "#", "name", "type", "lower", "upper", "vel", "acc", "effort");
+        let _ = writeln!(
+            s,
+            "  {:<3} {:<22} {:<9} {:>9} {:>9} {:>8} {:>8} {:>8}  drive",
+            "#", "name", "type", "lower", "upper", "vel", "acc", "effort"
+        );
         let f = |v: Option<f64>| v.map(|x| format!("{x:.4}")).unwrap_or_else(|| "-".into());
         for (i, j) in self.joints.iter().enumerate() {
             let d = &j.drive;
@@ -273,8 +285,17 @@ impl RobotInfo {
                 super::Friction::Symmetric { fc, fv, offset } => {
                     format!("Fc={fc} Fv={fv}{}", offset.map(|o| format!(" F0={o}")).unwrap_or_default())
                 }
-                super::Friction::Asymmetric { fc_pos, fc_neg, fv_pos, fv_neg, offset } => {
-                    format!("Fc+={fc_pos} Fc-={fc_neg} Fv+={fv_pos} Fv-={fv_neg}{}", offset.map(|o| format!(" F0={o}")).unwrap_or_default())
+                super::Friction::Asymmetric {
+                    fc_pos,
+                    fc_neg,
+                    fv_pos,
+                    fv_neg,
+                    offset,
+                } => {
+                    format!(
+                        "Fc+={fc_pos} Fc-={fc_neg} Fv+={fv_pos} Fv-={fv_neg}{}",
+                        offset.map(|o| format!(" F0={o}")).unwrap_or_default()
+                    )
                 }
             };
             let ia = d.rotor_inertia.map(|v| format!("Ia={v} ")).unwrap_or_default();
@@ -303,7 +324,13 @@ impl RobotInfo {
         }
         let _ = writeln!(s, "\nend effector: {}", self.end_effector);
         let b = &self.base;
-        let _ = writeln!(s, "\nstandard parameters: {} ({} inertial, {} drive/friction)", self.n_standard, self.n_standard_inertial, self.n_standard - self.n_standard_inertial);
+        let _ = writeln!(
+            s,
+            "\nstandard parameters: {} ({} inertial, {} drive/friction)",
+            self.n_standard,
+            self.n_standard_inertial,
+            self.n_standard - self.n_standard_inertial
+        );
         let _ = writeln!(s, "base parameters: {} (inertial part alone: {})", b.n_base(), self.n_base_inertial);
         let _ = writeln!(
             s,
