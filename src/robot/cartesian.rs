@@ -95,7 +95,7 @@ impl Shape {
                 }
             }
             Shape::Sphere { center, radius } => {
-                if !all_finite(center) || !(radius.is_finite() && *radius > 0.0) {
+                if !(all_finite(center) && radius.is_finite() && *radius > 0.0) {
                     return bad("sphere needs a finite centre and a positive radius");
                 }
             }

@@ -172,7 +172,7 @@ fn couple_inv_t<T: Real>(robot: &Robot, tau: &mut [T], scratch: &mut [T]) {
 /// `theta` (f64 constants) at a generic-scalar state.
 pub(crate) fn inverse_dynamics_generic<T: Real>(
     robot: &Robot,
-    inert: &mut Vec<Inertial>,
+    inert: &mut [Inertial],
     theta: &[f64],
     q: &[T],
     qd: &[T],

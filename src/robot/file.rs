@@ -320,7 +320,7 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
             ("effort", ds.effort, &mut lim.effort),
         ] {
             if let Some(v) = src {
-                if !(v > 0.0) {
+                if v.is_nan() || v <= 0.0 {
                     return Err(Error::invalid(&ctx, field(s), format!("expected a positive limit, found {v}")));
                 }
                 *dst = v;

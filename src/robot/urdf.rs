@@ -171,12 +171,9 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
             ));
         }
         let local = Inertial::from_com(m, Vector3::from(ine.origin.xyz.0), ic, rot);
-        match owner {
-            Some(o) => {
-                let add = local.transformed(&placement);
-                links[o].inertial = links[o].inertial.add(&add);
-            }
-            None => {}
+        if let Some(o) = owner {
+            let add = local.transformed(&placement);
+            links[o].inertial = links[o].inertial.add(&add);
         }
         for &k in children.get(lname.as_str()).map(|v| v.as_slice()).unwrap_or(&[]).iter().rev() {
             let j = &u.joints[k];
@@ -210,7 +207,7 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
                 }
                 Some(kind) => {
                     let axis = Vector3::from(j.axis.xyz.0);
-                    if !(axis.norm() > 1e-12) || axis.iter().any(|v| !v.is_finite()) {
+                    if axis.iter().any(|v| !v.is_finite()) || axis.norm() <= 1e-12 {
                         return Err(Error::invalid(&ctx, format!("joint `{}` <axis>", j.name), "expected a non-zero axis"));
                     }
                     let continuous = j.joint_type == urdf_rs::JointType::Continuous;
@@ -251,9 +248,6 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
                         gear_ratio: 1.0,
                         friction: Friction::Symmetric { fc, fv, offset: None },
                     });
-                    if !has_inertial.contains(&j.child.link) {
-                        // allowed only if a fixed child brings mass; checked below
-                    }
                     stack.push((j.child.link.clone(), Some(idx), Isometry3::identity()));
                 }
             }
