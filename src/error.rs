@@ -73,11 +73,18 @@ pub type Result<T> = std::result::Result<T, Error>;
 impl Error {
     /// Shorthand for [`Error::Invalid`].
     pub fn invalid(context: impl Into<String>, field: impl Into<String>, msg: impl Into<String>) -> Self {
-        Error::Invalid { context: context.into(), field: field.into(), msg: msg.into() }
+        Error::Invalid {
+            context: context.into(),
+            field: field.into(),
+            msg: msg.into(),
+        }
     }
     /// Shorthand for [`Error::Parse`].
     pub fn parse(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
-        Error::Parse { path: path.into(), msg: msg.into() }
+        Error::Parse {
+            path: path.into(),
+            msg: msg.into(),
+        }
     }
     /// Shorthand for [`Error::Io`].
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
@@ -85,6 +92,10 @@ impl Error {
     }
     /// Shorthand for [`Error::Dimension`].
     pub fn dim(what: impl Into<String>, expected: usize, got: usize) -> Self {
-        Error::Dimension { what: what.into(), expected, got }
+        Error::Dimension {
+            what: what.into(),
+            expected,
+            got,
+        }
     }
 }

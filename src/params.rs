@@ -39,7 +39,12 @@ pub struct BaseOptions {
 
 impl Default for BaseOptions {
     fn default() -> Self {
-        BaseOptions { samples: 200, seed: 1, tol: 1e-6, inertial_only: false }
+        BaseOptions {
+            samples: 200,
+            seed: 1,
+            tol: 1e-6,
+            inertial_only: false,
+        }
     }
 }
 
@@ -119,7 +124,11 @@ impl BaseParams {
         let p = robot.n_params();
         let min_samples = p.div_ceil(robot.dof()) + 1;
         if opts.samples < min_samples {
-            return Err(Error::invalid("base parameters", "samples", format!("expected at least {min_samples} states for {p} parameters")));
+            return Err(Error::invalid(
+                "base parameters",
+                "samples",
+                format!("expected at least {min_samples} states for {p} parameters"),
+            ));
         }
         let w = random_stack(robot, opts.samples, opts.seed);
         Self::from_stack(robot, &w, opts)
@@ -173,7 +182,7 @@ impl BaseParams {
         // rank cross-check with column-pivoted QR on the normalised columns
         let wn = DMatrix::from_fn(w.nrows(), considered.len(), |i, j| {
             let c = considered[j];
-            if norms[c] > 0.0 {
+            if norms[c] > 1e-12 * scale.max(1e-300) {
                 w[(i, c)] / norms[c]
             } else {
                 0.0
@@ -182,7 +191,11 @@ impl BaseParams {
         let (diag, _) = crate::linalg::col_piv_qr_diag(&wn);
         let rank_qr = diag.iter().filter(|&&d| d > opts.tol * diag[0].max(1e-300)).count();
         kept.sort_unstable();
-        let dependent: Vec<usize> = considered.iter().copied().filter(|c| !kept.contains(c) && !unidentifiable.contains(c)).collect();
+        let dependent: Vec<usize> = considered
+            .iter()
+            .copied()
+            .filter(|c| !kept.contains(c) && !unidentifiable.contains(c))
+            .collect();
         // β from least squares W_b β = W_d
         let wb = DMatrix::from_fn(w.nrows(), kept.len(), |i, j| w[(i, kept[j])]);
         let wd = DMatrix::from_fn(w.nrows(), dependent.len(), |i, j| w[(i, dependent[j])]);
@@ -191,7 +204,9 @@ impl BaseParams {
         } else {
             let qr = wb.clone().qr();
             let qtb = qr.q().transpose() * &wd;
-            qr.r().solve_upper_triangular(&qtb).ok_or_else(|| Error::Numerical("base-parameter regrouping: singular triangular factor".into()))?
+            qr.r()
+                .solve_upper_triangular(&qtb)
+                .ok_or_else(|| Error::Numerical("base-parameter regrouping: singular triangular factor".into()))?
         };
         let mut k = DMatrix::zeros(kept.len(), p);
         let mut regrouped = Vec::new();

@@ -142,7 +142,11 @@ fn power_balance_holds_along_a_trajectory() {
             robot::rnea(&r, &mut ws, &q, &qd, &qdd, &mut tau);
             let w = &c * DVector::from_column_slice(&qd);
             let power: f64 = (0..n).map(|j| w[j] * (tau[j] - robot::friction_torque(&r.drives[j].friction, w[j]))).sum();
-            assert!((de - power).abs() < 1e-5 * (1.0 + power.abs()), "{} at t={t}: dE/dt = {de}, power = {power}", r.name);
+            assert!(
+                (de - power).abs() < 1e-5 * (1.0 + power.abs()),
+                "{} at t={t}: dE/dt = {de}, power = {power}",
+                r.name
+            );
         }
     }
 }
@@ -169,7 +173,12 @@ fn inverse_dynamics_derivatives_match_finite_differences() {
                     robot::rnea(&r, &mut ws, &b[0], &b[1], &qdd, &mut tb);
                     for i in 0..n {
                         let fd = (ta[i] - tb[i]) / (2.0 * h);
-                        assert!((fd - an[(i, k)]).abs() < 1e-5 * (1.0 + fd.abs()), "{}: ∂τ{i}/∂x{k} ({which}) analytic {} fd {fd}", r.name, an[(i, k)]);
+                        assert!(
+                            (fd - an[(i, k)]).abs() < 1e-5 * (1.0 + fd.abs()),
+                            "{}: ∂τ{i}/∂x{k} ({which}) analytic {} fd {fd}",
+                            r.name,
+                            an[(i, k)]
+                        );
                     }
                 }
             }
@@ -214,7 +223,12 @@ fn regressor_derivatives_match_finite_differences() {
                     robot::regressor_rows(&r, &mut ws, &b[0], &b[1], &b[2], &mut yb);
                     for e in 0..n * p {
                         let fd = (ya[e] - yb[e]) / (2.0 * h);
-                        assert!((fd - an[e]).abs() < 1e-5 * (1.0 + fd.abs()), "{}: ∂Y[{e}]/∂x{k} ({which}): {} vs fd {fd}", r.name, an[e]);
+                        assert!(
+                            (fd - an[e]).abs() < 1e-5 * (1.0 + fd.abs()),
+                            "{}: ∂Y[{e}]/∂x{k} ({which}): {} vs fd {fd}",
+                            r.name,
+                            an[e]
+                        );
                     }
                 }
             }

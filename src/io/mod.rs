@@ -6,12 +6,14 @@
 //! output behind.
 
 pub mod plot;
+pub mod states;
 pub mod table;
 
 use crate::error::{Error, Result};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+pub use states::States;
 pub use table::Table;
 
 /// Writes `bytes` to `path` atomically (temp file in the same folder, fsync, rename).
@@ -33,8 +35,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 
 /// Serialises `value` as pretty JSON and writes it atomically.
 pub fn write_json<T: serde::Serialize + ?Sized>(path: &Path, value: &T) -> Result<()> {
-    let mut s = serde_json::to_string_pretty(value)
-        .map_err(|e| Error::Numerical(format!("cannot serialise {}: {e}", path.display())))?;
+    let mut s = serde_json::to_string_pretty(value).map_err(|e| Error::Numerical(format!("cannot serialise {}: {e}", path.display())))?;
     s.push('\n');
     write_atomic(path, s.as_bytes())
 }

@@ -35,15 +35,33 @@ pub struct Series {
 impl Series {
     /// A line series.
     pub fn line(label: impl Into<String>, x: Vec<f64>, y: Vec<f64>) -> Self {
-        Series { label: label.into(), x, y, mark: Mark::Line, err: None }
+        Series {
+            label: label.into(),
+            x,
+            y,
+            mark: Mark::Line,
+            err: None,
+        }
     }
     /// A point series.
     pub fn points(label: impl Into<String>, x: Vec<f64>, y: Vec<f64>) -> Self {
-        Series { label: label.into(), x, y, mark: Mark::Points, err: None }
+        Series {
+            label: label.into(),
+            x,
+            y,
+            mark: Mark::Points,
+            err: None,
+        }
     }
     /// A bar series.
     pub fn bars(label: impl Into<String>, x: Vec<f64>, y: Vec<f64>) -> Self {
-        Series { label: label.into(), x, y, mark: Mark::Bars, err: None }
+        Series {
+            label: label.into(),
+            x,
+            y,
+            mark: Mark::Bars,
+            err: None,
+        }
     }
 }
 
@@ -156,7 +174,9 @@ where
                 let pts: Vec<(f64, f64)> = s.x.iter().zip(&s.y).map(|(a, b)| (*a, *b)).filter(|(a, b)| ok(*a, *b)).collect();
                 let anno = match s.mark {
                     Mark::Line => chart.draw_series(LineSeries::new(pts.clone(), c.stroke_width(1))).map_err(perr(path))?,
-                    Mark::Points => chart.draw_series(pts.iter().map(|&(a, b)| Circle::new((a, b), 2, c.filled()))).map_err(perr(path))?,
+                    Mark::Points => chart
+                        .draw_series(pts.iter().map(|&(a, b)| Circle::new((a, b), 2, c.filled())))
+                        .map_err(perr(path))?,
                     Mark::Bars => {
                         let base = if p.log_y { y0 } else { 0.0 };
                         chart
@@ -166,13 +186,18 @@ where
                 };
                 if !s.label.is_empty() {
                     any_label = true;
-                    anno.label(s.label.clone()).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], c.stroke_width(2)));
+                    anno.label(s.label.clone())
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], c.stroke_width(2)));
                 }
                 if let Some(err) = &s.err {
                     chart
-                        .draw_series(s.x.iter().zip(&s.y).zip(err).filter(|((a, b), _)| ok(**a, **b)).map(|((a, b), e)| {
-                            PathElement::new(vec![(*a, b - e), (*a, b + e)], BLACK.stroke_width(1))
-                        }))
+                        .draw_series(
+                            s.x.iter()
+                                .zip(&s.y)
+                                .zip(err)
+                                .filter(|((a, b), _)| ok(**a, **b))
+                                .map(|((a, b), e)| PathElement::new(vec![(*a, b - e), (*a, b + e)], BLACK.stroke_width(1))),
+                        )
                         .map_err(perr(path))?;
                 }
             }
@@ -185,7 +210,8 @@ where
                     .map_err(perr(path))?;
                 if !label.is_empty() {
                     any_label = true;
-                    anno.label(label.clone()).legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], RED.stroke_width(1)));
+                    anno.label(label.clone())
+                        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], RED.stroke_width(1)));
                     // one legend entry per label is enough
                 }
             }

@@ -28,6 +28,7 @@ impl Table {
         let mut rdr = csv::ReaderBuilder::new()
             .has_headers(true)
             .trim(csv::Trim::All)
+            .flexible(true)
             .comment(Some(b'#'))
             .from_reader(text.as_bytes());
         let headers = rdr.headers().map_err(|e| Error::parse(path, format!("header: {e}")))?.clone();
@@ -37,10 +38,20 @@ impl Table {
         }
         for (i, c) in columns.iter().enumerate() {
             if c.is_empty() {
-                return Err(Error::Data { path: path.into(), row: 0, column: format!("#{}", i + 1), msg: "empty column name in header".into() });
+                return Err(Error::Data {
+                    path: path.into(),
+                    row: 0,
+                    column: format!("#{}", i + 1),
+                    msg: "empty column name in header".into(),
+                });
             }
             if columns[..i].contains(c) {
-                return Err(Error::Data { path: path.into(), row: 0, column: c.clone(), msg: "duplicate column name".into() });
+                return Err(Error::Data {
+                    path: path.into(),
+                    row: 0,
+                    column: c.clone(),
+                    msg: "duplicate column name".into(),
+                });
             }
         }
         let mut rows = Vec::new();
@@ -66,7 +77,12 @@ impl Table {
                     msg: format!("expected a number, found {cell:?}"),
                 })?;
                 if !v.is_finite() {
-                    return Err(Error::Data { path: path.into(), row: r + 1, column: columns[c].clone(), msg: format!("expected a finite number, found {cell}") });
+                    return Err(Error::Data {
+                        path: path.into(),
+                        row: r + 1,
+                        column: columns[c].clone(),
+                        msg: format!("expected a finite number, found {cell}"),
+                    });
                 }
                 row.push(v);
             }
@@ -75,7 +91,11 @@ impl Table {
         if rows.is_empty() {
             return Err(Error::parse(path, "no data rows after the header"));
         }
-        Ok(Table { path: path.into(), columns, rows })
+        Ok(Table {
+            path: path.into(),
+            columns,
+            rows,
+        })
     }
 
     /// Number of data rows.

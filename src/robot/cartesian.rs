@@ -95,7 +95,7 @@ impl Shape {
                 }
             }
             Shape::Sphere { center, radius } => {
-                if !all_finite(center) || !(radius.is_finite() && *radius > 0.0) {
+                if !(all_finite(center) && radius.is_finite() && *radius > 0.0) {
                     return bad("sphere needs a finite centre and a positive radius");
                 }
             }
@@ -171,7 +171,10 @@ impl Shape {
                 let rho = (d.x * d.x + d.y * d.y).sqrt();
                 let phi = d.y.atan2(d.x);
                 let (gr, gphi) = if rho > 1e-12 {
-                    (Vector3::new(d.x / rho, d.y / rho, 0.0), Vector3::new(-d.y / (rho * rho), d.x / (rho * rho), 0.0))
+                    (
+                        Vector3::new(d.x / rho, d.y / rho, 0.0),
+                        Vector3::new(-d.y / (rho * rho), d.x / (rho * rho), 0.0),
+                    )
                 } else {
                     (Vector3::zeros(), Vector3::zeros())
                 };
@@ -214,7 +217,11 @@ impl CartesianConstraint {
             Some(name) => robot.find_frame(name).ok_or_else(|| {
                 let mut names: Vec<String> = robot.links.iter().map(|l| l.name.clone()).collect();
                 names.extend(robot.frames.iter().map(|f| f.name.clone()));
-                Error::invalid(ctx, format!("{field}.frame"), format!("no frame or link named `{name}`; known: {}", names.join(", ")))
+                Error::invalid(
+                    ctx,
+                    format!("{field}.frame"),
+                    format!("no frame or link named `{name}`; known: {}", names.join(", ")),
+                )
             }),
         }
     }

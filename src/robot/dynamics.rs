@@ -172,7 +172,7 @@ fn couple_inv_t<T: Real>(robot: &Robot, tau: &mut [T], scratch: &mut [T]) {
 /// `theta` (f64 constants) at a generic-scalar state.
 pub(crate) fn inverse_dynamics_generic<T: Real>(
     robot: &Robot,
-    inert: &mut Vec<Inertial>,
+    inert: &mut [Inertial],
     theta: &[f64],
     q: &[T],
     qd: &[T],
@@ -275,7 +275,13 @@ pub fn friction_torque(f: &Friction, w: f64) -> f64 {
     match *f {
         Friction::None => 0.0,
         Friction::Symmetric { fc, fv, offset } => fc * sgn(w) + fv * w + offset.unwrap_or(0.0),
-        Friction::Asymmetric { fc_pos, fc_neg, fv_pos, fv_neg, offset } => {
+        Friction::Asymmetric {
+            fc_pos,
+            fc_neg,
+            fv_pos,
+            fv_neg,
+            offset,
+        } => {
             offset.unwrap_or(0.0)
                 + if w > 0.0 {
                     fc_pos + fv_pos * w
@@ -322,7 +328,16 @@ fn rigid_regressor<T: Real>(robot: &Robot, q: &[T], qd: &[T], qdd: &[T], gravity
             let uxw = u.cross(&w);
             let row = &mut y[j * p + robot.link_param_offset(i)..];
             // u^T (L(α) + S(ω)L(ω)) = u^T L(α) + (u×ω)^T L(ω)
-            let l = |a: &Vector3<T>, b: &Vector3<T>| [a.x * b.x, a.x * b.y + a.y * b.x, a.x * b.z + a.z * b.x, a.y * b.y, a.y * b.z + a.z * b.y, a.z * b.z];
+            let l = |a: &Vector3<T>, b: &Vector3<T>| {
+                [
+                    a.x * b.x,
+                    a.x * b.y + a.y * b.x,
+                    a.x * b.z + a.z * b.x,
+                    a.y * b.y,
+                    a.y * b.z + a.z * b.y,
+                    a.z * b.z,
+                ]
+            };
             let l1 = l(&u, &dw);
             let l2 = l(&uxw, &w);
             for k in 0..6 {
@@ -625,6 +640,8 @@ pub fn forward_dynamics(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64]
         tm[j] -= friction_torque(&robot.drives[j].friction, w[j]);
     }
     let rhs = c.transpose() * tm - bias_forces(robot, ws, q, qd);
-    let chol = m.cholesky().ok_or_else(|| crate::Error::Numerical("mass matrix is not positive definite".into()))?;
+    let chol = m
+        .cholesky()
+        .ok_or_else(|| crate::Error::Numerical("mass matrix is not positive definite".into()))?;
     Ok(chol.solve(&rhs))
 }

@@ -177,10 +177,20 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
     let default_friction = f.friction.unwrap_or(FrictionName::Symmetric);
     let (name, mut joints, links, mut drives, mut frames) = match (&f.urdf, &f.dh) {
         (Some(_), Some(_)) => return Err(Error::invalid(&ctx, "urdf", "give either `urdf` or a `dh` table, not both")),
-        (None, None) => return Err(Error::invalid(&ctx, "urdf", "expected `urdf = \"file.urdf\"` or `dh = \"standard\"|\"modified\"` with [[joint]] rows")),
+        (None, None) => {
+            return Err(Error::invalid(
+                &ctx,
+                "urdf",
+                "expected `urdf = \"file.urdf\"` or `dh = \"standard\"|\"modified\"` with [[joint]] rows",
+            ))
+        }
         (Some(u), None) => {
             if !f.joint.is_empty() {
-                return Err(Error::invalid(&ctx, "joint", "[[joint]] rows are for DH robots; a URDF robot takes its joints from the URDF"));
+                return Err(Error::invalid(
+                    &ctx,
+                    "joint",
+                    "[[joint]] rows are for DH robots; a URDF robot takes its joints from the URDF",
+                ));
             }
             let upath = path.parent().unwrap_or(Path::new(".")).join(u);
             let parts = load_urdf(&upath, f.base_link.as_deref(), f.tip_link.as_deref())?;
@@ -200,18 +210,35 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
         d.friction = match default_friction {
             FrictionName::None => Friction::None,
             FrictionName::Symmetric => d.friction,
-            FrictionName::Asymmetric => Friction::Asymmetric { fc_pos: 0.0, fc_neg: 0.0, fv_pos: 0.0, fv_neg: 0.0, offset: None },
+            FrictionName::Asymmetric => Friction::Asymmetric {
+                fc_pos: 0.0,
+                fc_neg: 0.0,
+                fv_pos: 0.0,
+                fv_neg: 0.0,
+                offset: None,
+            },
         };
     }
     let mut seen = vec![false; n];
     for (k, ds) in f.drive.iter().enumerate() {
         let field = |s: &str| format!("drive[{k}] (joint `{}`).{s}", ds.joint);
-        let j = joints
-            .iter()
-            .position(|j| j.name == ds.joint)
-            .ok_or_else(|| Error::invalid(&ctx, format!("drive[{k}].joint"), format!("no actuated joint named `{}`; joints are: {}", ds.joint, joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>().join(", "))))?;
+        let j = joints.iter().position(|j| j.name == ds.joint).ok_or_else(|| {
+            Error::invalid(
+                &ctx,
+                format!("drive[{k}].joint"),
+                format!(
+                    "no actuated joint named `{}`; joints are: {}",
+                    ds.joint,
+                    joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>().join(", ")
+                ),
+            )
+        })?;
         if seen[j] {
-            return Err(Error::invalid(&ctx, format!("drive[{k}].joint"), format!("joint `{}` has two [[drive]] entries", ds.joint)));
+            return Err(Error::invalid(
+                &ctx,
+                format!("drive[{k}].joint"),
+                format!("joint `{}` has two [[drive]] entries", ds.joint),
+            ));
         }
         seen[j] = true;
         let d = &mut drives[j];
@@ -223,7 +250,11 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
         }
         if let Some(g) = ds.gear_ratio {
             if !(g.is_finite() && g != 0.0) {
-                return Err(Error::invalid(&ctx, field("gear_ratio"), format!("expected a non-zero finite ratio, found {g}")));
+                return Err(Error::invalid(
+                    &ctx,
+                    field("gear_ratio"),
+                    format!("expected a non-zero finite ratio, found {g}"),
+                ));
             }
             d.gear_ratio = g;
         }
@@ -237,19 +268,31 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
         d.friction = match model {
             FrictionName::None => {
                 if ds.fc.is_some() || ds.fv.is_some() || asym_given || offset.is_some() {
-                    return Err(Error::invalid(&ctx, field("friction"), "friction = \"none\" but friction coefficients are given"));
+                    return Err(Error::invalid(
+                        &ctx,
+                        field("friction"),
+                        "friction = \"none\" but friction coefficients are given",
+                    ));
                 }
                 Friction::None
             }
             FrictionName::Symmetric => {
                 if asym_given {
-                    return Err(Error::invalid(&ctx, field("fc_pos"), "fc_pos/fc_neg/fv_pos/fv_neg need friction = \"asymmetric\""));
+                    return Err(Error::invalid(
+                        &ctx,
+                        field("fc_pos"),
+                        "fc_pos/fc_neg/fv_pos/fv_neg need friction = \"asymmetric\"",
+                    ));
                 }
                 let (fc0, fv0) = match d.friction {
                     Friction::Symmetric { fc, fv, .. } => (fc, fv),
                     _ => (0.0, 0.0),
                 };
-                Friction::Symmetric { fc: val(ds.fc.or(Some(fc0)), "fc")?, fv: val(ds.fv.or(Some(fv0)), "fv")?, offset }
+                Friction::Symmetric {
+                    fc: val(ds.fc.or(Some(fc0)), "fc")?,
+                    fv: val(ds.fv.or(Some(fv0)), "fv")?,
+                    offset,
+                }
             }
             FrictionName::Asymmetric => {
                 if ds.fc.is_some() || ds.fv.is_some() {
@@ -277,7 +320,7 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
             ("effort", ds.effort, &mut lim.effort),
         ] {
             if let Some(v) = src {
-                if !(v > 0.0) {
+                if v.is_nan() || v <= 0.0 {
                     return Err(Error::invalid(&ctx, field(s), format!("expected a positive limit, found {v}")));
                 }
                 *dst = v;
@@ -288,7 +331,11 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
         None => None,
         Some(rows) => {
             if rows.len() != n || rows.iter().any(|r| r.len() != n) {
-                return Err(Error::invalid(&ctx, "coupling", format!("expected {n} rows of {n} numbers (one per actuated joint)")));
+                return Err(Error::invalid(
+                    &ctx,
+                    "coupling",
+                    format!("expected {n} rows of {n} numbers (one per actuated joint)"),
+                ));
             }
             let m = DMatrix::from_fn(n, n, |i, j| rows[i][j]);
             if m.iter().any(|v| !v.is_finite()) {
@@ -312,9 +359,19 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
         let base = fs
             .link
             .as_ref()
-            .and_then(|l| if links.iter().any(|x| &x.name == l) { None } else { frames.iter().find(|fr| &fr.name == l).map(|fr| fr.placement) })
+            .and_then(|l| {
+                if links.iter().any(|x| &x.name == l) {
+                    None
+                } else {
+                    frames.iter().find(|fr| &fr.name == l).map(|fr| fr.placement)
+                }
+            })
             .unwrap_or_else(Isometry3::identity);
-        frames.push(Frame { name: fs.name.clone(), link, placement: base * pose_to_iso(fs.xyz, fs.rpy) });
+        frames.push(Frame {
+            name: fs.name.clone(),
+            link,
+            placement: base * pose_to_iso(fs.xyz, fs.rpy),
+        });
     }
     let gravity = match f.gravity {
         Some(g) => {
@@ -325,7 +382,11 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
         }
         None => Vector3::new(0.0, 0.0, -9.81),
     };
-    let name = f.name.clone().unwrap_or(if name.is_empty() { path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default() } else { name });
+    let name = f.name.clone().unwrap_or(if name.is_empty() {
+        path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
+    } else {
+        name
+    });
     let source = f.source.clone().unwrap_or_else(|| path.display().to_string());
     Robot::new(name, joints, links, drives, coupling, frames, gravity, source)
 }
@@ -379,9 +440,19 @@ fn dh_robot(ctx: &str, conv: DhConvention, rows: &[DhJoint]) -> Result<(Vec<Join
             acceleration: pos_lim("acceleration", r.acceleration)?,
             effort: pos_lim("effort", r.effort)?,
         };
-        let spec = r.inertial.as_ref().ok_or_else(|| Error::invalid(ctx, field("inertial"), "missing [joint.inertial] block: expected mass, com and inertia of the link"))?;
+        let spec = r.inertial.as_ref().ok_or_else(|| {
+            Error::invalid(
+                ctx,
+                field("inertial"),
+                "missing [joint.inertial] block: expected mass, com and inertia of the link",
+            )
+        })?;
         if !(spec.mass.is_finite() && spec.mass >= 0.0) {
-            return Err(Error::invalid(ctx, field("inertial.mass"), format!("expected a non-negative mass, found {}", spec.mass)));
+            return Err(Error::invalid(
+                ctx,
+                field("inertial.mass"),
+                format!("expected a non-negative mass, found {}", spec.mass),
+            ));
         }
         for v in spec.com.iter().chain(spec.inertia.iter()) {
             finite(ctx, &field("inertial"), *v)?;
@@ -391,7 +462,11 @@ fn dh_robot(ctx: &str, conv: DhConvention, rows: &[DhJoint]) -> Result<(Vec<Join
         let com = Vector3::from(spec.com);
         let inertial = match spec.inertia_at {
             InertiaAt::Com => Inertial::from_com(spec.mass, com, im, Matrix3::identity()),
-            InertiaAt::Origin => Inertial { mass: spec.mass, first_moment: spec.mass * com, inertia: im },
+            InertiaAt::Origin => Inertial {
+                mass: spec.mass,
+                first_moment: spec.mass * com,
+                inertia: im,
+            },
         };
         joints.push(Joint {
             name: r.name.clone(),
@@ -406,7 +481,10 @@ fn dh_robot(ctx: &str, conv: DhConvention, rows: &[DhJoint]) -> Result<(Vec<Join
             offset,
             limits,
         });
-        links.push(Link { name: r.link.clone().unwrap_or_else(|| format!("link{}", i + 1)), inertial });
+        links.push(Link {
+            name: r.link.clone().unwrap_or_else(|| format!("link{}", i + 1)),
+            inertial,
+        });
     }
     let _ = Rotation3::<f64>::identity();
     Ok((joints, links))

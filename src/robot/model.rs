@@ -80,7 +80,11 @@ pub struct Inertial {
 impl Inertial {
     /// Zero inertia (massless link).
     pub fn zero() -> Self {
-        Inertial { mass: 0.0, first_moment: Vector3::zeros(), inertia: Matrix3::zeros() }
+        Inertial {
+            mass: 0.0,
+            first_moment: Vector3::zeros(),
+            inertia: Matrix3::zeros(),
+        }
     }
 
     /// From mass, centre of mass (link coordinates) and the inertia tensor about
@@ -89,7 +93,11 @@ impl Inertial {
         let ic = rot * inertia_com * rot.transpose();
         // parallel-axis theorem to the link origin: I_O = I_C + m (|c|² 1 − c cᵀ)
         let io = ic + mass * (com.norm_squared() * Matrix3::identity() - com * com.transpose());
-        Inertial { mass, first_moment: mass * com, inertia: io }
+        Inertial {
+            mass,
+            first_moment: mass * com,
+            inertia: io,
+        }
     }
 
     /// The 10 standard parameters XX, XY, XZ, YY, YZ, ZZ, MX, MY, MZ, M.
@@ -102,7 +110,11 @@ impl Inertial {
     /// Inverse of [`Inertial::to_params`].
     pub fn from_params(p: &[f64]) -> Self {
         let inertia = Matrix3::new(p[0], p[1], p[2], p[1], p[3], p[4], p[2], p[4], p[5]);
-        Inertial { mass: p[9], first_moment: Vector3::new(p[6], p[7], p[8]), inertia }
+        Inertial {
+            mass: p[9],
+            first_moment: Vector3::new(p[6], p[7], p[8]),
+            inertia,
+        }
     }
 
     /// Expresses these parameters (given in frame B) in frame A, where `a_t_b`
@@ -117,16 +129,24 @@ impl Inertial {
         // inertia about B origin, in A orientation
         let io_b = r * self.inertia * r.transpose();
         let h_b = r * self.first_moment; // m c_B (c relative to B origin), A orientation
-        // I_A = I_B + m(|p|²1 − ppᵀ) + (S(p)ᵀ S(h) + S(h)ᵀ S(p)) with c_A = p + c_B
+                                         // I_A = I_B + m(|p|²1 − ppᵀ) + (S(p)ᵀ S(h) + S(h)ᵀ S(p)) with c_A = p + c_B
         let sp = p.cross_matrix();
         let sh = h_b.cross_matrix();
         let io_a = io_b + m * (p.norm_squared() * Matrix3::identity() - p * p.transpose()) - (sp * sh + sh * sp);
-        Inertial { mass: m, first_moment: m * p + h_b, inertia: io_a }
+        Inertial {
+            mass: m,
+            first_moment: m * p + h_b,
+            inertia: io_a,
+        }
     }
 
     /// Sum of two inertials expressed in the same frame.
     pub fn add(&self, o: &Inertial) -> Inertial {
-        Inertial { mass: self.mass + o.mass, first_moment: self.first_moment + o.first_moment, inertia: self.inertia + o.inertia }
+        Inertial {
+            mass: self.mass + o.mass,
+            first_moment: self.first_moment + o.first_moment,
+            inertia: self.inertia + o.inertia,
+        }
     }
 }
 
@@ -182,7 +202,15 @@ pub struct Drive {
 
 impl Default for Drive {
     fn default() -> Self {
-        Drive { rotor_inertia: None, gear_ratio: 1.0, friction: Friction::Symmetric { fc: 0.0, fv: 0.0, offset: None } }
+        Drive {
+            rotor_inertia: None,
+            gear_ratio: 1.0,
+            friction: Friction::Symmetric {
+                fc: 0.0,
+                fv: 0.0,
+                offset: None,
+            },
+        }
     }
 }
 
@@ -346,28 +374,48 @@ impl Robot {
             return Err(Error::invalid(ctx(), "joints", "the robot has no actuated joint"));
         }
         if links.len() != n || drives.len() != n {
-            return Err(Error::invalid(ctx(), "links", format!("expected {n} links and drives, found {} and {}", links.len(), drives.len())));
+            return Err(Error::invalid(
+                ctx(),
+                "links",
+                format!("expected {n} links and drives, found {} and {}", links.len(), drives.len()),
+            ));
         }
         for (i, j) in joints.iter().enumerate() {
             if let Some(p) = j.parent {
                 if p >= i {
-                    return Err(Error::invalid(ctx(), format!("joints[{}].parent", j.name), "a joint's parent link must come before it"));
+                    return Err(Error::invalid(
+                        ctx(),
+                        format!("joints[{}].parent", j.name),
+                        "a joint's parent link must come before it",
+                    ));
                 }
             }
             let l = &j.limits;
             if l.lower.is_nan() || l.upper.is_nan() || l.lower > l.upper {
-                return Err(Error::invalid(ctx(), format!("joint `{}` limits", j.name), format!("lower ({}) must be ≤ upper ({})", l.lower, l.upper)));
+                return Err(Error::invalid(
+                    ctx(),
+                    format!("joint `{}` limits", j.name),
+                    format!("lower ({}) must be ≤ upper ({})", l.lower, l.upper),
+                ));
             }
             for (what, v) in [("velocity", l.velocity), ("acceleration", l.acceleration), ("effort", l.effort)] {
                 if v.is_nan() || v <= 0.0 {
-                    return Err(Error::invalid(ctx(), format!("joint `{}` {what} limit", j.name), format!("expected a positive number, found {v}")));
+                    return Err(Error::invalid(
+                        ctx(),
+                        format!("joint `{}` {what} limit", j.name),
+                        format!("expected a positive number, found {v}"),
+                    ));
                 }
             }
         }
         for l in &links {
             let m = l.inertial.mass;
             if !m.is_finite() || m < 0.0 {
-                return Err(Error::invalid(ctx(), format!("link `{}` mass", l.name), format!("expected a non-negative finite mass, found {m}")));
+                return Err(Error::invalid(
+                    ctx(),
+                    format!("link `{}` mass", l.name),
+                    format!("expected a non-negative finite mass, found {m}"),
+                ));
             }
             if l.inertial.inertia.iter().chain(l.inertial.first_moment.iter()).any(|v| !v.is_finite()) {
                 return Err(Error::invalid(ctx(), format!("link `{}` inertia", l.name), "expected finite values"));
@@ -377,9 +425,16 @@ impl Robot {
             None => None,
             Some(c) => {
                 if c.nrows() != n || c.ncols() != n {
-                    return Err(Error::invalid(ctx(), "coupling", format!("expected a {n}×{n} matrix, found {}×{}", c.nrows(), c.ncols())));
+                    return Err(Error::invalid(
+                        ctx(),
+                        "coupling",
+                        format!("expected a {n}×{n} matrix, found {}×{}", c.nrows(), c.ncols()),
+                    ));
                 }
-                let inv = c.clone().try_inverse().ok_or_else(|| Error::invalid(ctx(), "coupling", "the coupling matrix is singular"))?;
+                let inv = c
+                    .clone()
+                    .try_inverse()
+                    .ok_or_else(|| Error::invalid(ctx(), "coupling", "the coupling matrix is singular"))?;
                 Some(inv.transpose())
             }
         };
@@ -387,11 +442,21 @@ impl Robot {
         let mut drive_offset = Vec::with_capacity(n);
         for i in 0..n {
             for k in ParamKind::INERTIAL {
-                params.push(ParamInfo { name: format!("{}{}", k.label(), i + 1), joint: i, kind: k });
+                params.push(ParamInfo {
+                    name: format!("{}{}", k.label(), i + 1),
+                    joint: i,
+                    kind: k,
+                });
             }
             drive_offset.push(params.len());
             let d = &drives[i];
-            let mut push = |k: ParamKind| params.push(ParamInfo { name: format!("{}{}", k.label(), i + 1), joint: i, kind: k });
+            let mut push = |k: ParamKind| {
+                params.push(ParamInfo {
+                    name: format!("{}{}", k.label(), i + 1),
+                    joint: i,
+                    kind: k,
+                })
+            };
             if d.rotor_inertia.is_some() {
                 push(ParamKind::Ia);
             }
@@ -427,7 +492,21 @@ impl Robot {
                 }
             })
             .unzip();
-        Ok(Robot { name, joints, links, drives, coupling, frames, gravity, source, coupling_inv_t, params, drive_offset, s_ang, s_lin })
+        Ok(Robot {
+            name,
+            joints,
+            links,
+            drives,
+            coupling,
+            frames,
+            gravity,
+            source,
+            coupling_inv_t,
+            params,
+            drive_offset,
+            s_ang,
+            s_lin,
+        })
     }
 
     /// Number of actuated joints n.
@@ -467,7 +546,13 @@ impl Robot {
                         v.push(o);
                     }
                 }
-                Friction::Asymmetric { fc_pos, fc_neg, fv_pos, fv_neg, offset } => {
+                Friction::Asymmetric {
+                    fc_pos,
+                    fc_neg,
+                    fv_pos,
+                    fv_neg,
+                    offset,
+                } => {
                     v.extend([fc_pos, fc_neg, fv_pos, fv_neg]);
                     if let Some(o) = offset {
                         v.push(o);
@@ -494,7 +579,11 @@ impl Robot {
 
     /// Number of drive (Ia + friction) parameters of joint `j`.
     pub fn n_drive_params(&self, j: usize) -> usize {
-        let end = if j + 1 < self.dof() { self.drive_offset[j + 1] - 10 } else { self.params.len() };
+        let end = if j + 1 < self.dof() {
+            self.drive_offset[j + 1] - 10
+        } else {
+            self.params.len()
+        };
         end - self.drive_offset[j]
     }
 
@@ -512,7 +601,11 @@ impl Robot {
     /// identity placement), then named frames.
     pub fn find_frame(&self, name: &str) -> Option<Frame> {
         if let Some(i) = self.links.iter().position(|l| l.name == name) {
-            return Some(Frame { name: name.to_string(), link: Some(i), placement: Isometry3::identity() });
+            return Some(Frame {
+                name: name.to_string(),
+                link: Some(i),
+                placement: Isometry3::identity(),
+            });
         }
         self.frames.iter().find(|f| f.name == name).cloned()
     }
@@ -530,12 +623,19 @@ impl Robot {
         if let Some(f) = self.frames.iter().rev().find(|f| f.link == Some(last)) {
             return f.clone();
         }
-        Frame { name: self.links[last].name.clone(), link: Some(last), placement: Isometry3::identity() }
+        Frame {
+            name: self.links[last].name.clone(),
+            link: Some(last),
+            placement: Isometry3::identity(),
+        }
     }
 
     /// Joint position limits as (lower, upper) vectors.
     pub fn position_limits(&self) -> (Vec<f64>, Vec<f64>) {
-        (self.joints.iter().map(|j| j.limits.lower).collect(), self.joints.iter().map(|j| j.limits.upper).collect())
+        (
+            self.joints.iter().map(|j| j.limits.lower).collect(),
+            self.joints.iter().map(|j| j.limits.upper).collect(),
+        )
     }
 
     /// A copy of this robot with different standard parameters (for simulation
@@ -556,7 +656,11 @@ impl Robot {
             }
             d.friction = match d.friction {
                 Friction::None => Friction::None,
-                Friction::Symmetric { offset, .. } => Friction::Symmetric { fc: theta[k], fv: theta[k + 1], offset: offset.map(|_| theta[k + 2]) },
+                Friction::Symmetric { offset, .. } => Friction::Symmetric {
+                    fc: theta[k],
+                    fv: theta[k + 1],
+                    offset: offset.map(|_| theta[k + 2]),
+                },
                 Friction::Asymmetric { offset, .. } => Friction::Asymmetric {
                     fc_pos: theta[k],
                     fc_neg: theta[k + 1],

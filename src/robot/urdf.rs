@@ -43,7 +43,11 @@ fn links_with_inertial(text: &str) -> Vec<String> {
             s.find(q).map(|e| s[..e].to_string())
         });
         let self_closing = head.trim_end().ends_with('/');
-        let body = if self_closing { "" } else { &rest[..rest.find("</link>").unwrap_or(rest.len())] };
+        let body = if self_closing {
+            ""
+        } else {
+            &rest[..rest.find("</link>").unwrap_or(rest.len())]
+        };
         if let Some(n) = name {
             if body.contains("<inertial") {
                 out.push(n);
@@ -74,10 +78,18 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
             .get(j.child.link.as_str())
             .ok_or_else(|| Error::invalid(&ctx, format!("joint `{}` child", j.name), format!("unknown link `{}`", j.child.link)))?;
         if !link_idx.contains_key(j.parent.link.as_str()) {
-            return Err(Error::invalid(&ctx, format!("joint `{}` parent", j.name), format!("unknown link `{}`", j.parent.link)));
+            return Err(Error::invalid(
+                &ctx,
+                format!("joint `{}` parent", j.name),
+                format!("unknown link `{}`", j.parent.link),
+            ));
         }
         if is_child[c] {
-            return Err(Error::invalid(&ctx, format!("joint `{}`", j.name), format!("link `{}` has two parent joints", j.child.link)));
+            return Err(Error::invalid(
+                &ctx,
+                format!("joint `{}`", j.name),
+                format!("link `{}` has two parent joints", j.child.link),
+            ));
         }
         is_child[c] = true;
         children.entry(j.parent.link.as_str()).or_default().push(k);
@@ -90,9 +102,19 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
             b.to_string()
         }
         None => {
-            let roots: Vec<&str> = u.links.iter().enumerate().filter(|(i, _)| !is_child[*i]).map(|(_, l)| l.name.as_str()).collect();
+            let roots: Vec<&str> = u
+                .links
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| !is_child[*i])
+                .map(|(_, l)| l.name.as_str())
+                .collect();
             if roots.len() != 1 {
-                return Err(Error::invalid(&ctx, "links", format!("expected exactly one root link, found {}: {}", roots.len(), roots.join(", "))));
+                return Err(Error::invalid(
+                    &ctx,
+                    "links",
+                    format!("expected exactly one root link, found {}: {}", roots.len(), roots.join(", ")),
+                ));
             }
             roots[0].to_string()
         }
@@ -135,18 +157,23 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
         let ic = Matrix3::new(i.ixx, i.ixy, i.ixz, i.ixy, i.iyy, i.iyz, i.ixz, i.iyz, i.izz);
         let m = ine.mass.value;
         if !m.is_finite() || m < 0.0 {
-            return Err(Error::invalid(&ctx, format!("link `{lname}` <mass>"), format!("expected a non-negative mass, found {m}")));
+            return Err(Error::invalid(
+                &ctx,
+                format!("link `{lname}` <mass>"),
+                format!("expected a non-negative mass, found {m}"),
+            ));
         }
         if m == 0.0 && owner.is_some() && ic != Matrix3::zeros() {
-            return Err(Error::invalid(&ctx, format!("link `{lname}` <mass>"), "zero mass with a non-zero inertia tensor"));
+            return Err(Error::invalid(
+                &ctx,
+                format!("link `{lname}` <mass>"),
+                "zero mass with a non-zero inertia tensor",
+            ));
         }
         let local = Inertial::from_com(m, Vector3::from(ine.origin.xyz.0), ic, rot);
-        match owner {
-            Some(o) => {
-                let add = local.transformed(&placement);
-                links[o].inertial = links[o].inertial.add(&add);
-            }
-            None => {}
+        if let Some(o) = owner {
+            let add = local.transformed(&placement);
+            links[o].inertial = links[o].inertial.add(&add);
         }
         for &k in children.get(lname.as_str()).map(|v| v.as_slice()).unwrap_or(&[]).iter().rev() {
             let j = &u.joints[k];
@@ -171,12 +198,16 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
             match kind {
                 None => {
                     let pl = placement * origin;
-                    frames.push(Frame { name: j.child.link.clone(), link: owner, placement: pl });
+                    frames.push(Frame {
+                        name: j.child.link.clone(),
+                        link: owner,
+                        placement: pl,
+                    });
                     stack.push((j.child.link.clone(), owner, pl));
                 }
                 Some(kind) => {
                     let axis = Vector3::from(j.axis.xyz.0);
-                    if !(axis.norm() > 1e-12) || axis.iter().any(|v| !v.is_finite()) {
+                    if axis.iter().any(|v| !v.is_finite()) || axis.norm() <= 1e-12 {
                         return Err(Error::invalid(&ctx, format!("joint `{}` <axis>", j.name), "expected a non-zero axis"));
                     }
                     let continuous = j.joint_type == urdf_rs::JointType::Continuous;
@@ -190,7 +221,11 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
                         effort: pos(l.effort),
                     };
                     if limits.lower > limits.upper {
-                        return Err(Error::invalid(&ctx, format!("joint `{}` <limit>", j.name), format!("lower {} > upper {}", l.lower, l.upper)));
+                        return Err(Error::invalid(
+                            &ctx,
+                            format!("joint `{}` <limit>", j.name),
+                            format!("lower {} > upper {}", l.lower, l.upper),
+                        ));
                     }
                     let idx = joints.len();
                     joints.push(Joint {
@@ -203,12 +238,16 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
                         offset: 0.0,
                         limits,
                     });
-                    links.push(Link { name: j.child.link.clone(), inertial: Inertial::zero() });
+                    links.push(Link {
+                        name: j.child.link.clone(),
+                        inertial: Inertial::zero(),
+                    });
                     let (fv, fc) = j.dynamics.as_ref().map(|d| (d.damping, d.friction)).unwrap_or((0.0, 0.0));
-                    drives.push(Drive { rotor_inertia: None, gear_ratio: 1.0, friction: Friction::Symmetric { fc, fv, offset: None } });
-                    if !has_inertial.contains(&j.child.link) {
-                        // allowed only if a fixed child brings mass; checked below
-                    }
+                    drives.push(Drive {
+                        rotor_inertia: None,
+                        gear_ratio: 1.0,
+                        friction: Friction::Symmetric { fc, fv, offset: None },
+                    });
                     stack.push((j.child.link.clone(), Some(idx), Isometry3::identity()));
                 }
             }
@@ -217,7 +256,11 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
     // a moving link with no inertial data at all (its own or merged) is an error
     for (i, l) in links.iter().enumerate() {
         if l.inertial.mass == 0.0 && l.inertial.inertia == Matrix3::zeros() {
-            let own = if has_inertial.contains(&l.name) { "has zero mass and inertia" } else { "has no <inertial> block" };
+            let own = if has_inertial.contains(&l.name) {
+                "has zero mass and inertia"
+            } else {
+                "has no <inertial> block"
+            };
             return Err(Error::invalid(
                 &ctx,
                 format!("link `{}`", l.name),
@@ -229,5 +272,11 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
         return Err(Error::invalid(&ctx, "joints", "no revolute, continuous or prismatic joint found"));
     }
     // topological order is guaranteed by the DFS (parents pushed before children)
-    Ok(UrdfParts { name: u.name.clone(), joints, links, drives, frames })
+    Ok(UrdfParts {
+        name: u.name.clone(),
+        joints,
+        links,
+        drives,
+        frames,
+    })
 }

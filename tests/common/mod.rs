@@ -25,7 +25,10 @@ pub fn shipped_robots() -> Vec<(String, Robot)> {
     let dir = root("designs/robots");
     let mut out = Vec::new();
     if let Ok(rd) = std::fs::read_dir(&dir) {
-        let mut paths: Vec<PathBuf> = rd.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.extension().is_some_and(|e| e == "toml")).collect();
+        let mut paths: Vec<PathBuf> = rd
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+            .collect();
         paths.sort();
         for p in paths {
             let r = robot::load(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));

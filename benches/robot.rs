@@ -1,0 +1,76 @@
+//! Kernel benchmarks, single thread: RNEA calls, regressor rows (one n×p block
+//! per state), regressor derivatives, mass matrix, for a 6-axis (UR5, PUMA 560,
+//! the coupled-wrist industrial arm) and a 7-axis (iiwa 14, Panda) robot.
+//!
+//! Run: `cargo bench --bench robot`.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use idexp::robot::{self, Workspace};
+use rand::{RngExt, SeedableRng};
+use std::hint::black_box;
+use std::path::Path;
+
+fn states(r: &robot::Robot, k: usize) -> Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+    let mut g = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    (0..k)
+        .map(|_| {
+            let n = r.dof();
+            let f = |g: &mut rand_chacha::ChaCha8Rng, a: f64| (0..n).map(|_| g.random_range(-a..a)).collect::<Vec<f64>>();
+            (f(&mut g, 2.0), f(&mut g, 1.5), f(&mut g, 4.0))
+        })
+        .collect()
+}
+
+fn bench(c: &mut Criterion) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for name in ["ur5", "puma560", "industrial6", "iiwa14", "panda"] {
+        let path = root.join(format!("designs/robots/{name}.toml"));
+        let Ok(r) = robot::load(&path) else { continue };
+        let n = r.dof();
+        let p = r.n_params();
+        let st = states(&r, 64);
+        let mut ws = Workspace::new(&r);
+        let mut tau = vec![0.0; n];
+        let mut y = vec![0.0; n * p];
+        let mut g = c.benchmark_group(format!("{name}_{n}dof"));
+        let mut k = 0usize;
+        g.bench_function("rnea", |b| {
+            b.iter(|| {
+                let s = &st[k % st.len()];
+                k += 1;
+                robot::rnea(&r, &mut ws, black_box(&s.0), black_box(&s.1), black_box(&s.2), &mut tau);
+                black_box(&tau);
+            })
+        });
+        g.bench_function("regressor_row_block", |b| {
+            b.iter(|| {
+                let s = &st[k % st.len()];
+                k += 1;
+                robot::regressor_rows(&r, &mut ws, black_box(&s.0), black_box(&s.1), black_box(&s.2), &mut y);
+                black_box(&y);
+            })
+        });
+        g.bench_function("mass_matrix", |b| {
+            b.iter(|| {
+                let s = &st[k % st.len()];
+                k += 1;
+                black_box(robot::mass_matrix(&r, &mut ws, black_box(&s.0)));
+            })
+        });
+        let mut dq = vec![vec![0.0; n * p]; n];
+        let mut dqd = dq.clone();
+        let mut dqdd = dq.clone();
+        g.bench_function("regressor_derivatives", |b| {
+            b.iter(|| {
+                let s = &st[k % st.len()];
+                k += 1;
+                robot::regressor_derivatives(&r, &mut ws, &s.0, &s.1, &s.2, &mut y, &mut dq, &mut dqd, &mut dqdd);
+                black_box(&dq);
+            })
+        });
+        g.finish();
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

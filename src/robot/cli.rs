@@ -1,0 +1,348 @@
+//! `idexp robot info|torques|regressor`: inspect a robot and evaluate its
+//! dynamics on a states CSV.
+
+use super::{load, regressor_rows, rnea, JointKind, Robot, Workspace};
+use crate::error::Result;
+use crate::io::States;
+use crate::params::{BaseOptions, BaseParams};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// `idexp robot ...`
+#[derive(clap::Args, Debug)]
+pub struct RobotArgs {
+    /// What to do with the robot.
+    #[command(subcommand)]
+    pub cmd: RobotCmd,
+}
+
+/// Robot subcommands.
+#[derive(clap::Subcommand, Debug)]
+pub enum RobotCmd {
+    /// Joints, limits, drives, standard and base parameters (with their groupings).
+    Info {
+        /// Robot file (.toml robot file or .urdf).
+        robot: PathBuf,
+        /// Machine-readable JSON instead of text.
+        #[arg(long)]
+        json: bool,
+        /// Rank tolerance of the base-parameter computation (relative residual).
+        #[arg(long, default_value_t = 1e-6)]
+        tol: f64,
+        /// Number of random states stacked for the base parameters.
+        #[arg(long, default_value_t = 200)]
+        samples: usize,
+    },
+    /// Inverse-dynamics torques (rigid body + drives + friction) for each row of a states CSV.
+    Torques {
+        /// Robot file.
+        robot: PathBuf,
+        /// States CSV with columns q1..qn, qd1..qdn, qdd1..qddn (other columns ignored).
+        #[arg(long)]
+        states: PathBuf,
+        /// Output CSV (default: standard output).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Regressor rows (n per state) in standard or base parameters.
+    Regressor {
+        /// Robot file.
+        robot: PathBuf,
+        /// States CSV with columns q1..qn, qd1..qdn, qdd1..qddn.
+        #[arg(long)]
+        states: PathBuf,
+        /// Base-parameter regressor instead of the standard one.
+        #[arg(long)]
+        base: bool,
+        /// Output CSV (default: standard output).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+}
+
+/// Runs a robot subcommand.
+pub fn run(args: &RobotArgs) -> Result<()> {
+    match &args.cmd {
+        RobotCmd::Info { robot, json, tol, samples } => {
+            let r = load(robot)?;
+            let info = RobotInfo::new(&r, *tol, *samples)?;
+            if *json {
+                let s = serde_json::to_string_pretty(&info).map_err(|e| crate::Error::Numerical(e.to_string()))?;
+                println!("{s}");
+            } else {
+                print!("{}", info.text());
+            }
+            Ok(())
+        }
+        RobotCmd::Torques { robot, states, out } => {
+            let r = load(robot)?;
+            let s = States::read(states, r.dof())?;
+            let (header, rows) = torques_table(&r, &s);
+            emit(out.as_deref(), &header, &rows)
+        }
+        RobotCmd::Regressor { robot, states, base, out } => {
+            let r = load(robot)?;
+            let s = States::read(states, r.dof())?;
+            let bp = if *base {
+                Some(BaseParams::compute(&r, &BaseOptions::default())?)
+            } else {
+                None
+            };
+            let (header, rows) = regressor_table(&r, &s, bp.as_ref());
+            emit(out.as_deref(), &header, &rows)
+        }
+    }
+}
+
+fn emit(out: Option<&Path>, header: &[String], rows: &[Vec<f64>]) -> Result<()> {
+    match out {
+        Some(p) => crate::io::write_csv(p, header, rows),
+        None => {
+            use std::io::Write;
+            let mut s = String::new();
+            s.push_str(&header.join(","));
+            s.push('\n');
+            for r in rows {
+                s.push_str(&r.iter().map(|v| crate::io::format_f64(*v)).collect::<Vec<_>>().join(","));
+                s.push('\n');
+            }
+            std::io::stdout().write_all(s.as_bytes()).map_err(|e| crate::Error::io("<stdout>", e))
+        }
+    }
+}
+
+/// Torques for every state: header (`t` if present, `tau1..taun`) and rows.
+pub fn torques_table(r: &Robot, s: &States) -> (Vec<String>, Vec<Vec<f64>>) {
+    let n = r.dof();
+    let mut ws = Workspace::new(r);
+    let mut header = Vec::new();
+    if s.t.is_some() {
+        header.push("t".to_string());
+    }
+    header.extend((1..=n).map(|i| format!("tau{i}")));
+    let mut tau = vec![0.0; n];
+    let rows = (0..s.len())
+        .map(|k| {
+            rnea(r, &mut ws, &s.q[k], &s.qd[k], &s.qdd[k], &mut tau);
+            let mut row = Vec::with_capacity(n + 1);
+            if let Some(t) = &s.t {
+                row.push(t[k]);
+            }
+            row.extend_from_slice(&tau);
+            row
+        })
+        .collect();
+    (header, rows)
+}
+
+/// Regressor rows for every state: columns `sample, joint, <parameter names>`.
+pub fn regressor_table(r: &Robot, s: &States, base: Option<&BaseParams>) -> (Vec<String>, Vec<Vec<f64>>) {
+    let (n, p) = (r.dof(), r.n_params());
+    let mut ws = Workspace::new(r);
+    let mut header = vec!["sample".to_string(), "joint".to_string()];
+    match base {
+        Some(b) => header.extend(b.names.iter().cloned()),
+        None => header.extend(r.param_names()),
+    }
+    let mut y = vec![0.0; n * p];
+    let nb = base.map(|b| b.n_base()).unwrap_or(p);
+    let mut yb = vec![0.0; n * nb];
+    let mut rows = Vec::with_capacity(s.len() * n);
+    for k in 0..s.len() {
+        regressor_rows(r, &mut ws, &s.q[k], &s.qd[k], &s.qdd[k], &mut y);
+        let src: &[f64] = match base {
+            Some(b) => {
+                b.select_rows(&y, n, &mut yb);
+                &yb
+            }
+            None => &y,
+        };
+        for j in 0..n {
+            let mut row = Vec::with_capacity(nb + 2);
+            row.push(k as f64);
+            row.push((j + 1) as f64);
+            row.extend_from_slice(&src[j * nb..(j + 1) * nb]);
+            rows.push(row);
+        }
+    }
+    (header, rows)
+}
+
+/// Summary of a robot for `robot info`.
+#[derive(Debug, Serialize)]
+pub struct RobotInfo {
+    /// Name.
+    pub name: String,
+    /// Source of the model.
+    pub source: String,
+    /// Joints.
+    pub joints: Vec<JointInfo>,
+    /// Coupling matrix rows (if any).
+    pub coupling: Option<Vec<Vec<f64>>>,
+    /// Named frames.
+    pub frames: Vec<String>,
+    /// End-effector frame used by default.
+    pub end_effector: String,
+    /// Standard parameter names.
+    pub standard_parameters: Vec<String>,
+    /// Number of standard parameters (all).
+    pub n_standard: usize,
+    /// Number of standard inertial parameters (10 per link).
+    pub n_standard_inertial: usize,
+    /// Base parameters of the full model (inertial + drive + friction).
+    pub base: BaseParams,
+    /// Number of base parameters of the rigid-body (inertial) part alone.
+    pub n_base_inertial: usize,
+}
+
+/// One joint in [`RobotInfo`].
+#[derive(Debug, Serialize)]
+pub struct JointInfo {
+    /// Name.
+    pub name: String,
+    /// Revolute or prismatic.
+    pub kind: JointKind,
+    /// Link moved by the joint.
+    pub link: String,
+    /// Parent link (None: base).
+    pub parent: Option<String>,
+    /// Limits (null for unlimited).
+    pub lower: Option<f64>,
+    /// Upper limit.
+    pub upper: Option<f64>,
+    /// Velocity limit.
+    pub velocity: Option<f64>,
+    /// Acceleration limit.
+    pub acceleration: Option<f64>,
+    /// Effort limit.
+    pub effort: Option<f64>,
+    /// Drive data.
+    pub drive: super::Drive,
+}
+
+fn fin(v: f64) -> Option<f64> {
+    v.is_finite().then_some(v)
+}
+
+impl RobotInfo {
+    /// Collects the summary; computes base parameters with tolerance `tol`.
+    pub fn new(r: &Robot, tol: f64, samples: usize) -> Result<RobotInfo> {
+        let opts = BaseOptions {
+            tol,
+            samples,
+            ..Default::default()
+        };
+        let base = BaseParams::compute(r, &opts)?;
+        let inertial = BaseParams::compute(r, &BaseOptions { inertial_only: true, ..opts })?;
+        Ok(RobotInfo {
+            name: r.name.clone(),
+            source: r.source.clone(),
+            joints: r
+                .joints
+                .iter()
+                .enumerate()
+                .map(|(i, j)| JointInfo {
+                    name: j.name.clone(),
+                    kind: j.kind,
+                    link: r.links[i].name.clone(),
+                    parent: j.parent.map(|p| r.links[p].name.clone()),
+                    lower: fin(j.limits.lower),
+                    upper: fin(j.limits.upper),
+                    velocity: fin(j.limits.velocity),
+                    acceleration: fin(j.limits.acceleration),
+                    effort: fin(j.limits.effort),
+                    drive: r.drives[i],
+                })
+                .collect(),
+            coupling: r.coupling.as_ref().map(|c| c.row_iter().map(|row| row.iter().copied().collect()).collect()),
+            frames: r.frames.iter().map(|f| f.name.clone()).collect(),
+            end_effector: r.end_effector().name,
+            standard_parameters: r.param_names(),
+            n_standard: r.n_params(),
+            n_standard_inertial: 10 * r.dof(),
+            n_base_inertial: inertial.n_base(),
+            base,
+        })
+    }
+
+    /// Human-readable text.
+    pub fn text(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        let _ = writeln!(s, "robot: {}", self.name);
+        let _ = writeln!(s, "source: {}", self.source);
+        let _ = writeln!(s, "\njoints ({}):", self.joints.len());
+        let _ = writeln!(
+            s,
+            "  {:<3} {:<22} {:<9} {:>9} {:>9} {:>8} {:>8} {:>8}  drive",
+            "#", "name", "type", "lower", "upper", "vel", "acc", "effort"
+        );
+        let f = |v: Option<f64>| v.map(|x| format!("{x:.4}")).unwrap_or_else(|| "-".into());
+        for (i, j) in self.joints.iter().enumerate() {
+            let d = &j.drive;
+            let fr = match d.friction {
+                super::Friction::None => "no friction".to_string(),
+                super::Friction::Symmetric { fc, fv, offset } => {
+                    format!("Fc={fc} Fv={fv}{}", offset.map(|o| format!(" F0={o}")).unwrap_or_default())
+                }
+                super::Friction::Asymmetric {
+                    fc_pos,
+                    fc_neg,
+                    fv_pos,
+                    fv_neg,
+                    offset,
+                } => {
+                    format!(
+                        "Fc+={fc_pos} Fc-={fc_neg} Fv+={fv_pos} Fv-={fv_neg}{}",
+                        offset.map(|o| format!(" F0={o}")).unwrap_or_default()
+                    )
+                }
+            };
+            let ia = d.rotor_inertia.map(|v| format!("Ia={v} ")).unwrap_or_default();
+            let kind = match j.kind {
+                JointKind::Revolute => "revolute",
+                JointKind::Prismatic => "prismatic",
+            };
+            let _ = writeln!(
+                s,
+                "  {:<3} {:<22} {:<9} {:>9} {:>9} {:>8} {:>8} {:>8}  {ia}{fr}",
+                i + 1,
+                j.name,
+                kind,
+                f(j.lower),
+                f(j.upper),
+                f(j.velocity),
+                f(j.acceleration),
+                f(j.effort)
+            );
+        }
+        if let Some(c) = &self.coupling {
+            let _ = writeln!(s, "\ncoupling (motor positions θ = C q):");
+            for row in c {
+                let _ = writeln!(s, "  [{}]", row.iter().map(|v| format!("{v:7.3}")).collect::<Vec<_>>().join(" "));
+            }
+        }
+        let _ = writeln!(s, "\nend effector: {}", self.end_effector);
+        let b = &self.base;
+        let _ = writeln!(
+            s,
+            "\nstandard parameters: {} ({} inertial, {} drive/friction)",
+            self.n_standard,
+            self.n_standard_inertial,
+            self.n_standard - self.n_standard_inertial
+        );
+        let _ = writeln!(s, "base parameters: {} (inertial part alone: {})", b.n_base(), self.n_base_inertial);
+        let _ = writeln!(
+            s,
+            "rank tolerance: {:.1e} (relative residual); smallest kept {:.2e}, largest dropped {:.2e}; pivoted-QR rank {}; {} random states",
+            b.tol, b.smallest_kept, b.largest_dropped, b.rank_qr, b.samples
+        );
+        let _ = writeln!(s, "\nbase parameters as combinations of standard ones:");
+        for (i, (n, g)) in b.names.iter().zip(&b.groupings).enumerate() {
+            let _ = writeln!(s, "  {:>3} {:<8} = {}", i + 1, n, g);
+        }
+        let un: Vec<&str> = b.unidentifiable.iter().map(|&i| self.standard_parameters[i].as_str()).collect();
+        let _ = writeln!(s, "\nno effect on the torques ({}): {}", un.len(), un.join(" "));
+        s
+    }
+}
