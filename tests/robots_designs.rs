@@ -7,9 +7,7 @@ use idexp::robot::{self, Robot, Workspace};
 use std::path::PathBuf;
 
 fn load(file: &str) -> Robot {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("designs/robots")
-        .join(file);
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("designs/robots").join(file);
     robot::load(&p).unwrap_or_else(|e| panic!("{file}: {e}"))
 }
 
@@ -18,9 +16,7 @@ fn n_base(r: &Robot, inertial_only: bool) -> usize {
         inertial_only,
         ..BaseOptions::default()
     };
-    BaseParams::compute(r, &opts)
-        .expect("base parameters")
-        .n_base()
+    BaseParams::compute(r, &opts).expect("base parameters").n_base()
 }
 
 fn check_regressor(r: &Robot) {
@@ -52,11 +48,7 @@ fn check_regressor(r: &Robot) {
 }
 
 fn tool_position(r: &Robot, q: &[f64]) -> nalgebra::Vector3<f64> {
-    let f = r
-        .frames
-        .iter()
-        .find(|f| f.name == "tool0")
-        .expect("frame tool0");
+    let f = r.frames.iter().find(|f| f.name == "tool0").expect("frame tool0");
     let mut ws = Workspace::new(r);
     robot::frame_pose(r, &mut ws, q, f).translation.vector
 }
@@ -112,10 +104,7 @@ fn puma560_loads_with_36_base_inertial_parameters() {
     assert_eq!(n_base(&r, true), 36);
     // Corke's fkine(qz) = [0.4521, -0.15005, 0.4318]
     let t = tool_position(&r, &[0.0; 6]);
-    assert!(
-        (t - nalgebra::Vector3::new(0.4521, -0.15005, 0.4318)).norm() < 1e-9,
-        "{t}"
-    );
+    assert!((t - nalgebra::Vector3::new(0.4521, -0.15005, 0.4318)).norm() < 1e-9, "{t}");
     check_regressor(&r);
 }
 
@@ -128,10 +117,7 @@ fn industrial6_loads_with_coupled_wrist_and_36_base_inertial_parameters() {
     assert_eq!(n_base(&r, true), 36);
     // KR 16-2 geometry at the zero pose: flange at x = 0.26 + 0.68 + 0.67 + 0.158, z = 0.675 - 0.035
     let t = tool_position(&r, &[0.0; 6]);
-    assert!(
-        (t - nalgebra::Vector3::new(1.768, 0.0, 0.64)).norm() < 1e-9,
-        "{t}"
-    );
+    assert!((t - nalgebra::Vector3::new(1.768, 0.0, 0.64)).norm() < 1e-9, "{t}");
     check_regressor(&r);
 }
 
