@@ -134,37 +134,25 @@ fn sgn<T: Real>(x: T) -> T {
 
 /// Motor positions-like product C·x (identity when no coupling), into `out`.
 fn couple<T: Real>(robot: &Robot, x: &[T], out: &mut [T]) {
-    match &robot.coupling {
-        None => out.copy_from_slice(x),
-        Some(c) => {
-            for i in 0..x.len() {
-                let mut s = T::zero();
-                for j in 0..x.len() {
-                    let cij = c[(i, j)];
-                    if cij != 0.0 {
-                        s += x[j] * T::c(cij);
-                    }
-                }
-                out[i] = s;
-            }
-        }
+    if robot.coupling.is_none() {
+        out.copy_from_slice(x);
+        return;
+    }
+    out.iter_mut().for_each(|v| *v = T::zero());
+    for &(r, c, v) in &robot.c_sparse {
+        out[r] += x[c] * T::c(v);
     }
 }
 
 /// In place: tau ← C⁻ᵀ tau (no-op without coupling). `scratch` has length n.
 fn couple_inv_t<T: Real>(robot: &Robot, tau: &mut [T], scratch: &mut [T]) {
-    if let Some(ct) = &robot.coupling_inv_t {
-        scratch.copy_from_slice(tau);
-        for i in 0..tau.len() {
-            let mut s = T::zero();
-            for j in 0..tau.len() {
-                let cij = ct[(i, j)];
-                if cij != 0.0 {
-                    s += scratch[j] * T::c(cij);
-                }
-            }
-            tau[i] = s;
-        }
+    if robot.coupling.is_none() {
+        return;
+    }
+    scratch.copy_from_slice(tau);
+    tau.iter_mut().for_each(|v| *v = T::zero());
+    for &(r, c, v) in &robot.cinvt_sparse {
+        tau[r] += scratch[c] * T::c(v);
     }
 }
 
@@ -360,7 +348,7 @@ pub(crate) fn regressor_generic<T: Real>(robot: &Robot, q: &[T], qd: &[T], qdd: 
         *v = T::zero();
     }
     rigid_regressor(robot, q, qd, qdd, terms.gravity, kin, y);
-    if let Some(ct) = &robot.coupling_inv_t {
+    if robot.coupling.is_some() {
         // rows ← C⁻ᵀ rows, column by column of inertial parameters
         let mut col = std::mem::take(&mut kin.s1);
         for i in 0..n {
@@ -368,16 +356,10 @@ pub(crate) fn regressor_generic<T: Real>(robot: &Robot, q: &[T], qd: &[T], qdd: 
             for c in o..o + 10 {
                 for r in 0..n {
                     col[r] = y[r * p + c];
+                    y[r * p + c] = T::zero();
                 }
-                for r in 0..n {
-                    let mut s = T::zero();
-                    for k in 0..n {
-                        let v = ct[(r, k)];
-                        if v != 0.0 {
-                            s += col[k] * T::c(v);
-                        }
-                    }
-                    y[r * p + c] = s;
+                for &(r, k, v) in &robot.cinvt_sparse {
+                    y[r * p + c] += col[k] * T::c(v);
                 }
             }
         }

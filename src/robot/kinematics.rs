@@ -126,22 +126,24 @@ pub(crate) fn axis_angle<T: Real>(a: &Vector3<f64>, th: T) -> Matrix3<T> {
 /// Fills `kin.rot`, `kin.pos` (parent-relative transforms) for configuration `q`.
 pub fn joint_transforms<T: Real>(robot: &Robot, q: &[T], kin: &mut Kin<T>) {
     for (i, j) in robot.joints.iter().enumerate() {
+        let g = &robot.geo[i];
         let th = q[i] + T::c(j.offset);
-        let rpl = j.placement.rotation.to_rotation_matrix().into_inner();
-        let ppl = j.placement.translation.vector;
-        let rpo = j.post.rotation.to_rotation_matrix().into_inner();
-        let ppo = j.post.translation.vector;
         let a = j.axis.into_inner();
         match j.kind {
             JointKind::Revolute => {
                 let rm = axis_angle(&a, th);
-                let r_plm = lift33::<T>(&rpl) * rm;
-                kin.rot[i] = r_plm * lift33::<T>(&rpo);
-                kin.pos[i] = lift3::<T>(&ppl) + r_plm * lift3::<T>(&ppo);
+                let r_plm = lift33::<T>(&g.pl_r) * rm;
+                if g.post_identity {
+                    kin.rot[i] = r_plm;
+                    kin.pos[i] = lift3::<T>(&g.pl_p);
+                } else {
+                    kin.rot[i] = r_plm * lift33::<T>(&g.po_r);
+                    kin.pos[i] = lift3::<T>(&g.pl_p) + r_plm * lift3::<T>(&g.po_p);
+                }
             }
             JointKind::Prismatic => {
-                kin.rot[i] = lift33::<T>(&(rpl * rpo));
-                kin.pos[i] = lift3::<T>(&ppl) + lift33::<T>(&rpl) * (lift3::<T>(&a) * th + lift3::<T>(&ppo));
+                kin.rot[i] = lift33::<T>(&(g.pl_r * g.po_r));
+                kin.pos[i] = lift3::<T>(&g.pl_p) + lift33::<T>(&g.pl_r) * (lift3::<T>(&a) * th + lift3::<T>(&g.po_p));
             }
         }
     }

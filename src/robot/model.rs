@@ -351,6 +351,21 @@ pub struct Robot {
     pub(crate) drive_offset: Vec<usize>,
     pub(crate) s_ang: Vec<Vector3<f64>>,
     pub(crate) s_lin: Vec<Vector3<f64>>,
+    /// Precomputed joint geometry (rotation matrices of placement and post).
+    pub(crate) geo: Vec<JointGeometry>,
+    /// Non-zero entries (row, col, value) of C and C⁻ᵀ (empty: identity).
+    pub(crate) c_sparse: Vec<(usize, usize, f64)>,
+    pub(crate) cinvt_sparse: Vec<(usize, usize, f64)>,
+}
+
+/// Joint geometry as matrices, precomputed once for the kernels.
+#[derive(Debug, Clone)]
+pub(crate) struct JointGeometry {
+    pub pl_r: Matrix3<f64>,
+    pub pl_p: Vector3<f64>,
+    pub po_r: Matrix3<f64>,
+    pub po_p: Vector3<f64>,
+    pub post_identity: bool,
 }
 
 impl Robot {
@@ -480,6 +495,29 @@ impl Robot {
                 }
             }
         }
+        let geo = joints
+            .iter()
+            .map(|j| JointGeometry {
+                pl_r: j.placement.rotation.to_rotation_matrix().into_inner(),
+                pl_p: j.placement.translation.vector,
+                po_r: j.post.rotation.to_rotation_matrix().into_inner(),
+                po_p: j.post.translation.vector,
+                post_identity: j.post == Isometry3::identity(),
+            })
+            .collect();
+        let sparse = |m: &DMatrix<f64>| {
+            let mut v = Vec::new();
+            for r in 0..m.nrows() {
+                for c in 0..m.ncols() {
+                    if m[(r, c)] != 0.0 {
+                        v.push((r, c, m[(r, c)]));
+                    }
+                }
+            }
+            v
+        };
+        let c_sparse = coupling.as_ref().map(sparse).unwrap_or_default();
+        let cinvt_sparse = coupling_inv_t.as_ref().map(sparse).unwrap_or_default();
         let (s_ang, s_lin) = joints
             .iter()
             .map(|j| {
@@ -502,6 +540,9 @@ impl Robot {
             gravity,
             source,
             coupling_inv_t,
+            geo,
+            c_sparse,
+            cinvt_sparse,
             params,
             drive_offset,
             s_ang,
