@@ -229,7 +229,7 @@ impl FourierTrajectory {
         let svd = x.svd(true, true);
         let smax = svd.singular_values.max();
         let smin = svd.singular_values.min();
-        if !(smin > 1e-10 * smax) {
+        if smin.is_nan() || smin <= 1e-10 * smax {
             return Err(Error::Numerical(
                 "Fourier fit: the sample times do not determine the harmonics (too short or aliased)".into(),
             ));
@@ -259,7 +259,7 @@ pub fn period_grid(period: f64, rate: f64) -> Result<Vec<f64>> {
         return Err(Error::invalid("sampling", "rate", format!("expected a positive rate in Hz, got {rate}")));
     }
     let n = (period * rate).round();
-    if !(n >= 1.0 && n <= 1e8) {
+    if !(1.0..=1e8).contains(&n) {
         return Err(Error::invalid(
             "sampling",
             "rate",
