@@ -100,7 +100,7 @@ impl Dataset {
 }
 
 /// Weights of the WLS estimator.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum Weights {
     /// Per joint and time step, the inverse sample variances (paper 000 eq. 7–9).
