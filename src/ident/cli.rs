@@ -62,6 +62,9 @@ pub struct IdentifyArgs {
     /// Fourier trajectory of the validation run; default: trajectory.json in its folder.
     #[arg(long)]
     pub validate_trajectory: Option<PathBuf>,
+    /// Harmonics kept by Fourier filtering (default: the trajectory's n_h).
+    #[arg(long)]
+    pub harmonics: Option<usize>,
     /// Keep every k-th sample after filtering.
     #[arg(long, default_value_t = 1)]
     pub decimate: usize,
@@ -89,7 +92,10 @@ pub struct IdentifyArgs {
     /// gravity.json of a gravity experiment on the same joint (friction experiment; else gravity is fitted alongside).
     #[arg(long)]
     pub gravity_fit: Option<PathBuf>,
-    /// Speed below which samples are left out of the friction fit (rad/s).
+    /// Rows of a joint slower than this fraction of its largest speed are left out of the identification.
+    #[arg(long, default_value_t = 0.1)]
+    pub slow_ratio: f64,
+    /// Speed below which samples are left out of the friction experiment (rad/s).
     #[arg(long, default_value_t = 0.05)]
     pub min_speed: f64,
     /// Output folder (default: out/identify_<run folder name>).
@@ -169,7 +175,9 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
         method: a.method,
         weights: a.weights,
         filter: filter_choice(a, traj.as_ref())?,
+        harmonics: a.harmonics,
         decimate: a.decimate,
+        slow_ratio: a.slow_ratio,
         reduce: a.reduce.then(|| ReduceOptions {
             tol: a.tol,
             essential,

@@ -130,6 +130,9 @@ pub fn projection(ds: &Dataset, pr: &Processed, run: &Run, opts: &ProjectionOpti
         )
     })?;
     let periodic = pr.fourier.is_some();
+    if !ds.is_complete() {
+        return Err(Error::invalid("projection method", "min_speed", "the projection needs every sample: build the dataset with min_speed = 0"));
+    }
     let n = ds.n;
     let m = ds.n_samples;
     if r.len() != m {
@@ -199,6 +202,8 @@ pub fn projection(ds: &Dataset, pr: &Processed, run: &Run, opts: &ProjectionOpti
         y: uh,
         var: ds.var.clone(),
         names: ds.names.clone(),
+        joint: ds.joint.clone(),
+        sample: ds.sample.clone(),
     };
     let var = super::estimate::row_variances(&proj, opts.weights)?;
     let w = var.map(|v| 1.0 / v);

@@ -27,21 +27,25 @@ use serde::Serialize;
 pub struct Dataset {
     /// Number of joints n.
     pub n: usize,
-    /// Samples per joint N.
+    /// Samples per joint N (before rows were left out).
     pub n_samples: usize,
-    /// Design matrix C (n·N × columns), rows joint-major (row j·N + p).
+    /// Design matrix C (rows × columns); rows joint-major, row i is joint `joint[i]` at sample `sample[i]`.
     pub c: DMatrix<f64>,
-    /// Torques y (n·N).
+    /// Torques y.
     pub y: DVector<f64>,
     /// Variances of y (of the averaged torques), if known.
     pub var: Option<DVector<f64>>,
     /// Column names.
     pub names: Vec<String>,
+    /// Joint of each row.
+    pub joint: Vec<usize>,
+    /// Sample index of each row.
+    pub sample: Vec<usize>,
 }
 
 /// Builds the base regressor stack for processed samples (q, q̇, q̈ per sample)
-/// and torques; rows joint-major. Regressor rows are evaluated in parallel,
-/// one workspace per thread.
+/// and torques; rows joint-major (row j·N + p). Regressor rows are evaluated
+/// in parallel, one workspace per thread.
 pub fn base_design(robot: &Robot, base: &BaseParams, q: &[Vec<f64>], qd: &[Vec<f64>], qdd: &[Vec<f64>]) -> DMatrix<f64> {
     let n = robot.dof();
     let p = robot.n_params();
@@ -66,35 +70,47 @@ pub fn base_design(robot: &Robot, base: &BaseParams, q: &[Vec<f64>], qd: &[Vec<f
 }
 
 impl Dataset {
-    /// Builds the dataset of a processed run.
-    pub fn new(robot: &Robot, base: &BaseParams, pr: &super::Processed) -> Dataset {
+    /// Builds the dataset of a processed run. Rows of joint j at samples where
+    /// |q̇_j| < `slow_ratio` · max_p |q̇_j(p)| are left out: near zero velocity
+    /// the sign of the estimated velocity is unreliable and Coulomb friction is
+    /// undefined at rest (a drive holding still chatters between ±F_c), which
+    /// biases the friction estimates. `slow_ratio = 0` keeps every row.
+    pub fn new(robot: &Robot, base: &BaseParams, pr: &super::Processed, slow_ratio: f64) -> Dataset {
         let n = robot.dof();
         let m = pr.len();
         let c = base_design(robot, base, &pr.q, &pr.qd, &pr.qdd);
-        let y = DVector::from_fn(n * m, |r, _| pr.tau[r % m][r / m]);
+        let vmax: Vec<f64> = (0..n).map(|j| pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max)).collect();
+        let keep: Vec<usize> = (0..n * m)
+            .filter(|&r| slow_ratio <= 0.0 || pr.qd[r % m][r / m].abs() >= slow_ratio * vmax[r / m])
+            .collect();
+        let y = DVector::from_iterator(keep.len(), keep.iter().map(|&r| pr.tau[r % m][r / m]));
         let var = pr
             .tau_var
             .as_ref()
-            .map(|v| DVector::from_fn(n * m, |r, _| v[r % m][r / m] / pr.n_reps as f64));
+            .map(|v| DVector::from_iterator(keep.len(), keep.iter().map(|&r| v[r % m][r / m] / pr.n_reps as f64)));
         Dataset {
             n,
             n_samples: m,
-            c,
+            c: c.select_rows(keep.iter()),
             y,
             var,
             names: base.names.clone(),
+            joint: keep.iter().map(|&r| r / m).collect(),
+            sample: keep.iter().map(|&r| r % m).collect(),
         }
+    }
+
+    /// True when no row was left out (row j·N + p is joint j at sample p).
+    pub fn is_complete(&self) -> bool {
+        self.c.nrows() == self.n * self.n_samples
     }
 
     /// The dataset restricted to the given columns.
     pub fn columns(&self, cols: &[usize]) -> Dataset {
         Dataset {
-            n: self.n,
-            n_samples: self.n_samples,
-            c: DMatrix::from_fn(self.c.nrows(), cols.len(), |i, j| self.c[(i, cols[j])]),
-            y: self.y.clone(),
-            var: self.var.clone(),
+            c: self.c.select_columns(cols.iter()),
             names: cols.iter().map(|&c| self.names[c].clone()).collect(),
+            ..self.clone()
         }
     }
 }
@@ -211,16 +227,14 @@ fn check(ds: &Dataset) -> Result<()> {
 /// Per-row variances for WLS: the sample variances (eq. 7, divided by N_r), or
 /// their per-joint means; without repetitions, the per-joint residual variance of OLS.
 pub fn row_variances(ds: &Dataset, weights: Weights) -> Result<DVector<f64>> {
-    let m = ds.n_samples;
     let per_joint_mean = |v: &DVector<f64>| -> DVector<f64> {
-        let mut out = v.clone();
-        for j in 0..ds.n {
-            let mean = (0..m).map(|k| v[j * m + k]).sum::<f64>() / m as f64;
-            for k in 0..m {
-                out[j * m + k] = mean;
-            }
+        let mut sum = vec![0.0; ds.n];
+        let mut cnt = vec![0usize; ds.n];
+        for (i, &j) in ds.joint.iter().enumerate() {
+            sum[j] += v[i];
+            cnt[j] += 1;
         }
-        out
+        DVector::from_iterator(v.len(), ds.joint.iter().map(|&j| sum[j] / cnt[j].max(1) as f64))
     };
     let var = match (&ds.var, weights) {
         (Some(v), Weights::Sample) => v.clone(),
@@ -289,28 +303,30 @@ pub struct Errors {
 /// Prediction errors of estimate `theta` on dataset `ds` (columns as in `ds`).
 pub fn errors(ds: &Dataset, theta: &[f64]) -> Errors {
     let pred = &ds.c * DVector::from_column_slice(theta);
-    let m = ds.n_samples;
     let mut e = vec![0.0; ds.n];
     let mut mag = vec![0.0; ds.n];
     let mut rms = vec![0.0; ds.n];
-    for j in 0..ds.n {
-        for k in 0..m {
-            let i = j * m + k;
-            let d = ds.y[i] - pred[i];
-            e[j] += d.abs() / m as f64;
-            rms[j] += d * d / m as f64;
-            mag[j] += ds.y[i].abs() / m as f64;
+    let mut cnt = vec![0usize; ds.n];
+    let mut floor = vec![0.0; ds.n];
+    for (i, &j) in ds.joint.iter().enumerate() {
+        let d = ds.y[i] - pred[i];
+        e[j] += d.abs();
+        rms[j] += d * d;
+        mag[j] += ds.y[i].abs();
+        cnt[j] += 1;
+        if let Some(v) = &ds.var {
+            floor[j] += v[i].sqrt();
         }
     }
-    let noise_floor = ds.var.as_ref().map(|v| {
-        (0..ds.n)
-            .map(|j| (0..m).map(|k| v[j * m + k].sqrt()).sum::<f64>() / m as f64 * (2.0 / std::f64::consts::PI).sqrt())
-            .collect()
-    });
+    let c = |j: usize| cnt[j].max(1) as f64;
+    let noise_floor = ds
+        .var
+        .as_ref()
+        .map(|_| (0..ds.n).map(|j| floor[j] / c(j) * (2.0 / std::f64::consts::PI).sqrt()).collect());
     Errors {
-        e_rel: e.iter().zip(&mag).map(|(a, b)| if *b > 0.0 { a / b } else { 0.0 }).collect(),
-        e,
-        rms: rms.into_iter().map(f64::sqrt).collect(),
+        e_rel: (0..ds.n).map(|j| if mag[j] > 0.0 { e[j] / mag[j] } else { 0.0 }).collect(),
+        e: (0..ds.n).map(|j| e[j] / c(j)).collect(),
+        rms: (0..ds.n).map(|j| (rms[j] / c(j)).sqrt()).collect(),
         noise_floor,
     }
 }

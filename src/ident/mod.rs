@@ -68,8 +68,17 @@ pub struct IdentOptions {
     pub weights: Weights,
     /// Filter of the identification run.
     pub filter: FilterChoice,
+    /// Harmonics kept by Fourier filtering (default: the trajectory's n_h, the
+    /// excited ones as in paper 000 §III-C). More harmonics keep the part of the
+    /// closed-loop response above the excitation band (tracking errors of a
+    /// nonlinear plant) that filtering at n_h would remove from q̈.
+    pub harmonics: Option<usize>,
     /// Keep every k-th processed sample.
     pub decimate: usize,
+    /// Rows of joint j where |q̇_j| is below this fraction of the joint's largest
+    /// speed in the run are left out (see [`Dataset::new`]). Not applied by the
+    /// projection method, which needs every sample.
+    pub slow_ratio: f64,
     /// Model reduction (WLS only).
     pub reduce: Option<ReduceOptions>,
     /// Projection-method options.
@@ -84,7 +93,9 @@ impl Default for IdentOptions {
             method: Method::Wls,
             weights: Weights::Sample,
             filter: FilterChoice::Auto,
+            harmonics: None,
             decimate: 1,
+            slow_ratio: 0.1,
             reduce: None,
             projection: ProjectionOptions::default(),
             ml: MlOptions::default(),
@@ -182,12 +193,16 @@ pub struct Identification {
 
 /// Chooses the filter: a given one, or Fourier filtering at the trajectory's
 /// ω and n_h when known, else a 10 Hz low-pass.
-pub fn resolve_filter(choice: &FilterChoice, trajectory: Option<&FourierTrajectory>) -> Filter {
+pub fn resolve_filter(choice: &FilterChoice, trajectory: Option<&FourierTrajectory>, harmonics: Option<usize>) -> Filter {
     match (choice, trajectory) {
+        (FilterChoice::Given(Filter::Fourier { omega, n_h }), _) => Filter::Fourier {
+            omega: *omega,
+            n_h: harmonics.unwrap_or(*n_h),
+        },
         (FilterChoice::Given(f), _) => f.clone(),
         (FilterChoice::Auto, Some(t)) => Filter::Fourier {
             omega: t.omega,
-            n_h: t.n_harmonics(),
+            n_h: harmonics.unwrap_or(t.n_harmonics()),
         },
         (FilterChoice::Auto, None) => Filter::LowPass { cutoff: 10.0 },
     }
@@ -220,9 +235,13 @@ pub fn identify(
     if opts.reduce.is_some() && !matches!(opts.method, Method::Wls) {
         return Err(Error::invalid("identify", "reduce", "model reduction (paper 000 Algorithm 1) uses WLS: run it with method wls"));
     }
-    let filter = resolve_filter(&opts.filter, trajectory);
+    let filter = resolve_filter(&opts.filter, trajectory, opts.harmonics);
     let pr = process(run, &filter)?.decimated(opts.decimate);
-    let full = Dataset::new(robot, base, &pr);
+    if !(opts.slow_ratio.is_finite() && (0.0..1.0).contains(&opts.slow_ratio)) {
+        return Err(Error::invalid("identify", "slow_ratio", "expected a fraction in [0, 1)"));
+    }
+    let slow = if matches!(opts.method, Method::Projection) { 0.0 } else { opts.slow_ratio };
+    let full = Dataset::new(robot, base, &pr, slow);
     let moving: Vec<bool> = (0..robot.dof())
         .map(|j| pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max) > opts.reduce.as_ref().map_or(0.05, |r| r.moving_speed))
         .collect();
@@ -262,15 +281,11 @@ pub fn identify(
             }
             let vf = match (&opts.filter, vtraj) {
                 (FilterChoice::Given(f), _) if !matches!(f, Filter::Fourier { .. }) => f.clone(),
-                (_, Some(t)) => Filter::Fourier {
-                    omega: t.omega,
-                    n_h: t.n_harmonics(),
-                },
-                (FilterChoice::Given(Filter::Fourier { .. }), None) => Filter::LowPass { cutoff: 10.0 },
-                (_, None) => resolve_filter(&FilterChoice::Auto, None),
+                (_, Some(t)) => resolve_filter(&FilterChoice::Auto, Some(t), opts.harmonics),
+                (_, None) => resolve_filter(&FilterChoice::Auto, None, None),
             };
             let vp = process(vrun, &vf)?.decimated(opts.decimate);
-            Some(Dataset::new(robot, base, &vp).columns(&cols))
+            Some(Dataset::new(robot, base, &vp, slow).columns(&cols))
         }
         None => None,
     };
@@ -453,14 +468,13 @@ impl Identification {
         crate::io::write_atomic(&dir.join("report.txt"), self.estimate.text().as_bytes())?;
         let torque_panels = |ds: &Dataset, t: &[f64], resid: bool| -> Vec<Panel> {
             let pred = &ds.c * nalgebra::DVector::from_column_slice(&self.estimate.theta);
-            let m = ds.n_samples;
-            let step = m.div_ceil(1500).max(1);
+            let step = ds.n_samples.div_ceil(1500).max(1);
             (0..ds.n)
                 .map(|j| {
-                    let idx: Vec<usize> = (0..m).step_by(step).collect();
-                    let x: Vec<f64> = idx.iter().map(|&k| t.get(k * 1).copied().unwrap_or(k as f64)).collect();
-                    let meas: Vec<f64> = idx.iter().map(|&k| ds.y[j * m + k]).collect();
-                    let pr: Vec<f64> = idx.iter().map(|&k| pred[j * m + k]).collect();
+                    let idx: Vec<usize> = (0..ds.y.len()).filter(|&i| ds.joint[i] == j && ds.sample[i] % step == 0).collect();
+                    let x: Vec<f64> = idx.iter().map(|&i| t.get(ds.sample[i]).copied().unwrap_or(ds.sample[i] as f64)).collect();
+                    let meas: Vec<f64> = idx.iter().map(|&i| ds.y[i]).collect();
+                    let pr: Vec<f64> = idx.iter().map(|&i| pred[i]).collect();
                     let series = if resid {
                         vec![Series::line("measured − predicted", x, meas.iter().zip(&pr).map(|(a, b)| a - b).collect())]
                     } else {
