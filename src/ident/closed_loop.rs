@@ -265,11 +265,17 @@ pub struct MlOptions {
     pub max_eval: u32,
     /// Relative tolerance on the cost.
     pub ftol_rel: f64,
+    /// Half-width of the search box, in WLS standard deviations around the WLS estimate.
+    pub bound: f64,
 }
 
 impl Default for MlOptions {
     fn default() -> Self {
-        MlOptions { max_eval: 400, ftol_rel: 1e-12 }
+        MlOptions {
+            max_eval: 400,
+            ftol_rel: 1e-12,
+            bound: 50.0,
+        }
     }
 }
 
@@ -316,7 +322,7 @@ impl MlData {
                         jm.set_column(m, &(d * &th));
                     }
                     let d4 = 4 * n;
-                    let s = DMatrix::from_row_slice(d4, d4, &self.sig[i]);
+                    let s = DMatrix::from_row_slice(d4, d4, &self.sig[i.min(self.sig.len() - 1)]);
                     let stt = s.view((0, 0), (n, n));
                     let stx = s.view((0, n), (n, 3 * n));
                     let sxx = s.view((n, n), (3 * n, 3 * n));
@@ -375,7 +381,7 @@ impl MlData {
                 jm.set_column(m, &(d * &th));
             }
             let d4 = 4 * n;
-            let s = DMatrix::from_row_slice(d4, d4, &self.sig[i]);
+            let s = DMatrix::from_row_slice(d4, d4, &self.sig[i.min(self.sig.len() - 1)]);
             let stt = s.view((0, 0), (n, n));
             let stx = s.view((0, n), (n, 3 * n));
             let sxx = s.view((n, n), (3 * n, 3 * n));
@@ -448,7 +454,18 @@ pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, cols: &[usize], star
         k,
         mats,
         tau: pr.tau.clone(),
-        sig: cov.iter().map(|c| c.iter().map(|v| v / nr).collect()).collect(),
+        sig: {
+            // pooled over time: a stationary noise model estimated from all N_r·N deviations
+            // (per-sample 4n×4n covariances from a few repetitions are too noisy)
+            let d = cov[0].len();
+            let mut pooled = vec![0.0; d];
+            for c in cov {
+                for (a, v) in pooled.iter_mut().zip(c) {
+                    *a += v / (m as f64 * nr);
+                }
+            }
+            vec![pooled]
+        },
     };
     let sc: Vec<f64> = scale.iter().map(|s| if s.is_finite() && *s > 0.0 { *s } else { 1.0 }).collect();
     let x0 = start.to_vec();
@@ -476,6 +493,10 @@ pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, cols: &[usize], star
         }
     };
     let mut opt = nlopt::Nlopt::new(nlopt::Algorithm::Lbfgs, k, obj, nlopt::Target::Minimize, ());
+    // a trust region of ±bound WLS standard deviations: without a log-det term the
+    // errors-in-variables cost stays bounded as |θ| → ∞ and can drift there on noisy data
+    let _ = opt.set_lower_bounds(&vec![-opts.bound; k]);
+    let _ = opt.set_upper_bounds(&vec![opts.bound; k]);
     let _ = opt.set_maxeval(opts.max_eval);
     let _ = opt.set_ftol_rel(opts.ftol_rel);
     let _ = opt.set_xtol_rel(1e-10);
