@@ -95,9 +95,9 @@ pub struct IdentifyArgs {
     /// Rows of a joint slower than this fraction of its largest speed are left out of the identification.
     #[arg(long, default_value_t = 0.1)]
     pub slow_ratio: f64,
-    /// Speed below which samples are left out of the friction experiment (rad/s).
-    #[arg(long, default_value_t = 0.05)]
-    pub min_speed: f64,
+    /// Speed below which rows are left out: of the identification (default 0.01) and of the friction experiment (default 0.05) (rad/s or m/s).
+    #[arg(long)]
+    pub min_speed: Option<f64>,
     /// Output folder (default: out/identify_<run folder name>).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -178,6 +178,7 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
         harmonics: a.harmonics,
         decimate: a.decimate,
         slow_ratio: a.slow_ratio,
+        min_speed: a.min_speed.unwrap_or(0.01),
         reduce: a.reduce.then(|| ReduceOptions {
             tol: a.tol,
             essential,
@@ -264,13 +265,13 @@ fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run) -> Result<()> {
                 }
                 None => None,
             };
-            let f: FrictionFit = friction_experiment(&pr, joint, grav.as_ref(), a.min_speed)?;
+            let f: FrictionFit = friction_experiment(&pr, joint, grav.as_ref(), a.min_speed.unwrap_or(0.05))?;
             crate::io::write_json(&out.join("friction.json"), &f)?;
             let v: Vec<f64> = pr.qd.iter().map(|s| s[j]).collect();
             let tf: Vec<f64> = (0..pr.len())
                 .map(|p| pr.tau[p][j] - f.inertia * pr.qdd[p][j] - f.gravity_k * (pr.q[p][j] + f.gravity_q_off).sin())
                 .collect();
-            let mut vs: Vec<f64> = v.iter().copied().filter(|x| x.abs() > a.min_speed).collect();
+            let mut vs: Vec<f64> = v.iter().copied().filter(|x| x.abs() > a.min_speed.unwrap_or(0.05)).collect();
             vs.sort_by(f64::total_cmp);
             let model: Vec<f64> = vs.iter().map(|&x| if x > 0.0 { f.fc_pos + f.fv_pos * x } else { f.fc_neg + f.fv_neg * x }).collect();
             write_svg(

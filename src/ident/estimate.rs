@@ -71,17 +71,23 @@ pub fn base_design(robot: &Robot, base: &BaseParams, q: &[Vec<f64>], qd: &[Vec<f
 
 impl Dataset {
     /// Builds the dataset of a processed run. Rows of joint j at samples where
-    /// |q̇_j| < `slow_ratio` · max_p |q̇_j(p)| are left out: near zero velocity
-    /// the sign of the estimated velocity is unreliable and Coulomb friction is
-    /// undefined at rest (a drive holding still chatters between ±F_c), which
-    /// biases the friction estimates. `slow_ratio = 0` keeps every row.
-    pub fn new(robot: &Robot, base: &BaseParams, pr: &super::Processed, slow_ratio: f64) -> Dataset {
+    /// |q̇_j| < max(`slow_ratio` · max_p |q̇_j(p)|, `min_speed`) are left out:
+    /// near zero velocity the sign of the estimated velocity is unreliable and
+    /// Coulomb friction is undefined at rest (a drive holding still chatters
+    /// between ±F_c), which biases the friction estimates; a joint that never
+    /// moves faster than `min_speed` contributes no rows (its friction columns
+    /// vanish and the rank check of the reduction removes them).
+    /// `slow_ratio = min_speed = 0` keeps every row.
+    pub fn new(robot: &Robot, base: &BaseParams, pr: &super::Processed, slow_ratio: f64, min_speed: f64) -> Dataset {
         let n = robot.dof();
         let m = pr.len();
         let c = base_design(robot, base, &pr.q, &pr.qd, &pr.qdd);
         let vmax: Vec<f64> = (0..n).map(|j| pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max)).collect();
         let keep: Vec<usize> = (0..n * m)
-            .filter(|&r| slow_ratio <= 0.0 || pr.qd[r % m][r / m].abs() >= slow_ratio * vmax[r / m])
+            .filter(|&r| {
+                let thr = (slow_ratio * vmax[r / m]).max(min_speed);
+                thr <= 0.0 || pr.qd[r % m][r / m].abs() >= thr
+            })
             .collect();
         let y = DVector::from_iterator(keep.len(), keep.iter().map(|&r| pr.tau[r % m][r / m]));
         let var = pr

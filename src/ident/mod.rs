@@ -79,6 +79,8 @@ pub struct IdentOptions {
     /// speed in the run are left out (see [`Dataset::new`]). Not applied by the
     /// projection method, which needs every sample.
     pub slow_ratio: f64,
+    /// Rows of a joint slower than this speed are left out too (rad/s or m/s).
+    pub min_speed: f64,
     /// Model reduction (WLS only).
     pub reduce: Option<ReduceOptions>,
     /// Projection-method options.
@@ -96,6 +98,7 @@ impl Default for IdentOptions {
             harmonics: None,
             decimate: 1,
             slow_ratio: 0.1,
+            min_speed: 0.01,
             reduce: None,
             projection: ProjectionOptions::default(),
             ml: MlOptions::default(),
@@ -240,8 +243,15 @@ pub fn identify(
     if !(opts.slow_ratio.is_finite() && (0.0..1.0).contains(&opts.slow_ratio)) {
         return Err(Error::invalid("identify", "slow_ratio", "expected a fraction in [0, 1)"));
     }
-    let slow = if matches!(opts.method, Method::Projection) { 0.0 } else { opts.slow_ratio };
-    let full = Dataset::new(robot, base, &pr, slow);
+    if !(opts.min_speed.is_finite() && opts.min_speed >= 0.0) {
+        return Err(Error::invalid("identify", "min_speed", "expected a speed ≥ 0"));
+    }
+    let (slow, vmin) = if matches!(opts.method, Method::Projection) {
+        (0.0, 0.0)
+    } else {
+        (opts.slow_ratio, opts.min_speed)
+    };
+    let full = Dataset::new(robot, base, &pr, slow, vmin);
     let moving: Vec<bool> = (0..robot.dof())
         .map(|j| pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max) > opts.reduce.as_ref().map_or(0.05, |r| r.moving_speed))
         .collect();
@@ -285,7 +295,7 @@ pub fn identify(
                 (_, None) => resolve_filter(&FilterChoice::Auto, None, None),
             };
             let vp = process(vrun, &vf)?.decimated(opts.decimate);
-            Some(Dataset::new(robot, base, &vp, slow).columns(&cols))
+            Some(Dataset::new(robot, base, &vp, slow, vmin).columns(&cols))
         }
         None => None,
     };
