@@ -1,7 +1,7 @@
 //! `idexp identify`: identification from measured (or simulated) runs, and the
 //! dedicated gravity and friction experiments (`--experiment`).
 
-use super::experiments::{friction_experiment, gravity_experiment, FrictionFit, GravityFit};
+use super::experiments::{friction_experiment, gravity_experiment, FrictionFit, GravityFit, GravityTerm};
 use super::{identify, run_trajectory, Essential, Filter, FilterChoice, IdentOptions, Method, ReduceOptions, Run, Weights};
 use crate::error::{Error, Result};
 use crate::params::{BaseOptions, BaseParams};
@@ -92,6 +92,9 @@ pub struct IdentifyArgs {
     /// gravity.json of a gravity experiment on the same joint (friction experiment; else gravity is fitted alongside).
     #[arg(long)]
     pub gravity_fit: Option<PathBuf>,
+    /// Friction experiment on a joint without gravity torque (vertical axis): no gravity term.
+    #[arg(long)]
+    pub no_gravity: bool,
     /// Rows of a joint slower than this fraction of its largest speed are left out of the identification.
     #[arg(long, default_value_t = 0.1)]
     pub slow_ratio: f64,
@@ -265,7 +268,12 @@ fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run) -> Result<()> {
                 }
                 None => None,
             };
-            let f: FrictionFit = friction_experiment(&pr, joint, grav.as_ref(), a.min_speed.unwrap_or(0.05))?;
+            let term = match (&grav, a.no_gravity) {
+                (Some(g), _) => GravityTerm::Given(g),
+                (None, true) => GravityTerm::Zero,
+                (None, false) => GravityTerm::Fit,
+            };
+            let f: FrictionFit = friction_experiment(&pr, joint, term, a.min_speed.unwrap_or(0.05))?;
             crate::io::write_json(&out.join("friction.json"), &f)?;
             let v: Vec<f64> = pr.qd.iter().map(|s| s[j]).collect();
             let tf: Vec<f64> = (0..pr.len())
@@ -296,7 +304,7 @@ fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run) -> Result<()> {
                 f.std.iter().map(|s| format!("{s:.2e}")).collect::<Vec<_>>(),
                 f.gravity_k,
                 f.gravity_q_off,
-                if f.gravity_given { "from the gravity experiment" } else { "fitted alongside" },
+                if f.gravity_given { "from the gravity experiment" } else if a.no_gravity { "none" } else { "fitted alongside" },
                 f.samples,
                 f.rms
             )

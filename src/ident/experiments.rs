@@ -10,8 +10,8 @@
 //!   τ = A sin q + B cos q + c_±, so k = √(A² + B²), q_off = atan2(B, A).
 //!   For a rigid robot with the other joints at rest the gravity torque of a
 //!   joint is exactly of this form (the distal centre of mass rotates about the axis).
-//! * **Friction** (§3.2.2, eq. 2): bang-bang accelerations; with gravity either
-//!   from the gravity experiment or fitted alongside,
+//! * **Friction** (§3.2.2, eq. 2): bang-bang accelerations; with gravity from
+//!   the gravity experiment (as in the paper), absent (vertical axis), or fitted alongside,
 //!   τ_j = J q̈_j + A sin q_j + B cos q_j + [q̇ > 0](F_c⁺ + F_v⁺ q̇) + [q̇ < 0](F_c⁻ + F_v⁻ q̇),
 //!   J the effective inertia (constant: M_jj does not depend on q_j), samples
 //!   with |q̇_j| below `min_speed` left out (stiction region, not modelled).
@@ -143,17 +143,34 @@ pub fn gravity_experiment(pr: &Processed, joint: usize) -> Result<GravityFit> {
     })
 }
 
+/// The gravity term of the friction experiment.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GravityTerm<'a> {
+    /// Fitted alongside (A sin q + B cos q): well posed only when the joint
+    /// sweeps a wide range; over a small excursion cos q is nearly constant and
+    /// collinear with the Coulomb terms (the standard deviations show it).
+    Fit,
+    /// From a gravity experiment on the same joint (paper 002 §3.2.2).
+    Given(&'a GravityFit),
+    /// None: the joint axis is vertical (or gravity is compensated).
+    Zero,
+}
+
 /// Fits the asymmetric Coulomb + viscous model (eq. 2) and the effective
-/// inertia on a bang-bang run; gravity from `gravity` or fitted alongside.
-pub fn friction_experiment(pr: &Processed, joint: usize, gravity: Option<&GravityFit>, min_speed: f64) -> Result<FrictionFit> {
+/// inertia on a bang-bang run, with the given gravity term.
+pub fn friction_experiment(pr: &Processed, joint: usize, gravity: GravityTerm<'_>, min_speed: f64) -> Result<FrictionFit> {
     let j = check_joint(pr, joint)?;
-    if let Some(g) = gravity {
+    if let GravityTerm::Given(g) = gravity {
         if g.joint != joint {
             return Err(Error::invalid("friction experiment", "gravity", format!("the gravity fit is for joint {}, not {joint}", g.joint)));
         }
     }
+    let given = match gravity {
+        GravityTerm::Given(g) => Some(g),
+        _ => None,
+    };
     let idx: Vec<usize> = (0..pr.len()).filter(|&p| pr.qd[p][j].abs() > min_speed).collect();
-    let ncol = if gravity.is_some() { 5 } else { 7 };
+    let ncol = if matches!(gravity, GravityTerm::Fit) { 7 } else { 5 };
     let a = DMatrix::from_fn(idx.len(), ncol, |r, c| {
         let p = idx[r];
         let (q, v, acc) = (pr.q[p][j], pr.qd[p][j], pr.qdd[p][j]);
@@ -170,12 +187,13 @@ pub fn friction_experiment(pr: &Processed, joint: usize, gravity: Option<&Gravit
     });
     let b = DVector::from_iterator(
         idx.len(),
-        idx.iter().map(|&p| pr.tau[p][j] - gravity.map_or(0.0, |g| g.torque(pr.q[p][j]))),
+        idx.iter().map(|&p| pr.tau[p][j] - given.map_or(0.0, |g| g.torque(pr.q[p][j]))),
     );
     let (x, cov, rms) = lstsq(&a, &b)?;
     let (gk, goff) = match gravity {
-        Some(g) => (g.k, g.q_off),
-        None => (x[5].hypot(x[6]), x[6].atan2(x[5])),
+        GravityTerm::Given(g) => (g.k, g.q_off),
+        GravityTerm::Fit => (x[5].hypot(x[6]), x[6].atan2(x[5])),
+        GravityTerm::Zero => (0.0, 0.0),
     };
     Ok(FrictionFit {
         joint,
@@ -186,7 +204,7 @@ pub fn friction_experiment(pr: &Processed, joint: usize, gravity: Option<&Gravit
         fv_neg: x[4],
         gravity_k: gk,
         gravity_q_off: goff,
-        gravity_given: gravity.is_some(),
+        gravity_given: given.is_some(),
         std: (0..5).map(|i| cov[(i, i)].max(0.0).sqrt()).collect(),
         samples: idx.len(),
         rms,
