@@ -59,6 +59,18 @@ impl Default for PerJoint {
 }
 
 impl PerJoint {
+    /// Checks that every value is finite and ≥ 0 (the joint count is checked by [`PerJoint::resolve`]).
+    pub fn check(&self, ctx: &str, field: &str) -> Result<()> {
+        let v: &[f64] = match self {
+            PerJoint::All(x) => std::slice::from_ref(x),
+            PerJoint::Each(v) => v,
+        };
+        if let Some(i) = v.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
+            return Err(Error::invalid(ctx, field, format!("value {} must be finite and ≥ 0, got {}", i + 1, v[i])));
+        }
+        Ok(())
+    }
+
     /// The values for `n` joints, or an error naming `field`.
     pub fn resolve(&self, n: usize, ctx: &str, field: &str) -> Result<Vec<f64>> {
         let v = match self {
@@ -251,6 +263,14 @@ impl SimDesign {
         }
         if !(self.truth.perturbation.is_finite() && (0.0..=1.0).contains(&self.truth.perturbation)) {
             return Err(Error::invalid(ctx, "truth.perturbation", "expected a relative standard deviation in [0, 1]"));
+        }
+        self.noise.torque.check(ctx, "noise.torque")?;
+        self.noise.position.check(ctx, "noise.position")?;
+        self.noise.disturbance.check(ctx, "noise.disturbance")?;
+        for (f, v) in [("controller.kp", &self.controller.kp), ("controller.kd", &self.controller.kd), ("controller.ki", &self.controller.ki)] {
+            if let Some(v) = v {
+                v.check(ctx, f)?;
+            }
         }
         if !(self.noise.encoder_counts.is_finite() && self.noise.encoder_counts >= 0.0) {
             return Err(Error::invalid(ctx, "noise.encoder_counts", "expected counts per revolution ≥ 0 (0 = none)"));
