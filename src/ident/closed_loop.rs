@@ -546,3 +546,55 @@ pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, cols: &[usize], star
         },
     ))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+
+    #[test]
+    fn ml_gradient_matches_finite_differences() {
+        let (n, k, m) = (2usize, 3usize, 5usize);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut r = || rng.random_range(-1.0..1.0);
+        let mats: Vec<Vec<f64>> = (0..m).map(|_| (0..(1 + 3 * n) * n * k).map(|_| r()).collect()).collect();
+        let tau: Vec<Vec<f64>> = (0..m).map(|_| (0..n).map(|_| r()).collect()).collect();
+        let d = 4 * n;
+        let a = DMatrix::from_fn(d, d, |_, _| r());
+        let sig = (&a * a.transpose() * 0.1 + DMatrix::identity(d, d) * 0.05).as_slice().to_vec();
+        let data = MlData {
+            n,
+            k,
+            mats,
+            tau,
+            sig: vec![sig],
+        };
+        let th = [0.3, -0.7, 0.5];
+        let mut g = vec![0.0; k];
+        let (c0, _) = data.cost_grad(&th, Some(&mut g));
+        for a in 0..k {
+            let h = 1e-6;
+            let mut tp = th;
+            tp[a] += h;
+            let mut tm = th;
+            tm[a] -= h;
+            let fd = (data.cost_grad(&tp, None).0 - data.cost_grad(&tm, None).0) / (2.0 * h);
+            assert!((fd - g[a]).abs() < 1e-6 * (1.0 + fd.abs()), "∂/∂θ{a}: analytic {} vs fd {fd} (cost {c0})", g[a]);
+        }
+    }
+
+    #[test]
+    fn projection_of_a_signal_in_the_reference_span_is_exact() {
+        // u = 2 r(t−1) + 0.5 r(t+2) + 1 is reproduced by lags M1 = 2, M2 = 1
+        let m = 64;
+        let r: Vec<Vec<f64>> = (0..m).map(|p| vec![(0.3 * p as f64).sin() + 0.2 * (0.71 * p as f64).cos()]).collect();
+        let u = DVector::from_fn(m, |p, _| 2.0 * r[(p + m - 1) % m][0] + 0.5 * r[(p + 2) % m][0] + 1.0);
+        let basis = orthonormal_instruments(&r, 2, 1, true).unwrap();
+        let uh = project(&basis, &u);
+        assert!((uh - &u).amax() < 1e-9);
+        // white noise is mostly not in the span
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        let e = DVector::from_fn(m, |_, _| rng.random_range(-1.0..1.0));
+        assert!(project(&basis, &e).norm() < 0.6 * e.norm());
+    }
+}

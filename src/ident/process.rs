@@ -305,3 +305,52 @@ pub fn filtfilt(x: &[f64], cutoff: f64, fs: f64) -> Result<Vec<f64>> {
     ext.reverse();
     Ok(ext[pad..pad + m].to_vec())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ident::run::{Repetition, Run};
+
+    #[test]
+    fn filtfilt_keeps_slow_sines_without_phase_and_removes_fast_ones() {
+        let fs = 200.0;
+        let t: Vec<f64> = (0..2000).map(|i| i as f64 / fs).collect();
+        let slow: Vec<f64> = t.iter().map(|t| (std::f64::consts::TAU * 1.0 * t).sin()).collect();
+        let fast: Vec<f64> = t.iter().map(|t| (std::f64::consts::TAU * 60.0 * t).sin()).collect();
+        let ys = filtfilt(&slow, 10.0, fs).unwrap();
+        let yf = filtfilt(&fast, 10.0, fs).unwrap();
+        // interior: slow sine unchanged (gain |H(1 Hz)|² ≈ 1, no phase), fast one attenuated by > 1e3
+        for i in 200..1800 {
+            assert!((ys[i] - slow[i]).abs() < 1e-3, "slow sine changed at {i}: {} vs {}", ys[i], slow[i]);
+            assert!(yf[i].abs() < 1e-3);
+        }
+        assert!(filtfilt(&slow, 150.0, fs).is_err());
+    }
+
+    #[test]
+    fn averaging_variance_and_fourier_filtering() {
+        // two repetitions of q = 0.3 sin(ωt), τ = ±1 about 2: mean 2, sample variance 2 (eq. 7)
+        let w = std::f64::consts::TAU * 0.5;
+        let t: Vec<f64> = (0..200).map(|i| i as f64 * 0.01).collect();
+        let mk = |s: f64| Repetition {
+            t: t.clone(),
+            q: t.iter().map(|t| vec![0.3 * (w * t).sin() + 1e-3 * s * (37.0 * t).sin()]).collect(),
+            tau: t.iter().map(|_| vec![2.0 + s]).collect(),
+            r: None,
+            qd: None,
+            qdd: None,
+        };
+        let run = Run::new(vec![], vec![mk(1.0), mk(-1.0)]).unwrap();
+        let pr = process(&run, &Filter::Fourier { omega: w, n_h: 3 }).unwrap();
+        for p in 0..200 {
+            assert!((pr.tau[p][0] - 2.0).abs() < 1e-12);
+            assert!((pr.tau_var.as_ref().unwrap()[p][0] - 2.0).abs() < 1e-12);
+            let tt = t[p];
+            assert!((pr.q[p][0] - 0.3 * (w * tt).sin()).abs() < 1e-9);
+            assert!((pr.qd[p][0] - 0.3 * w * (w * tt).cos()).abs() < 1e-8);
+            assert!((pr.qdd[p][0] + 0.3 * w * w * (w * tt).sin()).abs() < 1e-7);
+        }
+        // a record that is not a whole number of periods is refused for Fourier filtering
+        assert!(process(&run, &Filter::Fourier { omega: w * 1.1, n_h: 3 }).is_err());
+    }
+}
