@@ -21,7 +21,7 @@ enum Cmd {
     /// Closed-loop rigid-body simulation of identification runs (writes runs for `identify`).
     Simulate(idexp::sim::cli::SimulateArgs),
     /// Identify base parameters from runs (OLS/WLS/projection/ML, reduction, gravity/friction experiments).
-    Identify(idexp::ident::cli::IdentifyArgs),
+    Identify(Box<idexp::ident::cli::IdentifyArgs>),
 }
 
 fn main() {

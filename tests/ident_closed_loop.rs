@@ -14,8 +14,8 @@
 //!   noise model) does not remove it.
 
 mod ident_util;
-use idexp::ident::{IdentOptions, Method};
 use ident_util::*;
+use idexp::ident::{IdentOptions, Method};
 
 const METHODS: [Method; 4] = [Method::Ols, Method::Wls, Method::Projection, Method::Ml];
 
@@ -57,15 +57,27 @@ fn projection_reduces_the_closed_loop_bias_of_direct_ls() {
     let fc2 = names.iter().position(|n| n == "Fc2").unwrap();
     for (mi, m) in METHODS.iter().enumerate() {
         let (b, sd) = bias_spread(&est, &truth, mi, fc2);
-        println!("σ_q 1e-5 {m:?}: Fc2 bias {:+.2} % spread {:.2} %", 100.0 * b / truth[fc2], 100.0 * sd / truth[fc2]);
-        assert!((b / truth[fc2]).abs() < 0.03, "{m:?}: Fc2 biased by {:.1} % at realistic noise", 100.0 * b / truth[fc2]);
+        println!(
+            "σ_q 1e-5 {m:?}: Fc2 bias {:+.2} % spread {:.2} %",
+            100.0 * b / truth[fc2],
+            100.0 * sd / truth[fc2]
+        );
+        assert!(
+            (b / truth[fc2]).abs() < 0.03,
+            "{m:?}: Fc2 biased by {:.1} % at realistic noise",
+            100.0 * b / truth[fc2]
+        );
     }
     // heavy encoder noise fed back: direct LS biased, projection much less
     let (est, truth, _) = study(3e-4, &seeds);
     let mut rel = vec![];
     for (mi, m) in METHODS.iter().enumerate() {
         let (b, sd) = bias_spread(&est, &truth, mi, fc2);
-        println!("σ_q 3e-4 {m:?}: Fc2 bias {:+.1} % spread {:.1} %", 100.0 * b / truth[fc2], 100.0 * sd / truth[fc2]);
+        println!(
+            "σ_q 3e-4 {m:?}: Fc2 bias {:+.1} % spread {:.1} %",
+            100.0 * b / truth[fc2],
+            100.0 * sd / truth[fc2]
+        );
         rel.push((b / truth[fc2]).abs());
     }
     let (b_ols, sd_ols) = bias_spread(&est, &truth, 0, fc2);

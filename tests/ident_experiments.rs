@@ -3,10 +3,10 @@
 //! friction (eq. 2) against the true friction coefficients and inertia.
 
 mod ident_util;
+use ident_util::*;
 use idexp::ident::experiments::{friction_experiment, gravity_experiment, GravityTerm};
 use idexp::ident::{process, Filter};
 use idexp::robot::{gravity, mass_matrix, Friction, Workspace};
-use ident_util::*;
 
 const REST: &str = "[0.3, -0.5, 0.4, 0.0, 0.3, 0.0]";
 
@@ -35,7 +35,9 @@ q_rest = {REST}
 
 #[test]
 fn gravity_slopes_recover_the_true_gravity_sinusoid() {
-    let res = simulate(&puma("kind = \"gravity_slopes\"\njoint = 2\nfrom = -1.2\nto = 0.8\nvelocity = 0.4\nacceleration = 2.0"));
+    let res = simulate(&puma(
+        "kind = \"gravity_slopes\"\njoint = 2\nfrom = -1.2\nto = 0.8\nvelocity = 0.4\nacceleration = 2.0",
+    ));
     let pr = process(&run_of(&res), &Filter::LowPass { cutoff: 10.0 }).unwrap();
     let g = gravity_experiment(&pr, 2).unwrap();
     // truth: gravity torque of joint 2 along the slope, fitted exactly by k sin(q + off)
@@ -57,21 +59,31 @@ fn gravity_slopes_recover_the_true_gravity_sinusoid() {
     assert!((g.k - k).abs() < 0.01 * k, "k {} vs {k}", g.k);
     assert!((g.q_off - off).abs() < 0.01, "q_off {} vs {off}", g.q_off);
     // the offsets of the two directions hold friction at ±v: their half difference is Fc + Fv v
-    let Friction::Symmetric { fc, fv, .. } = truth.drives[1].friction else { panic!() };
+    let Friction::Symmetric { fc, fv, .. } = truth.drives[1].friction else {
+        panic!()
+    };
     let f = 0.5 * (g.offset_pos - g.offset_neg);
-    assert!((f - (fc + fv * g.speed)).abs() < 0.05 * (fc + fv * g.speed), "friction at speed {f} vs {}", fc + fv * g.speed);
+    assert!(
+        (f - (fc + fv * g.speed)).abs() < 0.05 * (fc + fv * g.speed),
+        "friction at speed {f} vs {}",
+        fc + fv * g.speed
+    );
 }
 
 #[test]
 fn bang_bang_recovers_friction_and_inertia() {
     let res = simulate(&puma("kind = \"bang_bang\"\njoint = 2\nacceleration = 3.0\nvelocities = [0.3, 0.6, 1.0]"));
     let pr = process(&run_of(&res), &Filter::LowPass { cutoff: 10.0 }).unwrap();
-    let res_g = simulate(&puma("kind = \"gravity_slopes\"\njoint = 2\nfrom = -1.2\nto = 0.8\nvelocity = 0.4\nacceleration = 2.0"));
+    let res_g = simulate(&puma(
+        "kind = \"gravity_slopes\"\njoint = 2\nfrom = -1.2\nto = 0.8\nvelocity = 0.4\nacceleration = 2.0",
+    ));
     let g = gravity_experiment(&process(&run_of(&res_g), &Filter::LowPass { cutoff: 10.0 }).unwrap(), 2).unwrap();
     let f = friction_experiment(&pr, 2, GravityTerm::Given(&g), 0.05).unwrap();
     assert!(f.gravity_given);
     let truth = &res.setup.truth;
-    let Friction::Symmetric { fc, fv, .. } = truth.drives[1].friction else { panic!() };
+    let Friction::Symmetric { fc, fv, .. } = truth.drives[1].friction else {
+        panic!()
+    };
     let mut ws = Workspace::new(truth);
     let q: Vec<f64> = serde_json::from_str(REST).unwrap();
     let j22 = mass_matrix(truth, &mut ws, &q)[(1, 1)];
@@ -88,7 +100,9 @@ fn bang_bang_recovers_friction_and_inertia() {
     let res1 = simulate(&puma("kind = \"bang_bang\"\njoint = 1\nacceleration = 3.0\nvelocities = [0.3, 0.6, 1.0]"));
     let pr1 = process(&run_of(&res1), &Filter::LowPass { cutoff: 10.0 }).unwrap();
     let f1 = friction_experiment(&pr1, 1, GravityTerm::Zero, 0.05).unwrap();
-    let Friction::Symmetric { fc: fc1, .. } = truth.drives[0].friction else { panic!() };
+    let Friction::Symmetric { fc: fc1, .. } = truth.drives[0].friction else {
+        panic!()
+    };
     assert!((f1.fc_pos - fc1).abs() < 0.05 * fc1 && (f1.fc_neg + fc1).abs() < 0.05 * fc1, "{f1:?} vs {fc1}");
     // a joint number out of range is an input error
     assert!(friction_experiment(&pr, 7, GravityTerm::Zero, 0.05).is_err());

@@ -4,8 +4,8 @@
 //! rank check and are removed first).
 
 mod ident_util;
-use idexp::ident::{IdentOptions, ReduceOptions};
 use ident_util::*;
+use idexp::ident::{IdentOptions, ReduceOptions};
 
 fn pick_place(seed: u64, points_seed: u64) -> idexp::sim::SimDesign {
     design(&format!(
@@ -50,7 +50,12 @@ fn pick_and_place_reduction_lowers_cond_5x_within_tolerance() {
     assert!(r.essential.iter().any(|n| n.starts_with("Fc")));
     assert!(r.essential.iter().all(|n| n.starts_with("Fc") || n.starts_with("Fv")));
     let ratio = r.full.cond_normalized / r.reduced.cond_normalized;
-    assert!(ratio >= 5.0, "condition number {} → {} (ratio {ratio:.2})", r.full.cond_normalized, r.reduced.cond_normalized);
+    assert!(
+        ratio >= 5.0,
+        "condition number {} → {} (ratio {ratio:.2})",
+        r.full.cond_normalized,
+        r.reduced.cond_normalized
+    );
     for j in 0..3 {
         let g = r.reduced_errors.e_rel[j] / r.full_errors.e_rel[j] - 1.0;
         assert!(g <= r.options.tol, "joint {}: e* grows by {:.2} %", j + 1, 100.0 * g);
@@ -101,7 +106,11 @@ q_home = [0.0, 0.25, 0.0]
     let r = id.estimate.reduction.as_ref().unwrap();
     println!("{}", r.text());
     // joint 3 holds still on a horizontal square: its friction cannot be identified
-    assert!(r.rank_removed.iter().any(|n| n == "Fc3" || n == "Fv3"), "rank check removed {:?}", r.rank_removed);
+    assert!(
+        r.rank_removed.iter().any(|n| n == "Fc3" || n == "Fv3"),
+        "rank check removed {:?}",
+        r.rank_removed
+    );
     assert!(r.essential.is_empty(), "not every joint moves: no essential set");
     assert!(r.full.cond_normalized / r.reduced.cond_normalized >= 1.0);
 }

@@ -31,17 +31,21 @@ fn bad_files_are_rejected_naming_file_row_and_column() {
     assert_eq!((p, row, col.as_str()), (nan, 3, "tau1"));
     // unknown column
     let unk = write(d.path(), "unk.csv", "t,q1,q2,tau1,tau2,temp\n0,0,0,0,0,20\n0.01,0,0,0,0,20\n0.02,0,0,0,0,20\n");
-    let (p, row, col, msg) = data_err(Run::read(&[unk.clone()], 2).unwrap_err());
+    let (p, row, col, msg) = data_err(Run::read(std::slice::from_ref(&unk), 2).unwrap_err());
     assert_eq!((p, row, col.as_str()), (unk, 0, "temp"));
     assert!(msg.contains("unknown column"));
     // non-uniform time
     let nut = write(d.path(), "nut.csv", &GOOD.replace("0.02,", "0.025,"));
-    let (p, row, col, msg) = data_err(Run::read(&[nut.clone()], 2).unwrap_err());
+    let (p, row, col, msg) = data_err(Run::read(std::slice::from_ref(&nut), 2).unwrap_err());
     assert_eq!((p, col.as_str()), (nut, "t"));
     assert!(row == 3 || row == 4, "row {row}");
     assert!(msg.contains("non-uniform"));
     // different lengths
-    let short = write(d.path(), "short.csv", "t,q1,q2,tau1,tau2\n0,0.1,0.2,1,2\n0.01,0.11,0.21,1.1,2.1\n0.02,0.12,0.22,1.2,2.2\n");
+    let short = write(
+        d.path(),
+        "short.csv",
+        "t,q1,q2,tau1,tau2\n0,0.1,0.2,1,2\n0.01,0.11,0.21,1.1,2.1\n0.02,0.12,0.22,1.2,2.2\n",
+    );
     let (p, _, col, msg) = data_err(Run::read(&[good.clone(), short.clone()], 2).unwrap_err());
     assert_eq!((p, col.as_str()), (short, "t"));
     assert!(msg.contains("same length"), "{msg}");
@@ -49,14 +53,18 @@ fn bad_files_are_rejected_naming_file_row_and_column() {
     let miss = write(d.path(), "miss.csv", "t,q1,q2,tau1\n0,0,0,0\n0.01,0,0,0\n0.02,0,0,0\n");
     let (_, row, col, _) = data_err(Run::read(&[miss], 2).unwrap_err());
     assert_eq!((row, col.as_str()), (0, "tau2"));
-    let (_, _, col, _) = data_err(Run::read(&[good.clone()], 1).unwrap_err());
+    let (_, _, col, _) = data_err(Run::read(std::slice::from_ref(&good), 1).unwrap_err());
     assert_eq!(col, "q2");
     // a non-number
     let txt = write(d.path(), "txt.csv", &GOOD.replace("0.21", "abc"));
     let (_, row, col, _) = data_err(Run::read(&[txt], 2).unwrap_err());
     assert_eq!((row, col.as_str()), (2, "q2"));
     // optional columns in one file only
-    let withr = write(d.path(), "withr.csv", "t,q1,q2,tau1,tau2,r1,r2\n0,0.1,0.2,1,2,0,0\n0.01,0.11,0.21,1.1,2.1,0,0\n0.02,0.12,0.22,1.2,2.2,0,0\n0.03,0.13,0.23,1.3,2.3,0,0\n");
+    let withr = write(
+        d.path(),
+        "withr.csv",
+        "t,q1,q2,tau1,tau2,r1,r2\n0,0.1,0.2,1,2,0,0\n0.01,0.11,0.21,1.1,2.1,0,0\n0.02,0.12,0.22,1.2,2.2,0,0\n0.03,0.13,0.23,1.3,2.3,0,0\n",
+    );
     let (_, _, col, _) = data_err(Run::read(&[good.clone(), withr], 2).unwrap_err());
     assert_eq!(col, "r1");
     // a missing path
@@ -117,18 +125,43 @@ amplitude = 0.6
         .status()
         .unwrap();
     assert!(st.success());
-    for f in ["rep_001.csv", "rep_004.csv", "reference.csv", "trajectory.json", "truth.json", "design.json", "status.json"] {
+    for f in [
+        "rep_001.csv",
+        "rep_004.csv",
+        "reference.csv",
+        "trajectory.json",
+        "truth.json",
+        "design.json",
+        "status.json",
+    ] {
         assert!(sim_out.join(f).exists(), "{f}");
     }
     let id_out = d.path().join("id");
     let robot = ident_util::root("tests/data/ident/rpr_drives.toml");
     let o = std::process::Command::new(exe)
-        .args(["identify", robot.to_str().unwrap(), sim_out.to_str().unwrap(), "--reduce", "--out", id_out.to_str().unwrap()])
+        .args([
+            "identify",
+            robot.to_str().unwrap(),
+            sim_out.to_str().unwrap(),
+            "--reduce",
+            "--out",
+            id_out.to_str().unwrap(),
+        ])
         .args(["--truth", sim_out.join("truth.json").to_str().unwrap(), "--validate", sim_out.to_str().unwrap()])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    for f in ["estimate.json", "report.txt", "torques.svg", "residuals.svg", "params.svg", "validation.svg", "reduction.svg", "options.json", "status.json"] {
+    for f in [
+        "estimate.json",
+        "report.txt",
+        "torques.svg",
+        "residuals.svg",
+        "params.svg",
+        "validation.svg",
+        "reduction.svg",
+        "options.json",
+        "status.json",
+    ] {
         assert!(id_out.join(f).exists(), "{f}");
     }
     let est: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(id_out.join("estimate.json")).unwrap()).unwrap();
@@ -137,7 +170,11 @@ amplitude = 0.6
     // a bad run folder gives a message naming the file
     let bad = d.path().join("bad");
     std::fs::create_dir_all(&bad).unwrap();
-    std::fs::write(bad.join("r.csv"), "t,q1,q2,q3,tau1,tau2,tau3\n0,0,0,0,0,0,0\n0.1,0,0,0,0,0,x\n0.2,0,0,0,0,0,0\n").unwrap();
+    std::fs::write(
+        bad.join("r.csv"),
+        "t,q1,q2,q3,tau1,tau2,tau3\n0,0,0,0,0,0,0\n0.1,0,0,0,0,0,x\n0.2,0,0,0,0,0,0\n",
+    )
+    .unwrap();
     let o = std::process::Command::new(exe)
         .args(["identify", robot.to_str().unwrap(), bad.to_str().unwrap()])
         .output()

@@ -4,8 +4,8 @@
 //! validation error on another excitation is at the noise floor.
 
 mod ident_util;
-use idexp::ident::IdentOptions;
 use ident_util::*;
+use idexp::ident::IdentOptions;
 
 fn puma(seed: u64, traj_seed: u64) -> idexp::sim::SimDesign {
     design(&format!(

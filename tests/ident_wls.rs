@@ -3,8 +3,8 @@
 //! deviations of the true base parameters, validation error at the noise floor.
 
 mod ident_util;
-use idexp::ident::{IdentOptions, Method};
 use ident_util::*;
+use idexp::ident::{IdentOptions, Method};
 
 #[test]
 fn wls_recovers_true_base_parameters_within_3_sigma_several_seeds() {
@@ -25,12 +25,25 @@ fn wls_recovers_true_base_parameters_within_3_sigma_several_seeds() {
         println!("seed {seed}\n{}", e.text());
         assert_eq!(e.status, "ok");
         for r in e.truth.as_ref().unwrap() {
-            assert!(r.z.abs() < 3.0, "seed {seed}: {} = {} vs truth {} (z = {:.2})", r.name, r.estimate, r.truth, r.z);
+            assert!(
+                r.z.abs() < 3.0,
+                "seed {seed}: {} = {} vs truth {} (z = {:.2})",
+                r.name,
+                r.estimate,
+                r.truth,
+                r.z
+            );
         }
         let v = e.validation.as_ref().unwrap();
         let floor = v.noise_floor.as_ref().unwrap();
         for j in 0..3 {
-            assert!(v.e[j] < 1.15 * floor[j], "seed {seed} joint {}: validation e_j {} vs noise floor {}", j + 1, v.e[j], floor[j]);
+            assert!(
+                v.e[j] < 1.15 * floor[j],
+                "seed {seed} joint {}: validation e_j {} vs noise floor {}",
+                j + 1,
+                v.e[j],
+                floor[j]
+            );
             assert!(e.errors.e[j] < 1.1 * e.errors.noise_floor.as_ref().unwrap()[j]);
         }
         assert!(e.chi2_dof < 1.3 && e.chi2_dof > 0.8, "chi2/dof {}", e.chi2_dof);
@@ -45,7 +58,14 @@ fn ols_and_wls_agree_and_ols_covariance_is_sandwich() {
         ..Default::default()
     };
     let (w, _) = ident(&res, None, &base);
-    let (o, _) = ident(&res, None, &IdentOptions { method: Method::Ols, ..base.clone() });
+    let (o, _) = ident(
+        &res,
+        None,
+        &IdentOptions {
+            method: Method::Ols,
+            ..base.clone()
+        },
+    );
     for (a, b) in w.estimate.truth.unwrap().iter().zip(o.estimate.truth.unwrap().iter()) {
         assert!(b.z.abs() < 4.0, "OLS {}: z = {}", b.name, b.z);
         assert!(a.z.abs() < 4.0);

@@ -5,10 +5,10 @@
 //! design-file errors.
 
 mod ident_util;
+use ident_util::*;
 use idexp::robot::{mass_matrix, Workspace};
 use idexp::sim::reference::{differentiate, Reference};
 use idexp::sim::{perturb_params, SimDesign, SimSetup};
-use ident_util::*;
 
 fn fourier_design(extra: &str) -> SimDesign {
     design(&format!(
@@ -51,7 +51,10 @@ fn noise_free_exact_model_tracks_the_reference_and_torques_are_inverse_dynamics(
             worst = worst.max((rep.tau[k][j] - tau[j]).abs() / (1e-3 + kp * emax + setup.kd[j] * 10.0 * emax));
         }
     }
-    assert!(worst < 1.0, "torque differs from inverse dynamics by more than the feedback on the tracking error: {worst}");
+    assert!(
+        worst < 1.0,
+        "torque differs from inverse dynamics by more than the feedback on the tracking error: {worst}"
+    );
 }
 
 #[test]
@@ -126,7 +129,11 @@ fn csv_references_with_and_without_derivatives() {
     s.write(&d.path().join("full.csv")).unwrap();
     // positions only
     let header = "t,q1,q2,q3\n".to_string();
-    let body: String = s.q.iter().zip(s.t.as_ref().unwrap()).map(|(q, t)| format!("{t},{},{},{}\n", q[0], q[1], q[2])).collect();
+    let body: String =
+        s.q.iter()
+            .zip(s.t.as_ref().unwrap())
+            .map(|(q, t)| format!("{t},{},{},{}\n", q[0], q[1], q[2]))
+            .collect();
     std::fs::write(d.path().join("pos.csv"), header + &body).unwrap();
     let spec_full: idexp::sim::ReferenceSpec = toml::from_str("kind = \"states\"\nfile = \"full.csv\"").unwrap();
     let spec_pos: idexp::sim::ReferenceSpec = toml::from_str("kind = \"states\"\nfile = \"pos.csv\"").unwrap();
@@ -181,7 +188,10 @@ fn process_and_experiment_references_start_and_end_at_rest() {
             if s.contains("square") {
                 let mut ws = Workspace::new(&robot);
                 let fr = robot.end_effector();
-                let z: Vec<f64> = q[800..q.len() - 800].iter().map(|qq| idexp::robot::frame_pose(&robot, &mut ws, qq, &fr).translation.z).collect();
+                let z: Vec<f64> = q[800..q.len() - 800]
+                    .iter()
+                    .map(|qq| idexp::robot::frame_pose(&robot, &mut ws, qq, &fr).translation.z)
+                    .collect();
                 assert!(z.iter().all(|v| (v - 0.38).abs() < 1e-4), "square height");
             }
         }
@@ -208,7 +218,9 @@ fn design_errors_name_the_field() {
     bad("[controller]\nbandwidth = 500.0", "controller.bandwidth");
     bad("[noise]\ntorque = -1.0", "noise.torque");
     // a period that is not a whole number of controller steps
-    let d = design("robot = \"tests/data/ident/rpr_drives.toml\"\nrate = 7.0\n[controller]\nbandwidth = 0.5\n[reference]\nkind = \"random_fourier\"\nfrequency = 0.3\n");
+    let d = design(
+        "robot = \"tests/data/ident/rpr_drives.toml\"\nrate = 7.0\n[controller]\nbandwidth = 0.5\n[reference]\nkind = \"random_fourier\"\nfrequency = 0.3\n",
+    );
     let e = SimSetup::from_design(&d, &root(""), "d.toml").unwrap_err().to_string();
     assert!(e.contains("rate"), "{e}");
     // a per-joint value of the wrong length

@@ -110,7 +110,11 @@ fn default_out(run: &[PathBuf], suffix: &str) -> PathBuf {
     let stem = run
         .first()
         .map(|p| {
-            let p = if p.is_dir() { p.clone() } else { p.parent().map(Path::to_path_buf).unwrap_or_default() };
+            let p = if p.is_dir() {
+                p.clone()
+            } else {
+                p.parent().map(Path::to_path_buf).unwrap_or_default()
+            };
             p.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "run".into())
         })
         .unwrap_or_else(|| "run".into());
@@ -193,7 +197,11 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
     if let Some(l) = &a.fir_lags {
         opts.projection.lags = Some(parse_lags(l)?);
     }
-    let vrun = if a.validate.is_empty() { None } else { Some(Run::read(&a.validate, robot.dof())?) };
+    let vrun = if a.validate.is_empty() {
+        None
+    } else {
+        Some(Run::read(&a.validate, robot.dof())?)
+    };
     let vtraj = match (&a.validate_trajectory, &vrun) {
         (Some(p), _) => Some(FourierTrajectory::load(p)?),
         (None, Some(v)) => run_trajectory(v)?,
@@ -281,7 +289,10 @@ fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run) -> Result<()> {
                 .collect();
             let mut vs: Vec<f64> = v.iter().copied().filter(|x| x.abs() > a.min_speed.unwrap_or(0.05)).collect();
             vs.sort_by(f64::total_cmp);
-            let model: Vec<f64> = vs.iter().map(|&x| if x > 0.0 { f.fc_pos + f.fv_pos * x } else { f.fc_neg + f.fv_neg * x }).collect();
+            let model: Vec<f64> = vs
+                .iter()
+                .map(|&x| if x > 0.0 { f.fc_pos + f.fv_pos * x } else { f.fc_neg + f.fv_neg * x })
+                .collect();
             write_svg(
                 &out.join("friction.svg"),
                 &format!("friction experiment, joint {joint}"),
@@ -312,7 +323,13 @@ fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run) -> Result<()> {
     };
     crate::io::write_atomic(&out.join("report.txt"), text.as_bytes())?;
     crate::io::write_json(&out.join("options.json"), a)?;
-    crate::io::write_json(&out.join("status.json"), &Status { status: "complete", what: "ok" })?;
+    crate::io::write_json(
+        &out.join("status.json"),
+        &Status {
+            status: "complete",
+            what: "ok",
+        },
+    )?;
     print!("{text}");
     println!("written to {}", out.display());
     Ok(())

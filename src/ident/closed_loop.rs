@@ -120,8 +120,9 @@ fn col(v: &[Vec<f64>], j: usize) -> DVector<f64> {
 }
 
 /// Projection-method estimate. `ds` is the dataset of the processed run `pr`
-/// (its columns: the parameters to estimate); `run` gives the repetitions for the lag rule.
-pub fn projection(ds: &Dataset, pr: &Processed, run: &Run, opts: &ProjectionOptions) -> Result<(LsFit, ProjectionInfo)> {
+/// (its columns: the parameters to estimate); `run` gives the repetitions for the
+/// lag rule, `decimate` the step between the run's samples and those of `pr`.
+pub fn projection(ds: &Dataset, pr: &Processed, run: &Run, decimate: usize, opts: &ProjectionOptions) -> Result<(LsFit, ProjectionInfo)> {
     let r = pr.r.as_ref().ok_or_else(|| {
         Error::invalid(
             "projection method",
@@ -131,7 +132,11 @@ pub fn projection(ds: &Dataset, pr: &Processed, run: &Run, opts: &ProjectionOpti
     })?;
     let periodic = pr.fourier.is_some();
     if !ds.is_complete() {
-        return Err(Error::invalid("projection method", "min_speed", "the projection needs every sample: build the dataset with min_speed = 0"));
+        return Err(Error::invalid(
+            "projection method",
+            "min_speed",
+            "the projection needs every sample: build the dataset with min_speed = 0",
+        ));
     }
     let n = ds.n;
     let m = ds.n_samples;
@@ -141,12 +146,12 @@ pub fn projection(ds: &Dataset, pr: &Processed, run: &Run, opts: &ProjectionOpti
     let (m1, m2, rule, cv) = match opts.lags {
         Some((a, b)) => (a, b, "given".to_string(), vec![]),
         None if run.n_reps() >= 2 => {
-            let dec = run.reps[0].len() / m.max(1);
+            let dec = decimate.max(1);
             let pick = |even: bool| -> Vec<Vec<f64>> {
                 let sel: Vec<&Vec<Vec<f64>>> = run.reps.iter().enumerate().filter(|(i, _)| (i % 2 == 0) == even).map(|(_, r)| &r.tau).collect();
                 let k = sel.len() as f64;
                 (0..m)
-                    .map(|p| (0..n).map(|j| sel.iter().map(|t| t[p * dec.max(1)][j]).sum::<f64>() / k).collect())
+                    .map(|p| (0..n).map(|j| sel.iter().map(|t| t[p * dec][j]).sum::<f64>() / k).collect())
                     .collect()
             };
             let (ue, uo) = (pick(true), pick(false));
@@ -235,7 +240,11 @@ pub fn projection(ds: &Dataset, pr: &Processed, run: &Run, opts: &ProjectionOpti
     let chi2 = res.norm_squared() / (instrument_rank * n).saturating_sub(rank).max(1) as f64;
     let std: Vec<f64> = (0..k).map(|i| cov[(i, i)].max(0.0).sqrt()).collect();
     let fit = LsFit {
-        rel_std: std.iter().zip(theta.iter()).map(|(s, t)| if *t != 0.0 { s / t.abs() } else { f64::INFINITY }).collect(),
+        rel_std: std
+            .iter()
+            .zip(theta.iter())
+            .map(|(s, t)| if *t != 0.0 { s / t.abs() } else { f64::INFINITY })
+            .collect(),
         theta: theta.as_slice().to_vec(),
         std,
         cov,
@@ -303,14 +312,14 @@ struct MlData {
 }
 
 impl MlData {
-    fn cost_grad(&self, theta: &[f64], grad: Option<&mut [f64]>) -> (f64, Option<DMatrix<f64>>) {
+    fn cost_grad(&self, theta: &[f64], grad: Option<&mut [f64]>) -> f64 {
         let (n, k) = (self.n, self.k);
         let want_grad = grad.is_some();
-        let (cost, g, fisher) = (0..self.mats.len())
+        let (cost, g) = (0..self.mats.len())
             .into_par_iter()
             .fold(
-                || (0.0, vec![0.0; k], DMatrix::<f64>::zeros(0, 0)),
-                |(mut c, mut g, f), i| {
+                || (0.0, vec![0.0; k]),
+                |(mut c, mut g), i| {
                     let mat = &self.mats[i];
                     let nk = n * k;
                     let th = DVector::from_column_slice(theta);
@@ -332,7 +341,7 @@ impl MlData {
                         s2[(a, a)] += 1e-12 * tr;
                     }
                     let Some(ch) = s2.cholesky() else {
-                        return (f64::INFINITY, g, f);
+                        return (f64::INFINITY, g);
                     };
                     let w = ch.solve(&b);
                     c += 0.5 * b.dot(&w);
@@ -353,18 +362,14 @@ impl MlData {
                             }
                         }
                     }
-                    (c, g, f)
+                    (c, g)
                 },
             )
-            .reduce(
-                || (0.0, vec![0.0; k], DMatrix::<f64>::zeros(0, 0)),
-                |a, b| (a.0 + b.0, a.1.iter().zip(&b.1).map(|(x, y)| x + y).collect(), a.2),
-            );
-        let _ = fisher;
+            .reduce(|| (0.0, vec![0.0; k]), |a, b| (a.0 + b.0, a.1.iter().zip(&b.1).map(|(x, y)| x + y).collect()));
         if let Some(gr) = grad {
             gr.copy_from_slice(&g);
         }
-        (cost, None)
+        cost
     }
 
     fn fisher(&self, theta: &[f64]) -> DMatrix<f64> {
@@ -470,7 +475,7 @@ pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, cols: &[usize], star
     let sc: Vec<f64> = scale.iter().map(|s| if s.is_finite() && *s > 0.0 { *s } else { 1.0 }).collect();
     let x0 = start.to_vec();
     let to_theta = |z: &[f64]| -> Vec<f64> { (0..k).map(|a| x0[a] + sc[a] * z[a]).collect() };
-    let (cost_start, _) = data.cost_grad(start, None);
+    let cost_start = data.cost_grad(start, None);
     let evals = std::sync::atomic::AtomicUsize::new(0);
     let obj = |z: &[f64], grad: Option<&mut [f64]>, _: &mut ()| -> f64 {
         evals.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -483,13 +488,13 @@ pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, cols: &[usize], star
         let th = to_theta(z);
         match grad {
             Some(g) => {
-                let (c, _) = data.cost_grad(&th, Some(g));
+                let c = data.cost_grad(&th, Some(g));
                 for a in 0..k {
                     g[a] *= sc[a];
                 }
                 c
             }
-            None => data.cost_grad(&th, None).0,
+            None => data.cost_grad(&th, None),
         }
     };
     let mut opt = nlopt::Nlopt::new(nlopt::Algorithm::Lbfgs, k, obj, nlopt::Target::Minimize, ());
@@ -507,8 +512,8 @@ pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, cols: &[usize], star
     };
     drop(opt);
     let mut theta = to_theta(&z);
-    let (mut cost_end, _) = data.cost_grad(&theta, None);
-    if !(cost_end <= cost_start) {
+    let mut cost_end = data.cost_grad(&theta, None);
+    if cost_end.is_nan() || cost_end > cost_start {
         theta = start.to_vec();
         cost_end = cost_start;
     }
@@ -529,7 +534,11 @@ pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, cols: &[usize], star
     });
     Ok((
         LsFit {
-            rel_std: std.iter().zip(&theta).map(|(s, t)| if *t != 0.0 { s / t.abs() } else { f64::INFINITY }).collect(),
+            rel_std: std
+                .iter()
+                .zip(&theta)
+                .map(|(s, t)| if *t != 0.0 { s / t.abs() } else { f64::INFINITY })
+                .collect(),
             theta,
             std,
             cov: covm,
@@ -571,14 +580,14 @@ mod tests {
         };
         let th = [0.3, -0.7, 0.5];
         let mut g = vec![0.0; k];
-        let (c0, _) = data.cost_grad(&th, Some(&mut g));
+        let c0 = data.cost_grad(&th, Some(&mut g));
         for a in 0..k {
             let h = 1e-6;
             let mut tp = th;
             tp[a] += h;
             let mut tm = th;
             tm[a] -= h;
-            let fd = (data.cost_grad(&tp, None).0 - data.cost_grad(&tm, None).0) / (2.0 * h);
+            let fd = (data.cost_grad(&tp, None) - data.cost_grad(&tm, None)) / (2.0 * h);
             assert!((fd - g[a]).abs() < 1e-6 * (1.0 + fd.abs()), "∂/∂θ{a}: analytic {} vs fd {fd} (cost {c0})", g[a]);
         }
     }

@@ -174,9 +174,12 @@ pub fn cond_normalized(c: &DMatrix<f64>) -> Result<f64> {
     cond(&cn)
 }
 
+/// (θ, (AᵀA)⁻¹, rank, A⁺) of [`weighted_svd_solve`].
+type SvdSolution = (DVector<f64>, DMatrix<f64>, usize, DMatrix<f64>);
+
 /// Solves min ‖√w ⊙ (y − C θ)‖² by thin SVD. Returns (θ, (AᵀA)⁻¹ = V S⁻² Vᵀ, rank,
 /// pseudo-inverse of A = √W C as V S⁻¹ Uᵀ).
-fn weighted_svd_solve(c: &DMatrix<f64>, y: &DVector<f64>, sw: &DVector<f64>) -> Result<(DVector<f64>, DMatrix<f64>, usize, DMatrix<f64>)> {
+fn weighted_svd_solve(c: &DMatrix<f64>, y: &DVector<f64>, sw: &DVector<f64>) -> Result<SvdSolution> {
     let mut a = c.clone();
     for (i, mut row) in a.row_iter_mut().enumerate() {
         row *= sw[i];
@@ -203,7 +206,11 @@ fn weighted_svd_solve(c: &DMatrix<f64>, y: &DVector<f64>, sw: &DVector<f64>) -> 
 
 fn finish(theta: DVector<f64>, cov: DMatrix<f64>, rank: usize, c: &DMatrix<f64>, chi2_dof: f64) -> Result<LsFit> {
     let std: Vec<f64> = (0..theta.len()).map(|i| cov[(i, i)].max(0.0).sqrt()).collect();
-    let rel_std = std.iter().zip(theta.iter()).map(|(s, t)| if *t != 0.0 { s / t.abs() } else { f64::INFINITY }).collect();
+    let rel_std = std
+        .iter()
+        .zip(theta.iter())
+        .map(|(s, t)| if *t != 0.0 { s / t.abs() } else { f64::INFINITY })
+        .collect();
     Ok(LsFit {
         theta: theta.as_slice().to_vec(),
         cov,

@@ -80,7 +80,11 @@ pub struct FrictionFit {
 
 fn lstsq(a: &DMatrix<f64>, b: &DVector<f64>) -> Result<(DVector<f64>, DMatrix<f64>, f64)> {
     if a.nrows() <= a.ncols() {
-        return Err(Error::Numerical(format!("{} samples for {} unknowns: the experiment is too short", a.nrows(), a.ncols())));
+        return Err(Error::Numerical(format!(
+            "{} samples for {} unknowns: the experiment is too short",
+            a.nrows(),
+            a.ncols()
+        )));
     }
     let (u, s, v) = crate::linalg::thin_svd(a)?;
     if s[s.len() - 1] <= 1e-10 * s[0] {
@@ -113,7 +117,11 @@ pub fn gravity_experiment(pr: &Processed, joint: usize) -> Result<GravityFit> {
     let j = check_joint(pr, joint)?;
     let vmax = pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max);
     if vmax <= 0.0 {
-        return Err(Error::invalid("gravity experiment", "joint", format!("joint {joint} does not move in this run")));
+        return Err(Error::invalid(
+            "gravity experiment",
+            "joint",
+            format!("joint {joint} does not move in this run"),
+        ));
     }
     let amax = pr.qdd.iter().map(|v| v[j].abs()).fold(0.0, f64::max);
     let idx: Vec<usize> = (0..pr.len())
@@ -162,7 +170,11 @@ pub fn friction_experiment(pr: &Processed, joint: usize, gravity: GravityTerm<'_
     let j = check_joint(pr, joint)?;
     if let GravityTerm::Given(g) = gravity {
         if g.joint != joint {
-            return Err(Error::invalid("friction experiment", "gravity", format!("the gravity fit is for joint {}, not {joint}", g.joint)));
+            return Err(Error::invalid(
+                "friction experiment",
+                "gravity",
+                format!("the gravity fit is for joint {}, not {joint}", g.joint),
+            ));
         }
     }
     let given = match gravity {
@@ -185,10 +197,7 @@ pub fn friction_experiment(pr: &Processed, joint: usize, gravity: GravityTerm<'_
             _ => q.cos(),
         }
     });
-    let b = DVector::from_iterator(
-        idx.len(),
-        idx.iter().map(|&p| pr.tau[p][j] - given.map_or(0.0, |g| g.torque(pr.q[p][j]))),
-    );
+    let b = DVector::from_iterator(idx.len(), idx.iter().map(|&p| pr.tau[p][j] - given.map_or(0.0, |g| g.torque(pr.q[p][j]))));
     let (x, cov, rms) = lstsq(&a, &b)?;
     let (gk, goff) = match gravity {
         GravityTerm::Given(g) => (g.k, g.q_off),

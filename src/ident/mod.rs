@@ -236,7 +236,11 @@ pub fn identify(
         return Err(Error::invalid("identify", "decimate", "expected ≥ 1"));
     }
     if opts.reduce.is_some() && !matches!(opts.method, Method::Wls) {
-        return Err(Error::invalid("identify", "reduce", "model reduction (paper 000 Algorithm 1) uses WLS: run it with method wls"));
+        return Err(Error::invalid(
+            "identify",
+            "reduce",
+            "model reduction (paper 000 Algorithm 1) uses WLS: run it with method wls",
+        ));
     }
     let filter = resolve_filter(&opts.filter, trajectory, opts.harmonics);
     let pr = process(run, &filter)?.decimated(opts.decimate);
@@ -270,7 +274,7 @@ pub fn identify(
             }
         },
         Method::Projection => {
-            let (f, info) = closed_loop::projection(&full, &pr, run, &opts.projection)?;
+            let (f, info) = closed_loop::projection(&full, &pr, run, opts.decimate, &opts.projection)?;
             projection = Some(info);
             ((0..base.n_base()).collect(), f)
         }
@@ -433,7 +437,11 @@ impl Estimate {
         }
         let err_block = |s: &mut String, title: &str, e: &Errors| {
             let _ = writeln!(s, "\n{title}");
-            let _ = writeln!(s, "{:>5} {:>12} {:>9} {:>12} {:>12}", "joint", "e_j (N·m)", "e*_j (%)", "rms (N·m)", "noise floor");
+            let _ = writeln!(
+                s,
+                "{:>5} {:>12} {:>9} {:>12} {:>12}",
+                "joint", "e_j (N·m)", "e*_j (%)", "rms (N·m)", "noise floor"
+            );
             for j in 0..e.e.len() {
                 let nf = e.noise_floor.as_ref().map(|v| format!("{:.4e}", v[j])).unwrap_or_else(|| "-".into());
                 let _ = writeln!(s, "{:>5} {:>12.4e} {:>9.3} {:>12.4e} {:>12}", j + 1, e.e[j], 100.0 * e.e_rel[j], e.rms[j], nf);
@@ -501,7 +509,12 @@ impl Identification {
                 .collect()
         };
         let t = &self.processed.t;
-        write_svg(&dir.join("torques.svg"), "measured vs predicted torque", &torque_panels(&self.dataset, t, false), 2)?;
+        write_svg(
+            &dir.join("torques.svg"),
+            "measured vs predicted torque",
+            &torque_panels(&self.dataset, t, false),
+            2,
+        )?;
         write_svg(&dir.join("residuals.svg"), "torque residuals", &torque_panels(&self.dataset, t, true), 2)?;
         if let Some(v) = &self.validation {
             let tv: Vec<f64> = (0..v.n_samples).map(|k| k as f64).collect();

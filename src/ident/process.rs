@@ -116,14 +116,17 @@ fn mean_of(reps: &[&Vec<Vec<f64>>]) -> Vec<Vec<f64>> {
     out
 }
 
+/// (q, q̇, q̈), per sample.
+type Signals = (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>);
+
 /// Filters positions (and gives q̇, q̈) on the uniform grid `t`.
-fn filter_positions(t: &[f64], q: &[Vec<f64>], filter: &Filter) -> Result<(Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>, Option<FourierTrajectory>)> {
+fn filter_positions(t: &[f64], q: &[Vec<f64>], filter: &Filter) -> Result<(Signals, Option<FourierTrajectory>)> {
     let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
     match filter {
         Filter::Fourier { omega, n_h } => {
             let f = FourierTrajectory::fit(t, q, *omega, *n_h)?;
             let s = f.sample_at(t);
-            Ok((s.q, s.qd, s.qdd, Some(f)))
+            Ok(((s.q, s.qd, s.qdd), Some(f)))
         }
         Filter::LowPass { cutoff } => {
             let n = q[0].len();
@@ -136,11 +139,11 @@ fn filter_positions(t: &[f64], q: &[Vec<f64>], filter: &Filter) -> Result<(Vec<V
                 }
             }
             let (qd, qdd) = differentiate(&fq, dt, false);
-            Ok((fq, qd, qdd, None))
+            Ok(((fq, qd, qdd), None))
         }
         Filter::None => {
             let (qd, qdd) = differentiate(q, dt, false);
-            Ok((q.to_vec(), qd, qdd, None))
+            Ok(((q.to_vec(), qd, qdd), None))
         }
     }
 }
@@ -181,7 +184,11 @@ pub fn process(run: &Run, filter: &Filter) -> Result<Processed> {
     if let Filter::LowPass { cutoff } = filter {
         let fs = 1.0 / run.dt();
         if !(*cutoff > 0.0 && *cutoff < 0.5 * fs) {
-            return Err(Error::invalid("low-pass filter", "cutoff", format!("expected 0 < cutoff < {} Hz (half the sample rate), got {cutoff}", 0.5 * fs)));
+            return Err(Error::invalid(
+                "low-pass filter",
+                "cutoff",
+                format!("expected 0 < cutoff < {} Hz (half the sample rate), got {cutoff}", 0.5 * fs),
+            ));
         }
     }
     let q_mean = mean_of(&reps.iter().map(|r| &r.q).collect::<Vec<_>>());
@@ -212,15 +219,16 @@ pub fn process(run: &Run, filter: &Filter) -> Result<Processed> {
         let qdd = mean_of(&reps.iter().filter_map(|r| r.qdd.as_ref()).collect::<Vec<_>>());
         (q_mean.clone(), qd, qdd, None)
     } else {
-        filter_positions(&t, &q_mean, filter)?
+        let ((q, qd, qdd), f) = filter_positions(&t, &q_mean, filter)?;
+        (q, qd, qdd, f)
     };
     let joint_cov = if nr >= 2 {
         let d = 4 * n;
-        let per: Vec<(Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>)> = reps
+        let per: Vec<Signals> = reps
             .iter()
             .map(|rep| match (&rep.qd, &rep.qdd) {
                 (Some(a), Some(b)) => Ok((rep.q.clone(), a.clone(), b.clone())),
-                _ => filter_positions(&t, &rep.q, filter).map(|(a, b, c, _)| (a, b, c)),
+                _ => filter_positions(&t, &rep.q, filter).map(|(sig, _)| sig),
             })
             .collect::<Result<_>>()?;
         let mut cov = vec![vec![0.0; d * d]; m];
@@ -265,7 +273,11 @@ pub fn process(run: &Run, filter: &Filter) -> Result<Processed> {
 /// with odd-reflection padding at both ends to suppress edge transients.
 pub fn filtfilt(x: &[f64], cutoff: f64, fs: f64) -> Result<Vec<f64>> {
     if !(cutoff > 0.0 && cutoff < 0.5 * fs) {
-        return Err(Error::invalid("low-pass filter", "cutoff", format!("expected 0 < cutoff < fs/2 = {}", 0.5 * fs)));
+        return Err(Error::invalid(
+            "low-pass filter",
+            "cutoff",
+            format!("expected 0 < cutoff < fs/2 = {}", 0.5 * fs),
+        ));
     }
     let m = x.len();
     if m < 4 {

@@ -126,7 +126,15 @@ fn growth(e: &Errors, e0: &Errors) -> f64 {
     e.e_rel
         .iter()
         .zip(&e0.e_rel)
-        .map(|(a, b)| if *b > 0.0 { a / b - 1.0 } else if *a > 0.0 { f64::INFINITY } else { 0.0 })
+        .map(|(a, b)| {
+            if *b > 0.0 {
+                a / b - 1.0
+            } else if *a > 0.0 {
+                f64::INFINITY
+            } else {
+                0.0
+            }
+        })
         .fold(f64::NEG_INFINITY, f64::max)
 }
 
@@ -272,7 +280,11 @@ impl Reduction {
         let _ = writeln!(
             s,
             "essential: {}",
-            if self.essential.is_empty() { "(none)".into() } else { self.essential.join(" ") }
+            if self.essential.is_empty() {
+                "(none)".into()
+            } else {
+                self.essential.join(" ")
+            }
         );
         let _ = writeln!(
             s,
@@ -281,7 +293,11 @@ impl Reduction {
             self.full.cond_normalized,
             pct(&self.full_errors.e_rel)
         );
-        let _ = writeln!(s, "{:>4} {:<10} {:>11} {:>8} {:>9} {:>10} {:>4}  e*_k (%)", "k", "parameter", "sensitivity", "decision", "growth", "cond", "n");
+        let _ = writeln!(
+            s,
+            "{:>4} {:<10} {:>11} {:>8} {:>9} {:>10} {:>4}  e*_k (%)",
+            "k", "parameter", "sensitivity", "decision", "growth", "cond", "n"
+        );
         for st in &self.steps {
             let _ = writeln!(
                 s,

@@ -114,7 +114,7 @@ impl Repetition {
             });
         }
         let dt = (times[times.len() - 1] - times[0]) / (times.len() - 1) as f64;
-        if !(dt > 0.0) {
+        if dt.is_nan() || dt <= 0.0 {
             return Err(Error::Data {
                 path: path.clone(),
                 row: 2,
@@ -185,7 +185,12 @@ impl Run {
                     path: name(i),
                     row: r.len().min(r0.len()) + 1,
                     column: "t".into(),
-                    msg: format!("{} samples, but {} has {}: repetitions must have the same length", r.len(), name(0).display(), r0.len()),
+                    msg: format!(
+                        "{} samples, but {} has {}: repetitions must have the same length",
+                        r.len(),
+                        name(0).display(),
+                        r0.len()
+                    ),
                 });
             }
             if r.n_joints() != r0.n_joints() {
@@ -213,7 +218,10 @@ impl Run {
                         path: name(i),
                         row: 0,
                         column: col.into(),
-                        msg: format!("column present in one repetition but not in {}: use the same columns in all files", name(0).display()),
+                        msg: format!(
+                            "column present in one repetition but not in {}: use the same columns in all files",
+                            name(0).display()
+                        ),
                     });
                 }
             }

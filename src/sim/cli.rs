@@ -21,10 +21,12 @@ pub fn run(a: &SimulateArgs) -> Result<()> {
     let ctx = a.design.display().to_string();
     let setup = SimSetup::from_design(&d, &base, &ctx)?;
     let res = setup.run()?;
-    let name = d
-        .name
-        .clone()
-        .unwrap_or_else(|| a.design.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "simulate".into()));
+    let name = d.name.clone().unwrap_or_else(|| {
+        a.design
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "simulate".into())
+    });
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(name));
     res.write(&out, &d)?;
     let st = &res.status;

@@ -77,7 +77,11 @@ impl PerJoint {
             PerJoint::All(x) => vec![*x; n],
             PerJoint::Each(v) => {
                 if v.len() != n {
-                    return Err(Error::invalid(ctx, field, format!("expected one value or {n} values (one per joint), got {}", v.len())));
+                    return Err(Error::invalid(
+                        ctx,
+                        field,
+                        format!("expected one value or {n} values (one per joint), got {}", v.len()),
+                    ));
                 }
                 v.clone()
             }
@@ -105,10 +109,7 @@ pub struct TruthSpec {
 
 impl Default for TruthSpec {
     fn default() -> Self {
-        TruthSpec {
-            perturbation: 0.0,
-            seed: None,
-        }
+        TruthSpec { perturbation: 0.0, seed: None }
     }
 }
 
@@ -249,7 +250,10 @@ impl SimDesign {
             return Err(Error::invalid(
                 ctx,
                 "controller.bandwidth",
-                format!("{} Hz is too close to the controller rate {} Hz (keep it below rate/10)", self.controller.bandwidth, self.rate),
+                format!(
+                    "{} Hz is too close to the controller rate {} Hz (keep it below rate/10)",
+                    self.controller.bandwidth, self.rate
+                ),
             ));
         }
         if self.substeps == 0 || self.substeps > 100 {
@@ -267,7 +271,11 @@ impl SimDesign {
         self.noise.torque.check(ctx, "noise.torque")?;
         self.noise.position.check(ctx, "noise.position")?;
         self.noise.disturbance.check(ctx, "noise.disturbance")?;
-        for (f, v) in [("controller.kp", &self.controller.kp), ("controller.kd", &self.controller.kd), ("controller.ki", &self.controller.ki)] {
+        for (f, v) in [
+            ("controller.kp", &self.controller.kp),
+            ("controller.kd", &self.controller.kd),
+            ("controller.ki", &self.controller.ki),
+        ] {
             if let Some(v) = v {
                 v.check(ctx, f)?;
             }
@@ -369,7 +377,11 @@ pub fn perturb_params(robot: &Robot, rel: f64, seed: u64) -> Vec<f64> {
             let m = scale(ine.mass, z());
             let step = rel * c.norm().max(0.02);
             let c2 = c + Vector3::new(z(), z(), z()) * step;
-            let s = Matrix3::from_diagonal(&Vector3::new((1.0 + rel * z()).max(0.45), (1.0 + rel * z()).max(0.45), (1.0 + rel * z()).max(0.45)));
+            let s = Matrix3::from_diagonal(&Vector3::new(
+                (1.0 + rel * z()).max(0.45),
+                (1.0 + rel * z()).max(0.45),
+                (1.0 + rel * z()).max(0.45),
+            ));
             let ic2 = s * ic * s;
             let p = Inertial::from_com(m, c2, ic2, Matrix3::identity()).to_params();
             out[o..o + 10].copy_from_slice(&p);
@@ -433,7 +445,11 @@ impl SimSetup {
                 return Err(Error::invalid(
                     ctx,
                     "rate",
-                    format!("the reference period {} s is not a whole number of controller periods at {} Hz", reference.duration(), d.rate),
+                    format!(
+                        "the reference period {} s is not a whole number of controller periods at {} Hz",
+                        reference.duration(),
+                        d.rate
+                    ),
                 ));
             }
             if (p.round() as usize) % d.decimate != 0 {
@@ -675,7 +691,9 @@ fn rk4(robot: &Robot, ws: &mut Workspace, q: &mut [f64], qd: &mut [f64], tau: &[
     let f = |ws: &mut Workspace, q: &[f64], qd: &[f64]| -> Result<Vec<f64>> {
         let a = forward_dynamics(robot, ws, q, qd, tau).map_err(|e| Error::Numerical(format!("simulation: {e} (the true parameters are not physical?)")))?;
         if a.iter().any(|v| !v.is_finite()) || a.amax() > 1e6 {
-            return Err(Error::Numerical("simulation diverged: accelerations above 1e6 (lower the gains or raise the rate)".into()));
+            return Err(Error::Numerical(
+                "simulation diverged: accelerations above 1e6 (lower the gains or raise the rate)".into(),
+            ));
         }
         Ok(a.as_slice().to_vec())
     };

@@ -388,7 +388,11 @@ impl ReferenceSpec {
                 }
                 pos("frequency", *frequency)?;
                 if !(*amplitude > 0.0 && *amplitude <= 1.0) {
-                    return Err(Error::invalid(ctx, "reference.amplitude", format!("expected 0 < amplitude ≤ 1, got {amplitude}")));
+                    return Err(Error::invalid(
+                        ctx,
+                        "reference.amplitude",
+                        format!("expected 0 < amplitude ≤ 1, got {amplitude}"),
+                    ));
                 }
                 Ok(())
             }
@@ -402,7 +406,11 @@ impl ReferenceSpec {
             } => {
                 for (name, a) in [("area_a", area_a), ("area_b", area_b)] {
                     if a.center.iter().chain(&a.half_size).any(|v| !v.is_finite()) || a.half_size.iter().any(|v| *v < 0.0) {
-                        return Err(Error::invalid(ctx, format!("reference.{name}"), "expected finite centre and non-negative half sizes"));
+                        return Err(Error::invalid(
+                            ctx,
+                            format!("reference.{name}"),
+                            "expected finite centre and non-negative half sizes",
+                        ));
                     }
                 }
                 if *cycles == 0 {
@@ -444,14 +452,15 @@ impl ReferenceSpec {
                     return Err(Error::invalid(
                         ctx,
                         "reference.acceleration",
-                        format!("the blends need {blend:.3} rad, more than the range {:.3} rad: raise the acceleration or widen the range", to - from),
+                        format!(
+                            "the blends need {blend:.3} rad, more than the range {:.3} rad: raise the acceleration or widen the range",
+                            to - from
+                        ),
                     ));
                 }
                 Ok(())
             }
-            ReferenceSpec::BangBang {
-                acceleration, velocities, ..
-            } => {
+            ReferenceSpec::BangBang { acceleration, velocities, .. } => {
                 pos("acceleration", *acceleration)?;
                 if velocities.is_empty() {
                     return Err(Error::invalid(ctx, "reference.velocities", "expected at least one peak velocity"));
@@ -733,7 +742,13 @@ fn via_points(pts: &[Vec<f64>], move_time: f64, dwell: f64, dt: f64) -> Vec<Vec<
 
 /// Position inverse kinematics by damped least squares from `seed`, clamped to
 /// the joint limits. Error message if the target is not reached to 0.1 mm.
-pub fn ik_position(robot: &Robot, ws: &mut Workspace, frame: &crate::robot::Frame, target: &Vector3<f64>, seed: &[f64]) -> std::result::Result<Vec<f64>, String> {
+pub fn ik_position(
+    robot: &Robot,
+    ws: &mut Workspace,
+    frame: &crate::robot::Frame,
+    target: &Vector3<f64>,
+    seed: &[f64],
+) -> std::result::Result<Vec<f64>, String> {
     let n = robot.dof();
     let mut q = seed.to_vec();
     let lambda2 = 1e-4;
@@ -786,7 +801,7 @@ fn states_reference(path: &Path, n: usize, periodic: bool) -> Result<Reference> 
     }
     let dt = (times[times.len() - 1] - times[0]) / (times.len() - 1) as f64;
     for (i, w) in times.windows(2).enumerate() {
-        if !(dt > 0.0) || ((w[1] - w[0]) - dt).abs() > 1e-6 * dt.max(1e-9) + 1e-9 {
+        if dt.is_nan() || dt <= 0.0 || ((w[1] - w[0]) - dt).abs() > 1e-6 * dt.max(1e-9) + 1e-9 {
             return Err(Error::Data {
                 path: path.into(),
                 row: i + 2,
