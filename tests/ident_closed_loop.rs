@@ -7,11 +7,12 @@
 //! * at a realistic encoder noise (σ_q = 1e-5 rad) every estimator is unbiased
 //!   within its spread over seeds;
 //! * from σ_q ≈ 1e-4 rad the joint-2 friction of direct LS is biased
-//!   (F_c2 about −15 %, −74 % at 3e-4 rad, several spreads): the noise fed back
+//!   (F_c2 −15 % ± 7 %, −74 % ± 17 % at 3e-4 rad): the noise fed back
 //!   makes the drive dither about zero velocity and the estimate of the sign of
-//!   q̇ unreliable; the projection method cuts that bias (−17 % ± 60 % at 3e-4)
-//!   at the price of a larger spread; ML (errors in variables with a pooled
-//!   noise model) does not remove it.
+//!   q̇ unreliable; the projection method cuts that bias (−1 % ± 16 % at 1e-4,
+//!   −17 % ± 60 % at 3e-4) at the price of a larger spread; ML (errors in
+//!   variables with a pooled noise model) does not remove it (−25 % ± 7 %,
+//!   −73 % ± 27 %).
 
 mod ident_util;
 use ident_util::*;

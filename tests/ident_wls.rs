@@ -71,3 +71,38 @@ fn ols_and_wls_agree_and_ols_covariance_is_sandwich() {
         assert!(a.z.abs() < 4.0);
     }
 }
+
+#[test]
+fn negative_masses_and_inertias_are_flagged() {
+    // the same run with the torques negated: every estimate flips sign, so the
+    // base parameters that must be positive come out negative and are reported
+    let mut res = simulate(&rpr_fourier(1, 1, 11, 4, 1e-5));
+    for rep in &mut res.reps {
+        for row in &mut rep.tau {
+            row.iter_mut().for_each(|v| *v = -*v);
+        }
+    }
+    let (id, base) = ident(&res, None, &IdentOptions::default());
+    let flagged: Vec<&str> = id.estimate.implausible.iter().map(|p| p.name.as_str()).collect();
+    println!("{flagged:?}");
+    for must in ["M2R", "Fc1", "Fv2"] {
+        assert!(flagged.contains(&must), "{must} not flagged: {flagged:?}");
+    }
+    // combinations with a negative coefficient (XX3R = XX3 − YY3 + …) can be negative and are not flagged
+    assert!(!flagged.contains(&"XX3R"));
+    assert!(id.estimate.text().contains("NEGATIVE"));
+    // the unmodified run has none
+    let mut ok = res.clone();
+    for rep in &mut ok.reps {
+        for row in &mut rep.tau {
+            row.iter_mut().for_each(|v| *v = -*v);
+        }
+    }
+    let (id2, _) = ident(&ok, None, &IdentOptions::default());
+    assert!(
+        id2.estimate.implausible.iter().all(|p| p.value.abs() < 3.0 * p.std),
+        "only parameters compatible with zero may come out negative: {:?}",
+        id2.estimate.implausible
+    );
+    assert_eq!(base.n_base(), id.estimate.names.len());
+}
