@@ -217,6 +217,11 @@ fn design_errors_name_the_field() {
     bad("[truth]\nperturbation = 2.0", "truth.perturbation");
     bad("[controller]\nbandwidth = 500.0", "controller.bandwidth");
     bad("[noise]\ntorque = -1.0", "noise.torque");
+    // unknown keys inside [reference] are caught too, also for the inline trajectory
+    let r: Result<idexp::sim::ReferenceSpec, _> = toml::from_str("kind = \"random_fourier\"\nfoo = 1");
+    assert!(r.unwrap_err().to_string().contains("foo"));
+    let r: Result<idexp::sim::ReferenceSpec, _> = toml::from_str("kind = \"fourier_inline\"\nomega = 1.0\nq0 = [0.0]\na = [[0.1]]\nb = [[0.0]]\nzz = 3");
+    assert!(r.unwrap_err().to_string().contains("zz"));
     // a period that is not a whole number of controller steps
     let d = design(
         "robot = \"tests/data/ident/rpr_drives.toml\"\nrate = 7.0\n[controller]\nbandwidth = 0.5\n[reference]\nkind = \"random_fourier\"\nfrequency = 0.3\n",

@@ -478,7 +478,8 @@ impl Estimate {
 
 impl Identification {
     /// Writes `estimate.json`, `report.txt`, `torques.svg`, `residuals.svg`,
-    /// `params.svg` (and `validation.svg`, `reduction.svg` when present) into `dir`.
+    /// `params.svg` (and `validation.svg`, `reduction.csv` and `reduction.svg`
+    /// when present) into `dir`.
     pub fn write(&self, dir: &std::path::Path) -> Result<()> {
         use crate::io::plot::{write_svg, Panel, Series};
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
@@ -558,6 +559,24 @@ impl Identification {
         }
         write_svg(&dir.join("params.svg"), "identified base parameters", &panels, 1)?;
         if let Some(r) = &self.estimate.reduction {
+            let mut csv = format!(
+                "k,parameter,sensitivity,decision,growth,cond,n_params,{}\n",
+                (1..=self.dataset.n).map(|j| format!("e_rel{j}")).collect::<Vec<_>>().join(",")
+            );
+            for st in &r.steps {
+                csv.push_str(&format!(
+                    "{},{},{},{},{},{},{},{}\n",
+                    st.k,
+                    st.parameter,
+                    st.sensitivity,
+                    st.decision,
+                    st.growth,
+                    st.cond,
+                    st.n_params,
+                    st.e_rel.iter().map(|v| v.to_string()).collect::<Vec<_>>().join(",")
+                ));
+            }
+            crate::io::write_atomic(&dir.join("reduction.csv"), csv.as_bytes())?;
             let ks: Vec<f64> = r.steps.iter().map(|s| s.k as f64).collect();
             let panels = vec![
                 Panel {
