@@ -171,6 +171,11 @@ pub struct Estimate {
     pub n_samples: usize,
     /// Filter used.
     pub filter: Filter,
+    /// Per joint: RMS of (averaged − filtered) positions and the noise RMS of
+    /// the averaged positions ([`Processed::filter_residual`]).
+    pub filter_residual: Vec<(f64, Option<f64>)>,
+    /// Warnings about the data processing (e.g. motion removed by the filter).
+    pub warnings: Vec<String>,
     /// Projection-method details.
     pub projection: Option<closed_loop::ProjectionInfo>,
     /// ML details.
@@ -341,6 +346,8 @@ pub fn identify(
         implausible,
         n_reps: pr.n_reps,
         n_samples: pr.len(),
+        warnings: filter_warnings(&pr),
+        filter_residual: pr.filter_residual.clone(),
         filter,
         projection,
         ml,
@@ -353,6 +360,31 @@ pub fn identify(
         dataset: ds,
         validation: val_ds,
     })
+}
+
+/// Joints whose filter residual exceeds 3× the noise of the averaged positions.
+fn filter_warnings(pr: &Processed) -> Vec<String> {
+    let mut w = Vec::new();
+    for (j, (res, noise)) in pr.filter_residual.iter().enumerate() {
+        if let Some(nz) = noise {
+            if *res > 3.0 * nz && *res > 0.0 {
+                let hint = match pr.filter {
+                    Filter::Fourier { n_h, .. } => format!(
+                        "the closed-loop response has harmonics above the {n_h} kept (tracking errors of a nonlinear plant); dropping them biases q̈: consider --harmonics {}",
+                        4 * n_h
+                    ),
+                    Filter::LowPass { cutoff } => format!("the low-pass at {cutoff} Hz removes motion: consider a higher --cutoff"),
+                    Filter::None => String::new(),
+                };
+                w.push(format!(
+                    "joint {}: the filter removes {res:.3e} rad RMS from the averaged positions, {:.1}× their noise ({nz:.3e}); {hint}",
+                    j + 1,
+                    res / nz
+                ));
+            }
+        }
+    }
+    w
 }
 
 impl Estimate {
@@ -394,6 +426,9 @@ impl Estimate {
                 Filter::None => "none (central differences)".into(),
             }
         );
+        for w in &self.warnings {
+            let _ = writeln!(s, "WARNING: {w}");
+        }
         let _ = writeln!(
             s,
             "design matrix: {} parameters, rank {}, cond {:.4e} (unit-norm columns {:.4}), χ²/dof {:.4}",

@@ -61,6 +61,11 @@ pub struct Processed {
     pub filter: Filter,
     /// The Fourier fit of the averaged positions (Fourier filter only).
     pub fourier: Option<FourierTrajectory>,
+    /// Per joint, the RMS of (averaged − filtered) positions and the RMS noise
+    /// of the averaged positions (σ_q/√N_r from the repetitions, if N_r ≥ 2):
+    /// a residual well above the noise means the filter removes motion (for a
+    /// Fourier filter: harmonics of the closed-loop response above n_h).
+    pub filter_residual: Vec<(f64, Option<f64>)>,
 }
 
 impl Processed {
@@ -97,6 +102,7 @@ impl Processed {
             n_reps: self.n_reps,
             filter: self.filter.clone(),
             fourier: self.fourier.clone(),
+            filter_residual: self.filter_residual.clone(),
         }
     }
 }
@@ -222,6 +228,24 @@ pub fn process(run: &Run, filter: &Filter) -> Result<Processed> {
         let ((q, qd, qdd), f) = filter_positions(&t, &q_mean, filter)?;
         (q, qd, qdd, f)
     };
+    let q_noise: Option<Vec<f64>> = (nr >= 2).then(|| {
+        (0..n)
+            .map(|j| {
+                let v: f64 = reps
+                    .iter()
+                    .map(|rep| (0..m).map(|p| (rep.q[p][j] - q_mean[p][j]).powi(2)).sum::<f64>())
+                    .sum::<f64>()
+                    / ((nr - 1) * m) as f64;
+                (v / nr as f64).sqrt()
+            })
+            .collect()
+    });
+    let filter_residual = (0..n)
+        .map(|j| {
+            let r = ((0..m).map(|p| (q_mean[p][j] - q[p][j]).powi(2)).sum::<f64>() / m as f64).sqrt();
+            (r, q_noise.as_ref().map(|v| v[j]))
+        })
+        .collect();
     let joint_cov = if nr >= 2 {
         let d = 4 * n;
         let per: Vec<Signals> = reps
@@ -265,6 +289,7 @@ pub fn process(run: &Run, filter: &Filter) -> Result<Processed> {
         n_reps: nr,
         filter: filter.clone(),
         fourier,
+        filter_residual,
     })
 }
 
