@@ -106,3 +106,57 @@ fn negative_masses_and_inertias_are_flagged() {
     );
     assert_eq!(base.n_base(), id.estimate.names.len());
 }
+
+#[test]
+fn one_repetition_and_missing_inputs() {
+    let mut res = simulate(&rpr_fourier(1, 5, 11, 2, 1e-5));
+    res.reps.truncate(1);
+    // one repetition: no sample variances; WLS weights from the per-joint OLS residual variance
+    let (id, _) = ident(&res, None, &IdentOptions::default());
+    assert_eq!(id.estimate.n_reps, 1);
+    assert!(id.estimate.theta.iter().all(|v| v.is_finite()));
+    assert!(id.estimate.errors.noise_floor.is_none());
+    // ML needs the noise covariance from repetitions
+    let robot = &res.setup.nominal;
+    let base = idexp::params::BaseParams::compute(robot, &Default::default()).unwrap();
+    let run = run_of(&res);
+    let e = idexp::ident::identify(
+        robot,
+        &base,
+        &run,
+        res.setup.reference.fourier(),
+        None,
+        &IdentOptions {
+            method: Method::Ml,
+            ..Default::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("repetitions"), "{e}");
+    // the projection method needs the reference columns
+    let mut nor = res.clone();
+    nor.reps.iter_mut().for_each(|r| r.r = None);
+    let run = run_of(&nor);
+    let e = idexp::ident::identify(
+        robot,
+        &base,
+        &run,
+        res.setup.reference.fourier(),
+        None,
+        &IdentOptions {
+            method: Method::Projection,
+            ..Default::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("r1..rn"), "{e}");
+    // reduction is defined with WLS only
+    let opts = IdentOptions {
+        method: Method::Ols,
+        reduce: Some(Default::default()),
+        ..Default::default()
+    };
+    assert!(idexp::ident::identify(robot, &base, &run_of(&res), None, None, &opts).is_err());
+}
