@@ -18,6 +18,10 @@ struct Cli {
 enum Cmd {
     /// Inspect a robot and evaluate its dynamics (info, torques, regressor).
     Robot(idexp::robot::cli::RobotArgs),
+    /// Closed-loop rigid-body simulation of identification runs (writes runs for `identify`).
+    Simulate(idexp::sim::cli::SimulateArgs),
+    /// Identify base parameters from runs (OLS/WLS/projection/ML, reduction, gravity/friction experiments).
+    Identify(Box<idexp::ident::cli::IdentifyArgs>),
 }
 
 fn main() {
@@ -42,6 +46,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     });
     match &cli.cmd {
         Cmd::Robot(a) => idexp::robot::cli::run(a)?,
+        Cmd::Simulate(a) => idexp::sim::cli::run(a)?,
+        Cmd::Identify(a) => idexp::ident::cli::run(a)?,
     }
     Ok(())
 }

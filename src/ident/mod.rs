@@ -1,1 +1,638 @@
-//! (module under construction on its branch)
+//! Identification from measured runs (paper 000 §II-B, §III-C, §III-D, §IV;
+//! paper 002 §2.2, §3.2–3.5).
+//!
+//! Pipeline ([`identify`]): read the repetitions ([`run`]), average them and
+//! filter the positions ([`process`]: Fourier filtering with analytic
+//! derivatives for Fourier references, else zero-phase low-pass and central
+//! differences), stack the base-parameter regressor ([`estimate::Dataset`]),
+//! estimate by OLS, WLS (paper 000 eq. 5, 8–9), the projection method or
+//! maximum likelihood ([`closed_loop`], paper 002 eq. 10–16), with covariances
+//! and relative standard deviations (eq. 13–14), prediction errors e_j, e*_j
+//! on the identification and a validation run (eq. 11–12), the condition
+//! number, physical-plausibility flags, and optionally the sensitivity-based
+//! model reduction ([`reduce`], Algorithm 1). The dedicated gravity and
+//! friction experiments of paper 002 §3.2 are in [`experiments`].
+
+pub mod cli;
+pub mod closed_loop;
+pub mod estimate;
+pub mod experiments;
+pub mod process;
+pub mod reduce;
+pub mod run;
+
+pub use closed_loop::{MlOptions, ProjectionOptions};
+pub use estimate::{Dataset, Errors, LsFit, Weights};
+pub use process::{process, Filter, Processed};
+pub use reduce::{Essential, ReduceOptions, Reduction};
+pub use run::{Repetition, Run};
+
+use crate::error::{Error, Result};
+use crate::params::BaseParams;
+use crate::robot::Robot;
+use crate::trajectory::FourierTrajectory;
+use serde::Serialize;
+
+/// Estimator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    /// Ordinary least squares.
+    Ols,
+    /// Weighted least squares with sample-variance weights (paper 000).
+    #[default]
+    Wls,
+    /// Projection method for closed-loop data (paper 002 eq. 10–12).
+    Projection,
+    /// Maximum likelihood with noisy positions and torques (paper 002 eq. 13–16).
+    Ml,
+}
+
+/// How positions are filtered.
+#[derive(Debug, Clone, PartialEq, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum FilterChoice {
+    /// Fourier filtering when the run's Fourier trajectory is known, else a low-pass at 10 Hz.
+    #[default]
+    Auto,
+    /// This filter.
+    Given(Filter),
+}
+
+/// Options of [`identify`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct IdentOptions {
+    /// Estimator.
+    pub method: Method,
+    /// WLS weights.
+    pub weights: Weights,
+    /// Filter of the identification run.
+    pub filter: FilterChoice,
+    /// Harmonics kept by Fourier filtering (default: the trajectory's n_h, the
+    /// excited ones as in paper 000 §III-C). More harmonics keep the part of the
+    /// closed-loop response above the excitation band (tracking errors of a
+    /// nonlinear plant) that filtering at n_h would remove from q̈.
+    pub harmonics: Option<usize>,
+    /// Keep every k-th processed sample.
+    pub decimate: usize,
+    /// Rows of joint j where |q̇_j| is below this fraction of the joint's largest
+    /// speed in the run are left out (see [`Dataset::new`]). Not applied by the
+    /// projection method, which needs every sample.
+    pub slow_ratio: f64,
+    /// Rows of a joint slower than this speed are left out too (rad/s or m/s).
+    pub min_speed: f64,
+    /// Model reduction (WLS only).
+    pub reduce: Option<ReduceOptions>,
+    /// Projection-method options.
+    pub projection: ProjectionOptions,
+    /// ML options.
+    pub ml: MlOptions,
+}
+
+impl Default for IdentOptions {
+    fn default() -> Self {
+        IdentOptions {
+            method: Method::Wls,
+            weights: Weights::Sample,
+            filter: FilterChoice::Auto,
+            harmonics: None,
+            decimate: 1,
+            slow_ratio: 0.1,
+            min_speed: 0.01,
+            reduce: None,
+            projection: ProjectionOptions::default(),
+            ml: MlOptions::default(),
+        }
+    }
+}
+
+/// A base parameter that must be positive but was estimated negative.
+#[derive(Debug, Clone, Serialize)]
+pub struct Implausible {
+    /// Base parameter name.
+    pub name: String,
+    /// Its combination of standard parameters.
+    pub grouping: String,
+    /// Estimate.
+    pub value: f64,
+    /// Standard deviation.
+    pub std: f64,
+}
+
+/// Comparison with known true parameters (simulated runs).
+#[derive(Debug, Clone, Serialize)]
+pub struct TruthRow {
+    /// Name.
+    pub name: String,
+    /// True base value.
+    pub truth: f64,
+    /// Estimate.
+    pub estimate: f64,
+    /// (estimate − truth)/σ.
+    pub z: f64,
+}
+
+/// The result of an identification (written as `estimate.json`).
+#[derive(Debug, Clone, Serialize)]
+pub struct Estimate {
+    /// `ok`, `rank_deficient`, or the solver's status for ML.
+    pub status: String,
+    /// Estimator.
+    pub method: Method,
+    /// Names of the estimated base parameters.
+    pub names: Vec<String>,
+    /// Their combinations of standard parameters.
+    pub groupings: Vec<String>,
+    /// Estimates θ̂.
+    pub theta: Vec<f64>,
+    /// Standard deviations σ_i.
+    pub std: Vec<f64>,
+    /// Relative standard deviations σ*_i (eq. 14).
+    pub rel_std: Vec<f64>,
+    /// Covariance matrix (rows).
+    pub covariance: Vec<Vec<f64>>,
+    /// Rank of the design matrix.
+    pub rank: usize,
+    /// Condition number of C.
+    pub cond: f64,
+    /// Condition number of C with unit-norm columns.
+    pub cond_normalized: f64,
+    /// Weighted residual sum of squares per degree of freedom.
+    pub chi2_dof: f64,
+    /// Errors on the identification run (eq. 11–12).
+    pub errors: Errors,
+    /// Errors on the validation run.
+    pub validation: Option<Errors>,
+    /// Base parameters that must be positive but are negative.
+    pub implausible: Vec<Implausible>,
+    /// Repetitions averaged.
+    pub n_reps: usize,
+    /// Samples per joint used.
+    pub n_samples: usize,
+    /// Filter used.
+    pub filter: Filter,
+    /// Per joint: RMS of (averaged − filtered) positions and the noise RMS of
+    /// the averaged positions ([`Processed::filter_residual`]).
+    pub filter_residual: Vec<(f64, Option<f64>)>,
+    /// Warnings about the data processing (e.g. motion removed by the filter).
+    pub warnings: Vec<String>,
+    /// Projection-method details.
+    pub projection: Option<closed_loop::ProjectionInfo>,
+    /// ML details.
+    pub ml: Option<closed_loop::MlInfo>,
+    /// Model reduction.
+    pub reduction: Option<Reduction>,
+    /// Comparison with the truth.
+    pub truth: Option<Vec<TruthRow>>,
+}
+
+/// An identification with the data behind it (for plots).
+#[derive(Debug, Clone)]
+pub struct Identification {
+    /// The estimate.
+    pub estimate: Estimate,
+    /// Processed identification data.
+    pub processed: Processed,
+    /// Its dataset (columns of the estimated parameters).
+    pub dataset: Dataset,
+    /// Validation dataset, if any.
+    pub validation: Option<Dataset>,
+}
+
+/// Chooses the filter: a given one, or Fourier filtering at the trajectory's
+/// ω and n_h when known, else a 10 Hz low-pass.
+pub fn resolve_filter(choice: &FilterChoice, trajectory: Option<&FourierTrajectory>, harmonics: Option<usize>) -> Filter {
+    match (choice, trajectory) {
+        (FilterChoice::Given(Filter::Fourier { omega, n_h }), _) => Filter::Fourier {
+            omega: *omega,
+            n_h: harmonics.unwrap_or(*n_h),
+        },
+        (FilterChoice::Given(f), _) => f.clone(),
+        (FilterChoice::Auto, Some(t)) => Filter::Fourier {
+            omega: t.omega,
+            n_h: harmonics.unwrap_or(t.n_harmonics()),
+        },
+        (FilterChoice::Auto, None) => Filter::LowPass { cutoff: 10.0 },
+    }
+}
+
+/// The Fourier trajectory stored next to a run (`trajectory.json` in its folder), if any.
+pub fn run_trajectory(run: &Run) -> Result<Option<FourierTrajectory>> {
+    match run.folder().map(|d| d.join("trajectory.json")) {
+        Some(p) if p.exists() => Ok(Some(FourierTrajectory::load(&p)?)),
+        _ => Ok(None),
+    }
+}
+
+/// Identifies the base parameters of `robot` from `run` (validated on
+/// `validation`, each with its Fourier trajectory if known).
+pub fn identify(
+    robot: &Robot,
+    base: &BaseParams,
+    run: &Run,
+    trajectory: Option<&FourierTrajectory>,
+    validation: Option<(&Run, Option<&FourierTrajectory>)>,
+    opts: &IdentOptions,
+) -> Result<Identification> {
+    if run.n_joints() != robot.dof() {
+        return Err(Error::dim("joints in the run", robot.dof(), run.n_joints()));
+    }
+    if opts.decimate == 0 {
+        return Err(Error::invalid("identify", "decimate", "expected ≥ 1"));
+    }
+    if opts.reduce.is_some() && !matches!(opts.method, Method::Wls) {
+        return Err(Error::invalid(
+            "identify",
+            "reduce",
+            "model reduction (paper 000 Algorithm 1) uses WLS: run it with method wls",
+        ));
+    }
+    let filter = resolve_filter(&opts.filter, trajectory, opts.harmonics);
+    let pr = process(run, &filter)?.decimated(opts.decimate);
+    if !(opts.slow_ratio.is_finite() && (0.0..1.0).contains(&opts.slow_ratio)) {
+        return Err(Error::invalid("identify", "slow_ratio", "expected a fraction in [0, 1)"));
+    }
+    if !(opts.min_speed.is_finite() && opts.min_speed >= 0.0) {
+        return Err(Error::invalid("identify", "min_speed", "expected a speed ≥ 0"));
+    }
+    let (slow, vmin) = if matches!(opts.method, Method::Projection) {
+        (0.0, 0.0)
+    } else {
+        (opts.slow_ratio, opts.min_speed)
+    };
+    let full = Dataset::new(robot, base, &pr, slow, vmin);
+    let moving: Vec<bool> = (0..robot.dof())
+        .map(|j| pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max) > opts.reduce.as_ref().map_or(0.05, |r| r.moving_speed))
+        .collect();
+    let mut projection = None;
+    let mut ml = None;
+    let mut reduction = None;
+    let (cols, fit): (Vec<usize>, LsFit) = match opts.method {
+        Method::Ols => ((0..base.n_base()).collect(), estimate::ols(&full)?),
+        Method::Wls => match &opts.reduce {
+            None => ((0..base.n_base()).collect(), estimate::wls(&full, opts.weights)?),
+            Some(ro) => {
+                let red = reduce::reduce(robot, base, &full, &moving, ro)?;
+                let out = (red.kept.clone(), red.reduced.clone());
+                reduction = Some(red);
+                out
+            }
+        },
+        Method::Projection => {
+            let (f, info) = closed_loop::projection(&full, &pr, run, opts.decimate, &opts.projection)?;
+            projection = Some(info);
+            ((0..base.n_base()).collect(), f)
+        }
+        Method::Ml => {
+            let start = estimate::wls(&full, opts.weights)?;
+            let cols: Vec<usize> = (0..base.n_base()).collect();
+            let (f, info) = closed_loop::ml(robot, base, &pr, &cols, &start.theta, &start.std, &opts.ml)?;
+            ml = Some(info);
+            (cols, f)
+        }
+    };
+    let ds = full.columns(&cols);
+    let errors = estimate::errors(&ds, &fit.theta);
+    let val_ds = match validation {
+        Some((vrun, vtraj)) => {
+            if vrun.n_joints() != robot.dof() {
+                return Err(Error::dim("joints in the validation run", robot.dof(), vrun.n_joints()));
+            }
+            let vf = match (&opts.filter, vtraj) {
+                (FilterChoice::Given(f), _) if !matches!(f, Filter::Fourier { .. }) => f.clone(),
+                (_, Some(t)) => resolve_filter(&FilterChoice::Auto, Some(t), opts.harmonics),
+                (_, None) => resolve_filter(&FilterChoice::Auto, None, None),
+            };
+            let vp = process(vrun, &vf)?.decimated(opts.decimate);
+            Some(Dataset::new(robot, base, &vp, slow, vmin).columns(&cols))
+        }
+        None => None,
+    };
+    let val_errors = val_ds.as_ref().map(|d| estimate::errors(d, &fit.theta));
+    let positive = estimate::must_be_positive(robot, base);
+    let implausible = cols
+        .iter()
+        .enumerate()
+        .filter(|(i, &c)| positive[c] && fit.theta[*i] < 0.0)
+        .map(|(i, &c)| Implausible {
+            name: base.names[c].clone(),
+            grouping: base.groupings[c].clone(),
+            value: fit.theta[i],
+            std: fit.std[i],
+        })
+        .collect();
+    let status = if let Some(m) = &ml {
+        m.status.clone()
+    } else if fit.rank < cols.len() {
+        "rank_deficient".to_string()
+    } else {
+        "ok".to_string()
+    };
+    let estimate = Estimate {
+        status,
+        method: opts.method,
+        names: cols.iter().map(|&c| base.names[c].clone()).collect(),
+        groupings: cols.iter().map(|&c| base.groupings[c].clone()).collect(),
+        covariance: fit.cov.row_iter().map(|r| r.iter().copied().collect()).collect(),
+        theta: fit.theta.clone(),
+        std: fit.std.clone(),
+        rel_std: fit.rel_std.clone(),
+        rank: fit.rank,
+        cond: fit.cond,
+        cond_normalized: fit.cond_normalized,
+        chi2_dof: fit.chi2_dof,
+        errors,
+        validation: val_errors,
+        implausible,
+        n_reps: pr.n_reps,
+        n_samples: pr.len(),
+        warnings: filter_warnings(&pr),
+        filter_residual: pr.filter_residual.clone(),
+        filter,
+        projection,
+        ml,
+        reduction,
+        truth: None,
+    };
+    Ok(Identification {
+        estimate,
+        processed: pr,
+        dataset: ds,
+        validation: val_ds,
+    })
+}
+
+/// Joints whose filter residual exceeds 3× the noise of the averaged positions.
+fn filter_warnings(pr: &Processed) -> Vec<String> {
+    let mut w = Vec::new();
+    for (j, (res, noise)) in pr.filter_residual.iter().enumerate() {
+        if let Some(nz) = noise {
+            if *res > 3.0 * nz && *res > 0.0 {
+                let hint = match pr.filter {
+                    Filter::Fourier { n_h, .. } => format!(
+                        "the closed-loop response has harmonics above the {n_h} kept (tracking errors of a nonlinear plant); dropping them biases q̈: consider --harmonics {}",
+                        4 * n_h
+                    ),
+                    Filter::LowPass { cutoff } => format!("the low-pass at {cutoff} Hz removes motion: consider a higher --cutoff"),
+                    Filter::None => String::new(),
+                };
+                w.push(format!(
+                    "joint {}: the filter removes {res:.3e} rad RMS from the averaged positions, {:.1}× their noise ({nz:.3e}); {hint}",
+                    j + 1,
+                    res / nz
+                ));
+            }
+        }
+    }
+    w
+}
+
+impl Estimate {
+    /// Adds the comparison with true base parameters (names must match the base parameters).
+    pub fn compare_truth(&mut self, base_names: &[String], base_truth: &[f64]) -> Result<()> {
+        let mut rows = Vec::new();
+        for (i, nm) in self.names.iter().enumerate() {
+            let k = base_names.iter().position(|x| x == nm).ok_or_else(|| {
+                Error::invalid(
+                    "truth",
+                    "base_names",
+                    format!("the truth file has no base parameter {nm:?} (different robot or base-parameter options?)"),
+                )
+            })?;
+            rows.push(TruthRow {
+                name: nm.clone(),
+                truth: base_truth[k],
+                estimate: self.theta[i],
+                z: (self.theta[i] - base_truth[k]) / self.std[i],
+            });
+        }
+        self.truth = Some(rows);
+        Ok(())
+    }
+
+    /// The text report (`report.txt`).
+    pub fn text(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        let _ = writeln!(s, "identification: method {:?}, status {}", self.method, self.status);
+        let _ = writeln!(
+            s,
+            "data: {} repetitions averaged, {} samples per joint, filter {}",
+            self.n_reps,
+            self.n_samples,
+            match &self.filter {
+                Filter::Fourier { omega, n_h } => format!("Fourier (ω = {omega:.6} rad/s, {n_h} harmonics)"),
+                Filter::LowPass { cutoff } => format!("zero-phase low-pass {cutoff} Hz + central differences"),
+                Filter::None => "none (central differences)".into(),
+            }
+        );
+        for w in &self.warnings {
+            let _ = writeln!(s, "WARNING: {w}");
+        }
+        let _ = writeln!(
+            s,
+            "design matrix: {} parameters, rank {}, cond {:.4e} (unit-norm columns {:.4}), χ²/dof {:.4}",
+            self.names.len(),
+            self.rank,
+            self.cond,
+            self.cond_normalized,
+            self.chi2_dof
+        );
+        if let Some(p) = &self.projection {
+            let _ = writeln!(
+                s,
+                "projection method: FIR lags M1 = {}, M2 = {} ({}), instrument rank {}, corr(û, ũ) = [{}], explained = [{}]",
+                p.m1,
+                p.m2,
+                p.rule,
+                p.instrument_rank,
+                p.corr.iter().map(|x| format!("{x:.1e}")).collect::<Vec<_>>().join(", "),
+                p.explained.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", ")
+            );
+        }
+        if let Some(m) = &self.ml {
+            let _ = writeln!(
+                s,
+                "maximum likelihood: {} after {} evaluations, cost {:.6e} → {:.6e}",
+                m.status, m.evaluations, m.cost_start, m.cost_end
+            );
+        }
+        let _ = writeln!(s, "\n{:>3} {:<10} {:>14} {:>12} {:>9}  grouping", "i", "parameter", "estimate", "std", "σ* (%)");
+        for i in 0..self.names.len() {
+            let _ = writeln!(
+                s,
+                "{:>3} {:<10} {:>14.6} {:>12.4e} {:>9.3}  {}",
+                i + 1,
+                self.names[i],
+                self.theta[i],
+                self.std[i],
+                100.0 * self.rel_std[i],
+                self.groupings[i]
+            );
+        }
+        let err_block = |s: &mut String, title: &str, e: &Errors| {
+            let _ = writeln!(s, "\n{title}");
+            let _ = writeln!(
+                s,
+                "{:>5} {:>12} {:>9} {:>12} {:>12}",
+                "joint", "e_j (N·m)", "e*_j (%)", "rms (N·m)", "noise floor"
+            );
+            for j in 0..e.e.len() {
+                let nf = e.noise_floor.as_ref().map(|v| format!("{:.4e}", v[j])).unwrap_or_else(|| "-".into());
+                let _ = writeln!(s, "{:>5} {:>12.4e} {:>9.3} {:>12.4e} {:>12}", j + 1, e.e[j], 100.0 * e.e_rel[j], e.rms[j], nf);
+            }
+        };
+        err_block(&mut s, "prediction errors on the identification run (eq. 11–12)", &self.errors);
+        if let Some(v) = &self.validation {
+            err_block(&mut s, "prediction errors on the validation run", v);
+        }
+        if self.implausible.is_empty() {
+            let _ = writeln!(s, "\nphysical plausibility: every base parameter that must be positive is positive");
+        } else {
+            let _ = writeln!(s, "\nphysical plausibility: NEGATIVE estimates of parameters that must be positive:");
+            for p in &self.implausible {
+                let _ = writeln!(s, "  {} = {:.6} (σ {:.3e}): {}", p.name, p.value, p.std, p.grouping);
+            }
+        }
+        if let Some(t) = &self.truth {
+            let _ = writeln!(s, "\ncomparison with the true base parameters");
+            let _ = writeln!(s, "{:<10} {:>14} {:>14} {:>8}", "parameter", "truth", "estimate", "z");
+            for r in t {
+                let _ = writeln!(s, "{:<10} {:>14.6} {:>14.6} {:>8.2}", r.name, r.truth, r.estimate, r.z);
+            }
+            let zmax = t.iter().map(|r| r.z.abs()).fold(0.0, f64::max);
+            let _ = writeln!(s, "max |z| = {zmax:.2}");
+        }
+        if let Some(r) = &self.reduction {
+            let _ = writeln!(s);
+            s.push_str(&r.text());
+        }
+        s
+    }
+}
+
+impl Identification {
+    /// Writes `estimate.json`, `report.txt`, `torques.svg`, `residuals.svg`,
+    /// `params.svg` (and `validation.svg`, `reduction.csv` and `reduction.svg`
+    /// when present) into `dir`.
+    pub fn write(&self, dir: &std::path::Path) -> Result<()> {
+        use crate::io::plot::{write_svg, Panel, Series};
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        crate::io::write_json(&dir.join("estimate.json"), &self.estimate)?;
+        crate::io::write_atomic(&dir.join("report.txt"), self.estimate.text().as_bytes())?;
+        let torque_panels = |ds: &Dataset, t: &[f64], resid: bool| -> Vec<Panel> {
+            let pred = &ds.c * nalgebra::DVector::from_column_slice(&self.estimate.theta);
+            let step = ds.n_samples.div_ceil(1500).max(1);
+            (0..ds.n)
+                .map(|j| {
+                    let idx: Vec<usize> = (0..ds.y.len()).filter(|&i| ds.joint[i] == j && ds.sample[i] % step == 0).collect();
+                    let x: Vec<f64> = idx.iter().map(|&i| t.get(ds.sample[i]).copied().unwrap_or(ds.sample[i] as f64)).collect();
+                    let meas: Vec<f64> = idx.iter().map(|&i| ds.y[i]).collect();
+                    let pr: Vec<f64> = idx.iter().map(|&i| pred[i]).collect();
+                    let series = if resid {
+                        vec![Series::line("measured − predicted", x, meas.iter().zip(&pr).map(|(a, b)| a - b).collect())]
+                    } else {
+                        vec![Series::line("measured", x.clone(), meas), Series::line("predicted", x, pr)]
+                    };
+                    Panel {
+                        title: format!("joint {}", j + 1),
+                        x_label: "t (s)".into(),
+                        y_label: "torque (N·m)".into(),
+                        series,
+                        ..Default::default()
+                    }
+                })
+                .collect()
+        };
+        let t = &self.processed.t;
+        write_svg(
+            &dir.join("torques.svg"),
+            "measured vs predicted torque",
+            &torque_panels(&self.dataset, t, false),
+            2,
+        )?;
+        write_svg(&dir.join("residuals.svg"), "torque residuals", &torque_panels(&self.dataset, t, true), 2)?;
+        if let Some(v) = &self.validation {
+            let tv: Vec<f64> = (0..v.n_samples).map(|k| k as f64).collect();
+            let mut panels = torque_panels(v, &tv, false);
+            for p in &mut panels {
+                p.x_label = "sample".into();
+            }
+            write_svg(&dir.join("validation.svg"), "validation run: measured vs predicted torque", &panels, 2)?;
+        }
+        let k = self.estimate.names.len();
+        let x: Vec<f64> = (1..=k).map(|i| i as f64).collect();
+        let mut bars = Series::bars("θ̂ ± 3σ", x.clone(), self.estimate.theta.clone());
+        bars.err = Some(self.estimate.std.iter().map(|s| 3.0 * s).collect());
+        let mut panels = vec![
+            Panel {
+                title: format!("estimates ({})", self.estimate.names.join(" ")),
+                x_label: "parameter index".into(),
+                y_label: "value (SI)".into(),
+                series: vec![bars],
+                ..Default::default()
+            },
+            Panel {
+                title: "relative standard deviation σ* (eq. 14)".into(),
+                x_label: "parameter index".into(),
+                y_label: "σ* (%)".into(),
+                series: vec![Series::bars("σ*", x, self.estimate.rel_std.iter().map(|v| 100.0 * v.min(1e6)).collect())],
+                log_y: true,
+                ..Default::default()
+            },
+        ];
+        if let Some(tr) = &self.estimate.truth {
+            let xs: Vec<f64> = (1..=tr.len()).map(|i| i as f64).collect();
+            panels.push(Panel {
+                title: "(estimate − truth)/σ".into(),
+                x_label: "parameter index".into(),
+                y_label: "z".into(),
+                series: vec![Series::bars("z", xs, tr.iter().map(|r| r.z).collect())],
+                hlines: vec![(3.0, "+3".into()), (-3.0, "−3".into())],
+                ..Default::default()
+            });
+        }
+        write_svg(&dir.join("params.svg"), "identified base parameters", &panels, 1)?;
+        if let Some(r) = &self.estimate.reduction {
+            let mut csv = format!(
+                "k,parameter,sensitivity,decision,growth,cond,n_params,{}\n",
+                (1..=self.dataset.n).map(|j| format!("e_rel{j}")).collect::<Vec<_>>().join(",")
+            );
+            for st in &r.steps {
+                csv.push_str(&format!(
+                    "{},{},{},{},{},{},{},{}\n",
+                    st.k,
+                    st.parameter,
+                    st.sensitivity,
+                    st.decision,
+                    st.growth,
+                    st.cond,
+                    st.n_params,
+                    st.e_rel.iter().map(|v| v.to_string()).collect::<Vec<_>>().join(",")
+                ));
+            }
+            crate::io::write_atomic(&dir.join("reduction.csv"), csv.as_bytes())?;
+            let ks: Vec<f64> = r.steps.iter().map(|s| s.k as f64).collect();
+            let panels = vec![
+                Panel {
+                    title: "condition number of the tried model".into(),
+                    x_label: "step k".into(),
+                    y_label: "cond".into(),
+                    series: vec![Series::points("cond", ks.clone(), r.steps.iter().map(|s| s.cond).collect())],
+                    log_y: true,
+                    ..Default::default()
+                },
+                Panel {
+                    title: "largest relative growth of e*_j".into(),
+                    x_label: "step k".into(),
+                    y_label: "growth (%)".into(),
+                    series: vec![Series::points("growth", ks, r.steps.iter().map(|s| 100.0 * s.growth).collect())],
+                    hlines: vec![(100.0 * r.options.tol, "e_tol".into())],
+                    ..Default::default()
+                },
+            ];
+            write_svg(&dir.join("reduction.svg"), "model reduction (Algorithm 1)", &panels, 2)?;
+        }
+        Ok(())
+    }
+}

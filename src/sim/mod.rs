@@ -1,1 +1,776 @@
-//! (module under construction on its branch)
+//! Closed-loop rigid-body simulation: a robot with "true" parameters (the
+//! nominal ones of a robot file, optionally perturbed) tracks a reference under
+//! a joint PD/PID controller with model feedforward, at a controller rate,
+//! with the friction model, measurement noise on torques and positions,
+//! encoder quantisation, an unmeasured torque disturbance at the plant input,
+//! and N repetitions. It writes runs in the format `idexp identify` reads
+//! (see [`crate::ident::run`]) and is the data source of the identification tests.
+//!
+//! # The loop (per controller period Δt = 1/rate)
+//!
+//! * measured position q_m = Q(q + n_q), n_q ~ N(0, σ_q²), Q the encoder
+//!   quantiser (step 2π/counts);
+//! * velocity estimate v = LP(Δq_m/Δt), a first-order low-pass (cut-off
+//!   `velocity_filter`, Hz), so position noise is fed back through the controller;
+//! * torque command τ = τ_ff(r, ṙ, r̈) + K_p (r − q_m) + K_d (ṙ − v) + K_i ∫(r − q_m),
+//!   τ_ff the inverse dynamics of the **nominal** model (or its gravity part, or none);
+//! * the plant (true parameters) integrates (q, q̇) over Δt with RK4 (`substeps`
+//!   steps) under τ + d, d ~ N(0, σ_d²) held over the period (unmeasured disturbance);
+//! * recorded: t, q_m, τ + n_τ (n_τ ~ N(0, σ_τ²), the torque measurement), r.
+//!
+//! Default gains place each joint at `bandwidth` Hz with damping `damping`
+//! using the diagonal of the nominal mass matrix at the start:
+//! K_p = M_jj ω², K_d = 2 ζ M_jj ω, K_i = 0 (PD) or K_p ω / 10 (PID).
+//!
+//! Periodic references are simulated as one continuous run (a lead-in period,
+//! then N periods cut into repetitions); other references (process motions,
+//! dedicated experiments) start each repetition at rest at r(0). Every random
+//! draw comes from `ChaCha8Rng::seed_from_u64(seed ⊕ index)` per period or repetition.
+
+pub mod cli;
+pub mod reference;
+
+use crate::error::{Error, Result};
+use crate::ident::run::Repetition;
+use crate::params::{BaseOptions, BaseParams};
+use crate::robot::{forward_dynamics, gravity, inverse_dynamics, mass_matrix, Inertial, ParamKind, Robot, Workspace};
+use nalgebra::{Matrix3, Vector3};
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+use rayon::prelude::*;
+pub use reference::{Reference, ReferenceSpec};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// A scalar for every joint or one value per joint.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum PerJoint {
+    /// The same value for all joints.
+    All(f64),
+    /// One value per joint.
+    Each(Vec<f64>),
+}
+
+impl Default for PerJoint {
+    fn default() -> Self {
+        PerJoint::All(0.0)
+    }
+}
+
+impl PerJoint {
+    /// Checks that every value is finite and ≥ 0 (the joint count is checked by [`PerJoint::resolve`]).
+    pub fn check(&self, ctx: &str, field: &str) -> Result<()> {
+        let v: &[f64] = match self {
+            PerJoint::All(x) => std::slice::from_ref(x),
+            PerJoint::Each(v) => v,
+        };
+        if let Some(i) = v.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
+            return Err(Error::invalid(ctx, field, format!("value {} must be finite and ≥ 0, got {}", i + 1, v[i])));
+        }
+        Ok(())
+    }
+
+    /// The values for `n` joints, or an error naming `field`.
+    pub fn resolve(&self, n: usize, ctx: &str, field: &str) -> Result<Vec<f64>> {
+        let v = match self {
+            PerJoint::All(x) => vec![*x; n],
+            PerJoint::Each(v) => {
+                if v.len() != n {
+                    return Err(Error::invalid(
+                        ctx,
+                        field,
+                        format!("expected one value or {n} values (one per joint), got {}", v.len()),
+                    ));
+                }
+                v.clone()
+            }
+        };
+        if let Some(i) = v.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
+            return Err(Error::invalid(ctx, field, format!("value {} must be finite and ≥ 0, got {}", i + 1, v[i])));
+        }
+        Ok(v)
+    }
+}
+
+/// How the true parameters differ from the robot file's nominal ones.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TruthSpec {
+    /// Relative standard deviation of the perturbation (0 = nominal parameters).
+    /// Masses, principal inertias about the centre of mass, rotor inertias and
+    /// friction coefficients are scaled by (1 + ε z), z ~ N(0, 1) (clamped to
+    /// stay ≥ 20 % of nominal); centres of mass move by ε·max(|c|, 2 cm)·z⃗, so
+    /// the true parameters stay physically consistent.
+    pub perturbation: f64,
+    /// Seed of the perturbation (default: the design seed).
+    pub seed: Option<u64>,
+}
+
+impl Default for TruthSpec {
+    fn default() -> Self {
+        TruthSpec { perturbation: 0.0, seed: None }
+    }
+}
+
+/// Model feedforward of the controller.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Feedforward {
+    /// None: pure feedback.
+    None,
+    /// Gravity torques of the nominal model at the reference.
+    Gravity,
+    /// Full inverse dynamics (with friction) of the nominal model at the reference.
+    Nominal,
+}
+
+/// Joint controller (design section `[controller]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ControllerSpec {
+    /// Include an integral term (PID) instead of PD.
+    pub integral: bool,
+    /// Closed-loop bandwidth for the default gains (Hz).
+    pub bandwidth: f64,
+    /// Damping ratio for the default gains.
+    pub damping: f64,
+    /// Explicit proportional gains (N·m/rad), overriding the default.
+    pub kp: Option<PerJoint>,
+    /// Explicit derivative gains (N·m·s/rad).
+    pub kd: Option<PerJoint>,
+    /// Explicit integral gains (N·m/(rad·s)).
+    pub ki: Option<PerJoint>,
+    /// Feedforward.
+    pub feedforward: Feedforward,
+    /// Cut-off of the first-order low-pass on the differentiated encoder signal (Hz, 0 = none).
+    pub velocity_filter: f64,
+}
+
+impl Default for ControllerSpec {
+    fn default() -> Self {
+        ControllerSpec {
+            integral: false,
+            bandwidth: 5.0,
+            damping: 1.0,
+            kp: None,
+            kd: None,
+            ki: None,
+            feedforward: Feedforward::Nominal,
+            velocity_filter: 100.0,
+        }
+    }
+}
+
+/// Noise and quantisation (design section `[noise]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct NoiseSpec {
+    /// Standard deviation of the torque measurement noise (N·m).
+    pub torque: PerJoint,
+    /// Standard deviation of the position measurement noise (rad), fed back through the controller.
+    pub position: PerJoint,
+    /// Encoder counts per revolution (0 = no quantisation); step 2π/counts.
+    pub encoder_counts: f64,
+    /// Standard deviation of the unmeasured torque disturbance at the plant input (N·m).
+    pub disturbance: PerJoint,
+}
+
+/// A simulation design file (`idexp simulate <design.toml>`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimDesign {
+    /// Name (output folder `out/<name>`; default: the file stem).
+    #[serde(default)]
+    pub name: Option<String>,
+    /// Robot file (relative to the design file).
+    pub robot: PathBuf,
+    /// True parameters.
+    #[serde(default)]
+    pub truth: TruthSpec,
+    /// Controller.
+    #[serde(default)]
+    pub controller: ControllerSpec,
+    /// Controller rate (Hz).
+    #[serde(default = "default_rate")]
+    pub rate: f64,
+    /// RK4 steps per controller period.
+    #[serde(default = "one")]
+    pub substeps: usize,
+    /// Record every k-th controller sample.
+    #[serde(default = "one")]
+    pub decimate: usize,
+    /// Noise.
+    #[serde(default)]
+    pub noise: NoiseSpec,
+    /// Repetitions N_r.
+    #[serde(default = "default_reps")]
+    pub repetitions: usize,
+    /// Seed of every random draw.
+    #[serde(default)]
+    pub seed: u64,
+    /// The reference motion.
+    pub reference: ReferenceSpec,
+}
+
+fn default_rate() -> f64 {
+    1000.0
+}
+fn one() -> usize {
+    1
+}
+fn default_reps() -> usize {
+    10
+}
+
+impl SimDesign {
+    /// Reads and validates a design file.
+    pub fn read(path: &Path) -> Result<SimDesign> {
+        let d: SimDesign = crate::io::read_toml(path)?;
+        d.validate(&path.display().to_string())?;
+        Ok(d)
+    }
+
+    /// Checks ranges; `ctx` names the file in messages.
+    pub fn validate(&self, ctx: &str) -> Result<()> {
+        let pos = |f: &str, v: f64| -> Result<()> {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(Error::invalid(ctx, f, format!("expected a positive number, got {v}")))
+            }
+        };
+        pos("rate", self.rate)?;
+        pos("controller.bandwidth", self.controller.bandwidth)?;
+        pos("controller.damping", self.controller.damping)?;
+        if !(self.controller.velocity_filter.is_finite() && self.controller.velocity_filter >= 0.0) {
+            return Err(Error::invalid(ctx, "controller.velocity_filter", "expected a cut-off ≥ 0 Hz (0 = no filter)"));
+        }
+        if self.controller.bandwidth * 10.0 > self.rate {
+            return Err(Error::invalid(
+                ctx,
+                "controller.bandwidth",
+                format!(
+                    "{} Hz is too close to the controller rate {} Hz (keep it below rate/10)",
+                    self.controller.bandwidth, self.rate
+                ),
+            ));
+        }
+        if self.substeps == 0 || self.substeps > 100 {
+            return Err(Error::invalid(ctx, "substeps", "expected 1..=100"));
+        }
+        if self.decimate == 0 {
+            return Err(Error::invalid(ctx, "decimate", "expected ≥ 1"));
+        }
+        if self.repetitions == 0 || self.repetitions > 10_000 {
+            return Err(Error::invalid(ctx, "repetitions", "expected 1..=10000"));
+        }
+        if !(self.truth.perturbation.is_finite() && (0.0..=1.0).contains(&self.truth.perturbation)) {
+            return Err(Error::invalid(ctx, "truth.perturbation", "expected a relative standard deviation in [0, 1]"));
+        }
+        self.noise.torque.check(ctx, "noise.torque")?;
+        self.noise.position.check(ctx, "noise.position")?;
+        self.noise.disturbance.check(ctx, "noise.disturbance")?;
+        for (f, v) in [
+            ("controller.kp", &self.controller.kp),
+            ("controller.kd", &self.controller.kd),
+            ("controller.ki", &self.controller.ki),
+        ] {
+            if let Some(v) = v {
+                v.check(ctx, f)?;
+            }
+        }
+        if !(self.noise.encoder_counts.is_finite() && self.noise.encoder_counts >= 0.0) {
+            return Err(Error::invalid(ctx, "noise.encoder_counts", "expected counts per revolution ≥ 0 (0 = none)"));
+        }
+        self.reference.validate(ctx)
+    }
+}
+
+/// Everything the simulation loop needs, resolved for one robot.
+#[derive(Debug, Clone)]
+pub struct SimSetup {
+    /// The nominal model (controller feedforward, default gains).
+    pub nominal: Robot,
+    /// The plant: the robot with the true parameters.
+    pub truth: Robot,
+    /// The reference.
+    pub reference: Reference,
+    /// Controller rate (Hz).
+    pub rate: f64,
+    /// RK4 substeps per period.
+    pub substeps: usize,
+    /// Record every k-th sample.
+    pub decimate: usize,
+    /// Gains K_p, K_d, K_i (n each).
+    pub kp: Vec<f64>,
+    /// Derivative gains.
+    pub kd: Vec<f64>,
+    /// Integral gains.
+    pub ki: Vec<f64>,
+    /// Feedforward.
+    pub feedforward: Feedforward,
+    /// Velocity filter cut-off (Hz, 0 = none).
+    pub velocity_filter: f64,
+    /// Torque noise σ_τ per joint.
+    pub torque_noise: Vec<f64>,
+    /// Position noise σ_q per joint.
+    pub position_noise: Vec<f64>,
+    /// Disturbance σ_d per joint.
+    pub disturbance: Vec<f64>,
+    /// Quantisation step (rad; 0 = none).
+    pub quantum: f64,
+    /// Repetitions.
+    pub repetitions: usize,
+    /// Seed.
+    pub seed: u64,
+}
+
+/// Outcome of a simulation.
+#[derive(Debug, Clone, Serialize)]
+pub struct SimStatus {
+    /// `complete` or `interrupted`.
+    pub status: String,
+    /// Repetitions produced.
+    pub repetitions: usize,
+    /// Largest |r − q| per joint over the recorded data (rad).
+    pub max_tracking_error: Vec<f64>,
+    /// RMS of r − q per joint (rad).
+    pub rms_tracking_error: Vec<f64>,
+    /// Proportional gains used.
+    pub kp: Vec<f64>,
+    /// Derivative gains used.
+    pub kd: Vec<f64>,
+    /// Integral gains used.
+    pub ki: Vec<f64>,
+}
+
+/// A finished simulation: the repetitions and what produced them.
+#[derive(Debug, Clone)]
+pub struct SimResult {
+    /// Recorded repetitions.
+    pub reps: Vec<Repetition>,
+    /// The setup.
+    pub setup: SimSetup,
+    /// The status.
+    pub status: SimStatus,
+}
+
+/// True standard parameters: the nominal ones perturbed as described in [`TruthSpec`].
+pub fn perturb_params(robot: &Robot, rel: f64, seed: u64) -> Vec<f64> {
+    let th = robot.nominal_params();
+    if rel == 0.0 {
+        return th.as_slice().to_vec();
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x7275_7468);
+    let normal = Normal::new(0.0, 1.0).expect("unit normal");
+    let mut z = || -> f64 { normal.sample(&mut rng) };
+    let mut out = th.as_slice().to_vec();
+    let info = robot.params().to_vec();
+    for i in 0..robot.dof() {
+        let o = robot.link_param_offset(i);
+        let ine = Inertial::from_params(&th.as_slice()[o..o + 10]);
+        let scale = |x: f64, z: f64| x * (1.0 + rel * z).max(0.2);
+        if ine.mass > 0.0 {
+            let c = ine.first_moment / ine.mass;
+            let ic = ine.inertia - ine.mass * (c.norm_squared() * Matrix3::identity() - c * c.transpose());
+            let m = scale(ine.mass, z());
+            let step = rel * c.norm().max(0.02);
+            let c2 = c + Vector3::new(z(), z(), z()) * step;
+            let s = Matrix3::from_diagonal(&Vector3::new(
+                (1.0 + rel * z()).max(0.45),
+                (1.0 + rel * z()).max(0.45),
+                (1.0 + rel * z()).max(0.45),
+            ));
+            let ic2 = s * ic * s;
+            let p = Inertial::from_com(m, c2, ic2, Matrix3::identity()).to_params();
+            out[o..o + 10].copy_from_slice(&p);
+        } else {
+            // massless link (only a rotational inertia): scale the inertia
+            let f = (1.0 + rel * z()).max(0.2);
+            for k in 0..6 {
+                out[o + k] *= f;
+            }
+        }
+    }
+    for (k, p) in info.iter().enumerate() {
+        if !p.kind.is_inertial() {
+            let f = (1.0 + rel * z()).max(0.2);
+            if matches!(p.kind, ParamKind::F0) {
+                out[k] += rel * z() * out[k].abs().max(0.1);
+            } else {
+                out[k] *= f;
+            }
+        }
+    }
+    out
+}
+
+impl SimSetup {
+    /// Resolves a design: loads the robot, draws the true parameters, builds the
+    /// reference and the gains. `base` is the design file's folder.
+    pub fn from_design(d: &SimDesign, base: &Path, ctx: &str) -> Result<SimSetup> {
+        let nominal = crate::robot::load(&resolve(base, &d.robot))?;
+        let n = nominal.dof();
+        let theta = perturb_params(&nominal, d.truth.perturbation, d.truth.seed.unwrap_or(d.seed));
+        let truth = nominal.with_params(&theta)?;
+        let reference = d.reference.build(&nominal, base, d.rate, ctx)?;
+        let mut ws = Workspace::new(&nominal);
+        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        reference.eval(0.0, &mut q, &mut qd, &mut qdd);
+        let m = mass_matrix(&nominal, &mut ws, &q);
+        let w = std::f64::consts::TAU * d.controller.bandwidth;
+        let mjj: Vec<f64> = (0..n).map(|j| m[(j, j)].max(1e-6)).collect();
+        let kp = match &d.controller.kp {
+            Some(v) => v.resolve(n, ctx, "controller.kp")?,
+            None => mjj.iter().map(|m| m * w * w).collect(),
+        };
+        let kd = match &d.controller.kd {
+            Some(v) => v.resolve(n, ctx, "controller.kd")?,
+            None => mjj.iter().map(|m| 2.0 * d.controller.damping * m * w).collect(),
+        };
+        let ki = match &d.controller.ki {
+            Some(v) => v.resolve(n, ctx, "controller.ki")?,
+            None if d.controller.integral => kp.iter().map(|k| k * w / 10.0).collect(),
+            None => vec![0.0; n],
+        };
+        let quantum = if d.noise.encoder_counts > 0.0 {
+            std::f64::consts::TAU / d.noise.encoder_counts
+        } else {
+            0.0
+        };
+        if reference.periodic() {
+            let p = reference.duration() * d.rate;
+            if (p - p.round()).abs() > 1e-6 * p.max(1.0) {
+                return Err(Error::invalid(
+                    ctx,
+                    "rate",
+                    format!(
+                        "the reference period {} s is not a whole number of controller periods at {} Hz",
+                        reference.duration(),
+                        d.rate
+                    ),
+                ));
+            }
+            if (p.round() as usize) % d.decimate != 0 {
+                return Err(Error::invalid(ctx, "decimate", "the period must be a whole number of recorded samples"));
+            }
+        }
+        Ok(SimSetup {
+            torque_noise: d.noise.torque.resolve(n, ctx, "noise.torque")?,
+            position_noise: d.noise.position.resolve(n, ctx, "noise.position")?,
+            disturbance: d.noise.disturbance.resolve(n, ctx, "noise.disturbance")?,
+            nominal,
+            truth,
+            reference,
+            rate: d.rate,
+            substeps: d.substeps,
+            decimate: d.decimate,
+            kp,
+            kd,
+            ki,
+            feedforward: d.controller.feedforward,
+            velocity_filter: d.controller.velocity_filter,
+            quantum,
+            repetitions: d.repetitions,
+            seed: d.seed,
+        })
+    }
+}
+
+fn resolve(base: &Path, p: &Path) -> PathBuf {
+    if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        base.join(p)
+    }
+}
+
+fn unit_seed(seed: u64, index: u64) -> u64 {
+    // splitmix64 of (seed, index): independent streams per unit of work
+    let mut z = seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// State of the closed loop carried from one controller period to the next.
+struct Loop {
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    q_prev_meas: Vec<f64>,
+    v_filt: Vec<f64>,
+    integral: Vec<f64>,
+    first: bool,
+}
+
+impl SimSetup {
+    fn new_loop(&self) -> Loop {
+        let n = self.truth.dof();
+        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        self.reference.eval(0.0, &mut q, &mut qd, &mut qdd);
+        Loop {
+            q_prev_meas: q.clone(),
+            v_filt: qd.clone(),
+            integral: vec![0.0; n],
+            q,
+            qd,
+            first: true,
+        }
+    }
+
+    /// Runs `steps` controller periods from time `t0` (periods counted from `k0`),
+    /// recording every `decimate`-th sample with time `t - t_rec0`.
+    fn run_steps(&self, lp: &mut Loop, k0: usize, steps: usize, t_rec0: f64, rng: &mut rand_chacha::ChaCha8Rng, record: Option<&mut Repetition>) -> Result<()> {
+        let n = self.truth.dof();
+        let dt = 1.0 / self.rate;
+        let mut ws_t = Workspace::new(&self.truth);
+        let mut ws_n = Workspace::new(&self.nominal);
+        let unit = Normal::new(0.0, 1.0).expect("unit normal");
+        let (mut r, mut rd, mut rdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        let mut ff = vec![0.0; n];
+        let mut tau = vec![0.0; n];
+        let mut qm = vec![0.0; n];
+        let alpha = if self.velocity_filter > 0.0 {
+            let wc = std::f64::consts::TAU * self.velocity_filter * dt;
+            (-wc).exp()
+        } else {
+            0.0
+        };
+        let theta_nom = self.nominal.nominal_params();
+        let mut rec = record;
+        for s in 0..steps {
+            let k = k0 + s;
+            let t = k as f64 * dt;
+            self.reference.eval(t, &mut r, &mut rd, &mut rdd);
+            for j in 0..n {
+                let mut x = lp.q[j] + self.position_noise[j] * unit.sample(rng);
+                if self.quantum > 0.0 {
+                    x = (x / self.quantum).round() * self.quantum;
+                }
+                qm[j] = x;
+            }
+            for j in 0..n {
+                let v_raw = if lp.first { rd[j] } else { (qm[j] - lp.q_prev_meas[j]) / dt };
+                lp.v_filt[j] = alpha * lp.v_filt[j] + (1.0 - alpha) * v_raw;
+                lp.q_prev_meas[j] = qm[j];
+            }
+            lp.first = false;
+            match self.feedforward {
+                Feedforward::None => ff.iter_mut().for_each(|v| *v = 0.0),
+                Feedforward::Gravity => {
+                    let g = gravity(&self.nominal, &mut ws_n, &r);
+                    ff.copy_from_slice(g.as_slice());
+                    // gravity() is link side; with a coupling matrix the motor side is C⁻ᵀ g
+                    if let Some(ct) = &self.nominal.coupling_inv_t {
+                        let gm = ct * g;
+                        ff.copy_from_slice(gm.as_slice());
+                    }
+                }
+                Feedforward::Nominal => inverse_dynamics(&self.nominal, &mut ws_n, theta_nom.as_slice(), &r, &rd, &rdd, &mut ff),
+            }
+            for j in 0..n {
+                let e = r[j] - qm[j];
+                lp.integral[j] += e * dt;
+                tau[j] = ff[j] + self.kp[j] * e + self.kd[j] * (rd[j] - lp.v_filt[j]) + self.ki[j] * lp.integral[j];
+            }
+            if s % self.decimate == 0 {
+                if let Some(rep) = rec.as_deref_mut() {
+                    rep.t.push(t - t_rec0);
+                    rep.q.push(qm.clone());
+                    rep.tau.push((0..n).map(|j| tau[j] + self.torque_noise[j] * unit.sample(rng)).collect());
+                    if let Some(rr) = rep.r.as_mut() {
+                        rr.push(r.clone());
+                    }
+                }
+            }
+            // plant: RK4 under τ + d
+            let drive: Vec<f64> = (0..n).map(|j| tau[j] + self.disturbance[j] * unit.sample(rng)).collect();
+            let h = dt / self.substeps as f64;
+            for _ in 0..self.substeps {
+                rk4(&self.truth, &mut ws_t, &mut lp.q, &mut lp.qd, &drive, h)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Runs the simulation. Stops early (status `interrupted`) when
+    /// [`crate::io::stop::requested`] becomes true, with the repetitions finished so far.
+    pub fn run(&self) -> Result<SimResult> {
+        let n = self.truth.dof();
+        let dt = 1.0 / self.rate;
+        let new_rep = || Repetition {
+            t: Vec::new(),
+            q: Vec::new(),
+            tau: Vec::new(),
+            r: Some(Vec::new()),
+            qd: None,
+            qdd: None,
+        };
+        let pb = crate::io::progress_bar(self.repetitions as u64, "simulate");
+        let mut reps = Vec::with_capacity(self.repetitions);
+        let mut interrupted = false;
+        if self.reference.periodic() {
+            let steps = (self.reference.duration() * self.rate).round() as usize;
+            let mut lp = self.new_loop();
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(unit_seed(self.seed, 0));
+            self.run_steps(&mut lp, 0, steps, 0.0, &mut rng, None)?; // lead-in period
+            for i in 0..self.repetitions {
+                if crate::io::stop::requested() {
+                    interrupted = true;
+                    break;
+                }
+                let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(unit_seed(self.seed, (i + 1) as u64));
+                let mut rep = new_rep();
+                let k0 = (i + 1) * steps;
+                self.run_steps(&mut lp, k0, steps, k0 as f64 * dt, &mut rng, Some(&mut rep))?;
+                reps.push(rep);
+                pb.inc(1);
+            }
+        } else {
+            let steps = (self.reference.duration() * self.rate).round() as usize + 1;
+            let out: Vec<Option<Result<Repetition>>> = (0..self.repetitions)
+                .into_par_iter()
+                .map(|i| {
+                    if crate::io::stop::requested() {
+                        return None;
+                    }
+                    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(unit_seed(self.seed, (i + 1) as u64));
+                    let mut lp = self.new_loop();
+                    let mut rep = new_rep();
+                    let r = self.run_steps(&mut lp, 0, steps, 0.0, &mut rng, Some(&mut rep)).map(|_| rep);
+                    pb.inc(1);
+                    Some(r)
+                })
+                .collect();
+            for o in out {
+                match o {
+                    Some(r) => reps.push(r?),
+                    None => interrupted = true,
+                }
+            }
+        }
+        pb.finish_and_clear();
+        if reps.is_empty() {
+            return Err(Error::Interrupted);
+        }
+        let mut max_e = vec![0.0f64; n];
+        let mut rms = vec![0.0f64; n];
+        let mut cnt = 0usize;
+        for rep in &reps {
+            if let Some(r) = &rep.r {
+                for (q, r) in rep.q.iter().zip(r) {
+                    for j in 0..n {
+                        let e = r[j] - q[j];
+                        max_e[j] = max_e[j].max(e.abs());
+                        rms[j] += e * e;
+                    }
+                    cnt += 1;
+                }
+            }
+        }
+        rms.iter_mut().for_each(|v| *v = (*v / cnt.max(1) as f64).sqrt());
+        Ok(SimResult {
+            status: SimStatus {
+                status: if interrupted { "interrupted".into() } else { "complete".into() },
+                repetitions: reps.len(),
+                max_tracking_error: max_e,
+                rms_tracking_error: rms,
+                kp: self.kp.clone(),
+                kd: self.kd.clone(),
+                ki: self.ki.clone(),
+            },
+            reps,
+            setup: self.clone(),
+        })
+    }
+}
+
+fn rk4(robot: &Robot, ws: &mut Workspace, q: &mut [f64], qd: &mut [f64], tau: &[f64], h: f64) -> Result<()> {
+    let n = q.len();
+    let f = |ws: &mut Workspace, q: &[f64], qd: &[f64]| -> Result<Vec<f64>> {
+        let a = forward_dynamics(robot, ws, q, qd, tau).map_err(|e| Error::Numerical(format!("simulation: {e} (the true parameters are not physical?)")))?;
+        if a.iter().any(|v| !v.is_finite()) || a.amax() > 1e6 {
+            return Err(Error::Numerical(
+                "simulation diverged: accelerations above 1e6 (lower the gains or raise the rate)".into(),
+            ));
+        }
+        Ok(a.as_slice().to_vec())
+    };
+    let a1 = f(ws, q, qd)?;
+    let q2: Vec<f64> = (0..n).map(|j| q[j] + 0.5 * h * qd[j]).collect();
+    let v2: Vec<f64> = (0..n).map(|j| qd[j] + 0.5 * h * a1[j]).collect();
+    let a2 = f(ws, &q2, &v2)?;
+    let q3: Vec<f64> = (0..n).map(|j| q[j] + 0.5 * h * v2[j]).collect();
+    let v3: Vec<f64> = (0..n).map(|j| qd[j] + 0.5 * h * a2[j]).collect();
+    let a3 = f(ws, &q3, &v3)?;
+    let q4: Vec<f64> = (0..n).map(|j| q[j] + h * v3[j]).collect();
+    let v4: Vec<f64> = (0..n).map(|j| qd[j] + h * a3[j]).collect();
+    let a4 = f(ws, &q4, &v4)?;
+    for j in 0..n {
+        q[j] += h / 6.0 * (qd[j] + 2.0 * v2[j] + 2.0 * v3[j] + v4[j]);
+        qd[j] += h / 6.0 * (a1[j] + 2.0 * a2[j] + 2.0 * a3[j] + a4[j]);
+    }
+    Ok(())
+}
+
+/// The true parameters written next to a simulated run (`truth.json`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Truth {
+    /// Robot name.
+    pub robot: String,
+    /// Standard parameter names.
+    pub names: Vec<String>,
+    /// True standard parameters.
+    pub theta: Vec<f64>,
+    /// Nominal standard parameters (robot file).
+    pub nominal: Vec<f64>,
+    /// Base parameter names (default base-parameter options).
+    pub base_names: Vec<String>,
+    /// True base parameters θ_b = K θ.
+    pub base: Vec<f64>,
+}
+
+impl Truth {
+    /// Reads a `truth.json`.
+    pub fn read(path: &Path) -> Result<Truth> {
+        let text = crate::io::read_to_string(path)?;
+        serde_json::from_str(&text).map_err(|e| Error::parse(path, format!("line {}, column {}: {e}", e.line(), e.column())))
+    }
+}
+
+impl SimResult {
+    /// The true parameters of the plant.
+    pub fn truth(&self) -> Result<Truth> {
+        let r = &self.setup.truth;
+        let theta = r.nominal_params().as_slice().to_vec();
+        let base = BaseParams::compute(r, &BaseOptions::default())?;
+        Ok(Truth {
+            robot: r.name.clone(),
+            names: r.param_names(),
+            base: base.base_values(&theta).as_slice().to_vec(),
+            base_names: base.names.clone(),
+            nominal: self.setup.nominal.nominal_params().as_slice().to_vec(),
+            theta,
+        })
+    }
+
+    /// Writes the run folder: `rep_001.csv`…, `reference.csv` (one repetition of
+    /// the reference at the recording rate), `trajectory.json` (Fourier
+    /// references), `truth.json`, `design.json` (the resolved design) and `status.json`.
+    pub fn write(&self, dir: &Path, design: &SimDesign) -> Result<()> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        for (i, rep) in self.reps.iter().enumerate() {
+            rep.write(&dir.join(format!("rep_{:03}.csv", i + 1)))?;
+        }
+        let rate = self.setup.rate / self.setup.decimate as f64;
+        self.setup.reference.sample(rate).write(&dir.join("reference.csv"))?;
+        if let Some(f) = self.setup.reference.fourier() {
+            crate::io::write_json(&dir.join("trajectory.json"), &serde_json::json!({ "trajectory": f }))?;
+        }
+        crate::io::write_json(&dir.join("truth.json"), &self.truth()?)?;
+        crate::io::write_json(&dir.join("design.json"), design)?;
+        crate::io::write_json(&dir.join("status.json"), &self.status)?;
+        Ok(())
+    }
+}

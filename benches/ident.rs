@@ -1,0 +1,55 @@
+//! Benchmarks of the identification hot paths: WLS (thin SVD) on a large
+//! stacked base regressor, building that regressor, and the closed-loop
+//! simulator (controller periods with RK4 forward dynamics).
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use idexp::ident::estimate::{base_design, wls, Dataset, Weights};
+use idexp::params::{BaseOptions, BaseParams};
+use idexp::sim::{SimDesign, SimSetup};
+use nalgebra::DVector;
+use std::path::Path;
+
+fn root(p: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
+}
+
+fn bench_wls(c: &mut Criterion) {
+    let robot = idexp::robot::load(&root("designs/robots/puma560.toml")).unwrap();
+    let base = BaseParams::compute(&robot, &BaseOptions::default()).unwrap();
+    let traj = idexp::sim::reference::random_fourier(&robot, 5, 0.1, 0.8, None, 3, "bench").unwrap();
+    let s = traj.sample(100.0).unwrap(); // 1000 samples × 6 joints = 6000 rows
+    c.bench_function("ident/base_design puma560 1000 samples", |b| {
+        b.iter(|| base_design(&robot, &base, &s.q, &s.qd, &s.qdd))
+    });
+    let cmat = base_design(&robot, &base, &s.q, &s.qd, &s.qdd);
+    let theta = base.base_values(robot.nominal_params().as_slice());
+    let y = &cmat * &theta;
+    let rows = cmat.nrows();
+    let ds = Dataset {
+        n: 6,
+        n_samples: 1000,
+        var: Some(DVector::from_fn(rows, |i, _| 0.01 * (1.0 + (i % 7) as f64))),
+        y,
+        names: base.names.clone(),
+        joint: (0..rows).map(|r| r / 1000).collect(),
+        sample: (0..rows).map(|r| r % 1000).collect(),
+        c: cmat,
+    };
+    c.bench_function("ident/wls 6000x52 (thin SVD, covariance)", |b| b.iter(|| wls(&ds, Weights::Sample).unwrap()));
+}
+
+fn bench_sim(c: &mut Criterion) {
+    for (name, robot) in [("puma560", "designs/robots/puma560.toml"), ("rpr", "tests/data/ident/rpr_drives.toml")] {
+        let text = format!(
+            "robot = \"{}\"\nrate = 1000.0\nrepetitions = 1\n[noise]\ntorque = 0.1\nposition = 1e-5\n[reference]\nkind = \"random_fourier\"\nfrequency = 1.0\n",
+            root(robot).display()
+        );
+        let d: SimDesign = idexp::io::parse_toml(Path::new("bench.toml"), &text).unwrap();
+        let setup = SimSetup::from_design(&d, &root(""), "bench").unwrap();
+        // a 1 s period: 1000 lead-in + 1000 recorded controller periods
+        c.bench_function(&format!("sim/2000 controller periods {name}"), |b| b.iter(|| setup.run().unwrap()));
+    }
+}
+
+criterion_group!(benches, bench_wls, bench_sim);
+criterion_main!(benches);

@@ -1,0 +1,393 @@
+//! Signal processing of a run (paper 000 §III-C): averaging over the N_r
+//! repetitions with the sample variance per joint and time step (eq. 7),
+//! Fourier filtering of the averaged positions at the excited harmonics with
+//! analytic derivatives, or — for references that are not Fourier series —
+//! a zero-phase low-pass (2nd-order Butterworth run forwards and backwards)
+//! and central differences.
+//!
+//! With N_r ≥ 2 every repetition is also filtered on its own, which gives the
+//! sample covariance of the filtered states and torques per time step (used by
+//! the maximum-likelihood estimator and reported as the position noise floor).
+
+use super::run::Run;
+use crate::error::{Error, Result};
+use crate::sim::reference::differentiate;
+use crate::trajectory::FourierTrajectory;
+use serde::Serialize;
+
+/// How positions are filtered and differentiated.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Filter {
+    /// Least-squares Fourier fit with `n_h` harmonics of ω (rad/s); analytic q̇, q̈.
+    Fourier {
+        /// Base angular frequency (rad/s).
+        omega: f64,
+        /// Harmonics kept.
+        n_h: usize,
+    },
+    /// Zero-phase Butterworth low-pass with cut-off `cutoff` (Hz), then central differences.
+    LowPass {
+        /// Cut-off (Hz).
+        cutoff: f64,
+    },
+    /// Central differences of the averaged positions, no filtering.
+    None,
+}
+
+/// The processed run: averaged, filtered signals on the time grid.
+#[derive(Debug, Clone)]
+pub struct Processed {
+    /// Times (s, from 0).
+    pub t: Vec<f64>,
+    /// Filtered positions (per sample, n).
+    pub q: Vec<Vec<f64>>,
+    /// Velocities.
+    pub qd: Vec<Vec<f64>>,
+    /// Accelerations.
+    pub qdd: Vec<Vec<f64>>,
+    /// Averaged torques τ̄ (per sample, n).
+    pub tau: Vec<Vec<f64>>,
+    /// Sample variance of the individual torque measurements σ²_{j,p} (eq. 7), if N_r ≥ 2.
+    pub tau_var: Option<Vec<Vec<f64>>>,
+    /// Averaged reference, if the files had one.
+    pub r: Option<Vec<Vec<f64>>>,
+    /// Per sample, the sample covariance (4n × 4n, row-major) of one repetition's
+    /// (τ, q, q̇, q̈) after filtering, if N_r ≥ 2.
+    pub joint_cov: Option<Vec<Vec<f64>>>,
+    /// Number of repetitions averaged.
+    pub n_reps: usize,
+    /// Filter used.
+    pub filter: Filter,
+    /// The Fourier fit of the averaged positions (Fourier filter only).
+    pub fourier: Option<FourierTrajectory>,
+    /// Per joint, the RMS of (averaged − filtered) positions and the RMS noise
+    /// of the averaged positions (σ_q/√N_r from the repetitions, if N_r ≥ 2):
+    /// a residual well above the noise means the filter removes motion (for a
+    /// Fourier filter: harmonics of the closed-loop response above n_h).
+    pub filter_residual: Vec<(f64, Option<f64>)>,
+}
+
+impl Processed {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// True when there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// Number of joints.
+    pub fn n_joints(&self) -> usize {
+        self.q.first().map_or(0, |v| v.len())
+    }
+
+    /// Keeps every k-th sample (k ≥ 1).
+    pub fn decimated(&self, k: usize) -> Processed {
+        if k <= 1 {
+            return self.clone();
+        }
+        let pick = |v: &Vec<Vec<f64>>| v.iter().step_by(k).cloned().collect::<Vec<_>>();
+        Processed {
+            t: self.t.iter().step_by(k).copied().collect(),
+            q: pick(&self.q),
+            qd: pick(&self.qd),
+            qdd: pick(&self.qdd),
+            tau: pick(&self.tau),
+            tau_var: self.tau_var.as_ref().map(pick),
+            r: self.r.as_ref().map(pick),
+            joint_cov: self.joint_cov.as_ref().map(pick),
+            n_reps: self.n_reps,
+            filter: self.filter.clone(),
+            fourier: self.fourier.clone(),
+            filter_residual: self.filter_residual.clone(),
+        }
+    }
+}
+
+fn mean_of(reps: &[&Vec<Vec<f64>>]) -> Vec<Vec<f64>> {
+    let m = reps[0].len();
+    let n = reps[0][0].len();
+    let k = reps.len() as f64;
+    let mut out = vec![vec![0.0; n]; m];
+    for r in reps {
+        for p in 0..m {
+            for j in 0..n {
+                out[p][j] += r[p][j] / k;
+            }
+        }
+    }
+    out
+}
+
+/// (q, q̇, q̈), per sample.
+type Signals = (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>);
+
+/// Filters positions (and gives q̇, q̈) on the uniform grid `t`.
+fn filter_positions(t: &[f64], q: &[Vec<f64>], filter: &Filter) -> Result<(Signals, Option<FourierTrajectory>)> {
+    let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    match filter {
+        Filter::Fourier { omega, n_h } => {
+            let f = FourierTrajectory::fit(t, q, *omega, *n_h)?;
+            let s = f.sample_at(t);
+            Ok(((s.q, s.qd, s.qdd), Some(f)))
+        }
+        Filter::LowPass { cutoff } => {
+            let n = q[0].len();
+            let mut fq = vec![vec![0.0; n]; q.len()];
+            for j in 0..n {
+                let x: Vec<f64> = q.iter().map(|v| v[j]).collect();
+                let y = filtfilt(&x, *cutoff, 1.0 / dt)?;
+                for (p, v) in y.into_iter().enumerate() {
+                    fq[p][j] = v;
+                }
+            }
+            let (qd, qdd) = differentiate(&fq, dt, false);
+            Ok(((fq, qd, qdd), None))
+        }
+        Filter::None => {
+            let (qd, qdd) = differentiate(q, dt, false);
+            Ok(((q.to_vec(), qd, qdd), None))
+        }
+    }
+}
+
+/// Checks that a Fourier filter fits the record: the duration must be a whole
+/// number of periods (within 1 % of a sample).
+pub fn check_fourier_span(t: &[f64], omega: f64) -> Result<()> {
+    let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    let span = t.len() as f64 * dt;
+    let periods = span * omega / std::f64::consts::TAU;
+    let err = (periods - periods.round()).abs() * std::f64::consts::TAU / omega;
+    if periods.round() < 1.0 || err > 0.01 * dt + 1e-9 {
+        return Err(Error::invalid(
+            "Fourier filtering",
+            "omega",
+            format!(
+                "the record spans {span} s = {periods:.4} periods of {} s; Fourier filtering needs whole periods (use the low-pass filter for other runs)",
+                std::f64::consts::TAU / omega
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Averages the repetitions (paper 000 §III-C, eq. 7) and filters the positions.
+pub fn process(run: &Run, filter: &Filter) -> Result<Processed> {
+    let reps = &run.reps;
+    let nr = reps.len();
+    let n = run.n_joints();
+    let t0 = reps[0].t[0];
+    let t: Vec<f64> = reps[0].t.iter().map(|x| x - t0).collect();
+    if let Filter::Fourier { omega, n_h } = filter {
+        check_fourier_span(&t, *omega)?;
+        if *n_h == 0 {
+            return Err(Error::invalid("Fourier filtering", "n_h", "expected at least one harmonic"));
+        }
+    }
+    if let Filter::LowPass { cutoff } = filter {
+        let fs = 1.0 / run.dt();
+        if !(*cutoff > 0.0 && *cutoff < 0.5 * fs) {
+            return Err(Error::invalid(
+                "low-pass filter",
+                "cutoff",
+                format!("expected 0 < cutoff < {} Hz (half the sample rate), got {cutoff}", 0.5 * fs),
+            ));
+        }
+    }
+    let q_mean = mean_of(&reps.iter().map(|r| &r.q).collect::<Vec<_>>());
+    let tau = mean_of(&reps.iter().map(|r| &r.tau).collect::<Vec<_>>());
+    let r = if reps[0].r.is_some() {
+        Some(mean_of(&reps.iter().filter_map(|r| r.r.as_ref()).collect::<Vec<_>>()))
+    } else {
+        None
+    };
+    let m = t.len();
+    let tau_var = if nr >= 2 {
+        let mut v = vec![vec![0.0; n]; m];
+        for rep in reps {
+            for p in 0..m {
+                for j in 0..n {
+                    let d = rep.tau[p][j] - tau[p][j];
+                    v[p][j] += d * d / (nr - 1) as f64;
+                }
+            }
+        }
+        Some(v)
+    } else {
+        None
+    };
+    // measured derivatives in every file: use their averages (no differentiation)
+    let (q, qd, qdd, fourier) = if let (Some(_), Some(_)) = (&reps[0].qd, &reps[0].qdd) {
+        let qd = mean_of(&reps.iter().filter_map(|r| r.qd.as_ref()).collect::<Vec<_>>());
+        let qdd = mean_of(&reps.iter().filter_map(|r| r.qdd.as_ref()).collect::<Vec<_>>());
+        (q_mean.clone(), qd, qdd, None)
+    } else {
+        let ((q, qd, qdd), f) = filter_positions(&t, &q_mean, filter)?;
+        (q, qd, qdd, f)
+    };
+    let q_noise: Option<Vec<f64>> = (nr >= 2).then(|| {
+        (0..n)
+            .map(|j| {
+                let v: f64 = reps
+                    .iter()
+                    .map(|rep| (0..m).map(|p| (rep.q[p][j] - q_mean[p][j]).powi(2)).sum::<f64>())
+                    .sum::<f64>()
+                    / ((nr - 1) * m) as f64;
+                (v / nr as f64).sqrt()
+            })
+            .collect()
+    });
+    let filter_residual = (0..n)
+        .map(|j| {
+            let r = ((0..m).map(|p| (q_mean[p][j] - q[p][j]).powi(2)).sum::<f64>() / m as f64).sqrt();
+            (r, q_noise.as_ref().map(|v| v[j]))
+        })
+        .collect();
+    let joint_cov = if nr >= 2 {
+        let d = 4 * n;
+        let per: Vec<Signals> = reps
+            .iter()
+            .map(|rep| match (&rep.qd, &rep.qdd) {
+                (Some(a), Some(b)) => Ok((rep.q.clone(), a.clone(), b.clone())),
+                _ => filter_positions(&t, &rep.q, filter).map(|(sig, _)| sig),
+            })
+            .collect::<Result<_>>()?;
+        let mut cov = vec![vec![0.0; d * d]; m];
+        let mut x = vec![0.0; d];
+        for (ri, rep) in reps.iter().enumerate() {
+            for p in 0..m {
+                for j in 0..n {
+                    x[j] = rep.tau[p][j] - tau[p][j];
+                    x[n + j] = per[ri].0[p][j] - q[p][j];
+                    x[2 * n + j] = per[ri].1[p][j] - qd[p][j];
+                    x[3 * n + j] = per[ri].2[p][j] - qdd[p][j];
+                }
+                let c = &mut cov[p];
+                for a in 0..d {
+                    for b in 0..d {
+                        c[a * d + b] += x[a] * x[b] / (nr - 1) as f64;
+                    }
+                }
+            }
+        }
+        Some(cov)
+    } else {
+        None
+    };
+    Ok(Processed {
+        t,
+        q,
+        qd,
+        qdd,
+        tau,
+        tau_var,
+        r,
+        joint_cov,
+        n_reps: nr,
+        filter: filter.clone(),
+        fourier,
+        filter_residual,
+    })
+}
+
+/// Zero-phase low-pass: a 2nd-order Butterworth biquad (bilinear transform with
+/// pre-warping) run forwards then backwards (4th-order magnitude, no phase),
+/// with odd-reflection padding at both ends to suppress edge transients.
+pub fn filtfilt(x: &[f64], cutoff: f64, fs: f64) -> Result<Vec<f64>> {
+    if !(cutoff > 0.0 && cutoff < 0.5 * fs) {
+        return Err(Error::invalid(
+            "low-pass filter",
+            "cutoff",
+            format!("expected 0 < cutoff < fs/2 = {}", 0.5 * fs),
+        ));
+    }
+    let m = x.len();
+    if m < 4 {
+        return Ok(x.to_vec());
+    }
+    let k = (std::f64::consts::PI * cutoff / fs).tan();
+    let s2 = std::f64::consts::SQRT_2;
+    let norm = 1.0 / (1.0 + s2 * k + k * k);
+    let b0 = k * k * norm;
+    let (b1, b2) = (2.0 * b0, b0);
+    let a1 = 2.0 * (k * k - 1.0) * norm;
+    let a2 = (1.0 - s2 * k + k * k) * norm;
+    let pad = (3.0 * fs / cutoff).ceil().min((m - 1) as f64) as usize;
+    let mut ext = Vec::with_capacity(m + 2 * pad);
+    for i in (1..=pad).rev() {
+        ext.push(2.0 * x[0] - x[i]);
+    }
+    ext.extend_from_slice(x);
+    for i in 1..=pad {
+        ext.push(2.0 * x[m - 1] - x[m - 1 - i]);
+    }
+    let run = |v: &mut Vec<f64>| {
+        let c = v[0];
+        let mut z2 = (b2 - a2) * c;
+        let mut z1 = (b1 - a1) * c + z2;
+        for s in v.iter_mut() {
+            let xin = *s;
+            let y = b0 * xin + z1;
+            z1 = b1 * xin - a1 * y + z2;
+            z2 = b2 * xin - a2 * y;
+            *s = y;
+        }
+    };
+    run(&mut ext);
+    ext.reverse();
+    run(&mut ext);
+    ext.reverse();
+    Ok(ext[pad..pad + m].to_vec())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ident::run::{Repetition, Run};
+
+    #[test]
+    fn filtfilt_keeps_slow_sines_without_phase_and_removes_fast_ones() {
+        let fs = 200.0;
+        let t: Vec<f64> = (0..2000).map(|i| i as f64 / fs).collect();
+        let slow: Vec<f64> = t.iter().map(|t| (std::f64::consts::TAU * 1.0 * t).sin()).collect();
+        let fast: Vec<f64> = t.iter().map(|t| (std::f64::consts::TAU * 60.0 * t).sin()).collect();
+        let ys = filtfilt(&slow, 10.0, fs).unwrap();
+        let yf = filtfilt(&fast, 10.0, fs).unwrap();
+        // interior: slow sine unchanged (gain |H(1 Hz)|² ≈ 1, no phase), fast one attenuated by > 1e3
+        for i in 200..1800 {
+            assert!((ys[i] - slow[i]).abs() < 1e-3, "slow sine changed at {i}: {} vs {}", ys[i], slow[i]);
+            assert!(yf[i].abs() < 1e-3);
+        }
+        assert!(filtfilt(&slow, 150.0, fs).is_err());
+    }
+
+    #[test]
+    fn averaging_variance_and_fourier_filtering() {
+        // two repetitions of q = 0.3 sin(ωt), τ = ±1 about 2: mean 2, sample variance 2 (eq. 7)
+        let w = std::f64::consts::TAU * 0.5;
+        let t: Vec<f64> = (0..200).map(|i| i as f64 * 0.01).collect();
+        let mk = |s: f64| Repetition {
+            t: t.clone(),
+            q: t.iter().map(|t| vec![0.3 * (w * t).sin() + 1e-3 * s * (37.0 * t).sin()]).collect(),
+            tau: t.iter().map(|_| vec![2.0 + s]).collect(),
+            r: None,
+            qd: None,
+            qdd: None,
+        };
+        let run = Run::new(vec![], vec![mk(1.0), mk(-1.0)]).unwrap();
+        let pr = process(&run, &Filter::Fourier { omega: w, n_h: 3 }).unwrap();
+        for p in 0..200 {
+            assert!((pr.tau[p][0] - 2.0).abs() < 1e-12);
+            assert!((pr.tau_var.as_ref().unwrap()[p][0] - 2.0).abs() < 1e-12);
+            let tt = t[p];
+            assert!((pr.q[p][0] - 0.3 * (w * tt).sin()).abs() < 1e-9);
+            assert!((pr.qd[p][0] - 0.3 * w * (w * tt).cos()).abs() < 1e-8);
+            assert!((pr.qdd[p][0] + 0.3 * w * w * (w * tt).sin()).abs() < 1e-7);
+        }
+        // a record that is not a whole number of periods is refused for Fourier filtering
+        assert!(process(&run, &Filter::Fourier { omega: w * 1.1, n_h: 3 }).is_err());
+    }
+}

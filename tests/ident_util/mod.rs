@@ -1,0 +1,77 @@
+//! Helpers of the identification and simulation tests: simulated runs from
+//! design text, identification with the default base parameters.
+#![allow(dead_code)]
+
+use idexp::ident::{identify, IdentOptions, Identification, Run};
+use idexp::params::{BaseOptions, BaseParams};
+use idexp::sim::{SimDesign, SimResult, SimSetup};
+use std::path::{Path, PathBuf};
+
+/// Path relative to the crate root.
+pub fn root(p: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
+}
+
+/// Parses a simulation design given as TOML text (paths relative to the crate root).
+pub fn design(text: &str) -> SimDesign {
+    let d: SimDesign = idexp::io::parse_toml(Path::new("test.toml"), text).unwrap_or_else(|e| panic!("{e}"));
+    d.validate("test.toml").unwrap_or_else(|e| panic!("{e}"));
+    d
+}
+
+/// Simulates a design.
+pub fn simulate(d: &SimDesign) -> SimResult {
+    let setup = SimSetup::from_design(d, &root(""), "test.toml").unwrap_or_else(|e| panic!("{e}"));
+    setup.run().unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The run of a simulation (in memory).
+pub fn run_of(res: &SimResult) -> Run {
+    Run::new(vec![], res.reps.clone()).unwrap()
+}
+
+/// Identifies from a simulation, validated on another; compares with the truth.
+pub fn ident(res: &SimResult, val: Option<&SimResult>, opts: &IdentOptions) -> (Identification, BaseParams) {
+    let robot = &res.setup.nominal;
+    let base = BaseParams::compute(robot, &BaseOptions::default()).unwrap();
+    let run = run_of(res);
+    let vrun = val.map(run_of);
+    let vt = val.and_then(|v| v.setup.reference.fourier().cloned());
+    let mut id = identify(robot, &base, &run, res.setup.reference.fourier(), vrun.as_ref().map(|v| (v, vt.as_ref())), opts).unwrap_or_else(|e| panic!("{e}"));
+    let truth = res.truth().unwrap();
+    id.estimate.compare_truth(&truth.base_names, &truth.base).unwrap();
+    (id, base)
+}
+
+/// A Fourier-excitation design on the RPR arm with drives.
+/// The true parameters come from `truth_seed`, the noise from `seed`.
+pub fn rpr_fourier(truth_seed: u64, seed: u64, traj_seed: u64, reps: usize, position_noise: f64) -> SimDesign {
+    rpr_fourier_bw(truth_seed, seed, traj_seed, reps, position_noise, 10.0)
+}
+
+/// As [`rpr_fourier`] with a given controller bandwidth (Hz).
+pub fn rpr_fourier_bw(truth_seed: u64, seed: u64, traj_seed: u64, reps: usize, position_noise: f64, bandwidth: f64) -> SimDesign {
+    design(&format!(
+        r#"
+robot = "tests/data/ident/rpr_drives.toml"
+rate = 1000.0
+decimate = 5
+repetitions = {reps}
+seed = {seed}
+[truth]
+perturbation = 0.1
+seed = {truth_seed}
+[controller]
+bandwidth = {bandwidth}
+[noise]
+torque = 0.05
+position = {position_noise:e}
+[reference]
+kind = "random_fourier"
+n_h = 5
+frequency = 0.1
+amplitude = 0.7
+seed = {traj_seed}
+"#
+    ))
+}
