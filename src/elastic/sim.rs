@@ -1,0 +1,1 @@
+//! Time-domain simulation (under construction).
