@@ -18,6 +18,14 @@ struct Cli {
 enum Cmd {
     /// Inspect a robot and evaluate its dynamics (info, torques, regressor).
     Robot(idexp::robot::cli::RobotArgs),
+    /// Write odd random-phase orthogonal multisine references and their crest factors.
+    Multisine(idexp::frf::cli::MultisineArgs),
+    /// Estimate FRFs G = Y U⁻¹ with covariance (from runs.json, or simulated from a design).
+    Frf(idexp::frf::cli::FrfArgs),
+    /// Fit the elastic gray-box model from many starts (resumable, shardable).
+    Fit(idexp::frf::cli::FitArgs),
+    /// Merge multistart shard logs into the single-run result.
+    Merge(idexp::frf::cli::MergeArgs),
 }
 
 fn main() {
@@ -42,6 +50,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     });
     match &cli.cmd {
         Cmd::Robot(a) => idexp::robot::cli::run(a)?,
+        Cmd::Multisine(a) => idexp::frf::cli::run_multisine(a)?,
+        Cmd::Frf(a) => idexp::frf::cli::run_frf(a)?,
+        Cmd::Fit(a) => idexp::frf::cli::run_fit(a)?,
+        Cmd::Merge(a) => idexp::frf::cli::run_merge(a)?,
     }
     Ok(())
 }
