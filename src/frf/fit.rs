@@ -21,6 +21,10 @@
 //! Levenberg–Marquardt solves (H + λ diag H) δ = −g, accepts the step when the
 //! actual decrease is positive and updates λ by Nielsen's rule
 //! (λ ← λ·max(1/3, 1 − (2ρ − 1)³) on success, λ ← λν, ν ← 2ν on failure).
+//! Positive parameters are kept within ±[`BOUND_DECADES`] decades of θ_init
+//! by projecting the step (a damper that does not matter would otherwise run
+//! off to 0). The `ftol` test counts only for steps with λ < 1 (close to
+//! Gauss–Newton), so heavy damping is not taken for convergence.
 
 use super::design::{Design, FitSpec, UserWeights, WeightKind};
 use super::estimate::FrfData;
@@ -28,6 +32,9 @@ use crate::elastic::{ElasticModel, Estimator, FrfKernel, OperatingPoint, Output,
 use crate::error::{Error, Result};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
+
+/// Positive parameters stay within this many decades of θ_init (projected steps).
+pub const BOUND_DECADES: f64 = 4.0;
 
 /// One position of a fit problem.
 #[derive(Debug, Clone)]
@@ -227,6 +234,17 @@ impl FitProblem {
         z.iter().enumerate().map(|(i, &v)| if self.positive[i] { v.exp() } else { v * self.scale(i) }).collect()
     }
 
+    /// Keeps z_i within ±[`BOUND_DECADES`] decades of θ_init (positive parameters only).
+    fn clamp(&self, i: usize, z: f64) -> f64 {
+        if self.positive[i] {
+            let c = self.theta_nom[i].ln();
+            let b = BOUND_DECADES * std::f64::consts::LN_10;
+            z.clamp(c - b, c + b)
+        } else {
+            z
+        }
+    }
+
     fn scale(&self, i: usize) -> f64 {
         let s = self.theta_nom[i].abs();
         if s > 0.0 {
@@ -407,7 +425,8 @@ impl FitProblem {
                     }
                 };
                 let pred = -(2.0 * g.dot(&step) + (step.transpose() * &h * &step)[(0, 0)]);
-                let zn: Vec<f64> = z.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
+                let zn: Vec<f64> = z.iter().zip(step.iter()).enumerate().map(|(i, (a, b))| self.clamp(i, a + b)).collect();
+                let step = DVector::from_fn(np, |i, _| zn[i] - z[i]);
                 let tn = self.to_theta(&zn);
                 evals += 1;
                 let vn = self.cost(&tn).unwrap_or(f64::INFINITY);
@@ -438,7 +457,9 @@ impl FitProblem {
                             };
                         }
                     }
-                    if rel < spec.ftol {
+                    // a tiny decrease only means convergence for a (near) Gauss–Newton step,
+                    // not for a short step forced by a large damping λ
+                    if rel < spec.ftol && lambda < 1.0 {
                         status = FitStatus::ConvergedFtol;
                     } else if snorm < spec.xtol {
                         status = FitStatus::ConvergedXtol;
