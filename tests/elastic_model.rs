@@ -11,10 +11,17 @@ fn root(p: &str) -> PathBuf {
 
 fn model_with(extra_unknowns: &str) -> ElasticModel {
     let text = std::fs::read_to_string(root("designs/elastic_industrial6.toml")).unwrap();
-    let text = text.replace("unknowns = [\"springs\", \"dampers\"]", &format!("unknowns = [\"springs\", \"dampers\"{extra_unknowns}]"));
+    let text = text.replace(
+        "unknowns = [\"springs\", \"dampers\"]",
+        &format!("unknowns = [\"springs\", \"dampers\"{extra_unknowns}]"),
+    );
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("d.toml");
-    std::fs::write(&p, text.replace("robots/industrial6.toml", root("designs/robots/industrial6.toml").to_str().unwrap())).unwrap();
+    std::fs::write(
+        &p,
+        text.replace("robots/industrial6.toml", root("designs/robots/industrial6.toml").to_str().unwrap()),
+    )
+    .unwrap();
     ElasticModel::load(&p).unwrap()
 }
 
@@ -51,7 +58,13 @@ fn jacobian_equals_finite_differences() {
                 let fd = (&gp[k] - &gm[k]) / num_complex::Complex::new(2.0 * h, 0.0);
                 let scale = g[k].iter().map(|v| v.norm()).fold(0.0, f64::max) / theta[i].abs().max(1e-3);
                 let err = (&fd - &dg[k][i]).iter().map(|v| v.norm()).fold(0.0, f64::max);
-                assert!(err <= 1e-5 * scale + 1e-12, "param {} ({}), ω {}: |fd − analytic| = {err:e}, scale {scale:e}", i, m.unknown_names()[i], omegas[k]);
+                assert!(
+                    err <= 1e-5 * scale + 1e-12,
+                    "param {} ({}), ω {}: |fd − analytic| = {err:e}, scale {scale:e}",
+                    i,
+                    m.unknown_names()[i],
+                    omegas[k]
+                );
             }
         }
     }
@@ -118,7 +131,13 @@ fn stiff_springs_give_the_rigid_robot_frf() {
     let (dtau, _) = idexp::robot::id_derivatives(&m.rigid, &mut ws, pr.as_slice(), &q0, &[0.0; 6], &[0.0; 6]);
     let c = m.coupling.clone();
     let kg = c.transpose() * dtau; // motor-side ∂τ/∂q = C⁻ᵀ ∂g/∂q
-    let fv = nalgebra::DMatrix::from_fn(6, 6, |i, j| if i == j { m.value_of(&vals, idexp::elastic::ParamRole::MotorViscous(i)) } else { 0.0 });
+    let fv = nalgebra::DMatrix::from_fn(6, 6, |i, j| {
+        if i == j {
+            m.value_of(&vals, idexp::elastic::ParamRole::MotorViscous(i))
+        } else {
+            0.0
+        }
+    });
     let cfc = c.transpose() * fv * &c;
     for f in [4.0, 30.0, 90.0] {
         let w = 2.0 * std::f64::consts::PI * f;

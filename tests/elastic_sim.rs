@@ -45,7 +45,11 @@ fn time_domain_frf_equals_linearised_frf() {
     let i = m.param_index("k_a2").unwrap();
     full[i] *= 1.03;
     let g2 = simulate::true_frf(&m, &full, &d.positions[0], &omegas, d.frf.output).unwrap();
-    let worst2 = g2.iter().enumerate().map(|(k, gk)| (&data.positions[0].g[k].to_mat(n) - gk).norm() / gk.norm()).fold(0.0, f64::max);
+    let worst2 = g2
+        .iter()
+        .enumerate()
+        .map(|(k, gk)| (&data.positions[0].g[k].to_mat(n) - gk).norm() / gk.norm())
+        .fold(0.0, f64::max);
     assert!(worst2 > 3.0 * worst, "perturbed model should fit worse: {worst2} vs {worst}");
 }
 
@@ -69,5 +73,10 @@ fn coulomb_friction_raises_the_even_lines() {
     // response non-periodic (stick-slip hunting under integral action), which raises the period-to-period noise
     // floor as much, so the noise-referenced flag does not fire here: the even/odd level is the telling number.
     let mx = |v: &[f64]| v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    assert!(mx(&nl.even_vs_odd_db) > mx(&lin.even_vs_odd_db) + 12.0, "even/odd levels: Coulomb {:?}, viscous {:?}", nl.even_vs_odd_db, lin.even_vs_odd_db);
+    assert!(
+        mx(&nl.even_vs_odd_db) > mx(&lin.even_vs_odd_db) + 12.0,
+        "even/odd levels: Coulomb {:?}, viscous {:?}",
+        nl.even_vs_odd_db,
+        lin.even_vs_odd_db
+    );
 }

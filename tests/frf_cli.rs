@@ -65,7 +65,15 @@ fn chain_kill_resume_shards_merge() {
     // killed run, then the same command again
     let b = dir.path().join("b");
     let log = b.join("fit_lls_user/starts.jsonl");
-    let mut child = idexp().args(["--threads", "1", "fit"]).arg(&d).arg("--out").arg(&b).arg("--data").arg(&data).spawn().unwrap();
+    let mut child = idexp()
+        .args(["--threads", "1", "fit"])
+        .arg(&d)
+        .arg("--out")
+        .arg(&b)
+        .arg("--data")
+        .arg(&data)
+        .spawn()
+        .unwrap();
     let t0 = std::time::Instant::now();
     while std::fs::read_to_string(&log).map(|t| t.lines().count()).unwrap_or(0) < 2 && t0.elapsed().as_secs() < 120 {
         std::thread::sleep(std::time::Duration::from_millis(5));
@@ -82,7 +90,15 @@ fn chain_kill_resume_shards_merge() {
     // shards as array-job tasks, then merge
     let sdir = dir.path().join("s");
     for i in 0..3 {
-        let out = ok(idexp().args(["--threads", "1", "fit"]).arg(&d).arg("--out").arg(&sdir).arg("--data").arg(&data).arg("--shard").arg(format!("{i}/3")));
+        let out = ok(idexp()
+            .args(["--threads", "1", "fit"])
+            .arg(&d)
+            .arg("--out")
+            .arg(&sdir)
+            .arg("--data")
+            .arg(&data)
+            .arg("--shard")
+            .arg(format!("{i}/3")));
         assert!(out.contains("shard complete"), "{out}");
     }
     let f = sdir.join("fit_lls_user");
@@ -96,9 +112,23 @@ fn chain_kill_resume_shards_merge() {
     assert_eq!(read(&f.join("fit.json")), ref_fit);
 
     // other estimators write their own folders
-    ok(idexp().arg("fit").arg(&d).arg("--out").arg(&a).arg("--data").arg(&data).args(["--estimator", "nls", "--starts", "2"]));
+    ok(idexp()
+        .arg("fit")
+        .arg(&d)
+        .arg("--out")
+        .arg(&a)
+        .arg("--data")
+        .arg(&data)
+        .args(["--estimator", "nls", "--starts", "2"]));
     assert!(a.join("fit_nls_user/fit.json").exists());
-    ok(idexp().arg("fit").arg(&d).arg("--out").arg(&a).arg("--data").arg(&data).args(["--estimator", "lls_magnitude", "--weights", "optimal", "--starts", "2"]));
+    ok(idexp().arg("fit").arg(&d).arg("--out").arg(&a).arg("--data").arg(&data).args([
+        "--estimator",
+        "lls_magnitude",
+        "--weights",
+        "optimal",
+        "--starts",
+        "2",
+    ]));
     assert!(a.join("fit_lls_magnitude_optimal/costs.svg").exists());
 
     // errors

@@ -28,7 +28,11 @@ fn load(text: &str) -> idexp::Result<(Design, idexp::elastic::ElasticModel)> {
 
 fn dft(x: &[f64], k: usize) -> C64 {
     let n = x.len();
-    x.iter().enumerate().map(|(t, v)| C64::from_polar(*v, -std::f64::consts::TAU * (k * t % n) as f64 / n as f64)).sum::<C64>() / n as f64
+    x.iter()
+        .enumerate()
+        .map(|(t, v)| C64::from_polar(*v, -std::f64::consts::TAU * (k * t % n) as f64 / n as f64))
+        .sum::<C64>()
+        / n as f64
 }
 
 #[test]
@@ -82,7 +86,10 @@ fn y_u_inverse_recovers_a_known_system_and_its_block_variance() {
     let np = 256;
     let lines = vec![3usize, 5, 7, 9, 11, 13];
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-    let g: Vec<DMatrix<C64>> = lines.iter().map(|_| DMatrix::from_fn(n, n, |_, _| C64::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)))).collect();
+    let g: Vec<DMatrix<C64>> = lines
+        .iter()
+        .map(|_| DMatrix::from_fn(n, n, |_, _| C64::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0))))
+        .collect();
     let m = RunsManifest {
         rate: 256.0,
         samples: np,
@@ -102,9 +109,14 @@ fn y_u_inverse_recovers_a_known_system_and_its_block_variance() {
     let mut gb_expected: Vec<Vec<DMatrix<C64>>> = Vec::new();
     let runs: Vec<Vec<Run>> = (0..m.blocks)
         .map(|_| {
-            let phases: Vec<Vec<f64>> = (0..n).map(|_| lines.iter().map(|_| rng.random_range(0.0..6.283)).collect()).collect();
+            let phases: Vec<Vec<f64>> = (0..n)
+                .map(|_| lines.iter().map(|_| rng.random_range(0.0..std::f64::consts::TAU)).collect())
+                .collect();
             // per-block output perturbation: G_b = G + noise·Δ_b (a block-dependent system, as nonlinear distortions are)
-            let gbk: Vec<DMatrix<C64>> = g.iter().map(|gk| gk + DMatrix::from_fn(n, n, |_, _| C64::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)) * noise)).collect();
+            let gbk: Vec<DMatrix<C64>> = g
+                .iter()
+                .map(|gk| gk + DMatrix::from_fn(n, n, |_, _| C64::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)) * noise))
+                .collect();
             gb_expected.push(gbk.clone());
             (0..n)
                 .map(|e| {
@@ -114,7 +126,9 @@ fn y_u_inverse_recovers_a_known_system_and_its_block_variance() {
                     for t in 0..total {
                         for (l, &k) in lines.iter().enumerate() {
                             let arg = std::f64::consts::TAU * (k * t % np) as f64 / np as f64;
-                            let uk: Vec<C64> = (0..n).map(|i| C64::from_polar(1.0, phases[i][l] + std::f64::consts::TAU * (i * e) as f64 / n as f64)).collect();
+                            let uk: Vec<C64> = (0..n)
+                                .map(|i| C64::from_polar(1.0, phases[i][l] + std::f64::consts::TAU * (i * e) as f64 / n as f64))
+                                .collect();
                             for i in 0..n {
                                 u[t][i] += 2.0 * (uk[i] * C64::from_polar(1.0, arg)).re;
                                 let yi: C64 = (0..n).map(|j| gbk[l][(i, j)] * uk[j]).sum();
@@ -150,7 +164,9 @@ fn y_u_inverse_recovers_a_known_system_and_its_block_variance() {
     assert!(d.even_vs_odd_db.iter().all(|v| *v < -200.0), "{:?}", d.even_vs_odd_db);
     // zoh: magnitude sinc, phase −ωT/2
     let z = estimate::zoh(std::f64::consts::PI * 100.0, 1e-3);
-    assert!((z.arg() + 0.05 * std::f64::consts::PI).abs() < 1e-12 && (z.norm() - (0.05 * std::f64::consts::PI).sin() / (0.05 * std::f64::consts::PI)).abs() < 1e-12);
+    assert!(
+        (z.arg() + 0.05 * std::f64::consts::PI).abs() < 1e-12 && (z.norm() - (0.05 * std::f64::consts::PI).sin() / (0.05 * std::f64::consts::PI)).abs() < 1e-12
+    );
 }
 
 #[test]

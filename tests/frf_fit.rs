@@ -21,7 +21,9 @@ fn write_design(dir: &Path, npos: usize, fmax: f64, edit: &dyn Fn(String) -> Str
     let j = i + s[i..].find("]\n\n").unwrap();
     let rows: Vec<&str> = s[i..j].lines().take(npos).collect();
     let s = format!("{}{}\n{}", &s[..i], rows.join("\n"), &s[j..]);
-    let s = s.replace("band = [2.0, 150.0]", &format!("band = [2.0, {fmax}]")).replace("band = [3.0, 150.0]", &format!("band = [3.0, {fmax}]"));
+    let s = s
+        .replace("band = [2.0, 150.0]", &format!("band = [2.0, {fmax}]"))
+        .replace("band = [3.0, 150.0]", &format!("band = [3.0, {fmax}]"));
     let p = dir.join("d.toml");
     std::fs::write(&p, edit(s)).unwrap();
     p
@@ -55,7 +57,11 @@ fn gradients_equal_finite_differences() {
             let fd = (prob.cost(&prob.to_theta(&zp)).unwrap() - prob.cost(&prob.to_theta(&zm)).unwrap()) / (2.0 * hh);
             // dV/dz = 2 g
             let scale = g.amax().max(1e-12);
-            assert!((fd - 2.0 * g[i]).abs() < 1e-5 * 2.0 * scale, "{est:?} param {i}: fd {fd}, analytic {}", 2.0 * g[i]);
+            assert!(
+                (fd - 2.0 * g[i]).abs() < 1e-5 * 2.0 * scale,
+                "{est:?} param {i}: fd {fd}, analytic {}",
+                2.0 * g[i]
+            );
         }
         // H is the Gauss–Newton matrix: PSD, symmetric
         assert!((&h - h.transpose()).abs().max() < 1e-12 * h.abs().max());
@@ -67,9 +73,18 @@ fn gradients_equal_finite_differences() {
 fn lls_recovers_the_springs_within_their_theoretical_uncertainty() {
     let dir = tempfile::tempdir().unwrap();
     // 3 positions, full band, 6 starts spread over ±0.3 decades
-    let p = write_design(dir.path(), 3, 150.0, &|s| s.replace("starts = 100", "starts = 6").replace("spread = 1.0", "spread = 0.3"));
+    let p = write_design(dir.path(), 3, 150.0, &|s| {
+        s.replace("starts = 100", "starts = 6").replace("spread = 1.0", "spread = 0.3")
+    });
     frf_data(&p, dir.path());
-    let r = cli::fit(&p, &FitOptions { out: Some(dir.path().to_path_buf()), ..Default::default() }).unwrap();
+    let r = cli::fit(
+        &p,
+        &FitOptions {
+            out: Some(dir.path().to_path_buf()),
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let rep = r.report.unwrap();
     let e = rep.max_spring_error_sigma.expect("simulated data have a truth and the best model a covariance");
     assert!(e < 4.0, "springs of the best LLS model: max |θ̂ − θ_true|/std_th = {e}\n{}", rep.text());
@@ -89,7 +104,10 @@ fn eq5_covariance_matches_the_scatter_over_noise_realisations() {
     let mut std_th: Vec<f64> = Vec::new();
     let mut truth = Vec::new();
     for seed in 0..12 {
-        let p = write_design(dir.path(), 2, 80.0, &|s| s.replace("seed = 2026", &format!("seed = {}", 100 + seed)).replace("perturb = 0.3", "perturb = 0.0"));
+        let p = write_design(dir.path(), 2, 80.0, &|s| {
+            s.replace("seed = 2026", &format!("seed = {}", 100 + seed))
+                .replace("perturb = 0.3", "perturb = 0.0")
+        });
         let data = frf_data(&p, &dir.path().join(format!("o{seed}")));
         let (d, m) = Design::load(&p).unwrap();
         let t = simulate::truth(&m, d.simulate.as_ref().unwrap(), d.seed).unwrap();

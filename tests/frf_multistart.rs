@@ -52,7 +52,17 @@ fn thread_count_resume_and_shards_give_the_same_file() {
     // reference: one run on 2 threads
     let a = dir.path().join("a");
     let pool2 = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-    let ra = pool2.install(|| cli::fit(&p, &FitOptions { data: Some(data.clone()), ..opts(&a) })).unwrap();
+    let ra = pool2
+        .install(|| {
+            cli::fit(
+                &p,
+                &FitOptions {
+                    data: Some(data.clone()),
+                    ..opts(&a)
+                },
+            )
+        })
+        .unwrap();
     assert!(!ra.interrupted && ra.report.is_some());
     let ref_log = read(&ra.dir.join("starts.jsonl"));
     let ref_fit = read(&ra.dir.join("fit.json"));
@@ -61,7 +71,17 @@ fn thread_count_resume_and_shards_give_the_same_file() {
     // one thread
     let b = dir.path().join("b");
     let pool1 = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-    let rb = pool1.install(|| cli::fit(&p, &FitOptions { data: Some(data.clone()), ..opts(&b) })).unwrap();
+    let rb = pool1
+        .install(|| {
+            cli::fit(
+                &p,
+                &FitOptions {
+                    data: Some(data.clone()),
+                    ..opts(&b)
+                },
+            )
+        })
+        .unwrap();
     assert_eq!(read(&rb.dir.join("starts.jsonl")), ref_log, "1 thread vs 2 threads");
     assert_eq!(read(&rb.dir.join("fit.json")), ref_fit);
 
@@ -72,7 +92,14 @@ fn thread_count_resume_and_shards_give_the_same_file() {
     std::fs::create_dir_all(c.join(&fitdir)).unwrap();
     let partial = format!("{}\n{}\n{}", lines[4], lines[1], &lines[2][..lines[2].len() / 2]);
     std::fs::write(c.join(&fitdir).join("starts.jsonl"), partial).unwrap();
-    let rc = cli::fit(&p, &FitOptions { data: Some(data.clone()), ..opts(&c) }).unwrap();
+    let rc = cli::fit(
+        &p,
+        &FitOptions {
+            data: Some(data.clone()),
+            ..opts(&c)
+        },
+    )
+    .unwrap();
     assert_eq!(rc.records.len(), 6);
     assert_eq!(read(&rc.dir.join("starts.jsonl")), ref_log, "resumed run");
     assert_eq!(read(&rc.dir.join("fit.json")), ref_fit);
@@ -106,7 +133,15 @@ fn thread_count_resume_and_shards_give_the_same_file() {
     let other = small_design(&dir.path().join("other"));
     let txt = read(&other).replace("seed = 2026", "seed = 7");
     std::fs::write(&other, txt).unwrap();
-    let e = cli::fit(&other, &FitOptions { data: Some(data.clone()), ..opts(&c) }).unwrap_err().to_string();
+    let e = cli::fit(
+        &other,
+        &FitOptions {
+            data: Some(data.clone()),
+            ..opts(&c)
+        },
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("another design"), "{e}");
 }
 

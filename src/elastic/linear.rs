@@ -156,10 +156,11 @@ impl ElasticModel {
                 }
                 jac[(a, a)] += ke[a];
             }
-            let step = jac
-                .lu()
-                .solve(&r)
-                .ok_or_else(|| Error::Numerical(format!("static equilibrium at q0 = {q0:?}: the elastic stiffness is singular (gravity exceeds the springs)")))?;
+            let step = jac.lu().solve(&r).ok_or_else(|| {
+                Error::Numerical(format!(
+                    "static equilibrium at q0 = {q0:?}: the elastic stiffness is singular (gravity exceeds the springs)"
+                ))
+            })?;
             let mut mx: f64 = 0.0;
             for a in 0..ne {
                 q[self.elastic_index[a]] -= step[a];
@@ -338,12 +339,20 @@ impl FrfKernel {
                 ParamRole::GearSpring(j) | ParamRole::GearDamper(j) => {
                     let bj = &lin.b[j];
                     let nz: Vec<usize> = (0..n).filter(|&r| bj[r] != 0.0).collect();
-                    let c = if matches!(self.roles[u], ParamRole::GearSpring(_)) { C64::new(1.0, 0.0) } else { s };
+                    let c = if matches!(self.roles[u], ParamRole::GearSpring(_)) {
+                        C64::new(1.0, 0.0)
+                    } else {
+                        s
+                    };
                     rank1(&|r| bj[r], &nz, c, out);
                 }
                 ParamRole::ArmSpring(e) | ParamRole::ArmDamper(e) => {
                     let x = na + self.elastic_index[e];
-                    let c = if matches!(self.roles[u], ParamRole::ArmSpring(_)) { C64::new(1.0, 0.0) } else { s };
+                    let c = if matches!(self.roles[u], ParamRole::ArmSpring(_)) {
+                        C64::new(1.0, 0.0)
+                    } else {
+                        s
+                    };
                     rank1(&|_| 1.0, &[x], c, out);
                 }
                 ParamRole::RotorInertia(j) => rank1(&|_| 1.0, &[j], s2, out),
@@ -394,9 +403,12 @@ pub fn frf(model: &ElasticModel, op: &OperatingPoint, theta: &[f64], omegas: &[f
     omegas.iter().map(|&w| ker.eval(&lin, op, w, output, false, &mut dg)).collect()
 }
 
+/// FRFs per line and their Jacobians per line and parameter.
+pub type FrfWithJacobian = (Vec<DMatrix<C64>>, Vec<Vec<DMatrix<C64>>>);
+
 /// G(ω_k, θ) and its Jacobian: `(g[k], dg[k][i])` with dg[k][i] = ∂G(ω_k)/∂θ_i
 /// (physical units of θ), i over the model's unknowns.
-pub fn frf_jacobian(model: &ElasticModel, op: &OperatingPoint, theta: &[f64], omegas: &[f64], output: Output) -> Result<(Vec<DMatrix<C64>>, Vec<Vec<DMatrix<C64>>>)> {
+pub fn frf_jacobian(model: &ElasticModel, op: &OperatingPoint, theta: &[f64], omegas: &[f64], output: Output) -> Result<FrfWithJacobian> {
     let vals = model.full_values(theta)?;
     let lin = model.linear_model(op, &vals);
     let ker = FrfKernel::new(model);
@@ -535,7 +547,11 @@ pub fn information_matrix_at(
 ) -> Result<DMatrix<f64>> {
     noise.check()?;
     if omegas.iter().any(|w| !w.is_finite() || *w <= 0.0) {
-        return Err(Error::invalid("information matrix", "omegas", "expected positive finite angular frequencies (rad/s)"));
+        return Err(Error::invalid(
+            "information matrix",
+            "omegas",
+            "expected positive finite angular frequencies (rad/s)",
+        ));
     }
     let p = model.n_unknowns();
     let vals = model.full_values(theta)?;

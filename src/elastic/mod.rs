@@ -22,7 +22,8 @@ pub mod model;
 pub mod sim;
 
 pub use linear::{
-    accumulate_information, frf, frf_jacobian, information_matrix, information_matrix_at, Estimator, FrfKernel, LinearModel, NoiseModel, OperatingPoint, Output, C64,
+    accumulate_information, frf, frf_jacobian, information_matrix, information_matrix_at, Estimator, FrfKernel, LinearModel, NoiseModel, OperatingPoint,
+    Output, C64,
 };
 pub use model::{ElasticJointSpec, ElasticModel, ElasticSpec, GearboxSpec, ModelParam, ParamRole, PayloadSpec};
 

@@ -186,9 +186,13 @@ impl ElasticModel {
     pub fn load(path: &Path) -> Result<ElasticModel> {
         let text = crate::io::read_to_string(path)?;
         let v: toml::Table = crate::io::parse_toml(path, &text)?;
-        let m = v
-            .get("model")
-            .ok_or_else(|| Error::invalid(path.display().to_string(), "model", "expected a [model] table (robot, gearbox, elastic, unknowns)"))?;
+        let m = v.get("model").ok_or_else(|| {
+            Error::invalid(
+                path.display().to_string(),
+                "model",
+                "expected a [model] table (robot, gearbox, elastic, unknowns)",
+            )
+        })?;
         let spec: ElasticSpec = m
             .clone()
             .try_into()
@@ -228,7 +232,11 @@ impl ElasticModel {
                 .position(|jj| jj.name == g.joint)
                 .ok_or_else(|| Error::invalid(&ctxm, format!("gearbox[{gi}].joint"), format!("no actuated joint `{}` in the robot", g.joint)))?;
             if gear[j].is_some() {
-                return Err(Error::invalid(&ctxm, format!("gearbox[{gi}].joint"), format!("joint `{}` has two gearbox entries", g.joint)));
+                return Err(Error::invalid(
+                    &ctxm,
+                    format!("gearbox[{gi}].joint"),
+                    format!("joint `{}` has two gearbox entries", g.joint),
+                ));
             }
             finite_pos(&ctxm, &format!("gearbox[{gi}].k"), g.k, false)?;
             finite_pos(&ctxm, &format!("gearbox[{gi}].d"), g.d, true)?;
@@ -248,7 +256,11 @@ impl ElasticModel {
         for (ei, e) in spec.elastic.iter().enumerate() {
             let f = |s: &str| format!("elastic[{ei}].{s}");
             if e.name.is_empty() || spec.elastic[..ei].iter().any(|o| o.name == e.name) || names.contains(&e.name) {
-                return Err(Error::invalid(&ctxm, f("name"), format!("`{}` must be a non-empty name unique among joints", e.name)));
+                return Err(Error::invalid(
+                    &ctxm,
+                    f("name"),
+                    format!("`{}` must be a non-empty name unique among joints", e.name),
+                ));
             }
             let host = if e.after == "base" {
                 None
@@ -440,12 +452,19 @@ impl ElasticModel {
         }
         // nominal overrides
         for (name, v) in &spec.nominal {
-            let p = params
-                .iter_mut()
-                .find(|p| &p.name == name)
-                .ok_or_else(|| Error::invalid(&ctxm, format!("nominal.{name}"), "no parameter of that name (k_<joint>, d_<joint>, Ia<j>, Fv<j>, XX<j>..M<j>)"))?;
+            let p = params.iter_mut().find(|p| &p.name == name).ok_or_else(|| {
+                Error::invalid(
+                    &ctxm,
+                    format!("nominal.{name}"),
+                    "no parameter of that name (k_<joint>, d_<joint>, Ia<j>, Fv<j>, XX<j>..M<j>)",
+                )
+            })?;
             if !v.is_finite() || (p.positive && *v <= 0.0) {
-                return Err(Error::invalid(&ctxm, format!("nominal.{name}"), format!("expected a finite{} value, found {v}", if p.positive { " positive" } else { "" })));
+                return Err(Error::invalid(
+                    &ctxm,
+                    format!("nominal.{name}"),
+                    format!("expected a finite{} value, found {v}", if p.positive { " positive" } else { "" }),
+                ));
             }
             p.nominal = *v;
         }
@@ -453,15 +472,51 @@ impl ElasticModel {
         let mut unknowns: Vec<usize> = Vec::new();
         for (ui, u) in spec.unknowns.iter().enumerate() {
             let sel: Vec<usize> = match u.as_str() {
-                "springs" => params.iter().enumerate().filter(|(_, p)| matches!(p.role, ParamRole::GearSpring(_) | ParamRole::ArmSpring(_))).map(|(i, _)| i).collect(),
-                "dampers" => params.iter().enumerate().filter(|(_, p)| matches!(p.role, ParamRole::GearDamper(_) | ParamRole::ArmDamper(_))).map(|(i, _)| i).collect(),
-                "gear_springs" => params.iter().enumerate().filter(|(_, p)| matches!(p.role, ParamRole::GearSpring(_))).map(|(i, _)| i).collect(),
-                "gear_dampers" => params.iter().enumerate().filter(|(_, p)| matches!(p.role, ParamRole::GearDamper(_))).map(|(i, _)| i).collect(),
-                "arm_springs" => params.iter().enumerate().filter(|(_, p)| matches!(p.role, ParamRole::ArmSpring(_))).map(|(i, _)| i).collect(),
-                "arm_dampers" => params.iter().enumerate().filter(|(_, p)| matches!(p.role, ParamRole::ArmDamper(_))).map(|(i, _)| i).collect(),
+                "springs" => params
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, p)| matches!(p.role, ParamRole::GearSpring(_) | ParamRole::ArmSpring(_)))
+                    .map(|(i, _)| i)
+                    .collect(),
+                "dampers" => params
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, p)| matches!(p.role, ParamRole::GearDamper(_) | ParamRole::ArmDamper(_)))
+                    .map(|(i, _)| i)
+                    .collect(),
+                "gear_springs" => params
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, p)| matches!(p.role, ParamRole::GearSpring(_)))
+                    .map(|(i, _)| i)
+                    .collect(),
+                "gear_dampers" => params
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, p)| matches!(p.role, ParamRole::GearDamper(_)))
+                    .map(|(i, _)| i)
+                    .collect(),
+                "arm_springs" => params
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, p)| matches!(p.role, ParamRole::ArmSpring(_)))
+                    .map(|(i, _)| i)
+                    .collect(),
+                "arm_dampers" => params
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, p)| matches!(p.role, ParamRole::ArmDamper(_)))
+                    .map(|(i, _)| i)
+                    .collect(),
                 name => {
                     let i = params.iter().position(|p| p.name == name).ok_or_else(|| {
-                        Error::invalid(&ctxm, format!("unknowns[{ui}]"), format!("`{name}` is neither a parameter name nor a group (springs, dampers, gear_springs, gear_dampers, arm_springs, arm_dampers)"))
+                        Error::invalid(
+                            &ctxm,
+                            format!("unknowns[{ui}]"),
+                            format!(
+                                "`{name}` is neither a parameter name nor a group (springs, dampers, gear_springs, gear_dampers, arm_springs, arm_dampers)"
+                            ),
+                        )
                     })?;
                     vec![i]
                 }

@@ -110,9 +110,7 @@ impl ClosedLoop {
             })
             .collect();
         let c = model.coupling.clone();
-        let qm0: Vec<f64> = (0..na)
-            .map(|j| (0..na).map(|a| c[(j, a)] * q0[a]).sum::<f64>() + op.delta0[j])
-            .collect();
+        let qm0: Vec<f64> = (0..na).map(|j| (0..na).map(|a| c[(j, a)] * q0[a]).sum::<f64>() + op.delta0[j]).collect();
         let wc = std::f64::consts::TAU * s.bandwidth_hz;
         let jj: Vec<f64> = (0..na).map(|j| ia[j] + op.m0[(model.act_index[j], model.act_index[j])]).collect();
         let kd = jj.iter().map(|j| 3.0 * j * wc).collect();
@@ -257,7 +255,9 @@ impl ClosedLoop {
                 }
             }
             if x.iter().any(|v| !v.is_finite()) {
-                return Err(Error::Numerical(format!("simulation diverged at sample {t} (unstable closed loop or too few substeps)")));
+                return Err(Error::Numerical(format!(
+                    "simulation diverged at sample {t} (unstable closed loop or too few substeps)"
+                )));
             }
         }
         Ok(out)

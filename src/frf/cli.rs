@@ -144,7 +144,11 @@ pub fn multisine(design: &Path, out: Option<&Path>) -> Result<(MultisineSummary,
     };
     crate::io::write_json(&dir.join("multisine.json"), &s)?;
     crate::io::write_json(&dir.join("design.json"), &d)?;
-    write_status(&dir, "complete", format!("{} blocks × {} experiments, {} lines", d.multisine.blocks, n, s.freqs_hz.len()))?;
+    write_status(
+        &dir,
+        "complete",
+        format!("{} blocks × {} experiments, {} lines", d.multisine.blocks, n, s.freqs_hz.len()),
+    )?;
     Ok((s, dir))
 }
 
@@ -179,7 +183,9 @@ pub fn frf(input: &Path, out: Option<&Path>) -> Result<(FrfData, PathBuf)> {
     let is_json = input.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
     let (data, dir) = if is_json {
         let data = estimate_from_manifest(input)?;
-        let dir = out.map(Path::to_path_buf).unwrap_or_else(|| input.parent().unwrap_or(Path::new(".")).to_path_buf());
+        let dir = out
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| input.parent().unwrap_or(Path::new(".")).to_path_buf());
         (data, dir)
     } else {
         let (d, model) = Design::load(input)?;
@@ -191,7 +197,13 @@ pub fn frf(input: &Path, out: Option<&Path>) -> Result<(FrfData, PathBuf)> {
     };
     crate::io::write_json(&dir.join("frf.json"), &data)?;
     frf_svg(&dir.join("frf.svg"), &data)?;
-    let flagged: Vec<usize> = data.positions.iter().enumerate().filter(|(_, p)| p.distortion.as_ref().is_some_and(|d| d.flagged)).map(|(i, _)| i + 1).collect();
+    let flagged: Vec<usize> = data
+        .positions
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.distortion.as_ref().is_some_and(|d| d.flagged))
+        .map(|(i, _)| i + 1)
+        .collect();
     write_status(
         &dir,
         "complete",
@@ -260,7 +272,11 @@ fn parse_estimator(s: &str) -> Result<Estimator> {
         "lls" => Ok(Estimator::Lls),
         "lls_magnitude" => Ok(Estimator::LlsMagnitude),
         "nls" => Ok(Estimator::Nls),
-        _ => Err(Error::invalid("--estimator", "estimator", format!("expected lls, lls_magnitude or nls, found `{s}`"))),
+        _ => Err(Error::invalid(
+            "--estimator",
+            "estimator",
+            format!("expected lls, lls_magnitude or nls, found `{s}`"),
+        )),
     }
 }
 
@@ -295,7 +311,14 @@ pub struct FitSetup {
 }
 
 /// Loads a design and its FRF data into fit problems.
-pub fn setup(design: &Path, data: Option<&Path>, estimator: Option<Estimator>, weights_kind: Option<WeightKind>, starts: Option<usize>, out: Option<&Path>) -> Result<FitSetup> {
+pub fn setup(
+    design: &Path,
+    data: Option<&Path>,
+    estimator: Option<Estimator>,
+    weights_kind: Option<WeightKind>,
+    starts: Option<usize>,
+    out: Option<&Path>,
+) -> Result<FitSetup> {
     let (mut d, model) = Design::load(design)?;
     if let Some(e) = estimator {
         d.fit.estimator = e;
@@ -314,12 +337,26 @@ pub fn setup(design: &Path, data: Option<&Path>, estimator: Option<Estimator>, w
         return Err(Error::invalid(
             design.display().to_string(),
             "data",
-            format!("no FRF data at {}: run `idexp frf {}` (with the same --out) first or pass --data", data_path.display(), design.display()),
+            format!(
+                "no FRF data at {}: run `idexp frf {}` (with the same --out) first or pass --data",
+                data_path.display(),
+                design.display()
+            ),
         ));
     }
     let fd = FrfData::read(&data_path)?;
-    if fd.positions.len() != d.positions.len() || fd.positions.iter().zip(&d.positions).any(|(a, b)| a.q0.len() != b.len() || a.q0.iter().zip(b).any(|(x, y)| (x - y).abs() > 1e-12)) {
-        return Err(Error::invalid(data_path.display().to_string(), "positions", "the data's positions differ from the design's `positions`"));
+    if fd.positions.len() != d.positions.len()
+        || fd
+            .positions
+            .iter()
+            .zip(&d.positions)
+            .any(|(a, b)| a.q0.len() != b.len() || a.q0.iter().zip(b).any(|(x, y)| (x - y).abs() > 1e-12))
+    {
+        return Err(Error::invalid(
+            data_path.display().to_string(),
+            "positions",
+            "the data's positions differ from the design's `positions`",
+        ));
     }
     let w = weights(&d, &fd, d.fit.estimator, d.fit.weights)?;
     let problem = FitProblem::new(&model, &fd, d.fit.estimator, w)?;
@@ -402,7 +439,16 @@ pub fn fit(design: &Path, o: &FitOptions) -> Result<FitRun> {
         }
         let what = if complete { "shard complete" } else { "interrupted" };
         if o.shard.is_none() || !complete {
-            write_status(&dir, what, format!("{} of {} starts in {}; run the same command again to resume", records.len(), indices.len(), log.display()))?;
+            write_status(
+                &dir,
+                what,
+                format!(
+                    "{} of {} starts in {}; run the same command again to resume",
+                    records.len(),
+                    indices.len(),
+                    log.display()
+                ),
+            )?;
         }
         None
     };
@@ -418,7 +464,9 @@ pub fn fit(design: &Path, o: &FitOptions) -> Result<FitRun> {
 /// Merges shard logs into exactly what a single run writes (sorted
 /// `starts.jsonl`, report, plots), using the `run.json` beside the first shard.
 pub fn merge(shards: &[PathBuf], out: Option<&Path>) -> Result<(Report, PathBuf)> {
-    let first = shards.first().ok_or_else(|| Error::invalid("merge", "shards", "give at least one shard file"))?;
+    let first = shards
+        .first()
+        .ok_or_else(|| Error::invalid("merge", "shards", "give at least one shard file"))?;
     let src = first.parent().unwrap_or(Path::new(".")).to_path_buf();
     let run_path = src.join("run.json");
     let text = crate::io::read_to_string(&run_path)?;
@@ -426,7 +474,11 @@ pub fn merge(shards: &[PathBuf], out: Option<&Path>) -> Result<(Report, PathBuf)
     let paths: Vec<&Path> = shards.iter().map(PathBuf::as_path).collect();
     let records = merge_logs(&paths)?;
     if let Some(r) = records.iter().find(|r| r.hash != info.hash) {
-        return Err(Error::invalid(first.display().to_string(), "hash", format!("start {} does not belong to the run in {}", r.index, run_path.display())));
+        return Err(Error::invalid(
+            first.display().to_string(),
+            "hash",
+            format!("start {} does not belong to the run in {}", r.index, run_path.display()),
+        ));
     }
     let missing: Vec<usize> = (0..info.starts).filter(|i| !records.iter().any(|r| r.index == *i)).collect();
     if !missing.is_empty() {
@@ -434,12 +486,28 @@ pub fn merge(shards: &[PathBuf], out: Option<&Path>) -> Result<(Report, PathBuf)
         return Err(Error::invalid(
             first.display().to_string(),
             "shards",
-            format!("{} of {} starts missing (e.g. {}): run the missing shards (they resume) and merge again", missing.len(), info.starts, show.join(", ")),
+            format!(
+                "{} of {} starts missing (e.g. {}): run the missing shards (they resume) and merge again",
+                missing.len(),
+                info.starts,
+                show.join(", ")
+            ),
         ));
     }
-    let s = setup(&info.design, Some(&info.data), Some(info.estimator), Some(info.weights), Some(info.starts), None)?;
+    let s = setup(
+        &info.design,
+        Some(&info.data),
+        Some(info.estimator),
+        Some(info.weights),
+        Some(info.starts),
+        None,
+    )?;
     if s.info.hash != info.hash {
-        return Err(Error::invalid(run_path.display().to_string(), "hash", "the design or data changed since the shards ran"));
+        return Err(Error::invalid(
+            run_path.display().to_string(),
+            "hash",
+            "the design or data changed since the shards ran",
+        ));
     }
     let dir = out.map(Path::to_path_buf).unwrap_or(src);
     crate::io::write_json(&dir.join("run.json"), &s.info)?;
@@ -466,10 +534,20 @@ pub fn run_multisine(a: &MultisineArgs) -> Result<()> {
 /// CLI: `idexp frf`.
 pub fn run_frf(a: &FrfArgs) -> Result<()> {
     let (d, dir) = frf(&a.input, a.out.as_deref())?;
-    println!("FRF at {} positions × {} lines ({:?} output) written to {}", d.positions.len(), d.freqs_hz.len(), d.output, dir.join("frf.json").display());
+    println!(
+        "FRF at {} positions × {} lines ({:?} output) written to {}",
+        d.positions.len(),
+        d.freqs_hz.len(),
+        d.output,
+        dir.join("frf.json").display()
+    );
     for (i, p) in d.positions.iter().enumerate() {
         if let Some(x) = &p.distortion {
-            let evn = x.even_vs_noise_db.as_ref().map(|v| format!("{:.1}", v.iter().copied().fold(f64::NEG_INFINITY, f64::max))).unwrap_or("-".into());
+            let evn = x
+                .even_vs_noise_db
+                .as_ref()
+                .map(|v| format!("{:.1}", v.iter().copied().fold(f64::NEG_INFINITY, f64::max)))
+                .unwrap_or("-".into());
             println!(
                 "  position {}: even lines {:.1} dB below the odd ones, {} dB above noise{}",
                 i + 1,
@@ -502,7 +580,11 @@ pub fn run_fit(a: &FitArgs) -> Result<()> {
             "{} starts in {}{}",
             r.records.len(),
             r.log.display(),
-            if r.interrupted { " (interrupted: run the same command again to resume)" } else { " (shard complete: merge the shards with `idexp merge`)" }
+            if r.interrupted {
+                " (interrupted: run the same command again to resume)"
+            } else {
+                " (shard complete: merge the shards with `idexp merge`)"
+            }
         ),
     }
     Ok(())

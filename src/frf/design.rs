@@ -282,12 +282,18 @@ impl Design {
             }
             for j in 0..n {
                 if !q[j].is_finite() || q[j] < lo[j] || q[j] > hi[j] {
-                    return inv(&format!("positions[{i}][{j}]"), format!("expected a finite angle within the joint limits [{}, {}], found {}", lo[j], hi[j], q[j]));
+                    return inv(
+                        &format!("positions[{i}][{j}]"),
+                        format!("expected a finite angle within the joint limits [{}, {}], found {}", lo[j], hi[j], q[j]),
+                    );
                 }
             }
         }
         if model.n_unknowns() == 0 {
-            return inv("model.unknowns", "no unknown parameters: list names or groups such as \"springs\", \"dampers\"".into());
+            return inv(
+                "model.unknowns",
+                "no unknown parameters: list names or groups such as \"springs\", \"dampers\"".into(),
+            );
         }
         let ms = &self.multisine;
         if !(ms.rate.is_finite() && ms.rate > 0.0) {
@@ -295,10 +301,16 @@ impl Design {
         }
         let npf = ms.rate * ms.period;
         if !(ms.period.is_finite() && ms.period > 0.0) || (npf - npf.round()).abs() > 1e-6 || (npf.round() as usize) % 2 != 0 || npf < 8.0 {
-            return inv("multisine.period", format!("rate·period must be an even integer ≥ 8 (samples per period), found {npf}"));
+            return inv(
+                "multisine.period",
+                format!("rate·period must be an even integer ≥ 8 (samples per period), found {npf}"),
+            );
         }
         if !(ms.band[0] > 0.0 && ms.band[1] > ms.band[0] && ms.band[1] < ms.rate / 2.0) {
-            return inv("multisine.band", format!("expected 0 < f_min < f_max < rate/2 = {}, found {:?}", ms.rate / 2.0, ms.band));
+            return inv(
+                "multisine.band",
+                format!("expected 0 < f_min < f_max < rate/2 = {}, found {:?}", ms.rate / 2.0, ms.band),
+            );
         }
         let (_, odd, _) = lines(ms);
         if odd.is_empty() {
@@ -312,7 +324,9 @@ impl Design {
         }
         if let Some(s) = &self.simulate {
             for (name, v) in &s.truth {
-                let i = model.param_index(name).ok_or_else(|| Error::invalid(ctx, format!("simulate.truth.{name}"), "no parameter of that name"))?;
+                let i = model
+                    .param_index(name)
+                    .ok_or_else(|| Error::invalid(ctx, format!("simulate.truth.{name}"), "no parameter of that name"))?;
                 if !v.is_finite() || (model.params[i].positive && *v <= 0.0) {
                     return inv(&format!("simulate.truth.{name}"), format!("expected a finite positive value, found {v}"));
                 }
@@ -332,12 +346,19 @@ impl Design {
                 return inv("simulate.bandwidth", format!("expected a positive frequency (Hz), found {}", s.bandwidth));
             }
             if s.method == SimMethod::Frequency && s.noise_rel == 0.0 && s.noise_abs == 0.0 && ms.blocks > 1 {
-                return inv("simulate.noise_rel", "noise-free block FRFs give a zero covariance: set noise_rel or noise_abs > 0".into());
+                return inv(
+                    "simulate.noise_rel",
+                    "noise-free block FRFs give a zero covariance: set noise_rel or noise_abs > 0".into(),
+                );
             }
         }
         let f = &self.fit;
         let u = &f.user;
-        for (name, v) in [("fit.user.diagonal", u.diagonal), ("fit.user.off_diagonal", u.off_diagonal), ("fit.user.min_snr", u.min_snr)] {
+        for (name, v) in [
+            ("fit.user.diagonal", u.diagonal),
+            ("fit.user.off_diagonal", u.off_diagonal),
+            ("fit.user.min_snr", u.min_snr),
+        ] {
             if !v.is_finite() || v < 0.0 {
                 return inv(name, format!("expected a non-negative number, found {v}"));
             }
@@ -353,7 +374,10 @@ impl Design {
             }
         }
         if !u.positions.is_empty() && (u.positions.len() != self.positions.len() || u.positions.iter().any(|v| !v.is_finite() || *v < 0.0)) {
-            return inv("fit.user.positions", format!("expected {} non-negative factors (one per position)", self.positions.len()));
+            return inv(
+                "fit.user.positions",
+                format!("expected {} non-negative factors (one per position)", self.positions.len()),
+            );
         }
         if f.starts == 0 {
             return inv("fit.starts", "expected at least 1 start".into());
@@ -364,7 +388,7 @@ impl Design {
         if !(f.reasonable.is_finite() && f.reasonable >= 1.0) {
             return inv("fit.reasonable", format!("expected a factor ≥ 1, found {}", f.reasonable));
         }
-        if f.max_iter == 0 || !(f.ftol >= 0.0) || !(f.xtol >= 0.0) {
+        if f.max_iter == 0 || f.ftol.is_nan() || f.ftol < 0.0 || f.xtol.is_nan() || f.xtol < 0.0 {
             return inv("fit.max_iter", "expected max_iter ≥ 1 and non-negative tolerances".into());
         }
         Ok(())

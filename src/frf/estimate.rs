@@ -94,14 +94,22 @@ impl FrfData {
         }
         for (i, p) in d.positions.iter().enumerate() {
             if p.g.len() != d.freqs_hz.len() || p.var.len() != d.freqs_hz.len() {
-                return Err(Error::invalid(&ctx, format!("positions[{i}].g"), format!("expected {} lines", d.freqs_hz.len())));
+                return Err(Error::invalid(
+                    &ctx,
+                    format!("positions[{i}].g"),
+                    format!("expected {} lines", d.freqs_hz.len()),
+                ));
             }
             for (k, (g, v)) in p.g.iter().zip(&p.var).enumerate() {
                 if g.re.len() != nn || g.im.len() != nn || v.len() != nn {
                     return Err(Error::invalid(&ctx, format!("positions[{i}].g[{k}]"), format!("expected {nn} entries")));
                 }
                 if g.re.iter().chain(&g.im).chain(v).any(|x| !x.is_finite()) || v.iter().any(|x| *x < 0.0) {
-                    return Err(Error::invalid(&ctx, format!("positions[{i}].g[{k}]"), "expected finite values and non-negative variances"));
+                    return Err(Error::invalid(
+                        &ctx,
+                        format!("positions[{i}].g[{k}]"),
+                        "expected finite values and non-negative variances",
+                    ));
                 }
             }
         }
@@ -109,9 +117,12 @@ impl FrfData {
     }
 }
 
+/// Mean FRF per line and element variances of the mean per line.
+pub type BlockAverage = (Vec<DMatrix<C64>>, Vec<DMatrix<f64>>);
+
 /// Block average: Ĝ = mean_b G_b and, per element, the variance of that mean
 /// Σ_b |G_b − Ĝ|² / (B(B−1)) (0 for B = 1).
-pub fn average_blocks(gb: &[Vec<DMatrix<C64>>]) -> Result<(Vec<DMatrix<C64>>, Vec<DMatrix<f64>>)> {
+pub fn average_blocks(gb: &[Vec<DMatrix<C64>>]) -> Result<BlockAverage> {
     let nb = gb.len();
     if nb == 0 {
         return Err(Error::Numerical("no blocks to average".into()));
@@ -242,7 +253,11 @@ pub fn estimate_position(m: &RunsManifest, q0: &[f64], runs: &[Vec<Run>], distor
         let mut yk = vec![DMatrix::from_element(n, n, C64::new(0.0, 0.0)); nl];
         for (e, run) in exps.iter().enumerate() {
             if run.u.len() < need || run.y.len() < need {
-                return Err(Error::dim(format!("samples of run (block {b}, experiment {e})"), need, run.u.len().min(run.y.len())));
+                return Err(Error::dim(
+                    format!("samples of run (block {b}, experiment {e})"),
+                    need,
+                    run.u.len().min(run.y.len()),
+                ));
             }
             for ch in 0..n {
                 let mut even_per: Vec<Vec<C64>> = Vec::new();
@@ -283,7 +298,10 @@ pub fn estimate_position(m: &RunsManifest, q0: &[f64], runs: &[Vec<Run>], distor
         for l in 0..nl {
             let w = std::f64::consts::TAU * m.lines[l] as f64 * m.rate / np as f64;
             let uinv = uk[l].clone().try_inverse().ok_or_else(|| {
-                Error::Numerical(format!("block {b}: the input spectrum matrix U(ω) is singular at line {} (experiments not independent)", m.lines[l]))
+                Error::Numerical(format!(
+                    "block {b}: the input spectrum matrix U(ω) is singular at line {} (experiments not independent)",
+                    m.lines[l]
+                ))
             })?;
             let s = C64::new(0.0, w);
             let mut gl = &yk[l] * uinv * s.powi(m.output.power());
@@ -298,7 +316,11 @@ pub fn estimate_position(m: &RunsManifest, q0: &[f64], runs: &[Vec<Run>], distor
     let distortion = if ne > 0 && count > 0 {
         let db = |a: f64, b: f64| if a > 0.0 && b > 0.0 { 10.0 * (a / b).log10() } else { f64::NEG_INFINITY };
         let evo: Vec<f64> = (0..n).map(|c| db(p_even[c], p_odd[c])).collect();
-        let evn: Option<Vec<f64>> = if m.periods > 1 { Some((0..n).map(|c| db(p_even[c], p_noise[c])).collect()) } else { None };
+        let evn: Option<Vec<f64>> = if m.periods > 1 {
+            Some((0..n).map(|c| db(p_even[c], p_noise[c])).collect())
+        } else {
+            None
+        };
         let flagged = evn.as_ref().is_some_and(|v| v.iter().any(|x| *x > distortion_db));
         Some(Distortion {
             even_vs_odd_db: evo.iter().map(|v| if v.is_finite() { *v } else { -400.0 }).collect(),
@@ -352,14 +374,22 @@ pub fn estimate_from_manifest(path: &Path) -> Result<FrfData> {
     let text = crate::io::read_to_string(path)?;
     let m: RunsManifest = serde_json::from_str(&text).map_err(|e| Error::parse(path, format!("line {}: {e}", e.line())))?;
     let ctx = path.display().to_string();
-    if m.n == 0 || m.samples < 8 || m.lines.is_empty() || !(m.rate > 0.0) || m.periods == 0 {
-        return Err(Error::invalid(&ctx, "samples", "expected n ≥ 1, samples ≥ 8, rate > 0, periods ≥ 1 and excited lines"));
+    if m.n == 0 || m.samples < 8 || m.lines.is_empty() || m.rate.is_nan() || m.rate <= 0.0 || m.periods == 0 {
+        return Err(Error::invalid(
+            &ctx,
+            "samples",
+            "expected n ≥ 1, samples ≥ 8, rate > 0, periods ≥ 1 and excited lines",
+        ));
     }
     if m.lines.iter().chain(&m.even_lines).any(|&k| k == 0 || k >= m.samples / 2) {
         return Err(Error::invalid(&ctx, "lines", format!("harmonics must lie in 1..{}", m.samples / 2)));
     }
     if m.files.len() != m.positions.len() {
-        return Err(Error::invalid(&ctx, "files", format!("expected one entry per position ({})", m.positions.len())));
+        return Err(Error::invalid(
+            &ctx,
+            "files",
+            format!("expected one entry per position ({})", m.positions.len()),
+        ));
     }
     let dir: PathBuf = path.parent().unwrap_or(Path::new(".")).to_path_buf();
     let mut positions = Vec::new();

@@ -231,7 +231,10 @@ impl FitProblem {
 
     /// θ of optimisation variables.
     pub fn to_theta(&self, z: &[f64]) -> Vec<f64> {
-        z.iter().enumerate().map(|(i, &v)| if self.positive[i] { v.exp() } else { v * self.scale(i) }).collect()
+        z.iter()
+            .enumerate()
+            .map(|(i, &v)| if self.positive[i] { v.exp() } else { v * self.scale(i) })
+            .collect()
     }
 
     /// Keeps z_i within ±[`BOUND_DECADES`] decades of θ_init (positive parameters only).
@@ -271,7 +274,10 @@ impl FitProblem {
             .iter()
             .map(|p| {
                 let lin = self.model.linear_model(&p.op, &vals);
-                self.omegas.iter().map(|&w| self.kernel.eval(&lin, &p.op, w, self.output, false, &mut dg)).collect()
+                self.omegas
+                    .iter()
+                    .map(|&w| self.kernel.eval(&lin, &p.op, w, self.output, false, &mut dg))
+                    .collect()
             })
             .collect()
     }

@@ -76,7 +76,9 @@ impl Multisine {
         let phases = (0..ms.blocks)
             .map(|b| {
                 let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(sub_seed(d.seed, streams::PHASES, b as u64));
-                (0..n).map(|_| odd.iter().map(|_| rng.random_range(0.0..std::f64::consts::TAU)).collect()).collect()
+                (0..n)
+                    .map(|_| odd.iter().map(|_| rng.random_range(0.0..std::f64::consts::TAU)).collect())
+                    .collect()
             })
             .collect();
         Multisine {

@@ -161,7 +161,11 @@ impl MultistartRun<'_> {
         let theta0 = start_point(&self.problem.theta_nom, self.spec.spread, self.seed, index);
         let o = self.problem.solve(&theta0, self.spec);
         let ok = o.cost.is_finite();
-        let common = if ok { self.common.cost(&o.theta).ok().filter(|c| c.is_finite()) } else { None };
+        let common = if ok {
+            self.common.cost(&o.theta).ok().filter(|c| c.is_finite())
+        } else {
+            None
+        };
         StartRecord {
             index,
             hash: self.hash.clone(),
@@ -185,7 +189,10 @@ impl MultistartRun<'_> {
             return Err(Error::invalid(
                 log.display().to_string(),
                 "hash",
-                format!("start {} was written for another design or data ({} ≠ {}): remove the file or choose another --out", r.index, r.hash, self.hash),
+                format!(
+                    "start {} was written for another design or data ({} ≠ {}): remove the file or choose another --out",
+                    r.index, r.hash, self.hash
+                ),
             ));
         }
         if let Some(dir) = log.parent() {
@@ -250,13 +257,21 @@ pub fn merge_logs(paths: &[&Path]) -> Result<Vec<StartRecord>> {
             match &hash {
                 None => hash = Some(r.hash.clone()),
                 Some(h) if *h != r.hash => {
-                    return Err(Error::invalid(p.display().to_string(), "hash", format!("start {} belongs to another design or data ({} ≠ {h})", r.index, r.hash)));
+                    return Err(Error::invalid(
+                        p.display().to_string(),
+                        "hash",
+                        format!("start {} belongs to another design or data ({} ≠ {h})", r.index, r.hash),
+                    ));
                 }
                 _ => {}
             }
             if let Some(old) = all.get(&r.index) {
                 if *old != r {
-                    return Err(Error::invalid(p.display().to_string(), "index", format!("start {} appears twice with different results", r.index)));
+                    return Err(Error::invalid(
+                        p.display().to_string(),
+                        "index",
+                        format!("start {} appears twice with different results", r.index),
+                    ));
                 }
             }
             all.insert(r.index, r);

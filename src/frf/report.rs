@@ -88,17 +88,27 @@ fn median(v: &mut [f64]) -> f64 {
 pub fn build(problem: &FitProblem, records: &[StartRecord], starts: usize, factor: f64, weights: &str, truth: Option<&[f64]>) -> Report {
     let names = problem.model.unknown_names();
     let mut ok: Vec<&StartRecord> = records.iter().filter(|r| r.common_cost.is_some()).collect();
-    ok.sort_by(|a, b| a.common_cost.unwrap_or(f64::INFINITY).total_cmp(&b.common_cost.unwrap_or(f64::INFINITY)).then(a.index.cmp(&b.index)));
+    ok.sort_by(|a, b| {
+        a.common_cost
+            .unwrap_or(f64::INFINITY)
+            .total_cmp(&b.common_cost.unwrap_or(f64::INFINITY))
+            .then(a.index.cmp(&b.index))
+    });
     let best = ok.first().copied();
     let cbest = best.and_then(|b| b.common_cost).unwrap_or(f64::NAN);
     let normalised: Vec<f64> = ok.iter().map(|r| r.common_cost.unwrap_or(f64::NAN) / cbest).collect();
     let reasonable: Vec<&StartRecord> = ok.iter().zip(&normalised).filter(|(_, c)| **c <= factor).map(|(r, _)| *r).collect();
     let mut status_counts = BTreeMap::new();
     for r in records {
-        let s = serde_json::to_value(r.status).ok().and_then(|v| v.as_str().map(String::from)).unwrap_or_default();
+        let s = serde_json::to_value(r.status)
+            .ok()
+            .and_then(|v| v.as_str().map(String::from))
+            .unwrap_or_default();
         *status_counts.entry(s).or_insert(0) += 1;
     }
-    let std_th: Option<Vec<f64>> = best.and_then(|b| problem.covariance(&b.theta).ok()).map(|p| (0..p.nrows()).map(|i| p[(i, i)].max(0.0).sqrt()).collect());
+    let std_th: Option<Vec<f64>> = best
+        .and_then(|b| problem.covariance(&b.theta).ok())
+        .map(|p| (0..p.nrows()).map(|i| p[(i, i)].max(0.0).sqrt()).collect());
     let params: Vec<ParamStats> = match best {
         None => Vec::new(),
         Some(b) => (0..names.len())
@@ -106,7 +116,11 @@ pub fn build(problem: &FitProblem, records: &[StartRecord], starts: usize, facto
                 let mut v: Vec<f64> = reasonable.iter().map(|r| r.theta[i]).collect();
                 let n = v.len() as f64;
                 let mean = v.iter().sum::<f64>() / n;
-                let std = if v.len() > 1 { (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt() } else { 0.0 };
+                let std = if v.len() > 1 {
+                    (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+                } else {
+                    0.0
+                };
                 let min = v.iter().copied().fold(f64::INFINITY, f64::min);
                 let max = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
                 ParamStats {
@@ -145,7 +159,11 @@ pub fn build(problem: &FitProblem, records: &[StartRecord], starts: usize, facto
         best_cost: best.and_then(|b| b.cost),
         reasonable_factor: factor,
         reasonable: reasonable.len(),
-        reasonable_share: if records.is_empty() { 0.0 } else { reasonable.len() as f64 / records.len() as f64 },
+        reasonable_share: if records.is_empty() {
+            0.0
+        } else {
+            reasonable.len() as f64 / records.len() as f64
+        },
         normalised_costs: normalised,
         status_counts,
         params,
@@ -268,8 +286,18 @@ pub fn bode_svgs(dir: &Path, problem: &FitProblem, data: &FrfData, theta: &[f64]
             });
         }
         let q: Vec<String> = p.q0.iter().map(|v| format!("{v:.2}")).collect();
-        write_svg(&dir.join(format!("bode_pos{}.svg", pi + 1)), &format!("position {} (q0 = [{}]): measured vs fitted |G|", pi + 1, q.join(", ")), &mag, n)?;
-        write_svg(&dir.join(format!("phase_pos{}.svg", pi + 1)), &format!("position {}: phase of the diagonal", pi + 1), &ph, n.min(3))?;
+        write_svg(
+            &dir.join(format!("bode_pos{}.svg", pi + 1)),
+            &format!("position {} (q0 = [{}]): measured vs fitted |G|", pi + 1, q.join(", ")),
+            &mag,
+            n,
+        )?;
+        write_svg(
+            &dir.join(format!("phase_pos{}.svg", pi + 1)),
+            &format!("position {}: phase of the diagonal", pi + 1),
+            &ph,
+            n.min(3),
+        )?;
     }
     Ok(())
 }

@@ -66,10 +66,13 @@ pub fn true_frf(model: &ElasticModel, full: &[f64], q0: &[f64], omegas: &[f64], 
 /// Simulated FRF data of a design. Time method: runs are written to
 /// `runs_dir` (`runs.json` + CSV per experiment) and estimated from there.
 pub fn simulate(d: &Design, model: &ElasticModel, runs_dir: &Path) -> Result<(FrfData, Truth)> {
-    let s = d
-        .simulate
-        .as_ref()
-        .ok_or_else(|| Error::invalid(&d.name, "simulate", "the design has no [simulate] section: give one, or estimate from recorded runs (runs.json)"))?;
+    let s = d.simulate.as_ref().ok_or_else(|| {
+        Error::invalid(
+            &d.name,
+            "simulate",
+            "the design has no [simulate] section: give one, or estimate from recorded runs (runs.json)",
+        )
+    })?;
     let t = truth(model, s, d.seed)?;
     let n = model.n_motors();
     let ms = Multisine::new(d, n);
@@ -83,7 +86,11 @@ pub fn simulate(d: &Design, model: &ElasticModel, runs_dir: &Path) -> Result<(Fr
                 let g = true_frf(model, &t.full, q0, &omegas, d.frf.output)?;
                 let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(sub_seed(d.seed, streams::NOISE, pi as u64));
                 let gb: Vec<Vec<DMatrix<C64>>> = (0..d.multisine.blocks)
-                    .map(|_| g.iter().map(|gk| gk.map(|v| v * (C64::new(1.0, 0.0) + cnormal(&mut rng) * s.noise_rel) + cnormal(&mut rng) * s.noise_abs)).collect())
+                    .map(|_| {
+                        g.iter()
+                            .map(|gk| gk.map(|v| v * (C64::new(1.0, 0.0) + cnormal(&mut rng) * s.noise_rel) + cnormal(&mut rng) * s.noise_abs))
+                            .collect()
+                    })
                     .collect();
                 let (mean, var) = super::estimate::average_blocks(&gb)?;
                 positions.push(FrfPosition {
