@@ -104,6 +104,28 @@ fn thread_count_resume_and_shards_give_the_same_file() {
     assert_eq!(read(&rc.dir.join("starts.jsonl")), ref_log, "resumed run");
     assert_eq!(read(&rc.dir.join("fit.json")), ref_fit);
 
+    // a run with fewer starts is continued by one with more
+    let g = dir.path().join("g");
+    let rg = cli::fit(
+        &p,
+        &FitOptions {
+            data: Some(data.clone()),
+            starts: Some(3),
+            ..opts(&g)
+        },
+    )
+    .unwrap();
+    assert_eq!(rg.records.len(), 3);
+    let rg = cli::fit(
+        &p,
+        &FitOptions {
+            data: Some(data.clone()),
+            ..opts(&g)
+        },
+    )
+    .unwrap();
+    assert_eq!(read(&rg.dir.join("starts.jsonl")), ref_log, "3 starts, then 6");
+
     // shards 0/3, 1/3, 2/3 then merge
     let s = dir.path().join("s");
     let mut shard_files = Vec::new();

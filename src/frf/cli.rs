@@ -362,7 +362,11 @@ pub fn setup(
     let problem = FitProblem::new(&model, &fd, d.fit.estimator, w)?;
     let wc = weights(&d, &fd, Estimator::Lls, WeightKind::User)?;
     let common = problem.with_estimator(Estimator::Lls, wc);
-    let djson = serde_json::to_string(&d).map_err(|e| Error::Numerical(e.to_string()))?;
+    // the number of starts is not part of the fingerprint: start l does not depend on it, so a run
+    // with more starts resumes one with fewer
+    let mut dh = d.clone();
+    dh.fit.starts = 0;
+    let djson = serde_json::to_string(&dh).map_err(|e| Error::Numerical(e.to_string()))?;
     let fjson = serde_json::to_string(&fd).map_err(|e| Error::Numerical(e.to_string()))?;
     let hash = super::multistart::fingerprint(&[&djson, &fjson]);
     let truth_path = data_path.parent().unwrap_or(Path::new(".")).join("truth.json");

@@ -192,8 +192,9 @@ impl Report {
             s.push_str(&format!(" {k} {v}"));
         }
         s.push('\n');
+        let truth = self.params.iter().any(|p| p.truth.is_some());
         s.push_str(&format!(
-            "{:<12} {:>12} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}{}\n",
+            "{:<12} {:>12} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9}{}\n",
             "param",
             "best",
             "min",
@@ -202,13 +203,12 @@ impl Report {
             "mean",
             "std",
             "std_th",
-            "",
-            if self.params.iter().any(|p| p.truth.is_some()) { "   true/best" } else { "" }
+            if truth { "  true/best" } else { "" }
         ));
         for p in &self.params {
             let r = |v: f64| v / p.best;
             s.push_str(&format!(
-                "{:<12} {:>12.5e} {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>8} {:>8}{}\n",
+                "{:<12} {:>12.5e} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>9.2e} {:>9}{}\n",
                 p.name,
                 p.best,
                 r(p.min),
@@ -216,9 +216,8 @@ impl Report {
                 r(p.max),
                 r(p.mean),
                 p.std / p.best.abs(),
-                p.std_th.map(|v| format!("{:.3}", v / p.best.abs())).unwrap_or("-".into()),
-                "",
-                p.truth.map(|t| format!("   {:.4}", t / p.best)).unwrap_or_default()
+                p.std_th.map(|v| format!("{:.2e}", v / p.best.abs())).unwrap_or("-".into()),
+                p.truth.map(|t| format!("  {:.5}", t / p.best)).unwrap_or_default()
             ));
         }
         s.push_str("(min..std normalised by the best model, as paper 001 Table 1)\n");
