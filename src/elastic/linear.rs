@@ -102,6 +102,8 @@ pub struct LinearModel {
     pub n_motors: usize,
     /// Gearbox deflection directions b_j (N each).
     pub b: Vec<Vec<f64>>,
+    /// Non-zero entries (index, value) of each b_j.
+    pub b_nz: Vec<Vec<(usize, f64)>>,
     /// Full parameter values.
     pub vals: Vec<f64>,
 }
@@ -264,12 +266,17 @@ impl ElasticModel {
                 ParamRole::Link(_) => {}
             }
         }
+        let b_nz = b
+            .iter()
+            .map(|bj| bj.iter().enumerate().filter(|(_, v)| **v != 0.0).map(|(i, v)| (i, *v)).collect())
+            .collect();
         LinearModel {
             m,
             d,
             k,
             n_motors: na,
             b,
+            b_nz,
             vals: vals.to_vec(),
         }
     }
@@ -302,34 +309,47 @@ impl FrfKernel {
         let n = lin.m.nrows();
         let s = C64::new(0.0, omega);
         let s2 = s * s;
-        let a = DMatrix::from_fn(n, n, |i, j| s2 * lin.m[(i, j)] + s * lin.d[(i, j)] + C64::new(lin.k[(i, j)], 0.0));
-        let rhs = DMatrix::from_fn(n, na, |i, j| if i == j { C64::new(1.0, 0.0) } else { C64::new(0.0, 0.0) });
-        let w = a
-            .lu()
-            .solve(&rhs)
-            .ok_or_else(|| Error::Numerical(format!("the linear model is singular at ω = {omega} rad/s (an undamped pole on the grid)")))?;
+        // A = s²M + sD + K (row-major), right-hand side B = [I; 0] (n × na, row-major)
+        let mut a = vec![C64::new(0.0, 0.0); n * n];
+        for i in 0..n {
+            for j in 0..n {
+                a[i * n + j] = s2 * lin.m[(i, j)] + s * lin.d[(i, j)] + C64::new(lin.k[(i, j)], 0.0);
+            }
+        }
+        let mut w = vec![C64::new(0.0, 0.0); n * na];
+        for j in 0..na {
+            w[j * na + j] = C64::new(1.0, 0.0);
+        }
+        if !solve_in_place(&mut a, n, &mut w, na) {
+            return Err(Error::Numerical(format!(
+                "the linear model is singular at ω = {omega} rad/s (an undamped pole on the grid)"
+            )));
+        }
+        let wv = |r: usize, j: usize| w[r * na + j];
         let sr = s.powi(output.power());
-        let g = DMatrix::from_fn(na, na, |i, j| sr * w[(i, j)]);
+        let g = DMatrix::from_fn(na, na, |i, j| sr * wv(i, j));
         if !jac {
             return Ok(g);
         }
         dg.resize(self.unknowns.len(), DMatrix::zeros(na, na));
-        let rank1 = |vec_idx: &dyn Fn(usize) -> f64, nz: &[usize], c: C64, out: &mut DMatrix<C64>| {
-            // v = bᵀ W (1×na); out = −s^r c vᵀ v
-            let mut v = vec![C64::new(0.0, 0.0); na];
-            for &r in nz {
-                let br = vec_idx(r);
+        let mut v = vec![C64::new(0.0, 0.0); na];
+        // out = −s^r c vᵀ v with v = bᵀ W over the non-zero entries of b
+        let mut rank1 = |entries: &mut dyn Iterator<Item = (usize, f64)>, c: C64, out: &mut DMatrix<C64>| {
+            v.iter_mut().for_each(|x| *x = C64::new(0.0, 0.0));
+            for (r, br) in entries {
                 for j in 0..na {
-                    v[j] += w[(r, j)] * br;
+                    v[j] += wv(r, j) * br;
                 }
             }
             let f = -sr * c;
             for i in 0..na {
+                let fi = f * v[i];
                 for j in 0..na {
-                    out[(i, j)] = f * v[i] * v[j];
+                    out[(i, j)] = fi * v[j];
                 }
             }
         };
+        let one = C64::new(1.0, 0.0);
         for (k, &u) in self.unknowns.iter().enumerate() {
             let out = &mut dg[k];
             if out.nrows() != na || out.ncols() != na {
@@ -337,26 +357,16 @@ impl FrfKernel {
             }
             match self.roles[u] {
                 ParamRole::GearSpring(j) | ParamRole::GearDamper(j) => {
-                    let bj = &lin.b[j];
-                    let nz: Vec<usize> = (0..n).filter(|&r| bj[r] != 0.0).collect();
-                    let c = if matches!(self.roles[u], ParamRole::GearSpring(_)) {
-                        C64::new(1.0, 0.0)
-                    } else {
-                        s
-                    };
-                    rank1(&|r| bj[r], &nz, c, out);
+                    let c = if matches!(self.roles[u], ParamRole::GearSpring(_)) { one } else { s };
+                    rank1(&mut lin.b_nz[j].iter().copied(), c, out);
                 }
                 ParamRole::ArmSpring(e) | ParamRole::ArmDamper(e) => {
                     let x = na + self.elastic_index[e];
-                    let c = if matches!(self.roles[u], ParamRole::ArmSpring(_)) {
-                        C64::new(1.0, 0.0)
-                    } else {
-                        s
-                    };
-                    rank1(&|_| 1.0, &[x], c, out);
+                    let c = if matches!(self.roles[u], ParamRole::ArmSpring(_)) { one } else { s };
+                    rank1(&mut std::iter::once((x, 1.0)), c, out);
                 }
-                ParamRole::RotorInertia(j) => rank1(&|_| 1.0, &[j], s2, out),
-                ParamRole::MotorViscous(j) => rank1(&|_| 1.0, &[j], s, out),
+                ParamRole::RotorInertia(j) => rank1(&mut std::iter::once((j, 1.0)), s2, out),
+                ParamRole::MotorViscous(j) => rank1(&mut std::iter::once((j, 1.0)), s, out),
                 ParamRole::Link(_) => {
                     let (_, dm, dk) = op
                         .dlink
@@ -373,7 +383,7 @@ impl FrfKernel {
                                 continue;
                             }
                             for j in 0..na {
-                                t[(r, j)] += coef * w[(na + c, j)];
+                                t[(r, j)] += coef * wv(na + c, j);
                             }
                         }
                     }
@@ -381,7 +391,7 @@ impl FrfKernel {
                         for j in 0..na {
                             let mut acc = C64::new(0.0, 0.0);
                             for r in 0..nx {
-                                acc += w[(na + r, i)] * t[(r, j)];
+                                acc += wv(na + r, i) * t[(r, j)];
                             }
                             out[(i, j)] = -sr * acc;
                         }
@@ -391,6 +401,59 @@ impl FrfKernel {
         }
         Ok(g)
     }
+}
+
+/// Solves A X = B in place by Gaussian elimination with partial pivoting
+/// (A: n×n, B: n×m, both row-major); X overwrites B. False if A is singular.
+fn solve_in_place(a: &mut [C64], n: usize, b: &mut [C64], m: usize) -> bool {
+    for k in 0..n {
+        let mut p = k;
+        let mut best = a[k * n + k].norm_sqr();
+        for i in k + 1..n {
+            let v = a[i * n + k].norm_sqr();
+            if v > best {
+                best = v;
+                p = i;
+            }
+        }
+        if best == 0.0 || !best.is_finite() {
+            return false;
+        }
+        if p != k {
+            for j in 0..n {
+                a.swap(k * n + j, p * n + j);
+            }
+            for j in 0..m {
+                b.swap(k * m + j, p * m + j);
+            }
+        }
+        let inv = C64::new(1.0, 0.0) / a[k * n + k];
+        for i in k + 1..n {
+            let f = a[i * n + k] * inv;
+            if f.re == 0.0 && f.im == 0.0 {
+                continue;
+            }
+            for j in k + 1..n {
+                let t = a[k * n + j];
+                a[i * n + j] -= f * t;
+            }
+            for j in 0..m {
+                let t = b[k * m + j];
+                b[i * m + j] -= f * t;
+            }
+        }
+    }
+    for k in (0..n).rev() {
+        let inv = C64::new(1.0, 0.0) / a[k * n + k];
+        for j in 0..m {
+            let mut acc = b[k * m + j];
+            for c in k + 1..n {
+                acc -= a[k * n + c] * b[c * m + j];
+            }
+            b[k * m + j] = acc * inv;
+        }
+    }
+    true
 }
 
 /// The parametric FRF G(ω_k, θ) at position `op` for unknowns `theta`, one
