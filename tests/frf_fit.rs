@@ -132,3 +132,32 @@ fn eq5_covariance_matches_the_scatter_over_noise_realisations() {
     let mean = ratios.iter().sum::<f64>() / np as f64;
     assert!(mean > 0.7 && mean < 1.4, "RMS error / std_th averaged over parameters: {mean} ({ratios:?})");
 }
+
+#[test]
+fn information_matrix_agrees_with_the_fit_covariance() {
+    // ½ F⁻¹ from elastic::information_matrix (noise model) = eq. 5 covariance of the fit with optimal weights
+    // from the estimated variances (20 blocks of 2 % relative noise: σ of the mean 2 %/√20)
+    let dir = tempfile::tempdir().unwrap();
+    let p = write_design(dir.path(), 2, 80.0, &|s| {
+        s.replace("perturb = 0.3", "perturb = 0.0").replace("blocks = 4", "blocks = 20")
+    });
+    let data = frf_data(&p, dir.path());
+    let (d, m) = Design::load(&p).unwrap();
+    let theta = m.nominal_unknowns();
+    for est in [Estimator::Lls, Estimator::Nls] {
+        let w = fit::weights(&d, &data, est, WeightKind::Optimal).unwrap();
+        let prob = fit::FitProblem::new(&m, &data, est, w).unwrap();
+        let pc = prob.covariance(&theta).unwrap();
+        let omegas: Vec<f64> = data.freqs_hz.iter().map(|f| std::f64::consts::TAU * f).collect();
+        let noise = idexp::elastic::NoiseModel::Relative { rel: 0.02 / 20f64.sqrt() };
+        let mut f = nalgebra::DMatrix::zeros(theta.len(), theta.len());
+        for q0 in &d.positions {
+            f += idexp::elastic::information_matrix(&m, q0, &omegas, &noise, est).unwrap();
+        }
+        let pf = f.try_inverse().unwrap() * 0.5;
+        for i in 0..theta.len() {
+            let r = (pc[(i, i)] / pf[(i, i)]).sqrt();
+            assert!((r - 1.0).abs() < 0.15, "{est:?} {}: std from the fit / from F = {r}", m.unknown_names()[i]);
+        }
+    }
+}

@@ -186,6 +186,12 @@ pub fn frf(input: &Path, out: Option<&Path>) -> Result<(FrfData, PathBuf)> {
         let dir = out
             .map(Path::to_path_buf)
             .unwrap_or_else(|| input.parent().unwrap_or(Path::new(".")).to_path_buf());
+        // the resolved input of this estimate, beside it
+        let manifest: serde_json::Value = serde_json::from_str(&crate::io::read_to_string(input)?).map_err(|e| Error::parse(input, e.to_string()))?;
+        crate::io::write_json(
+            &dir.join("input_runs.json"),
+            &serde_json::json!({ "manifest": abs(input), "contents": manifest }),
+        )?;
         (data, dir)
     } else {
         let (d, model) = Design::load(input)?;
@@ -426,6 +432,7 @@ pub fn fit(design: &Path, o: &FitOptions) -> Result<FitRun> {
         None => ((0..n).collect::<Vec<_>>(), dir.join("starts.jsonl")),
     };
     crate::io::write_json(&dir.join("run.json"), &s.info)?;
+    crate::io::write_json(&dir.join("design.json"), &s.design)?;
     let ms = MultistartRun {
         problem: &s.problem,
         common: &s.common,
