@@ -352,6 +352,9 @@ impl Design {
                 );
             }
         }
+        if !self.frf.distortion_db.is_finite() {
+            return inv("frf.distortion_db", format!("expected a finite level in dB, found {}", self.frf.distortion_db));
+        }
         let f = &self.fit;
         let u = &f.user;
         for (name, v) in [
