@@ -22,6 +22,14 @@ enum Cmd {
     Simulate(idexp::sim::cli::SimulateArgs),
     /// Identify base parameters from runs (OLS/WLS/projection/ML, reduction, gravity/friction experiments).
     Identify(Box<idexp::ident::cli::IdentifyArgs>),
+    /// Write odd random-phase orthogonal multisine references and their crest factors.
+    Multisine(idexp::frf::cli::MultisineArgs),
+    /// Estimate FRFs G = Y U⁻¹ with covariance (from runs.json, or simulated from a design).
+    Frf(idexp::frf::cli::FrfArgs),
+    /// Fit the elastic gray-box model from many starts (resumable, shardable).
+    Fit(idexp::frf::cli::FitArgs),
+    /// Merge multistart shard logs into the single-run result.
+    Merge(idexp::frf::cli::MergeArgs),
 }
 
 fn main() {
@@ -61,6 +69,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Cmd::Robot(a) => idexp::robot::cli::run(a)?,
         Cmd::Simulate(a) => idexp::sim::cli::run(a)?,
         Cmd::Identify(a) => idexp::ident::cli::run(a)?,
+        Cmd::Multisine(a) => idexp::frf::cli::run_multisine(a)?,
+        Cmd::Frf(a) => idexp::frf::cli::run_frf(a)?,
+        Cmd::Fit(a) => idexp::frf::cli::run_fit(a)?,
+        Cmd::Merge(a) => idexp::frf::cli::run_merge(a)?,
     }
     Ok(())
 }

@@ -1,0 +1,41 @@
+//! FRF fitting kernels on the shipped 6-axis, 26-unknown design
+//! (designs/elastic_industrial6.toml: 5 positions × 74 lines, n = 6, N = 19):
+//! one FRF + Jacobian evaluation at one line, the LLS cost, and the cost with
+//! gradient and Gauss–Newton matrix (one LM iteration's Jacobian pass).
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use idexp::elastic::{Estimator, FrfKernel, Output};
+use idexp::frf::{design::WeightKind, fit, simulate, Design};
+use std::hint::black_box;
+use std::path::Path;
+
+fn bench(c: &mut Criterion) {
+    let (d, m) = Design::load(Path::new("designs/elastic_industrial6.toml")).expect("design");
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let (data, truth) = simulate::simulate(&d, &m, tmp.path()).expect("simulate");
+    let theta: Vec<f64> = truth.theta.iter().map(|t| t * 1.05).collect();
+    let w = fit::weights(&d, &data, Estimator::Lls, WeightKind::User).expect("weights");
+    let prob = fit::FitProblem::new(&m, &data, Estimator::Lls, w).expect("problem");
+    let vals = m.full_values(&theta).expect("vals");
+    let op = m.operating_point(&d.positions[0], &vals).expect("op");
+    let lin = m.linear_model(&op, &vals);
+    let ker = FrfKernel::new(&m);
+    let mut dg = Vec::new();
+    let mut g = c.benchmark_group("frf");
+    g.bench_function("frf_and_jacobian_one_line_26_params", |b| {
+        b.iter(|| {
+            black_box(
+                ker.eval(&lin, &op, 2.0 * std::f64::consts::PI * 37.0, Output::Acceleration, true, &mut dg)
+                    .expect("eval"),
+            )
+        })
+    });
+    g.bench_function("lls_cost_5pos_74lines", |b| b.iter(|| black_box(prob.cost(&theta).expect("cost"))));
+    g.bench_function("lls_cost_gradient_gn_5pos_74lines", |b| {
+        b.iter(|| black_box(prob.normal_equations(&theta, true).expect("ne")))
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,559 @@
+//! Gray-box fitting of the elastic model to FRF estimates (paper 001 §5):
+//! weighted NLS (eq. 4), weighted log-LS (eq. 7) and magnitude-only LLS, with
+//! user-defined or optimal (eq. 6, 8) diagonal weights, minimised by
+//! Levenberg–Marquardt with the analytic Jacobian; positive parameters in log
+//! space; the asymptotic covariance of eq. 5.
+//!
+//! # Cost
+//!
+//! V(θ) = Σ_i Σ_k Σ_{a,b} w^{(i)}_{ab}(k) |E^{(i)}_{ab}(k, θ)|², with
+//!
+//! * NLS: E = Ĝ_ab − G_ab(θ);
+//! * LLS: E = log(Ĝ_ab / G_ab(θ)) (principal branch: the phase error lies in
+//!   (−π, π] and never wraps across lines);
+//! * LLS magnitude: E = log|Ĝ_ab| − log|G_ab(θ)|.
+//!
+//! # Solver
+//!
+//! With z the optimisation variables (z_i = ln θ_i for positive parameters,
+//! z_i = θ_i/θ_init,i otherwise) and ψ = ∂E/∂z, the Gauss–Newton model is
+//! V(z + δ) ≈ V + 2gᵀδ + δᵀHδ with g = Σ w Re(ψ̄ E), H = Σ w Re(ψ̄ ψᵀ).
+//! Levenberg–Marquardt solves (H + λ diag H) δ = −g, accepts the step when the
+//! actual decrease is positive and updates λ by Nielsen's rule
+//! (λ ← λ·max(1/3, 1 − (2ρ − 1)³) on success, λ ← λν, ν ← 2ν on failure).
+//! Positive parameters are kept within ±[`BOUND_DECADES`] decades of θ_init
+//! by projecting the step (a damper that does not matter would otherwise run
+//! off to 0). The `ftol` test counts only for steps with λ < 1 (close to
+//! Gauss–Newton), so heavy damping is not taken for convergence.
+
+use super::design::{Design, FitSpec, UserWeights, WeightKind};
+use super::estimate::FrfData;
+use crate::elastic::{ElasticModel, Estimator, FrfKernel, OperatingPoint, Output, C64};
+use crate::error::{Error, Result};
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+
+/// Positive parameters stay within this many decades of θ_init (projected steps).
+pub const BOUND_DECADES: f64 = 4.0;
+
+/// One position of a fit problem.
+#[derive(Debug, Clone)]
+pub struct PosData {
+    /// Linearisation point (nominal parameters).
+    pub op: OperatingPoint,
+    /// Ĝ per line.
+    pub g: Vec<DMatrix<C64>>,
+    /// Element variances of Ĝ per line.
+    pub var: Vec<DMatrix<f64>>,
+}
+
+/// Everything a cost evaluation needs: model, data, estimator and weights.
+#[derive(Debug, Clone)]
+pub struct FitProblem {
+    /// The model.
+    pub model: ElasticModel,
+    /// FRF output quantity.
+    pub output: Output,
+    /// Angular frequencies of the lines (rad/s).
+    pub omegas: Vec<f64>,
+    /// Line frequencies (Hz).
+    pub freqs_hz: Vec<f64>,
+    /// Per position.
+    pub pos: Vec<PosData>,
+    /// Estimator.
+    pub estimator: Estimator,
+    /// Weights w[pos][line] (n×n) of the estimator.
+    pub weights: Vec<Vec<DMatrix<f64>>>,
+    /// θ_init (nominal values of the unknowns).
+    pub theta_nom: Vec<f64>,
+    /// Log-space flags.
+    pub positive: Vec<bool>,
+    kernel: FrfKernel,
+}
+
+/// How a fit ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FitStatus {
+    /// Relative cost decrease below `ftol`.
+    ConvergedFtol,
+    /// Step below `xtol`.
+    ConvergedXtol,
+    /// Gradient numerically zero.
+    ConvergedGtol,
+    /// Iteration limit reached.
+    MaxIterations,
+    /// No decreasing step found (λ grew past 1e16).
+    Stalled,
+    /// The cost could not be evaluated at the start point.
+    Failed,
+    /// Stopped by the user.
+    Interrupted,
+}
+
+impl FitStatus {
+    /// True for the three converged outcomes.
+    pub fn converged(self) -> bool {
+        matches!(self, FitStatus::ConvergedFtol | FitStatus::ConvergedXtol | FitStatus::ConvergedGtol)
+    }
+}
+
+/// Result of one local fit.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct FitOutcome {
+    /// Final parameters (physical units).
+    pub theta: Vec<f64>,
+    /// Final cost V(θ).
+    pub cost: f64,
+    /// Outcome.
+    pub status: FitStatus,
+    /// LM iterations (Jacobian evaluations).
+    pub iterations: usize,
+    /// Cost evaluations (with or without Jacobian).
+    pub evaluations: usize,
+}
+
+/// Weights of `estimator` for the data: user weights ([`UserWeights`]) or the
+/// optimal ones from the variances (NLS: 1/σ̂², LLS: |Ĝ|²/σ̂², eq. 6 and 8 with
+/// G(θ0) ≈ Ĝ); the user band applies to both, and a zero variance gives a zero
+/// optimal weight.
+pub fn weights(d: &Design, data: &FrfData, estimator: Estimator, kind: WeightKind) -> Result<Vec<Vec<DMatrix<f64>>>> {
+    let n = data.n;
+    let u: &UserWeights = &d.fit.user;
+    let mut out = Vec::new();
+    let mut any = false;
+    for (pi, p) in data.positions.iter().enumerate() {
+        let pf = u.positions.get(pi).copied().unwrap_or(1.0);
+        let mut wl = Vec::new();
+        for (k, f) in data.freqs_hz.iter().enumerate() {
+            let inband = u.band.is_none_or(|b| *f >= b[0] && *f <= b[1]);
+            let g = p.g[k].to_mat(n);
+            let w = DMatrix::from_fn(n, n, |a, b| {
+                if !inband {
+                    return 0.0;
+                }
+                let var = p.var[k][a * n + b];
+                let mag2 = g[(a, b)].norm_sqr();
+                match kind {
+                    WeightKind::User => {
+                        if u.min_snr > 0.0 && var > 0.0 && mag2 < u.min_snr * u.min_snr * var {
+                            return 0.0;
+                        }
+                        let e = match &u.elements {
+                            Some(m) => m[a][b],
+                            None if a == b => u.diagonal,
+                            None => u.off_diagonal,
+                        };
+                        e * pf
+                    }
+                    WeightKind::Optimal => {
+                        if var <= 0.0 {
+                            return 0.0;
+                        }
+                        match estimator {
+                            Estimator::Nls => 1.0 / var,
+                            Estimator::Lls | Estimator::LlsMagnitude => mag2 / var,
+                        }
+                    }
+                }
+            });
+            any |= w.iter().any(|v| *v > 0.0);
+            wl.push(w);
+        }
+        out.push(wl);
+    }
+    if !any {
+        return Err(Error::invalid(
+            "fit weights",
+            if kind == WeightKind::Optimal { "fit.weights" } else { "fit.user" },
+            "every weight is zero (band outside the data, zero variances for optimal weights, or min_snr too strict)",
+        ));
+    }
+    Ok(out)
+}
+
+impl FitProblem {
+    /// Builds the problem: operating points at the data's positions (nominal
+    /// parameters), measured FRFs and weights.
+    pub fn new(model: &ElasticModel, data: &FrfData, estimator: Estimator, weights: Vec<Vec<DMatrix<f64>>>) -> Result<FitProblem> {
+        let n = model.n_motors();
+        if data.n != n {
+            return Err(Error::dim("motors in the FRF data", n, data.n));
+        }
+        let theta_nom = model.nominal_unknowns();
+        let vals = model.full_values(&theta_nom)?;
+        let pos = data
+            .positions
+            .iter()
+            .map(|p| {
+                Ok(PosData {
+                    op: model.operating_point(&p.q0, &vals)?,
+                    g: p.g.iter().map(|c| c.to_mat(n)).collect(),
+                    var: p.var.iter().map(|v| DMatrix::from_fn(n, n, |a, b| v[a * n + b])).collect(),
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(FitProblem {
+            kernel: FrfKernel::new(model),
+            model: model.clone(),
+            output: data.output,
+            omegas: data.freqs_hz.iter().map(|f| std::f64::consts::TAU * f).collect(),
+            freqs_hz: data.freqs_hz.clone(),
+            pos,
+            estimator,
+            weights,
+            positive: model.unknown_positive(),
+            theta_nom,
+        })
+    }
+
+    /// Same data and model, another estimator and weights.
+    pub fn with_estimator(&self, estimator: Estimator, weights: Vec<Vec<DMatrix<f64>>>) -> FitProblem {
+        let mut p = self.clone();
+        p.estimator = estimator;
+        p.weights = weights;
+        p
+    }
+
+    /// Number of unknowns p.
+    pub fn n_params(&self) -> usize {
+        self.theta_nom.len()
+    }
+
+    /// Optimisation variables of θ.
+    pub fn to_z(&self, theta: &[f64]) -> Vec<f64> {
+        theta
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| if self.positive[i] { t.max(f64::MIN_POSITIVE).ln() } else { t / self.scale(i) })
+            .collect()
+    }
+
+    /// θ of optimisation variables.
+    pub fn to_theta(&self, z: &[f64]) -> Vec<f64> {
+        z.iter()
+            .enumerate()
+            .map(|(i, &v)| if self.positive[i] { v.exp() } else { v * self.scale(i) })
+            .collect()
+    }
+
+    /// Keeps z_i within ±[`BOUND_DECADES`] decades of θ_init (positive parameters only).
+    fn clamp(&self, i: usize, z: f64) -> f64 {
+        if self.positive[i] {
+            let c = self.theta_nom[i].ln();
+            let b = BOUND_DECADES * std::f64::consts::LN_10;
+            z.clamp(c - b, c + b)
+        } else {
+            z
+        }
+    }
+
+    fn scale(&self, i: usize) -> f64 {
+        let s = self.theta_nom[i].abs();
+        if s > 0.0 {
+            s
+        } else {
+            1.0
+        }
+    }
+
+    /// dθ_i/dz_i.
+    fn dtheta_dz(&self, theta: &[f64], i: usize) -> f64 {
+        if self.positive[i] {
+            theta[i]
+        } else {
+            self.scale(i)
+        }
+    }
+
+    /// Model FRFs G^{(i)}(ω_k, θ) at every position.
+    pub fn model_frfs(&self, theta: &[f64]) -> Result<Vec<Vec<DMatrix<C64>>>> {
+        let vals = self.model.full_values(theta)?;
+        let mut dg = Vec::new();
+        self.pos
+            .iter()
+            .map(|p| {
+                let lin = self.model.linear_model(&p.op, &vals);
+                self.omegas
+                    .iter()
+                    .map(|&w| self.kernel.eval(&lin, &p.op, w, self.output, false, &mut dg))
+                    .collect()
+            })
+            .collect()
+    }
+
+    fn residual(&self, ghat: C64, g: C64) -> C64 {
+        match self.estimator {
+            Estimator::Nls => ghat - g,
+            Estimator::Lls => (ghat / g).ln(),
+            Estimator::LlsMagnitude => C64::new((ghat.norm() / g.norm()).ln(), 0.0),
+        }
+    }
+
+    fn dresidual(&self, g: C64, dg: C64) -> C64 {
+        match self.estimator {
+            Estimator::Nls => -dg,
+            Estimator::Lls => -dg / g,
+            Estimator::LlsMagnitude => C64::new(-(dg / g).re, 0.0),
+        }
+    }
+
+    /// V(θ).
+    pub fn cost(&self, theta: &[f64]) -> Result<f64> {
+        let vals = self.model.full_values(theta)?;
+        let mut dg = Vec::new();
+        let mut v = 0.0;
+        for (pi, p) in self.pos.iter().enumerate() {
+            let lin = self.model.linear_model(&p.op, &vals);
+            for (k, &w) in self.omegas.iter().enumerate() {
+                let wk = &self.weights[pi][k];
+                if wk.iter().all(|x| *x == 0.0) {
+                    continue;
+                }
+                let g = self.kernel.eval(&lin, &p.op, w, self.output, false, &mut dg)?;
+                for a in 0..g.nrows() {
+                    for b in 0..g.ncols() {
+                        let ww = wk[(a, b)];
+                        if ww != 0.0 {
+                            v += ww * self.residual(p.g[k][(a, b)], g[(a, b)]).norm_sqr();
+                        }
+                    }
+                }
+            }
+        }
+        if !v.is_finite() {
+            return Err(Error::Numerical("non-finite cost (a model FRF element is zero or infinite)".into()));
+        }
+        Ok(v)
+    }
+
+    /// V, g = Σ w Re(ψ̄E) and H = Σ w Re(ψ̄ψᵀ), derivatives with respect to z
+    /// (`in_z`) or to θ.
+    pub fn normal_equations(&self, theta: &[f64], in_z: bool) -> Result<(f64, DVector<f64>, DMatrix<f64>)> {
+        let np = self.n_params();
+        let vals = self.model.full_values(theta)?;
+        let mut dg = Vec::new();
+        let mut v = 0.0;
+        let mut grad: DVector<f64> = DVector::zeros(np);
+        let mut h: DMatrix<f64> = DMatrix::zeros(np, np);
+        let chain: Vec<f64> = (0..np).map(|i| if in_z { self.dtheta_dz(theta, i) } else { 1.0 }).collect();
+        let mut psi = vec![C64::new(0.0, 0.0); np];
+        for (pi, p) in self.pos.iter().enumerate() {
+            let lin = self.model.linear_model(&p.op, &vals);
+            for (k, &w) in self.omegas.iter().enumerate() {
+                let wk = &self.weights[pi][k];
+                if wk.iter().all(|x| *x == 0.0) {
+                    continue;
+                }
+                let g = self.kernel.eval(&lin, &p.op, w, self.output, true, &mut dg)?;
+                for a in 0..g.nrows() {
+                    for b in 0..g.ncols() {
+                        let ww = wk[(a, b)];
+                        if ww == 0.0 {
+                            continue;
+                        }
+                        let e = self.residual(p.g[k][(a, b)], g[(a, b)]);
+                        v += ww * e.norm_sqr();
+                        for i in 0..np {
+                            psi[i] = self.dresidual(g[(a, b)], dg[i][(a, b)]) * chain[i];
+                        }
+                        for i in 0..np {
+                            let pr = psi[i];
+                            grad[i] += ww * (pr.re * e.re + pr.im * e.im);
+                            for j in i..np {
+                                h[(i, j)] += ww * (pr.re * psi[j].re + pr.im * psi[j].im);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        for i in 0..np {
+            for j in 0..i {
+                h[(i, j)] = h[(j, i)];
+            }
+        }
+        if !v.is_finite() || grad.iter().any(|x| !x.is_finite()) {
+            return Err(Error::Numerical("non-finite cost or gradient".into()));
+        }
+        Ok((v, grad, h))
+    }
+
+    /// Levenberg–Marquardt from `theta0`. Never errors: a failed start is a status.
+    pub fn solve(&self, theta0: &[f64], spec: &FitSpec) -> FitOutcome {
+        let np = self.n_params();
+        let mut z = self.to_z(theta0);
+        let mut evals = 0usize;
+        let fail = |evals| FitOutcome {
+            theta: theta0.to_vec(),
+            cost: f64::INFINITY,
+            status: FitStatus::Failed,
+            iterations: 0,
+            evaluations: evals,
+        };
+        let mut theta = self.to_theta(&z);
+        let (mut v, mut g, mut h) = match self.normal_equations(&theta, true) {
+            Ok(x) => x,
+            Err(_) => return fail(1),
+        };
+        evals += 1;
+        let mut lambda = 1e-3;
+        let mut nu = 2.0;
+        let mut iters = 0usize;
+        let mut status = FitStatus::MaxIterations;
+        while iters < spec.max_iter {
+            if crate::io::stop::requested() {
+                status = FitStatus::Interrupted;
+                break;
+            }
+            iters += 1;
+            let gmax = g.amax();
+            if gmax <= 1e-14 * v.max(f64::MIN_POSITIVE) {
+                status = FitStatus::ConvergedGtol;
+                break;
+            }
+            let dmax = (0..np).map(|i| h[(i, i)]).fold(0.0, f64::max);
+            let mut accepted = false;
+            while !accepted {
+                let mut a = h.clone();
+                for i in 0..np {
+                    a[(i, i)] += lambda * h[(i, i)].max(1e-12 * dmax).max(f64::MIN_POSITIVE);
+                }
+                let step = match a.cholesky() {
+                    Some(c) => c.solve(&(-&g)),
+                    None => {
+                        lambda *= nu;
+                        nu *= 2.0;
+                        if lambda > 1e16 {
+                            break;
+                        }
+                        continue;
+                    }
+                };
+                let pred = -(2.0 * g.dot(&step) + (step.transpose() * &h * &step)[(0, 0)]);
+                let zn: Vec<f64> = z.iter().zip(step.iter()).enumerate().map(|(i, (a, b))| self.clamp(i, a + b)).collect();
+                let step = DVector::from_fn(np, |i, _| zn[i] - z[i]);
+                let tn = self.to_theta(&zn);
+                evals += 1;
+                let vn = self.cost(&tn).unwrap_or(f64::INFINITY);
+                let rho = if pred > 0.0 { (v - vn) / pred } else { -1.0 };
+                if vn < v && rho > 0.0 {
+                    let rel = (v - vn) / v.max(f64::MIN_POSITIVE);
+                    let snorm = step.amax();
+                    z = zn;
+                    theta = tn;
+                    lambda *= (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3));
+                    nu = 2.0;
+                    accepted = true;
+                    match self.normal_equations(&theta, true) {
+                        Ok((a, b, c)) => {
+                            v = a;
+                            g = b;
+                            h = c;
+                            evals += 1;
+                        }
+                        Err(_) => {
+                            status = FitStatus::Stalled;
+                            return FitOutcome {
+                                theta,
+                                cost: vn,
+                                status,
+                                iterations: iters,
+                                evaluations: evals,
+                            };
+                        }
+                    }
+                    // a tiny decrease only means convergence for a (near) Gauss–Newton step,
+                    // not for a short step forced by a large damping λ
+                    if rel < spec.ftol && lambda < 1.0 {
+                        status = FitStatus::ConvergedFtol;
+                    } else if snorm < spec.xtol {
+                        status = FitStatus::ConvergedXtol;
+                    }
+                } else {
+                    lambda *= nu;
+                    nu *= 2.0;
+                    if lambda > 1e16 {
+                        break;
+                    }
+                }
+            }
+            if !accepted {
+                status = FitStatus::Stalled;
+                break;
+            }
+            if status != FitStatus::MaxIterations {
+                break;
+            }
+        }
+        FitOutcome {
+            theta,
+            cost: v,
+            status,
+            iterations: iters,
+            evaluations: evals,
+        }
+    }
+
+    /// Asymptotic covariance of the estimate at `theta` (paper 001 eq. 5):
+    /// P = ½ H⁻¹ S H⁻¹, H = Σ Re{Ψ̄ Ξ Ψᵀ}, S = Σ Re{Ψ̄ Ξ Λ̂0 Ξ Ψᵀ}, with Ξ the
+    /// estimator's weights, Λ̂0 the data variances in the estimator's domain
+    /// (σ̂² for NLS, σ̂²/|G(θ)|² for LLS) and Ψ = ∂E/∂θ (physical units).
+    pub fn covariance(&self, theta: &[f64]) -> Result<DMatrix<f64>> {
+        let np = self.n_params();
+        let vals = self.model.full_values(theta)?;
+        let mut dg = Vec::new();
+        let mut h: DMatrix<f64> = DMatrix::zeros(np, np);
+        let mut s: DMatrix<f64> = DMatrix::zeros(np, np);
+        let mut psi = vec![C64::new(0.0, 0.0); np];
+        for (pi, p) in self.pos.iter().enumerate() {
+            let lin = self.model.linear_model(&p.op, &vals);
+            for (k, &w) in self.omegas.iter().enumerate() {
+                let wk = &self.weights[pi][k];
+                if wk.iter().all(|x| *x == 0.0) {
+                    continue;
+                }
+                let g = self.kernel.eval(&lin, &p.op, w, self.output, true, &mut dg)?;
+                for a in 0..g.nrows() {
+                    for b in 0..g.ncols() {
+                        let ww = wk[(a, b)];
+                        if ww == 0.0 {
+                            continue;
+                        }
+                        let var = match self.estimator {
+                            Estimator::Nls => p.var[k][(a, b)],
+                            _ => p.var[k][(a, b)] / g[(a, b)].norm_sqr(),
+                        };
+                        for i in 0..np {
+                            psi[i] = self.dresidual(g[(a, b)], dg[i][(a, b)]);
+                        }
+                        for i in 0..np {
+                            for j in i..np {
+                                let r = psi[i].re * psi[j].re + psi[i].im * psi[j].im;
+                                h[(i, j)] += ww * r;
+                                s[(i, j)] += ww * ww * var * r;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        for i in 0..np {
+            for j in 0..i {
+                h[(i, j)] = h[(j, i)];
+                s[(i, j)] = s[(j, i)];
+            }
+        }
+        // scale for conditioning: D H D with D = diag(θ)
+        let d: DVector<f64> = DVector::from_fn(np, |i, _| theta[i].abs().max(1e-300));
+        let hs = DMatrix::from_fn(np, np, |i, j| h[(i, j)] * d[i] * d[j]);
+        let ss = DMatrix::from_fn(np, np, |i, j| s[(i, j)] * d[i] * d[j]);
+        let hinv: DMatrix<f64> = hs
+            .clone()
+            .cholesky()
+            .map(|c| c.inverse())
+            .ok_or_else(|| Error::Numerical("the information matrix is singular: some unknowns do not influence the weighted FRFs".into()))?;
+        let ps: DMatrix<f64> = &hinv * ss * &hinv * 0.5;
+        Ok(DMatrix::from_fn(np, np, |i, j| ps[(i, j)] * d[i] * d[j]))
+    }
+}
