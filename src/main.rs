@@ -18,6 +18,8 @@ struct Cli {
 enum Cmd {
     /// Inspect a robot and evaluate its dynamics (info, torques, regressor).
     Robot(idexp::robot::cli::RobotArgs),
+    /// Optimal measurement positions by convex relaxed experiment design (D/A/E, Clarabel).
+    Positions(idexp::positions::cli::PositionsArgs),
 }
 
 fn main() {
@@ -42,6 +44,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     });
     match &cli.cmd {
         Cmd::Robot(a) => idexp::robot::cli::run(a)?,
+        Cmd::Positions(a) => idexp::positions::cli::run(a)?,
     }
     Ok(())
 }

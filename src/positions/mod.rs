@@ -16,11 +16,23 @@
 //! * [`conic`]: the Clarabel formulations (SOCP for D and A, SDP for E and as
 //!   a D cross-check).
 //! * [`relax`]: the pipeline and the Kiefer–Wolfowitz certificate.
+//! * [`rounding`]: efficient rounding and exchange to whole experiments.
+//! * [`information`]: information sources (rigid local excitation, JSON file).
+//! * [`candidates`]: grids, random samples, CSV files, workspace filtering.
+//! * [`design`]: the design file and [`design::run_design`]; [`cli`]: `idexp positions`.
+pub mod candidates;
+pub mod cli;
 pub mod conic;
+pub mod design;
 pub mod firstorder;
+pub mod information;
 pub mod problem;
 pub mod relax;
+pub mod rounding;
 
 pub use conic::Formulation;
 pub use problem::{Criterion, Problem};
 pub use relax::{certify, solve_relaxed, Certificate, Relaxed, SolverOptions, Status};
+pub use design::{run_design, PositionsDesign, PositionsRun};
+pub use information::{InformationFile, InformationSource, RigidSource};
+pub use rounding::{efficient_rounding, round_design, Rounded};

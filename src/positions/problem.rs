@@ -236,6 +236,31 @@ impl Problem {
         }
     }
 
+    /// Drops directions of every factor with σ_k² ≤ `tol` (absolute: meant for a
+    /// whitened problem, where M ≈ I, so the information left out is at most
+    /// `tol` per candidate in every direction). Used to shrink the conic problem;
+    /// certificates are always computed with the exact matrices.
+    pub fn truncated(&self, tol: f64) -> Problem {
+        let factors: Vec<DMatrix<f64>> = (0..self.n())
+            .map(|i| {
+                let h = self.factor(i).into_owned();
+                if h.ncols() <= 1 {
+                    return h;
+                }
+                let f = &h * h.transpose();
+                let eig = f.symmetric_eigen();
+                let keep: Vec<usize> = (0..self.p).filter(|&k| eig.eigenvalues[k] > tol).collect();
+                if keep.len() >= h.ncols() {
+                    return h;
+                }
+                DMatrix::from_fn(self.p, keep.len(), |a, c| eig.eigenvectors[(a, keep[c])] * eig.eigenvalues[keep[c]].sqrt())
+            })
+            .collect();
+        let mut out = Problem::from_factors(self.p, &factors, None).unwrap_or_else(|_| self.clone());
+        out.prior = self.prior.clone();
+        out
+    }
+
     /// Multiplies every F_i by c_i⁻¹ (costs: weights become fractions of the budget).
     pub fn divided_by(&self, costs: &[f64]) -> Problem {
         let mut g = self.g.clone();

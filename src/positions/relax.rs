@@ -64,6 +64,10 @@ pub struct SolverOptions {
     pub max_iter: u32,
     /// Clarabel time limit per solve, seconds (absent: none).
     pub time_limit: Option<f64>,
+    /// Factor directions with eigenvalue ≤ this (in the whitened problem, where
+    /// M ≈ I) are left out of the conic problem (D, A); the certificate always
+    /// uses the exact matrices. 0 keeps everything.
+    pub factor_tol: f64,
     /// Print Clarabel's iteration log.
     pub verbose: bool,
 }
@@ -75,11 +79,12 @@ impl Default for SolverOptions {
             tol: 1e-6,
             prune: true,
             first_order_iters: 3000,
-            first_order_eps: 1e-4,
+            first_order_eps: 1e-5,
             max_rounds: 8,
             clarabel_tol: 1e-8,
             max_iter: 200,
             time_limit: None,
+            factor_tol: 1e-9,
             verbose: false,
         }
     }
@@ -100,6 +105,9 @@ impl SolverOptions {
         }
         if !(self.clarabel_tol > 0.0 && self.clarabel_tol < 1e-3) {
             return bad("clarabel_tol", "expected 0 < clarabel_tol < 1e-3");
+        }
+        if !(self.factor_tol >= 0.0 && self.factor_tol < 1e-2) {
+            return bad("factor_tol", "expected 0 ≤ factor_tol < 1e-2");
         }
         if self.max_iter == 0 {
             return bad("max_iter", "expected at least 1");
@@ -341,7 +349,14 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
                 w = vec![1.0; live.len()];
             }
             firstorder::normalise(&mut w);
-            (live, w)
+            // first working set: the first-order support and the largest d_i of the pool
+            let sub = pbs.subset(&live);
+            let ev = sub.evaluate(Criterion::D, &w)?;
+            let mut pick: Vec<usize> = (0..live.len()).filter(|&i| w[i] > 0.0).collect();
+            pick.extend(top_k(&ev.sens, (p / 2).max(4)));
+            pick.sort_unstable();
+            pick.dedup();
+            (pick.iter().map(|&i| live[i]).collect(), pick.iter().map(|&i| w[i]).collect())
         }
         Criterion::A | Criterion::E => {
             let mut w = uniform.clone();
@@ -383,9 +398,9 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
         let wmix: Vec<f64> = w_sub0.iter().map(|v| 0.9 * v + 0.1 / ws.len() as f64).collect();
         let t = chol_inverse_factor(&sub.information(&wmix));
         let res = match (crit, &t) {
-            (Criterion::D, Some(t)) => conic::solve_d(&sub.transformed(t), opts.formulation, &opts.conic()),
+            (Criterion::D, Some(t)) => conic::solve_d(&sub.transformed(t).truncated(opts.factor_tol), opts.formulation, &opts.conic()),
             (Criterion::D, None) => conic::solve_d(&sub, opts.formulation, &opts.conic()),
-            (Criterion::A, Some(t)) => conic::solve_a(&sub.transformed(t), t, &opts.conic()),
+            (Criterion::A, Some(t)) => conic::solve_a(&sub.transformed(t).truncated(opts.factor_tol), t, &opts.conic()),
             (Criterion::A, None) => conic::solve_a(&sub, &DMatrix::identity(p, p), &opts.conic()),
             (Criterion::E, _) => conic::solve_e(&sub, &opts.conic()),
         };
