@@ -126,62 +126,66 @@ pub fn normalise(w: &mut [f64]) {
     }
 }
 
-/// Maximises φ(α) = Σ_k ln(1 + α μ_k) over [0, α_max] (concave): the exact
-/// line search of log det along M + α·E after whitening.
-fn line_search(mu: &[f64], amax: f64) -> f64 {
-    let dphi = |a: f64| mu.iter().map(|m| m / (1.0 + a * m)).sum::<f64>();
-    if dphi(0.0) <= 0.0 {
+/// Exact line search along M + αE (α ∈ [0, α_max]) after whitening M = LLᵀ,
+/// L⁻¹EL⁻ᵀ = V diag(μ) Vᵀ: minimises ψ(α) = −Σ ln(1 + αμ_k) (D) or
+/// Σ c_k/(1 + αμ_k), c_k = ‖L⁻ᵀv_k‖² (A: tr (M + αE)⁻¹). ψ is convex; its
+/// derivative is bisected.
+fn line_search(mu: &[f64], c: Option<&[f64]>, amax: f64) -> f64 {
+    let dpsi = |a: f64| -> f64 {
+        match c {
+            None => -mu.iter().map(|m| m / (1.0 + a * m)).sum::<f64>(),
+            Some(c) => -mu.iter().zip(c).map(|(m, c)| c * m / (1.0 + a * m).powi(2)).sum::<f64>(),
+        }
+    };
+    if dpsi(0.0) >= 0.0 {
         return 0.0;
     }
-    // the domain ends where 1 + α μ_k = 0 for the most negative μ
     let mut hi = amax;
     let mneg = mu.iter().cloned().fold(0.0f64, f64::min);
     if mneg < 0.0 {
         hi = hi.min(-1.0 / mneg * (1.0 - 1e-12));
     }
-    if dphi(hi) >= 0.0 {
+    if dpsi(hi) <= 0.0 {
         return hi;
     }
     let mut lo = 0.0;
-    // safeguarded Newton on φ' (decreasing)
-    let mut a = 0.5 * (lo + hi);
-    for _ in 0..100 {
-        let g = dphi(a);
-        if g > 0.0 {
-            lo = a;
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if dpsi(mid) < 0.0 {
+            lo = mid;
         } else {
-            hi = a;
+            hi = mid;
         }
-        let h: f64 = -mu.iter().map(|m| (m / (1.0 + a * m)).powi(2)).sum::<f64>();
-        let mut next = if h < 0.0 { a - g / h } else { 0.5 * (lo + hi) };
-        if !(next > lo && next < hi) {
-            next = 0.5 * (lo + hi);
-        }
-        if (next - a).abs() <= 1e-15 * a.abs().max(1e-300) || hi - lo < 1e-16 {
-            a = next;
+        if hi - lo <= 1e-16 * hi.max(1e-300) {
             break;
         }
-        a = next;
     }
-    a
+    0.5 * (lo + hi)
 }
 
 /// Frank–Wolfe with away steps for D on `pb` from `w` (in place), until
 /// ε = max d − δ ≤ `eps_target`, `max_iter` steps or a stop request.
 pub fn fw_away_d(pb: &Problem, w: &mut [f64], max_iter: usize, eps_target: f64) -> Result<FirstOrderLog> {
+    fw_away(pb, Criterion::D, w, max_iter, eps_target)
+}
+
+/// Frank–Wolfe with away steps and exact line search for D or A (E has no
+/// smooth gradient: it falls back to A). ε = max_i s_i − Σ w_i s_i is the
+/// Frank–Wolfe gap (an upper bound on the criterion's distance to the optimum).
+pub fn fw_away(pb: &Problem, crit: Criterion, w: &mut [f64], max_iter: usize, eps_target: f64) -> Result<FirstOrderLog> {
+    let crit = if crit == Criterion::E { Criterion::A } else { crit };
     let p = pb.p();
     let mut log = FirstOrderLog::default();
     for it in 0..max_iter {
-        let ev = pb.evaluate(Criterion::D, w)?;
-        let delta = p as f64 - ev.prior_term;
-        let (j, dmax) = ev.max_sens();
-        log.eps = dmax - delta;
+        let ev = pb.evaluate(crit, w)?;
+        let (j, smax) = ev.max_sens();
+        let mean = ev.mean;
+        log.eps = smax - mean;
         log.iterations = it;
         if log.eps <= eps_target || crate::io::stop::requested() {
             return Ok(log);
         }
-        // away vertex: smallest d among the support
-        let (k, dmin) = w
+        let (k, smin) = w
             .iter()
             .zip(&ev.sens)
             .enumerate()
@@ -191,13 +195,16 @@ pub fn fw_away_d(pb: &Problem, w: &mut [f64], max_iter: usize, eps_target: f64) 
             Some(c) => c,
             None => return Ok(log),
         };
-        let linv = chol.l().solve_lower_triangular(&DMatrix::identity(p, p)).unwrap_or_else(|| DMatrix::identity(p, p));
+        let linv = match chol.l().solve_lower_triangular(&DMatrix::identity(p, p)) {
+            Some(l) => l,
+            None => return Ok(log),
+        };
         let n_mat = match pb.prior() {
             Some(f0) => &ev.m - f0,
             None => ev.m.clone(),
         };
         let b = &linv * &n_mat * linv.transpose();
-        let toward = k == usize::MAX || dmax - delta >= delta - dmin || w[k] >= 1.0;
+        let toward = k == usize::MAX || smax - mean >= mean - smin || w[k] >= 1.0;
         let (e, amax) = if toward {
             let hj = &linv * pb.factor(j);
             (&hj * hj.transpose() - &b, 1.0)
@@ -207,8 +214,15 @@ pub fn fw_away_d(pb: &Problem, w: &mut [f64], max_iter: usize, eps_target: f64) 
         };
         let mut e = e;
         super::problem::symmetrize(&mut e);
-        let mu: Vec<f64> = e.symmetric_eigenvalues().iter().copied().collect();
-        let a = line_search(&mu, amax);
+        let eig = e.symmetric_eigen();
+        let mu: Vec<f64> = eig.eigenvalues.iter().copied().collect();
+        let a = if crit == Criterion::A {
+            let lt = linv.transpose();
+            let c: Vec<f64> = (0..p).map(|q| (&lt * eig.eigenvectors.column(q)).norm_squared()).collect();
+            line_search(&mu, Some(&c), amax)
+        } else {
+            line_search(&mu, None, amax)
+        };
         if a <= 0.0 {
             return Ok(log);
         }

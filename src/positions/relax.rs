@@ -58,7 +58,8 @@ pub struct SolverOptions {
     pub first_order_eps: f64,
     /// Working-set rounds (Clarabel solves) at most.
     pub max_rounds: usize,
-    /// Clarabel gap/feasibility tolerance.
+    /// Clarabel gap/feasibility tolerance for D (A and E use 1/100 of it: their
+    /// certificates use gradients of the IPM answer, with no first-order polish).
     pub clarabel_tol: f64,
     /// Clarabel iteration limit.
     pub max_iter: u32,
@@ -119,9 +120,9 @@ impl SolverOptions {
         }
         Ok(())
     }
-    fn conic(&self) -> ConicSettings {
+    fn conic(&self, crit: Criterion) -> ConicSettings {
         ConicSettings {
-            tol: self.clarabel_tol,
+            tol: if crit == Criterion::D { self.clarabel_tol } else { 1e-2 * self.clarabel_tol },
             max_iter: self.max_iter,
             time_limit: self.time_limit.unwrap_or(f64::INFINITY),
             verbose: self.verbose,
@@ -262,7 +263,7 @@ pub struct SolveLog {
     pub pruned_to: usize,
     /// The Clarabel rounds.
     pub rounds: Vec<Round>,
-    /// Polishing Frank–Wolfe iterations after Clarabel (D only; 0 if not needed).
+    /// Polishing Frank–Wolfe iterations after Clarabel (D and A; 0 if not needed).
     pub polish_iterations: usize,
     /// Wall time of the first-order phase (s).
     pub first_order_time: f64,
@@ -289,6 +290,9 @@ pub struct Relaxed {
     pub status: Status,
     /// Solver log.
     pub log: SolveLog,
+    /// For E: the unit-trace PSD matrix Z of the certificate (the SDP dual).
+    #[serde(skip)]
+    pub dual: Option<DMatrix<f64>>,
 }
 
 fn chol_inverse_factor(m: &DMatrix<f64>) -> Option<DMatrix<f64>> {
@@ -382,6 +386,7 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
     log.pruned_to = ws.len();
     // --- Clarabel rounds
     let mut best: Option<(Vec<f64>, Certificate, Evaluation)> = None;
+    let mut best_z: Option<DMatrix<f64>> = None;
     let mut status = Status::NotCertified;
     for _round in 0..opts.max_rounds {
         if crate::io::stop::requested() {
@@ -397,12 +402,22 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
         // congruence scaling at the warm-start design (mixed with uniform to stay PD)
         let wmix: Vec<f64> = w_sub0.iter().map(|v| 0.9 * v + 0.1 / ws.len() as f64).collect();
         let t = chol_inverse_factor(&sub.information(&wmix));
+        // objective-level scaling: O(1) criterion values at the warm start
+        // (Clarabel's absolute tolerances then mean relative accuracy)
         let res = match (crit, &t) {
-            (Criterion::D, Some(t)) => conic::solve_d(&sub.transformed(t).truncated(opts.factor_tol), opts.formulation, &opts.conic()),
-            (Criterion::D, None) => conic::solve_d(&sub, opts.formulation, &opts.conic()),
-            (Criterion::A, Some(t)) => conic::solve_a(&sub.transformed(t).truncated(opts.factor_tol), t, &opts.conic()),
-            (Criterion::A, None) => conic::solve_a(&sub, &DMatrix::identity(p, p), &opts.conic()),
-            (Criterion::E, _) => conic::solve_e(&sub, &opts.conic()),
+            (Criterion::D, Some(t)) => conic::solve_d(&sub.transformed(t).truncated(opts.factor_tol), opts.formulation, &opts.conic(crit)),
+            (Criterion::D, None) => conic::solve_d(&sub, opts.formulation, &opts.conic(crit)),
+            (Criterion::A, Some(t)) => {
+                // tr(M⁻¹) = tr(Tᵀ M̃⁻¹ T); K = T/‖T‖_F makes the warm-start objective ≈ 1
+                let k = t / t.norm().max(f64::MIN_POSITIVE);
+                conic::solve_a(&sub.transformed(t).truncated(opts.factor_tol), &k, &opts.conic(crit))
+            }
+            (Criterion::A, None) => conic::solve_a(&sub, &DMatrix::identity(p, p), &opts.conic(crit)),
+            (Criterion::E, _) => {
+                let lmin = sub.information(&wmix).symmetric_eigen().eigenvalues.min();
+                let sc = if lmin > 0.0 && lmin.is_finite() { 1.0 / lmin } else { 1.0 };
+                conic::solve_e(&sub.scaled(sc), &opts.conic(crit))
+            }
         };
         log.clarabel_time += res.solve_time;
         let mut w_full = vec![0.0; n];
@@ -431,6 +446,7 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
         viol.truncate((2 * p).max(20));
         if better {
             best = Some((w_full.clone(), cert, ev));
+            best_z = z.clone();
         }
         if holds {
             status = Status::Optimal;
@@ -452,14 +468,26 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
         w_ws = order.iter().map(|&k| w_ws[k]).collect();
     }
     let (mut w, mut cert, mut ev) = best.ok_or(Error::Interrupted)?;
-    // polish (D): a few Frank–Wolfe steps on the support neighbourhood if the
-    // interior-point answer is not accurate enough
-    if crit == Criterion::D && !cert.holds && status != Status::Interrupted {
-        let thr = d_prune_threshold(p, cert.max_sensitivity, cert.prior_term);
-        let set: Vec<usize> = (0..n).filter(|&i| ev.sens[i] >= thr || w[i] > 0.0).collect();
+    // polish (D, A): Frank–Wolfe steps on the support neighbourhood if the
+    // interior-point answer is not accurate enough for the certificate
+    if crit != Criterion::E && !cert.holds && status != Status::Interrupted {
+        let set: Vec<usize> = if crit == Criterion::D {
+            let thr = d_prune_threshold(p, cert.max_sensitivity, cert.prior_term);
+            (0..n).filter(|&i| ev.sens[i] >= thr || w[i] > 0.0).collect()
+        } else {
+            let mut s: Vec<usize> = (0..n).filter(|&i| w[i] > 0.0).collect();
+            s.extend(top_k(&ev.sens, (2 * p).min(n)));
+            s.sort_unstable();
+            s.dedup();
+            s
+        };
         let sub = pbs.subset(&set);
         let mut ws_w: Vec<f64> = set.iter().map(|&i| w[i]).collect();
-        let lg = firstorder::fw_away_d(&sub, &mut ws_w, 2000, 0.1 * opts.tol * p as f64)?;
+        let target = match crit {
+            Criterion::D => 0.1 * opts.tol * p as f64,
+            _ => 0.1 * opts.tol * sub.evaluate(crit, &ws_w).map(|e| e.value).unwrap_or(0.0),
+        };
+        let lg = firstorder::fw_away(&sub, crit, &mut ws_w, 5000, target)?;
         log.polish_iterations = lg.iterations;
         let mut w2 = vec![0.0; n];
         for (k, &i) in set.iter().enumerate() {
@@ -487,5 +515,6 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
         certificate: cert,
         status,
         log,
+        dual: if crit == Criterion::E { best_z } else { None },
     })
 }

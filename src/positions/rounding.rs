@@ -50,7 +50,13 @@ pub struct Rounded {
 /// below `1e-5·max w` are treated as zero.
 pub fn efficient_rounding(w: &[f64], total: usize) -> Vec<usize> {
     let wmax = w.iter().cloned().fold(0.0, f64::max);
-    let supp: Vec<usize> = (0..w.len()).filter(|&i| w[i] > 1e-5 * wmax && wmax > 0.0).collect();
+    let mut supp: Vec<usize> = (0..w.len()).filter(|&i| w[i] > 1e-5 * wmax && wmax > 0.0).collect();
+    if supp.len() > total {
+        // fewer experiments than support points: the `total` largest weights
+        supp.sort_by(|&a, &b| w[b].total_cmp(&w[a]));
+        supp.truncate(total);
+        supp.sort_unstable();
+    }
     let mut m = vec![0usize; w.len()];
     if supp.is_empty() || total == 0 {
         return m;
@@ -216,7 +222,8 @@ pub fn round_design(
                     continue;
                 }
                 let s = score(crit, &(&base + &fmat[kj]));
-                if s > cur + 1e-12 * cur.abs().max(1.0) && best.map(|b| s > b.2).unwrap_or(true) {
+                let improves = if cur.is_finite() { s > cur + 1e-12 * cur.abs().max(1.0) } else { s.is_finite() };
+                if improves && best.map(|b| s > b.2).unwrap_or(true) {
                     best = Some((ki, kj, s));
                 }
             }
