@@ -16,7 +16,16 @@ fn run_cli(design: &str, out: &std::path::Path) -> serde_json::Value {
         .output()
         .unwrap();
     assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
-    for f in ["plan.csv", "plan.json", "candidates.csv", "report.json", "report.txt", "design.json", "status.json", "weights.svg"] {
+    for f in [
+        "plan.csv",
+        "plan.json",
+        "candidates.csv",
+        "report.json",
+        "report.txt",
+        "design.json",
+        "status.json",
+        "weights.svg",
+    ] {
         assert!(out.join(f).exists(), "{f} missing");
     }
     serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap()
@@ -47,7 +56,10 @@ fn rigid_design_runs_end_to_end() {
     let text = std::fs::read_to_string(common::root("designs/positions_industrial6_rigid.toml"))
         .unwrap()
         .replace("points = [9, 9, 5]", "points = [5, 5, 3]")
-        .replace("robots/industrial6.toml", &common::root("designs/robots/industrial6.toml").display().to_string());
+        .replace(
+            "robots/industrial6.toml",
+            &common::root("designs/robots/industrial6.toml").display().to_string(),
+        );
     let d = dir.path().join("small.toml");
     std::fs::write(&d, text).unwrap();
     let out = dir.path().join("out");
@@ -55,7 +67,7 @@ fn rigid_design_runs_end_to_end() {
     assert_eq!(rep["certificate"]["holds"], true, "{rep}");
     assert_eq!(rep["parameters"], 36);
     let support = rep["support"].as_u64().unwrap();
-    assert!(support >= 1 && support <= 60, "support {support}");
+    assert!((1..=60).contains(&support), "support {support}");
     let plan: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("plan.json")).unwrap()).unwrap();
     let rows = plan["rows"].as_array().unwrap();
     assert!(rows.iter().all(|r| r["q"].as_array().unwrap().len() == 6 && r["position"].is_array()));
@@ -91,7 +103,10 @@ fn efficient_rounding_apportions_exactly() {
         let l = w.iter().filter(|&&v| v > 0.0).count();
         if total >= l {
             // Pukelsheim–Rieder: every support point gets at least one, and m_i ≥ ⌊(M − l) w_i⌋
-            assert!(m.iter().zip(&w).all(|(m, w)| *w == 0.0 || (*m >= 1 && *m as f64 >= ((total - l) as f64 * w).floor())));
+            assert!(m
+                .iter()
+                .zip(&w)
+                .all(|(m, w)| *w == 0.0 || (*m >= 1 && *m as f64 >= ((total - l) as f64 * w).floor())));
         }
     }
 }
@@ -104,7 +119,17 @@ fn rounded_plan_is_no_better_than_relaxed_and_exchange_helps() {
     let pb = Problem::from_factors(p, &h, None).unwrap();
     let r = solve_relaxed(&pb, Criterion::D, &SolverOptions::default()).unwrap();
     for total in [5usize, 7, 12, 30] {
-        let rd = round_design(&pb, Criterion::D, &r.weights, &r.sensitivities, r.value, r.certificate.efficiency_bound, total as f64, None).unwrap();
+        let rd = round_design(
+            &pb,
+            Criterion::D,
+            &r.weights,
+            &r.sensitivities,
+            r.value,
+            r.certificate.efficiency_bound,
+            total as f64,
+            None,
+        )
+        .unwrap();
         assert_eq!(rd.total, total);
         assert!(rd.efficiency <= 1.0 + 1e-7, "integer plans cannot beat the relaxed optimum: {}", rd.efficiency);
         assert!(rd.efficiency + 1e-12 >= rd.efficiency_apportionment);
@@ -147,7 +172,17 @@ fn budget_with_costs_is_respected() {
     let pb = Problem::from_factors(p, &h, None).unwrap().divided_by(&costs);
     let r = solve_relaxed(&pb, Criterion::D, &SolverOptions::default()).unwrap();
     assert!(r.certificate.holds);
-    let rd = round_design(&pb, Criterion::D, &r.weights, &r.sensitivities, r.value, r.certificate.efficiency_bound, 20.0, Some(&costs)).unwrap();
+    let rd = round_design(
+        &pb,
+        Criterion::D,
+        &r.weights,
+        &r.sensitivities,
+        r.value,
+        r.certificate.efficiency_bound,
+        20.0,
+        Some(&costs),
+    )
+    .unwrap();
     let spent: f64 = rd.m.iter().zip(&costs).map(|(m, c)| *m as f64 * c).sum();
     assert!(spent <= 20.0 + 1e-9 && (spent - rd.cost).abs() < 1e-9);
     assert!(rd.efficiency <= 1.0 + 1e-7 && rd.efficiency > 0.5, "{}", rd.efficiency);

@@ -99,7 +99,11 @@ fn reference(f: &[DMatrix<f64>], f0: Option<&DMatrix<f64>>, a_opt: bool, rel_gap
         }
     }
     let m = info(f, f0, &w);
-    let v = if a_opt { m.cholesky().unwrap().inverse().trace() } else { logdet(&m).unwrap() };
+    let v = if a_opt {
+        m.cholesky().unwrap().inverse().trace()
+    } else {
+        logdet(&m).unwrap()
+    };
     (v, gap)
 }
 
@@ -131,7 +135,11 @@ fn check_d(n: usize, p: usize, rank: usize, seed: u64, with_prior: bool) {
     }
     let (vref, gap) = reference(&f, f0.as_ref(), false, 1e-10, 200_000);
     assert!(gap <= 1e-9 * vref.abs().max(1.0), "reference did not converge: gap {gap}");
-    assert!((r.value - vref).abs() <= 1e-6 * vref.abs().max(1.0), "n={n} p={p}: idexp {} vs reference {vref}", r.value);
+    assert!(
+        (r.value - vref).abs() <= 1e-6 * vref.abs().max(1.0),
+        "n={n} p={p}: idexp {} vs reference {vref}",
+        r.value
+    );
 }
 
 #[test]
@@ -201,7 +209,10 @@ fn e_optimal_weak_duality_certificate() {
         let r = solve_relaxed(&pb, Criterion::E, &SolverOptions::default()).unwrap();
         let z = r.dual.clone().expect("E returns its dual matrix");
         let ez = z.clone().symmetric_eigen();
-        assert!(ez.eigenvalues.min() >= -1e-10 && (z.trace() - 1.0).abs() < 1e-9, "Z must be PSD with unit trace");
+        assert!(
+            ez.eigenvalues.min() >= -1e-10 && (z.trace() - 1.0).abs() < 1e-9,
+            "Z must be PSD with unit trace"
+        );
         let lmin = info(&f, None, &r.weights).symmetric_eigen().eigenvalues.min();
         let upper = f.iter().map(|fi| z.component_mul(fi).sum()).fold(f64::NEG_INFINITY, f64::max);
         assert!(lmin <= upper * (1.0 + 1e-12));
@@ -228,7 +239,9 @@ fn weights_invariant_to_parameter_scaling_for_d() {
 #[test]
 fn unidentifiable_candidate_set_is_an_error() {
     // all candidates see only the first 3 of 5 parameters
-    let h: Vec<DMatrix<f64>> = (0..20).map(|i| DMatrix::from_fn(5, 1, |r, _| if r < 3 { (i + r) as f64 + 1.0 } else { 0.0 })).collect();
+    let h: Vec<DMatrix<f64>> = (0..20)
+        .map(|i| DMatrix::from_fn(5, 1, |r, _| if r < 3 { (i + r) as f64 + 1.0 } else { 0.0 }))
+        .collect();
     let pb = Problem::from_factors(5, &h, None).unwrap();
     let e = solve_relaxed(&pb, Criterion::D, &SolverOptions::default()).unwrap_err();
     assert!(e.to_string().contains("not identifiable"), "{e}");

@@ -32,7 +32,7 @@ fn rigid_information_is_the_stacked_base_regressor_gram_matrix() {
     let sig = vec![2.0, 2.0, 1.0, 0.5, 0.5, 0.2];
     let src = RigidSource::new(r.clone(), &cands.q, true, amp.clone(), 2.0, 16, sig.clone()).unwrap();
     let p = src.n_params();
-    assert!(p >= 20 && p <= 36, "p = {p}");
+    assert!((20..=36).contains(&p), "p = {p}");
     // independent computation: the trajectory formula, robot::regressor, base columns
     let q0 = &cands.q[5];
     let mut ws = Workspace::new(&r);
@@ -43,7 +43,9 @@ fn rigid_information_is_the_stacked_base_regressor_gram_matrix() {
         let t = k as f64 * 2.0 / 16.0;
         let q: Vec<f64> = (0..n).map(|j| q0[j] + amp[j] * ((j + 1) as f64 * om * t).sin()).collect();
         let qd: Vec<f64> = (0..n).map(|j| amp[j] * (j + 1) as f64 * om * ((j + 1) as f64 * om * t).cos()).collect();
-        let qdd: Vec<f64> = (0..n).map(|j| -amp[j] * ((j + 1) as f64 * om).powi(2) * ((j + 1) as f64 * om * t).sin()).collect();
+        let qdd: Vec<f64> = (0..n)
+            .map(|j| -amp[j] * ((j + 1) as f64 * om).powi(2) * ((j + 1) as f64 * om * t).sin())
+            .collect();
         robot::regressor(&r, &mut ws, &q, &qd, &qdd, &mut y);
         let yb = DMatrix::from_fn(n, p, |i, c| y[(i, src.base.independent[c])] / sig[i]);
         f += yb.transpose() * &yb;
@@ -111,7 +113,9 @@ fn candidate_errors_name_the_field() {
     let r = robot::load(&common::root("designs/robots/industrial6.toml")).unwrap();
     let e = grid(vec![7], vec![3]).generate(&r, &[0.0; 6], 1, Path::new("."), "d.toml").unwrap_err();
     assert!(e.to_string().contains("candidates.joints"), "{e}");
-    let e = grid(vec![2, 3], vec![3, 3, 3]).generate(&r, &[0.0; 6], 1, Path::new("."), "d.toml").unwrap_err();
+    let e = grid(vec![2, 3], vec![3, 3, 3])
+        .generate(&r, &[0.0; 6], 1, Path::new("."), "d.toml")
+        .unwrap_err();
     assert!(e.to_string().contains("candidates.points"), "{e}");
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("c.csv"), "q1,q2,q3,q4,q5\n0,0,0,0,0\n").unwrap();
@@ -148,12 +152,30 @@ fn information_file_format() {
     assert!(f.prior.is_some());
     let cases = [
         (r#"{"parameters": ["a"], "candidates": [{"information": [[1]]}], "extra": 1}"#, "extra"),
-        (r#"{"parameters": ["a", "b"], "candidates": [{"information": [[1, 0], [0]]}]}"#, "candidates[0].information"),
-        (r#"{"parameters": ["a", "b"], "candidates": [{"information": [[1, 0.5], [0, 1]]}]}"#, "not symmetric"),
-        (r#"{"parameters": ["a", "b"], "candidates": [{"information": [[1, 2], [2, 1]]}]}"#, "not positive semidefinite"),
-        (r#"{"parameters": ["a"], "candidates": [{"information": [[1]], "jacobian": [[1]]}]}"#, "exactly one"),
-        (r#"{"parameters": ["a"], "candidates": [{"q": [1], "information": [[1]]}, {"information": [[1]]}]}"#, "candidates[1].q"),
-        (r#"{"parameters": ["a"], "candidates": [{"information": [[1]], "cost": -1}]}"#, "candidates[0].cost"),
+        (
+            r#"{"parameters": ["a", "b"], "candidates": [{"information": [[1, 0], [0]]}]}"#,
+            "candidates[0].information",
+        ),
+        (
+            r#"{"parameters": ["a", "b"], "candidates": [{"information": [[1, 0.5], [0, 1]]}]}"#,
+            "not symmetric",
+        ),
+        (
+            r#"{"parameters": ["a", "b"], "candidates": [{"information": [[1, 2], [2, 1]]}]}"#,
+            "not positive semidefinite",
+        ),
+        (
+            r#"{"parameters": ["a"], "candidates": [{"information": [[1]], "jacobian": [[1]]}]}"#,
+            "exactly one",
+        ),
+        (
+            r#"{"parameters": ["a"], "candidates": [{"q": [1], "information": [[1]]}, {"information": [[1]]}]}"#,
+            "candidates[1].q",
+        ),
+        (
+            r#"{"parameters": ["a"], "candidates": [{"information": [[1]], "cost": -1}]}"#,
+            "candidates[0].cost",
+        ),
         (r#"{"parameters": ["a", "a"], "candidates": [{"jacobian": [[1, 1]]}]}"#, "parameters"),
         (r#"{"parameters": ["a"], "candidates": []}"#, "candidates"),
         (r#"{"parameters": ["a"], "candidates": [{"information": [[1]]}], "prior": [[-1]]}"#, "prior"),
@@ -173,15 +195,27 @@ fn design_file_errors() {
         let e = PositionsDesign::read(&p).unwrap_err().to_string();
         assert!(e.contains(needle), "expected {needle:?} in: {e}");
     };
-    check("name = \"x\"\ncriterion = \"d\"\ntypo = 1\n[information]\nsource = \"file\"\npath = \"a.json\"\n", "typo");
-    check("name = \"x\"\ncriterion = \"q\"\n[information]\nsource = \"file\"\npath = \"a.json\"\n", "line 2");
+    check(
+        "name = \"x\"\ncriterion = \"d\"\ntypo = 1\n[information]\nsource = \"file\"\npath = \"a.json\"\n",
+        "typo",
+    );
+    check(
+        "name = \"x\"\ncriterion = \"q\"\n[information]\nsource = \"file\"\npath = \"a.json\"\n",
+        "line 2",
+    );
     check("name = \"x\"\n[information]\nsource = \"rigid\"\n", "robot");
     check("name = \"x\"\nrobot = \"r.toml\"\n[information]\nsource = \"rigid\"\n", "candidates");
     check(
         "name = \"x\"\n[information]\nsource = \"file\"\npath = \"a.json\"\n[candidates]\nkind = \"grid\"\n",
         "candidates",
     );
-    check("name = \"x\"\nexperiments = 0\n[information]\nsource = \"file\"\npath = \"a.json\"\n", "experiments");
-    check("name = \"x\"\n[information]\nsource = \"file\"\npath = \"a.json\"\n[solver]\ntol = 2.0\n", "solver.tol");
+    check(
+        "name = \"x\"\nexperiments = 0\n[information]\nsource = \"file\"\npath = \"a.json\"\n",
+        "experiments",
+    );
+    check(
+        "name = \"x\"\n[information]\nsource = \"file\"\npath = \"a.json\"\n[solver]\ntol = 2.0\n",
+        "solver.tol",
+    );
     check("name = \"x\"\n[information]\nsource = \"elastik\"\npath = \"a.json\"\n", "elastik");
 }

@@ -151,7 +151,7 @@ impl CandidateSpec {
                         Some(v) if v.len() == nv => v.clone(),
                         Some(_) => return Err(bad("points", format!("expected one number or {nv} (one per varied joint)"))),
                     };
-                    if pts.iter().any(|&k| k == 0) {
+                    if pts.contains(&0) {
                         return Err(bad("points", "expected at least 1 point per joint".into()));
                     }
                     let total = pts.iter().try_fold(1usize, |a, &k| a.checked_mul(k)).filter(|&t| t <= 2_000_000);

@@ -221,7 +221,12 @@ pub fn write_outputs(run: &PositionsRun, out: &Path) -> Result<()> {
         hlines: vec![(rel.certificate.reference, "optimum level".into())],
         ..Default::default()
     };
-    write_svg(&out.join("weights.svg"), &format!("{}: weights over the candidates", run.design.name), &[p1, p2], 1)?;
+    write_svg(
+        &out.join("weights.svg"),
+        &format!("{}: weights over the candidates", run.design.name),
+        &[p1, p2],
+        1,
+    )?;
     if nq > 0 {
         // the two joints that vary most
         let mut var: Vec<(usize, f64)> = (0..nq)
@@ -252,7 +257,10 @@ pub fn write_outputs(run: &PositionsRun, out: &Path) -> Result<()> {
                     title: format!("frame origin, {t}"),
                     x_label: lab[a].into(),
                     y_label: lab[b].into(),
-                    series: vec![Series::points("candidates", get(&pa, a), get(&pa, b)), Series::points("plan", get(&pos, a), get(&pos, b))],
+                    series: vec![
+                        Series::points("candidates", get(&pa, a), get(&pa, b)),
+                        Series::points("plan", get(&pos, a), get(&pos, b)),
+                    ],
                     ..Default::default()
                 });
             }
@@ -280,7 +288,13 @@ pub fn report_text(run: &PositionsRun) -> String {
         run.generation.2,
         run.names.len()
     );
-    let _ = writeln!(s, "criterion: {}-optimal, {} = {:.10e}", rel.criterion.label(), rel.criterion.value_label(), rel.value);
+    let _ = writeln!(
+        s,
+        "criterion: {}-optimal, {} = {:.10e}",
+        rel.criterion.label(),
+        rel.criterion.value_label(),
+        rel.value
+    );
     let _ = writeln!(s, "status: {:?}", rel.status);
     let _ = writeln!(
         s,
@@ -291,7 +305,11 @@ pub fn report_text(run: &PositionsRun) -> String {
         c.reference,
         c.prior_term
     );
-    let _ = writeln!(s, "  efficiency >= {:.9} ({}); criterion gap <= {:.3e}; holds at tol {:.0e}: {}", c.efficiency_bound, c.formula, c.gap_bound, c.tol, c.holds);
+    let _ = writeln!(
+        s,
+        "  efficiency >= {:.9} ({}); criterion gap <= {:.3e}; holds at tol {:.0e}: {}",
+        c.efficiency_bound, c.formula, c.gap_bound, c.tol, c.holds
+    );
     let support = rel.weights.iter().filter(|&&w| w > 1e-6).count();
     let _ = writeln!(s, "relaxed support: {support} candidates (weight > 1e-6)");
     let l = &rel.log;

@@ -119,7 +119,7 @@ impl Triplets {
         r
     }
     fn csc(mut self, ncols: usize) -> CscMatrix<f64> {
-        self.t.sort_by(|a, b| (a.1, a.0).cmp(&(b.1, b.0)));
+        self.t.sort_by_key(|a| (a.1, a.0));
         let mut colptr = vec![0usize; ncols + 1];
         let mut rowval = Vec::with_capacity(self.t.len());
         let mut nzval: Vec<f64> = Vec::with_capacity(self.t.len());
@@ -190,7 +190,10 @@ fn solve(
     solver.solve();
     let sol = &solver.solution;
     let status = format!("{:?}", sol.status);
-    let ok = matches!(sol.status, clarabel::solver::SolverStatus::Solved | clarabel::solver::SolverStatus::AlmostSolved);
+    let ok = matches!(
+        sol.status,
+        clarabel::solver::SolverStatus::Solved | clarabel::solver::SolverStatus::AlmostSolved
+    );
     let mut w: Vec<f64> = sol.x[..n_w].to_vec();
     super::firstorder::normalise(&mut w);
     if w.iter().sum::<f64>() <= 0.0 || w.iter().any(|v| !v.is_finite()) {

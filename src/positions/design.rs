@@ -65,7 +65,11 @@ impl PerJoint {
             PerJoint::Many(v) => v.clone(),
         };
         if v.len() != n {
-            return Err(Error::invalid(ctx, field, format!("expected one value or {n} (one per joint), found {}", v.len())));
+            return Err(Error::invalid(
+                ctx,
+                field,
+                format!("expected one value or {n} (one per joint), found {}", v.len()),
+            ));
         }
         if v.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
             return Err(Error::invalid(ctx, field, "expected positive finite values"));
@@ -196,10 +200,18 @@ impl PositionsDesign {
         match &self.information {
             InformationSpec::File { .. } => {
                 if self.candidates.is_some() {
-                    return Err(Error::invalid(ctx, "candidates", "with source = \"file\" the candidates come from the information file; remove [candidates]"));
+                    return Err(Error::invalid(
+                        ctx,
+                        "candidates",
+                        "with source = \"file\" the candidates come from the information file; remove [candidates]",
+                    ));
                 }
                 if self.prior.is_some() {
-                    return Err(Error::invalid(ctx, "prior", "with source = \"file\" give the prior inside the information file"));
+                    return Err(Error::invalid(
+                        ctx,
+                        "prior",
+                        "with source = \"file\" give the prior inside the information file",
+                    ));
                 }
             }
             InformationSpec::Rigid { period, samples, .. } => {
@@ -250,7 +262,8 @@ pub struct PositionsRun {
 
 fn read_prior(path: &Path, p: usize) -> Result<DMatrix<f64>> {
     let text = crate::io::read_to_string(path)?;
-    let rows: Vec<Vec<f64>> = serde_json::from_str(&text).map_err(|e| Error::parse(path, format!("line {}: {e} (expected a p×p array of numbers)", e.line())))?;
+    let rows: Vec<Vec<f64>> =
+        serde_json::from_str(&text).map_err(|e| Error::parse(path, format!("line {}: {e} (expected a p×p array of numbers)", e.line())))?;
     let ctx = path.display().to_string();
     if rows.len() != p || rows.iter().any(|r| r.len() != p) {
         return Err(Error::invalid(ctx, "prior", format!("expected a {p}×{p} array (p = number of parameters)")));
@@ -298,7 +311,9 @@ pub fn run_design(design: &PositionsDesign, dir: &Path) -> Result<PositionsRun> 
             samples,
             noise,
         } => {
-            let r = robot.clone().ok_or_else(|| Error::invalid(&ctx, "robot", "source = \"rigid\" needs a robot file"))?;
+            let r = robot
+                .clone()
+                .ok_or_else(|| Error::invalid(&ctx, "robot", "source = \"rigid\" needs a robot file"))?;
             let n = r.dof();
             let amp = amplitude.resolve(n, &ctx, "information.amplitude")?;
             let sig = noise.resolve(n, &ctx, "information.noise")?;
@@ -309,25 +324,31 @@ pub fn run_design(design: &PositionsDesign, dir: &Path) -> Result<PositionsRun> 
             let c = spec.generate(&r, &amp, design.seed, dir, &ctx)?;
             let src = RigidSource::new(r, &c.q, *parameters == RigidParameters::Inertial, amp, *period, *samples, sig)?;
             let pb = crate::io::progress_bar(c.q.len() as u64, "information");
-            let factors: Vec<Result<DMatrix<f64>>> = c
-                .q
-                .par_iter()
-                .map_init(
-                    || Workspace::new(&src.robot),
-                    |ws, q| {
-                        let h = src.factor_with(ws, q);
-                        pb.inc(1);
-                        h
-                    },
-                )
-                .collect();
+            let factors: Vec<Result<DMatrix<f64>>> =
+                c.q.par_iter()
+                    .map_init(
+                        || Workspace::new(&src.robot),
+                        |ws, q| {
+                            let h = src.factor_with(ws, q);
+                            pb.inc(1);
+                            h
+                        },
+                    )
+                    .collect();
             pb.finish_and_clear();
             let factors = factors.into_iter().collect::<Result<Vec<_>>>()?;
             let prior = match &design.prior {
                 Some(pp) => Some(read_prior(&dir.join(pp), src.n_params())?),
                 None => None,
             };
-            (src.names(), c.q, factors, c.costs, prior, (c.generated, c.rejected_limits, c.rejected_workspace))
+            (
+                src.names(),
+                c.q,
+                factors,
+                c.costs,
+                prior,
+                (c.generated, c.rejected_limits, c.rejected_workspace),
+            )
         }
     };
     let information_time = t_info.elapsed().as_secs_f64();

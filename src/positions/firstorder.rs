@@ -307,9 +307,6 @@ pub fn d_warm_start(pb: &Problem, prune: bool, eps_target: f64, max_iter: usize)
                 continue;
             }
         }
-        if std::env::var_os("IDEXP_POS_DEBUG").is_some() {
-            eprintln!("pass {passes} it {iters} pool {} eps {eps:.3e}", pool.len());
-        }
         if eps <= eps_target || iters >= max_iter || crate::io::stop::requested() {
             break;
         }

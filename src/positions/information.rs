@@ -260,7 +260,11 @@ fn matrix_from_rows(rows: &[Vec<f64>], cols: usize, what: &str, path: &Path) -> 
     }
     for (r, row) in rows.iter().enumerate() {
         if row.len() != cols {
-            return Err(Error::invalid(&ctx, what, format!("row {} has {} entries, expected {cols} (one per parameter)", r + 1, row.len())));
+            return Err(Error::invalid(
+                &ctx,
+                what,
+                format!("row {} has {} entries, expected {cols} (one per parameter)", r + 1, row.len()),
+            ));
         }
         if let Some(c) = row.iter().position(|v| !v.is_finite()) {
             return Err(Error::invalid(&ctx, what, format!("row {}, column {}: expected a finite number", r + 1, c + 1)));
@@ -278,8 +282,7 @@ impl InformationFile {
 
     /// Parses JSON text (from `path`, for messages).
     pub fn parse(path: &Path, text: &str) -> Result<InformationFile> {
-        let data: InformationFileData =
-            serde_json::from_str(text).map_err(|e| Error::parse(path, format!("line {}, column {}: {e}", e.line(), e.column())))?;
+        let data: InformationFileData = serde_json::from_str(text).map_err(|e| Error::parse(path, format!("line {}, column {}: {e}", e.line(), e.column())))?;
         let ctx = path.display().to_string();
         let p = data.parameters.len();
         if p == 0 {
@@ -307,7 +310,10 @@ impl InformationFile {
                     return Err(Error::invalid(
                         &ctx,
                         field("q"),
-                        format!("expected {} finite joint values as in the first candidate", nq.map(|n| n.to_string()).unwrap_or("no".into())),
+                        format!(
+                            "expected {} finite joint values as in the first candidate",
+                            nq.map(|n| n.to_string()).unwrap_or("no".into())
+                        ),
                     ))
                 }
             }
@@ -315,12 +321,22 @@ impl InformationFile {
                 (Some(f), None) => {
                     let f = matrix_from_rows(f, p, &field("information"), path)?;
                     if f.nrows() != p {
-                        return Err(Error::invalid(&ctx, field("information"), format!("expected {p} rows (p×p), found {}", f.nrows())));
+                        return Err(Error::invalid(
+                            &ctx,
+                            field("information"),
+                            format!("expected {p} rows (p×p), found {}", f.nrows()),
+                        ));
                     }
                     psd_factor(&f, &format!("{ctx}: {}", field("information")))?
                 }
                 (None, Some(j)) => matrix_from_rows(j, p, &field("jacobian"), path)?.transpose(),
-                _ => return Err(Error::invalid(&ctx, field("information"), "give exactly one of `information` (p×p) or `jacobian` (r×p)")),
+                _ => {
+                    return Err(Error::invalid(
+                        &ctx,
+                        field("information"),
+                        "give exactly one of `information` (p×p) or `jacobian` (r×p)",
+                    ))
+                }
             };
             factors.push(h);
             match c.cost {

@@ -31,8 +31,8 @@ pub mod relax;
 pub mod rounding;
 
 pub use conic::Formulation;
-pub use problem::{Criterion, Problem};
-pub use relax::{certify, solve_relaxed, Certificate, Relaxed, SolverOptions, Status};
 pub use design::{run_design, PositionsDesign, PositionsRun};
 pub use information::{InformationFile, InformationSource, RigidSource};
+pub use problem::{Criterion, Problem};
+pub use relax::{certify, solve_relaxed, Certificate, Relaxed, SolverOptions, Status};
 pub use rounding::{efficient_rounding, round_design, Rounded};

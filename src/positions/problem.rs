@@ -112,7 +112,9 @@ pub fn psd_factor(f: &DMatrix<f64>, what: &str) -> Result<DMatrix<f64>> {
         )));
     }
     let keep: Vec<usize> = (0..p).filter(|&k| eig.eigenvalues[k] > RANK_TOL * lmax).collect();
-    Ok(DMatrix::from_fn(p, keep.len(), |i, c| eig.eigenvectors[(i, keep[c])] * eig.eigenvalues[keep[c]].sqrt()))
+    Ok(DMatrix::from_fn(p, keep.len(), |i, c| {
+        eig.eigenvectors[(i, keep[c])] * eig.eigenvalues[keep[c]].sqrt()
+    }))
 }
 
 impl Problem {
@@ -193,7 +195,7 @@ impl Problem {
     /// F_i = H_i H_iᵀ.
     pub fn matrix(&self, i: usize) -> DMatrix<f64> {
         let h = self.factor(i);
-        &h * h.transpose()
+        h * h.transpose()
     }
     /// The prior F_0, if any.
     pub fn prior(&self) -> Option<&DMatrix<f64>> {

@@ -114,7 +114,7 @@ impl SolverOptions {
             return bad("max_iter", "expected at least 1");
         }
         if let Some(t) = self.time_limit {
-            if !(t > 0.0) {
+            if t.is_nan() || t <= 0.0 {
                 return bad("time_limit", "expected a positive number of seconds");
             }
         }

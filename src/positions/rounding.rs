@@ -136,16 +136,7 @@ pub fn efficiency(crit: Criterion, p: usize, v: f64, v_opt: f64) -> f64 {
 /// weights, `sens` their sensitivities (to choose exchange candidates),
 /// `value`/`bound` the relaxed value and certificate bound, `budget` the
 /// number of experiments M (or the budget B with `costs`).
-pub fn round_design(
-    pb: &Problem,
-    crit: Criterion,
-    w: &[f64],
-    sens: &[f64],
-    value: f64,
-    bound: f64,
-    budget: f64,
-    costs: Option<&[f64]>,
-) -> Result<Rounded> {
+pub fn round_design(pb: &Problem, crit: Criterion, w: &[f64], sens: &[f64], value: f64, bound: f64, budget: f64, costs: Option<&[f64]>) -> Result<Rounded> {
     let n = pb.n();
     if w.len() != n || sens.len() != n {
         return Err(Error::dim("weights of the relaxed design", n, w.len()));
@@ -222,7 +213,11 @@ pub fn round_design(
                     continue;
                 }
                 let s = score(crit, &(&base + &fmat[kj]));
-                let improves = if cur.is_finite() { s > cur + 1e-12 * cur.abs().max(1.0) } else { s.is_finite() };
+                let improves = if cur.is_finite() {
+                    s > cur + 1e-12 * cur.abs().max(1.0)
+                } else {
+                    s.is_finite()
+                };
                 if improves && best.map(|b| s > b.2).unwrap_or(true) {
                     best = Some((ki, kj, s));
                 }
