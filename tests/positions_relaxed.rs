@@ -42,6 +42,11 @@ fn logdet(m: &DMatrix<f64>) -> Option<f64> {
 /// Reference D or A solver: Frank–Wolfe with away steps on dense F_i.
 /// Returns the criterion value (D: log det, A: tr M⁻¹) and the final FW gap.
 fn reference(f: &[DMatrix<f64>], f0: Option<&DMatrix<f64>>, a_opt: bool, rel_gap: f64, max_iter: usize) -> (f64, f64) {
+    let (v, gap, _) = reference_w(f, f0, a_opt, rel_gap, max_iter);
+    (v, gap)
+}
+
+fn reference_w(f: &[DMatrix<f64>], f0: Option<&DMatrix<f64>>, a_opt: bool, rel_gap: f64, max_iter: usize) -> (f64, f64, Vec<f64>) {
     let n = f.len();
     let mut w = vec![1.0 / n as f64; n];
     let mut gap = f64::INFINITY;
@@ -104,7 +109,7 @@ fn reference(f: &[DMatrix<f64>], f0: Option<&DMatrix<f64>>, a_opt: bool, rel_gap
     } else {
         logdet(&m).unwrap()
     };
-    (v, gap)
+    (v, gap, w)
 }
 
 fn check_d(n: usize, p: usize, rank: usize, seed: u64, with_prior: bool) {
@@ -245,4 +250,33 @@ fn unidentifiable_candidate_set_is_an_error() {
     let pb = Problem::from_factors(5, &h, None).unwrap();
     let e = solve_relaxed(&pb, Criterion::D, &SolverOptions::default()).unwrap_err();
     assert!(e.to_string().contains("not identifiable"), "{e}");
+}
+
+/// The pruning bound (any rank, with a prior) never removes a support point of
+/// the optimum: checked at many designs along the way to the optimum.
+#[test]
+fn pruning_bound_keeps_the_optimal_support() {
+    use idexp::positions::firstorder::d_prune_threshold;
+    for (n, p, rank, seed, prior) in [(80, 6, 3, 41, false), (120, 10, 2, 42, true), (60, 4, 4, 43, false)] {
+        let (_, f) = instance(n, p, rank, 1.0, seed);
+        let f0 = prior.then(|| instance(1, p, 2, 1.0, seed + 1).1[0].clone() * 0.3);
+        let (_, _, wopt) = reference_w(&f, f0.as_ref(), false, 1e-11, 200_000);
+        let support: Vec<usize> = (0..n).filter(|&i| wopt[i] > 1e-7).collect();
+        let mut g = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        for trial in 0..200 {
+            // designs from uniform to nearly optimal
+            let t = trial as f64 / 200.0;
+            let w: Vec<f64> = (0..n).map(|i| (1.0 - t) * g.random_range(0.1..1.0) / n as f64 + t * wopt[i]).collect();
+            let s: f64 = w.iter().sum();
+            let w: Vec<f64> = w.iter().map(|v| v / s).collect();
+            let m = info(&f, f0.as_ref(), &w);
+            let minv = m.cholesky().unwrap().inverse();
+            let d: Vec<f64> = f.iter().map(|fi| minv.component_mul(fi).sum()).collect();
+            let t0 = f0.as_ref().map(|f0| minv.component_mul(f0).sum()).unwrap_or(0.0);
+            let thr = d_prune_threshold(p, d.iter().cloned().fold(f64::NEG_INFINITY, f64::max), t0);
+            for &i in &support {
+                assert!(d[i] >= thr, "support point {i} would be pruned: d = {} < {thr} (trial {trial})", d[i]);
+            }
+        }
+    }
 }
