@@ -467,7 +467,23 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
         ws = order.iter().map(|&k| ws[k]).collect();
         w_ws = order.iter().map(|&k| w_ws[k]).collect();
     }
-    let (mut w, mut cert, mut ev) = best.ok_or(Error::Interrupted)?;
+    let (mut w, mut cert, mut ev) = match best {
+        Some(b) => b,
+        None => {
+            // stopped before any conic solve: the first-order design, certified
+            let mut w_full = vec![0.0; n];
+            for (k, &i) in ws.iter().enumerate() {
+                w_full[i] = w_ws.get(k).copied().unwrap_or(0.0);
+            }
+            firstorder::normalise(&mut w_full);
+            if w_full.iter().sum::<f64>() <= 0.0 {
+                return Err(Error::Interrupted);
+            }
+            let (c, e) = certify(pb, crit, &w_full, None, opts.tol)?;
+            status = Status::Interrupted;
+            (w_full, c, e)
+        }
+    };
     // polish (D, A): Frank–Wolfe steps on the support neighbourhood if the
     // interior-point answer is not accurate enough for the certificate
     if crit != Criterion::E && !cert.holds && status != Status::Interrupted {
