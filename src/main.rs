@@ -30,6 +30,8 @@ enum Cmd {
     Fit(idexp::frf::cli::FitArgs),
     /// Merge multistart shard logs into the single-run result.
     Merge(idexp::frf::cli::MergeArgs),
+    /// Optimal measurement positions by convex relaxed experiment design (D/A/E, Clarabel).
+    Positions(idexp::positions::cli::PositionsArgs),
 }
 
 fn main() {
@@ -73,6 +75,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Cmd::Frf(a) => idexp::frf::cli::run_frf(a)?,
         Cmd::Fit(a) => idexp::frf::cli::run_fit(a)?,
         Cmd::Merge(a) => idexp::frf::cli::run_merge(a)?,
+        Cmd::Positions(a) => idexp::positions::cli::run(a)?,
     }
     Ok(())
 }

@@ -1,0 +1,531 @@
+//! Conic formulations of the relaxed allocation problem, solved by Clarabel.
+//!
+//! Clarabel solves min ½xᵀPx + qᵀx s.t. Ax + s = b, s ∈ K. The PSD cone
+//! `PSDTriangleConeT(n)` holds svec(X): the upper triangle stacked column by
+//! column, off-diagonal entries scaled by √2 (so ⟨svec X, svec Y⟩ = tr XY).
+//!
+//! ## D-optimal, second-order-cone form (default)
+//!
+//! After Sagnol (2011) and Sagnol & Harman (2015, eq. 8): with F_i = H_i H_iᵀ
+//! (H_i p×r_i) and F_0 = H_0 H_0ᵀ (weight fixed to 1),
+//!
+//! det M(w) = max { Π_j J_jj : Σ_i H_i Z_i = J lower triangular,
+//!                   ‖Z_i e_j‖² ≤ t_ij w_i, Σ_i t_ij ≤ J_jj },
+//!
+//! (Cauchy–Schwarz gives JᵀM⁻¹J ⪯ ZᵀW⁻¹Z, Hadamard's inequality gives
+//! Π J_jj ≤ det M; equality for J = L·diag(L_jj), M = LLᵀ). log det is then
+//! Σ u_j with (u_j, 1, J_jj) ∈ K_exp. Rotated cones ‖z‖² ≤ t w are
+//! (t + w, t − w, 2z) ∈ SOC. No semidefinite cone is needed: the KKT system is
+//! sparse, instead of the dense (2p)(2p+1)/2-square block of the lifted
+//! log-det cone that grows like p⁶.
+//!
+//! ## D-optimal, semidefinite form (cross-check)
+//!
+//! log det M ≥ Σ u_j ⇔ ∃ lower-triangular Z: [[M, Z],[Zᵀ, Diag Z]] ⪰ 0 and
+//! (u_j, 1, Z_jj) ∈ K_exp (MOSEK modelling cookbook §6.2.3).
+//!
+//! ## A-optimal
+//!
+//! tr(Kᵀ M⁻¹ K) = min { Σ_i s_i : Σ_i H_i Y_i = K, ‖Y_i‖_F² ≤ s_i w_i }
+//! (Sagnol 2011; the same Cauchy–Schwarz argument), K = I or the inverse of a
+//! congruence scaling. Equivalent to the Schur-complement constraint
+//! [[M, K],[Kᵀ, Y]] ⪰ 0, min tr Y, without the 2p×2p cone.
+//!
+//! ## E-optimal
+//!
+//! max t s.t. M(w) − t I ⪰ 0 (one p×p PSD cone). The dual of that cone, Z ⪰ 0
+//! with tr Z = 1, certifies: λ_min(M(w')) ≤ tr(Z F_0) + max_i tr(Z F_i) for
+//! every design w'.
+
+use super::problem::Problem;
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SupportedConeT};
+use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
+
+/// Which conic formulation of the D-optimal problem to give Clarabel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Formulation {
+    /// Second-order and exponential cones (Sagnol 2011): sparse, fast.
+    #[default]
+    Socp,
+    /// The lifted 2p×2p log-det semidefinite cone plus exponential cones.
+    Sdp,
+}
+
+/// Clarabel settings that matter here.
+#[derive(Debug, Clone, Copy)]
+pub struct ConicSettings {
+    /// Relative and absolute gap tolerance.
+    pub tol: f64,
+    /// Iteration limit.
+    pub max_iter: u32,
+    /// Time limit in seconds (∞: none).
+    pub time_limit: f64,
+    /// Print Clarabel's log.
+    pub verbose: bool,
+}
+
+impl Default for ConicSettings {
+    fn default() -> Self {
+        ConicSettings {
+            tol: 1e-10,
+            max_iter: 200,
+            time_limit: f64::INFINITY,
+            verbose: false,
+        }
+    }
+}
+
+/// What Clarabel returned.
+#[derive(Debug, Clone)]
+pub struct ConicResult {
+    /// Weights on the sub-problem's candidates (cleaned: ≥ 0, unit sum).
+    pub w: Vec<f64>,
+    /// Clarabel's status (`Solved`, `AlmostSolved`, `MaxIterations`, ...).
+    pub status: String,
+    /// True for Solved / AlmostSolved.
+    pub ok: bool,
+    /// Interior-point iterations.
+    pub iterations: u32,
+    /// Clarabel's solve time (s).
+    pub solve_time: f64,
+    /// Number of variables and constraint rows.
+    pub size: (usize, usize),
+    /// For E: the dual matrix of the PSD constraint (p×p, not normalised).
+    pub dual: Option<DMatrix<f64>>,
+}
+
+/// Sparse matrix assembly from (row, col, value) triplets; duplicates summed.
+struct Triplets {
+    rows: usize,
+    t: Vec<(usize, usize, f64)>,
+}
+
+impl Triplets {
+    fn new() -> Self {
+        Triplets { rows: 0, t: Vec::new() }
+    }
+    fn push(&mut self, r: usize, c: usize, v: f64) {
+        if v != 0.0 {
+            self.t.push((r, c, v));
+        }
+    }
+    /// Reserves `k` new rows and returns the first.
+    fn rows(&mut self, k: usize) -> usize {
+        let r = self.rows;
+        self.rows += k;
+        r
+    }
+    fn csc(mut self, ncols: usize) -> CscMatrix<f64> {
+        self.t.sort_by_key(|a| (a.1, a.0));
+        let mut colptr = vec![0usize; ncols + 1];
+        let mut rowval = Vec::with_capacity(self.t.len());
+        let mut nzval: Vec<f64> = Vec::with_capacity(self.t.len());
+        let mut last: Option<(usize, usize)> = None;
+        for &(r, c, v) in &self.t {
+            if last == Some((r, c)) {
+                if let Some(x) = nzval.last_mut() {
+                    *x += v;
+                }
+                continue;
+            }
+            rowval.push(r);
+            nzval.push(v);
+            colptr[c + 1] += 1;
+            last = Some((r, c));
+        }
+        for c in 0..ncols {
+            colptr[c + 1] += colptr[c];
+        }
+        CscMatrix::new(self.rows, ncols, colptr, rowval, nzval)
+    }
+}
+
+/// Index of (i, j), i ≤ j, in svec of an n×n matrix (upper triangle by columns).
+fn svec_index(i: usize, j: usize) -> usize {
+    let (i, j) = if i <= j { (i, j) } else { (j, i) };
+    j * (j + 1) / 2 + i
+}
+
+fn solve(
+    n_var: usize,
+    q: Vec<f64>,
+    a: Triplets,
+    b: Vec<f64>,
+    cones: Vec<SupportedConeT<f64>>,
+    set: &ConicSettings,
+    n_w: usize,
+) -> (Option<DefaultSolver<f64>>, ConicResult) {
+    let m = a.rows;
+    let a = a.csc(n_var);
+    let p_mat = CscMatrix::<f64>::zeros((n_var, n_var));
+    let settings = DefaultSettingsBuilder::default()
+        .verbose(set.verbose)
+        .max_iter(set.max_iter)
+        .time_limit(set.time_limit)
+        .tol_gap_abs(set.tol)
+        .tol_gap_rel(set.tol)
+        .tol_feas(set.tol.max(1e-12))
+        .tol_ktratio(1e-8)
+        .build();
+    let fail = |status: String| ConicResult {
+        w: vec![1.0 / n_w as f64; n_w],
+        status,
+        ok: false,
+        iterations: 0,
+        solve_time: 0.0,
+        size: (n_var, m),
+        dual: None,
+    };
+    let settings = match settings {
+        Ok(s) => s,
+        Err(e) => return (None, fail(format!("SettingsError: {e}"))),
+    };
+    let mut solver = match DefaultSolver::new(&p_mat, &q, &a, &b, &cones, settings) {
+        Ok(s) => s,
+        Err(e) => return (None, fail(format!("SetupError: {e}"))),
+    };
+    solver.solve();
+    let sol = &solver.solution;
+    let status = format!("{:?}", sol.status);
+    let ok = matches!(
+        sol.status,
+        clarabel::solver::SolverStatus::Solved | clarabel::solver::SolverStatus::AlmostSolved
+    );
+    let mut w: Vec<f64> = sol.x[..n_w].to_vec();
+    super::firstorder::normalise(&mut w);
+    if w.iter().sum::<f64>() <= 0.0 || w.iter().any(|v| !v.is_finite()) {
+        w = vec![1.0 / n_w as f64; n_w];
+    }
+    let res = ConicResult {
+        w,
+        status,
+        ok,
+        iterations: sol.iterations,
+        solve_time: sol.solve_time,
+        size: (n_var, m),
+        dual: None,
+    };
+    (Some(solver), res)
+}
+
+/// D-optimal design on `pb` with the chosen formulation.
+pub fn solve_d(pb: &Problem, form: Formulation, set: &ConicSettings) -> ConicResult {
+    match form {
+        Formulation::Socp => solve_d_socp(pb, set),
+        Formulation::Sdp => solve_d_sdp(pb, set),
+    }
+}
+
+/// D-optimal design, second-order-cone form (see the module docs).
+pub fn solve_d_socp(pb: &Problem, set: &ConicSettings) -> ConicResult {
+    let (p, k) = (pb.p(), pb.n());
+    // blocks: index 0..k candidates, k = prior (weight 1) if present
+    let mut factors: Vec<nalgebra::DMatrixView<'_, f64>> = (0..k).map(|i| pb.factor(i)).collect();
+    if let Some(h0) = pb.prior_factor() {
+        factors.push(h0.columns(0, h0.ncols()));
+    }
+    let nb = factors.len();
+    // variable layout
+    let w0 = 0;
+    let t0 = k; // t[b][j] at t0 + b*p + j
+    let mut z_off = Vec::with_capacity(nb); // Z_b[c][j] at z_off[b] + c*p + j
+    let mut cur = t0 + nb * p;
+    for h in &factors {
+        z_off.push(cur);
+        cur += h.ncols() * p;
+    }
+    let j0 = cur; // J[a][j], a ≥ j, at j0 + svec-like lower index
+    let jidx = |a: usize, j: usize| j0 + a * (a + 1) / 2 + j;
+    cur += p * (p + 1) / 2;
+    let u0 = cur;
+    cur += p;
+    let n_var = cur;
+    let mut q = vec![0.0; n_var];
+    for j in 0..p {
+        q[u0 + j] = -1.0;
+    }
+    let mut a = Triplets::new();
+    let mut b = Vec::new();
+    let mut cones = Vec::new();
+    // equalities: Σ w = 1; Σ_b H_b Z_b − J = 0
+    let r = a.rows(1 + p * p);
+    for i in 0..k {
+        a.push(r, w0 + i, 1.0);
+    }
+    b.push(1.0);
+    for aa in 0..p {
+        for j in 0..p {
+            let row = r + 1 + aa * p + j;
+            for (bi, h) in factors.iter().enumerate() {
+                for c in 0..h.ncols() {
+                    a.push(row, z_off[bi] + c * p + j, h[(aa, c)]);
+                }
+            }
+            if aa >= j {
+                a.push(row, jidx(aa, j), -1.0);
+            }
+            b.push(0.0);
+        }
+    }
+    cones.push(SupportedConeT::ZeroConeT(1 + p * p));
+    // nonnegative: w ≥ 0, J_jj − Σ_b t_bj ≥ 0  (s = b − A x)
+    let r = a.rows(k + p);
+    for i in 0..k {
+        a.push(r + i, w0 + i, -1.0);
+        b.push(0.0);
+    }
+    for j in 0..p {
+        a.push(r + k + j, jidx(j, j), -1.0);
+        for bi in 0..nb {
+            a.push(r + k + j, t0 + bi * p + j, 1.0);
+        }
+        b.push(0.0);
+    }
+    cones.push(SupportedConeT::NonnegativeConeT(k + p));
+    // rotated cones (t + w, t − w, 2 Z_b e_j)
+    for (bi, h) in factors.iter().enumerate() {
+        let l = h.ncols();
+        for j in 0..p {
+            let r = a.rows(l + 2);
+            let t = t0 + bi * p + j;
+            a.push(r, t, -1.0);
+            a.push(r + 1, t, -1.0);
+            if bi < k {
+                a.push(r, w0 + bi, -1.0);
+                a.push(r + 1, w0 + bi, 1.0);
+                b.push(0.0);
+                b.push(0.0);
+            } else {
+                b.push(1.0);
+                b.push(-1.0);
+            }
+            for c in 0..l {
+                a.push(r + 2 + c, z_off[bi] + c * p + j, -2.0);
+                b.push(0.0);
+            }
+            cones.push(SupportedConeT::SecondOrderConeT(l + 2));
+        }
+    }
+    // exponential cones (u_j, 1, J_jj)
+    for j in 0..p {
+        let r = a.rows(3);
+        a.push(r, u0 + j, -1.0);
+        a.push(r + 2, jidx(j, j), -1.0);
+        b.extend_from_slice(&[0.0, 1.0, 0.0]);
+        cones.push(SupportedConeT::ExponentialConeT());
+    }
+    solve(n_var, q, a, b, cones, set, k).1
+}
+
+/// D-optimal design, lifted semidefinite form (see the module docs).
+pub fn solve_d_sdp(pb: &Problem, set: &ConicSettings) -> ConicResult {
+    let (p, k) = (pb.p(), pb.n());
+    let n2 = 2 * p;
+    let w0 = 0;
+    let z0 = k; // Z[a][j], a ≥ j
+    let zidx = |a: usize, j: usize| z0 + a * (a + 1) / 2 + j;
+    let u0 = k + p * (p + 1) / 2;
+    let n_var = u0 + p;
+    let mut q = vec![0.0; n_var];
+    for j in 0..p {
+        q[u0 + j] = -1.0;
+    }
+    let mut a = Triplets::new();
+    let mut b = Vec::new();
+    let mut cones = Vec::new();
+    let r = a.rows(1);
+    for i in 0..k {
+        a.push(r, w0 + i, 1.0);
+    }
+    b.push(1.0);
+    cones.push(SupportedConeT::ZeroConeT(1));
+    let r = a.rows(k);
+    for i in 0..k {
+        a.push(r + i, w0 + i, -1.0);
+        b.push(0.0);
+    }
+    cones.push(SupportedConeT::NonnegativeConeT(k));
+    // PSD block: s = svec(X), X = [[F0 + Σ w F, Z],[Zᵀ, Diag Z]]
+    let nsv = n2 * (n2 + 1) / 2;
+    let r = a.rows(nsv);
+    let s2 = std::f64::consts::SQRT_2;
+    let scale = |i: usize, j: usize| if i == j { 1.0 } else { s2 };
+    let mut bb = vec![0.0; nsv];
+    if let Some(f0) = pb.prior() {
+        for j in 0..p {
+            for i in 0..=j {
+                bb[svec_index(i, j)] = f0[(i, j)] * scale(i, j);
+            }
+        }
+    }
+    for i in 0..k {
+        let f = pb.matrix(i);
+        for jj in 0..p {
+            for ii in 0..=jj {
+                a.push(r + svec_index(ii, jj), w0 + i, -f[(ii, jj)] * scale(ii, jj));
+            }
+        }
+    }
+    for aa in 0..p {
+        for j in 0..=aa {
+            // Z[aa][j] sits at X[aa][p + j]
+            a.push(r + svec_index(aa, p + j), zidx(aa, j), -s2);
+            if aa == j {
+                a.push(r + svec_index(p + j, p + j), zidx(aa, j), -1.0);
+            }
+        }
+    }
+    b.extend_from_slice(&bb);
+    cones.push(SupportedConeT::PSDTriangleConeT(n2));
+    for j in 0..p {
+        let r = a.rows(3);
+        a.push(r, u0 + j, -1.0);
+        a.push(r + 2, zidx(j, j), -1.0);
+        b.extend_from_slice(&[0.0, 1.0, 0.0]);
+        cones.push(SupportedConeT::ExponentialConeT());
+    }
+    solve(n_var, q, a, b, cones, set, k).1
+}
+
+/// A-optimal design: min tr(Kᵀ M(w)⁻¹ K) (K p×p, e.g. the identity).
+pub fn solve_a(pb: &Problem, kmat: &DMatrix<f64>, set: &ConicSettings) -> ConicResult {
+    let (p, k) = (pb.p(), pb.n());
+    let mut factors: Vec<nalgebra::DMatrixView<'_, f64>> = (0..k).map(|i| pb.factor(i)).collect();
+    if let Some(h0) = pb.prior_factor() {
+        factors.push(h0.columns(0, h0.ncols()));
+    }
+    let nb = factors.len();
+    let w0 = 0;
+    let s0 = k; // s_b
+    let mut y_off = Vec::with_capacity(nb); // Y_b[c][j] at y_off[b] + c*p + j
+    let mut cur = s0 + nb;
+    for h in &factors {
+        y_off.push(cur);
+        cur += h.ncols() * p;
+    }
+    let n_var = cur;
+    let mut q = vec![0.0; n_var];
+    for bi in 0..nb {
+        q[s0 + bi] = 1.0;
+    }
+    let mut a = Triplets::new();
+    let mut b = Vec::new();
+    let mut cones = Vec::new();
+    let r = a.rows(1 + p * p);
+    for i in 0..k {
+        a.push(r, w0 + i, 1.0);
+    }
+    b.push(1.0);
+    for aa in 0..p {
+        for j in 0..p {
+            let row = r + 1 + aa * p + j;
+            for (bi, h) in factors.iter().enumerate() {
+                for c in 0..h.ncols() {
+                    a.push(row, y_off[bi] + c * p + j, h[(aa, c)]);
+                }
+            }
+            b.push(kmat[(aa, j)]);
+        }
+    }
+    cones.push(SupportedConeT::ZeroConeT(1 + p * p));
+    let r = a.rows(k);
+    for i in 0..k {
+        a.push(r + i, w0 + i, -1.0);
+        b.push(0.0);
+    }
+    cones.push(SupportedConeT::NonnegativeConeT(k));
+    for (bi, h) in factors.iter().enumerate() {
+        let l = h.ncols();
+        let r = a.rows(l * p + 2);
+        a.push(r, s0 + bi, -1.0);
+        a.push(r + 1, s0 + bi, -1.0);
+        if bi < k {
+            a.push(r, w0 + bi, -1.0);
+            a.push(r + 1, w0 + bi, 1.0);
+            b.push(0.0);
+            b.push(0.0);
+        } else {
+            b.push(1.0);
+            b.push(-1.0);
+        }
+        for c in 0..l {
+            for j in 0..p {
+                a.push(r + 2 + c * p + j, y_off[bi] + c * p + j, -2.0);
+                b.push(0.0);
+            }
+        }
+        cones.push(SupportedConeT::SecondOrderConeT(l * p + 2));
+    }
+    solve(n_var, q, a, b, cones, set, k).1
+}
+
+/// E-optimal design: max t s.t. M(w) − tI ⪰ 0. Returns the PSD dual matrix in `dual`.
+pub fn solve_e(pb: &Problem, set: &ConicSettings) -> ConicResult {
+    let (p, k) = (pb.p(), pb.n());
+    let w0 = 0;
+    let t = k;
+    let n_var = k + 1;
+    let mut q = vec![0.0; n_var];
+    q[t] = -1.0;
+    let mut a = Triplets::new();
+    let mut b = Vec::new();
+    let mut cones = Vec::new();
+    let r = a.rows(1);
+    for i in 0..k {
+        a.push(r, w0 + i, 1.0);
+    }
+    b.push(1.0);
+    cones.push(SupportedConeT::ZeroConeT(1));
+    let r = a.rows(k);
+    for i in 0..k {
+        a.push(r + i, w0 + i, -1.0);
+        b.push(0.0);
+    }
+    cones.push(SupportedConeT::NonnegativeConeT(k));
+    let nsv = p * (p + 1) / 2;
+    let r_psd = a.rows(nsv);
+    let s2 = std::f64::consts::SQRT_2;
+    let scale = |i: usize, j: usize| if i == j { 1.0 } else { s2 };
+    let mut bb = vec![0.0; nsv];
+    if let Some(f0) = pb.prior() {
+        for j in 0..p {
+            for i in 0..=j {
+                bb[svec_index(i, j)] = f0[(i, j)] * scale(i, j);
+            }
+        }
+    }
+    for i in 0..k {
+        let f = pb.matrix(i);
+        for jj in 0..p {
+            for ii in 0..=jj {
+                a.push(r_psd + svec_index(ii, jj), w0 + i, -f[(ii, jj)] * scale(ii, jj));
+            }
+        }
+    }
+    for j in 0..p {
+        a.push(r_psd + svec_index(j, j), t, 1.0);
+    }
+    b.extend_from_slice(&bb);
+    cones.push(SupportedConeT::PSDTriangleConeT(p));
+    let (solver, mut res) = solve(n_var, q, a, b, cones, set, k);
+    if let Some(s) = solver {
+        let z = &s.solution.z;
+        // the dual rows of the PSD block follow the 1 + k rows before it
+        let base = 1 + k;
+        if z.len() >= base + nsv {
+            let mut zm = DMatrix::zeros(p, p);
+            for j in 0..p {
+                for i in 0..=j {
+                    let v = z[base + svec_index(i, j)] / scale(i, j);
+                    zm[(i, j)] = v;
+                    zm[(j, i)] = v;
+                }
+            }
+            res.dual = Some(zm);
+        }
+    }
+    res
+}

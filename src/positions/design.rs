@@ -1,0 +1,398 @@
+//! The position-design file (`idexp positions designs/<file>.toml`) and the
+//! library entry point [`run_design`] that turns it into a relaxed design and
+//! an integer plan.
+//!
+//! ```toml
+//! name = "positions_industrial6"
+//! robot = "robots/industrial6.toml"   # relative to this file (needed for source = "rigid")
+//! criterion = "d"                      # d | a | e
+//! experiments = 15                     # M: whole experiments to allocate
+//! seed = 1
+//! # budget = 20.0                      # with costs: Σ c_i m_i ≤ budget (default: experiments)
+//! # prior = "prior.json"               # p×p JSON array: information already available (one-experiment units)
+//!
+//! [information]
+//! source = "rigid"                     # rigid | file   (elastic: after the elastic model lands)
+//! parameters = "inertial"              # base parameters of the rigid body alone, or "all" (with drives/friction)
+//! amplitude = 0.15                     # rad, one value or one per joint
+//! period = 2.0                         # s
+//! samples = 24                         # per period
+//! noise = 1.0                          # N·m, one value or one per joint
+//!
+//! [candidates]
+//! kind = "grid"                        # grid | random | file
+//! joints = [2, 3, 5]                   # varied joints (1-based); the others stay at `fixed`
+//! points = [7, 7, 5]
+//! fixed = [0.0, -1.2, 1.0, 0.0, 0.5, 0.0]
+//! [[candidates.workspace]]
+//! shape = { type = "half_space", normal = [0, 0, 1], offset = 0.3 }
+//!
+//! [solver]                             # all optional, see relax::SolverOptions
+//! tol = 1e-6
+//! ```
+//!
+//! With `source = "file"` (see [`super::information`]) the candidates, their
+//! joint values, costs and the prior come from the JSON file, and
+//! `[candidates]` must be absent.
+
+use super::candidates::CandidateSpec;
+use super::information::{InformationFile, InformationSource, RigidSource};
+use super::problem::{Criterion, Problem};
+use super::relax::{solve_relaxed, Relaxed, SolverOptions};
+use super::rounding::{round_design, Rounded};
+use crate::error::{Error, Result};
+use crate::robot::{self, Robot, Workspace};
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// One value for every joint, or one per joint.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum PerJoint {
+    /// The same value for all joints.
+    One(f64),
+    /// One value per joint.
+    Many(Vec<f64>),
+}
+
+impl PerJoint {
+    /// The n values; errors unless positive and finite (or the wrong count).
+    pub fn resolve(&self, n: usize, ctx: &str, field: &str) -> Result<Vec<f64>> {
+        let v = match self {
+            PerJoint::One(x) => vec![*x; n],
+            PerJoint::Many(v) => v.clone(),
+        };
+        if v.len() != n {
+            return Err(Error::invalid(
+                ctx,
+                field,
+                format!("expected one value or {n} (one per joint), found {}", v.len()),
+            ));
+        }
+        if v.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+            return Err(Error::invalid(ctx, field, "expected positive finite values"));
+        }
+        Ok(v)
+    }
+}
+
+/// Which base parameters the rigid source estimates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum RigidParameters {
+    /// Base parameters of the rigid-body (inertial) columns only.
+    #[default]
+    Inertial,
+    /// All base parameters: inertial, rotor inertias, friction.
+    All,
+}
+
+fn d_amp() -> PerJoint {
+    PerJoint::One(0.1)
+}
+fn d_period() -> f64 {
+    2.0
+}
+fn d_samples() -> usize {
+    24
+}
+fn d_noise() -> PerJoint {
+    PerJoint::One(1.0)
+}
+
+/// Where the information matrices come from (`[information]`, tag `source`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "source", rename_all = "lowercase", deny_unknown_fields)]
+pub enum InformationSpec {
+    /// A JSON information file (matrices or Jacobians), relative to the design file.
+    File {
+        /// The file.
+        path: PathBuf,
+    },
+    /// Rigid-body local excitation about each pose (see [`super::information`]).
+    Rigid {
+        /// inertial | all.
+        #[serde(default)]
+        parameters: RigidParameters,
+        /// Amplitude per joint (rad or m).
+        #[serde(default = "d_amp")]
+        amplitude: PerJoint,
+        /// Period (s).
+        #[serde(default = "d_period")]
+        period: f64,
+        /// Samples per period.
+        #[serde(default = "d_samples")]
+        samples: usize,
+        /// Torque noise standard deviation per joint.
+        #[serde(default = "d_noise")]
+        noise: PerJoint,
+    },
+}
+
+fn d_experiments() -> usize {
+    15
+}
+fn d_seed() -> u64 {
+    1
+}
+
+/// A position-design file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PositionsDesign {
+    /// Name (output folder `out/<name>`).
+    pub name: String,
+    /// Robot file, relative to the design file.
+    #[serde(default)]
+    pub robot: Option<PathBuf>,
+    /// d | a | e.
+    #[serde(default)]
+    pub criterion: Criterion,
+    /// Number of whole experiments M.
+    #[serde(default = "d_experiments")]
+    pub experiments: usize,
+    /// Budget B for Σ c_i m_i ≤ B when candidates have costs (default: experiments).
+    #[serde(default)]
+    pub budget: Option<f64>,
+    /// Seed of the random candidate sample.
+    #[serde(default = "d_seed")]
+    pub seed: u64,
+    /// Prior information: JSON file holding a p×p array (one-experiment units).
+    #[serde(default)]
+    pub prior: Option<PathBuf>,
+    /// Information source.
+    pub information: InformationSpec,
+    /// Candidate generation (not with source = "file").
+    #[serde(default)]
+    pub candidates: Option<CandidateSpec>,
+    /// Solver options.
+    #[serde(default)]
+    pub solver: SolverOptions,
+    /// Frame whose origin is plotted for the chosen poses (default: end effector).
+    #[serde(default)]
+    pub plot_frame: Option<String>,
+}
+
+impl PositionsDesign {
+    /// Reads a design file.
+    pub fn read(path: &Path) -> Result<PositionsDesign> {
+        let d: PositionsDesign = crate::io::read_toml(path)?;
+        d.validate(&path.display().to_string())?;
+        Ok(d)
+    }
+
+    /// Checks the fields that do not need the robot, naming the field.
+    pub fn validate(&self, ctx: &str) -> Result<()> {
+        if self.name.trim().is_empty() || self.name.contains(['/', '\\']) {
+            return Err(Error::invalid(ctx, "name", "expected a non-empty name without path separators"));
+        }
+        if self.experiments == 0 {
+            return Err(Error::invalid(ctx, "experiments", "expected at least 1"));
+        }
+        if let Some(b) = self.budget {
+            if !(b.is_finite() && b >= 1.0) {
+                return Err(Error::invalid(ctx, "budget", "expected a finite budget ≥ 1"));
+            }
+        }
+        self.solver.validate(ctx)?;
+        match &self.information {
+            InformationSpec::File { .. } => {
+                if self.candidates.is_some() {
+                    return Err(Error::invalid(
+                        ctx,
+                        "candidates",
+                        "with source = \"file\" the candidates come from the information file; remove [candidates]",
+                    ));
+                }
+                if self.prior.is_some() {
+                    return Err(Error::invalid(
+                        ctx,
+                        "prior",
+                        "with source = \"file\" give the prior inside the information file",
+                    ));
+                }
+            }
+            InformationSpec::Rigid { period, samples, .. } => {
+                if self.robot.is_none() {
+                    return Err(Error::invalid(ctx, "robot", "source = \"rigid\" needs a robot file"));
+                }
+                if self.candidates.is_none() {
+                    return Err(Error::invalid(ctx, "candidates", "source = \"rigid\" needs a [candidates] section"));
+                }
+                if !(period.is_finite() && *period > 0.0) {
+                    return Err(Error::invalid(ctx, "information.period", "expected a positive period in seconds"));
+                }
+                if *samples < 2 || *samples > 10_000 {
+                    return Err(Error::invalid(ctx, "information.samples", "expected 2..=10000 samples per period"));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Everything a run produced.
+#[derive(Debug, Clone)]
+pub struct PositionsRun {
+    /// The design as run (defaults filled in).
+    pub design: PositionsDesign,
+    /// The robot, if the design names one.
+    pub robot: Option<Robot>,
+    /// Parameter names (p).
+    pub names: Vec<String>,
+    /// Joint values per candidate (empty vectors when unknown).
+    pub q: Vec<Vec<f64>>,
+    /// Costs per candidate (None: all 1).
+    pub costs: Option<Vec<f64>>,
+    /// Rank of each candidate's information.
+    pub ranks: Vec<usize>,
+    /// Candidate generation counts: generated, rejected by limits, rejected by workspace.
+    pub generation: (usize, usize, usize),
+    /// The relaxed design.
+    pub relaxed: Relaxed,
+    /// The integer plan.
+    pub rounded: Rounded,
+    /// Budget used for rounding (M or B).
+    pub budget: f64,
+    /// Seconds spent computing information matrices.
+    pub information_time: f64,
+}
+
+fn read_prior(path: &Path, p: usize) -> Result<DMatrix<f64>> {
+    let text = crate::io::read_to_string(path)?;
+    let rows: Vec<Vec<f64>> =
+        serde_json::from_str(&text).map_err(|e| Error::parse(path, format!("line {}: {e} (expected a p×p array of numbers)", e.line())))?;
+    let ctx = path.display().to_string();
+    if rows.len() != p || rows.iter().any(|r| r.len() != p) {
+        return Err(Error::invalid(ctx, "prior", format!("expected a {p}×{p} array (p = number of parameters)")));
+    }
+    if rows.iter().flatten().any(|v| !v.is_finite()) {
+        return Err(Error::invalid(ctx, "prior", "expected finite numbers"));
+    }
+    let f0 = DMatrix::from_fn(p, p, |i, j| rows[i][j]);
+    super::problem::psd_factor(&f0, &format!("{}: prior", path.display()))?;
+    Ok(f0)
+}
+
+/// Runs a design: candidates, information, relaxed design, rounding.
+/// `dir` is the folder of the design file (relative paths start there).
+pub fn run_design(design: &PositionsDesign, dir: &Path) -> Result<PositionsRun> {
+    let ctx = design.name.clone();
+    design.validate(&ctx)?;
+    let robot = match &design.robot {
+        Some(r) => Some(robot::load(&dir.join(r))?),
+        None => None,
+    };
+    let t_info = std::time::Instant::now();
+    let (names, q, factors, costs, prior, generation) = match &design.information {
+        InformationSpec::File { path } => {
+            let f = InformationFile::read(&dir.join(path))?;
+            if let Some(r) = &robot {
+                if let Some(q0) = f.q.first() {
+                    if !q0.is_empty() && q0.len() != r.dof() {
+                        return Err(Error::invalid(
+                            f.path.display().to_string(),
+                            "candidates[0].q",
+                            format!("the robot has {} joints, the file gives {}", r.dof(), q0.len()),
+                        ));
+                    }
+                }
+            }
+            let n = f.q.len();
+            let costs = if f.has_costs { Some(f.costs.clone()) } else { None };
+            (f.names.clone(), f.q.clone(), f.factors.clone(), costs, f.prior.clone(), (n, 0, 0))
+        }
+        InformationSpec::Rigid {
+            parameters,
+            amplitude,
+            period,
+            samples,
+            noise,
+        } => {
+            let r = robot
+                .clone()
+                .ok_or_else(|| Error::invalid(&ctx, "robot", "source = \"rigid\" needs a robot file"))?;
+            let n = r.dof();
+            let amp = amplitude.resolve(n, &ctx, "information.amplitude")?;
+            let sig = noise.resolve(n, &ctx, "information.noise")?;
+            let spec = design
+                .candidates
+                .as_ref()
+                .ok_or_else(|| Error::invalid(&ctx, "candidates", "source = \"rigid\" needs a [candidates] section"))?;
+            let c = spec.generate(&r, &amp, design.seed, dir, &ctx)?;
+            let src = RigidSource::new(r, &c.q, *parameters == RigidParameters::Inertial, amp, *period, *samples, sig)?;
+            let pb = crate::io::progress_bar(c.q.len() as u64, "information");
+            let factors: Vec<Result<DMatrix<f64>>> =
+                c.q.par_iter()
+                    .map_init(
+                        || Workspace::new(&src.robot),
+                        |ws, q| {
+                            let h = src.factor_with(ws, q);
+                            pb.inc(1);
+                            h
+                        },
+                    )
+                    .collect();
+            pb.finish_and_clear();
+            let factors = factors.into_iter().collect::<Result<Vec<_>>>()?;
+            let prior = match &design.prior {
+                Some(pp) => Some(read_prior(&dir.join(pp), src.n_params())?),
+                None => None,
+            };
+            (
+                src.names(),
+                c.q,
+                factors,
+                c.costs,
+                prior,
+                (c.generated, c.rejected_limits, c.rejected_workspace),
+            )
+        }
+    };
+    let information_time = t_info.elapsed().as_secs_f64();
+    if crate::io::stop::requested() {
+        return Err(Error::Interrupted);
+    }
+    let p = names.len();
+    let budget = design.budget.unwrap_or(design.experiments as f64);
+    // the relaxed problem is normalised by the number of experiments (budget): F0/M + Σ w_i F_i
+    let prior_n = prior.map(|f0| f0 / budget);
+    let base = Problem::from_factors(p, &factors, prior_n.as_ref())?;
+    let pb = match &costs {
+        Some(c) => base.divided_by(c),
+        None => base,
+    };
+    let ranks: Vec<usize> = (0..pb.n()).map(|i| pb.rank(i)).collect();
+    let relaxed = solve_relaxed(&pb, design.criterion, &design.solver)?;
+    let rounded = round_design(
+        &pb,
+        design.criterion,
+        &relaxed.weights,
+        &relaxed.sensitivities,
+        relaxed.value,
+        relaxed.certificate.efficiency_bound,
+        budget,
+        costs.as_deref(),
+    )?;
+    Ok(PositionsRun {
+        design: design.clone(),
+        robot,
+        names,
+        q,
+        costs,
+        ranks,
+        generation,
+        relaxed,
+        rounded,
+        budget,
+        information_time,
+    })
+}
+
+/// Convenience for library users: solve a relaxed design for matrices F_i.
+pub fn design_from_matrices(mats: &[DMatrix<f64>], prior: Option<&DMatrix<f64>>, crit: Criterion, opts: &SolverOptions) -> Result<Relaxed> {
+    let pb = Problem::from_matrices(mats, prior)?;
+    solve_relaxed(&pb, crit, opts)
+}
