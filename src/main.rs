@@ -18,6 +18,10 @@ struct Cli {
 enum Cmd {
     /// Inspect a robot and evaluate its dynamics (info, torques, regressor).
     Robot(idexp::robot::cli::RobotArgs),
+    /// Design an optimal excitation trajectory (GA + gradient refinement) from a design file.
+    Excite(idexp::excitation::cli::ExciteArgs),
+    /// Identifiability of a given trajectory CSV: rank, condition number, unexcited parameters.
+    Assess(idexp::excitation::cli::AssessArgs),
 }
 
 fn main() {
@@ -42,6 +46,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     });
     match &cli.cmd {
         Cmd::Robot(a) => idexp::robot::cli::run(a)?,
+        Cmd::Excite(a) => idexp::excitation::cli::run_excite(a)?,
+        Cmd::Assess(a) => idexp::excitation::cli::run_assess(a)?,
     }
     Ok(())
 }

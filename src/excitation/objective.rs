@@ -1,0 +1,536 @@
+//! The identifiability criterion of an excitation trajectory and its analytic
+//! gradient with respect to the Fourier design vector.
+//!
+//! # The stacked regressor
+//!
+//! For the trajectory q(t; x) of design vector x ([`FourierLayout`]) and the
+//! sample times t_1..t_N (one period at the design's sample rate), the stacked
+//! base regressor is
+//!
+//! C(x) = [ W½ Y_b(q(t_1), q̇(t_1), q̈(t_1)) ; … ; W½ Y_b(q(t_N), …) ]   (N·n × m),
+//!
+//! Y_b the columns of the motor-side regressor [`crate::robot::regressor_rows`]
+//! selected by `columns` (by default the base parameters, drive and friction
+//! columns included: paper 000 eq. 4, paper 002 eq. 20's Φ) and W½ =
+//! diag(1/σ_j) the optional per-joint torque-noise weights. The criterion is
+//! evaluated on the scaled matrix C̃ = C D:
+//!
+//! * [`Scaling::UnitColumn`] (default, Sun & Hollerbach / paper 000 ref. [15]):
+//!   D = diag(1/‖c_j‖), every column of unit norm — D depends on x;
+//! * [`Scaling::Nominal`]: D = diag(|θ_b,j|), each column weighted by its
+//!   nominal base-parameter value (its torque contribution); values below
+//!   1e-6·max|θ_b| are raised to that floor;
+//! * [`Scaling::None`]: D = I.
+//!
+//! # Criteria and gradients
+//!
+//! With the thin SVD C̃ = U Σ Vᵀ (σ_1 ≥ … ≥ σ_m) and dσ_i = u_iᵀ dC̃ v_i,
+//! u_i = C̃ v_i / σ_i, every criterion J has dJ = ⟨C̃ M, dC̃⟩ with a symmetric
+//! m × m matrix M:
+//!
+//! * [`Criterion::Cond`]: J = σ_1/σ_m, M = v_1v_1ᵀ/(σ_1σ_m) − σ_1 v_mv_mᵀ/σ_m³;
+//! * [`Criterion::LogDet`]: J = −log det(C̃ᵀC̃) = −2 Σ log σ_i, M = −2 V Σ⁻² Vᵀ;
+//! * [`Criterion::InvSigmaMin`]: J = 1/σ_m, M = −v_mv_mᵀ/σ_m³.
+//!
+//! G = C̃ M is pulled back through the scaling (for unit columns
+//! dc̃_j = (dc_j − c̃_j c̃_jᵀ dc_j)/‖c_j‖) to H with dJ = ⟨H, dC⟩, then through
+//! the regressor, per sample, ∂J/∂q_k(t_i) = Σ_{r,j} H_(i,r),j ∂Y_b,rj/∂q_k
+//! (likewise q̇, q̈; ∂Y/∂q, ∂Y/∂q̇ by forward-mode dual numbers, ∂Y/∂q̈ exactly
+//! as Y(q, 0, e_k) − Y(q, 0, 0) without gravity, since Y is affine in q̈),
+//! and finally through the Fourier basis ([`FourierTrajectory::basis`]) and
+//! the layout ([`FourierLayout::pullback`]).
+//!
+//! The SVD runs sequentially in a preallocated faer stack held by the
+//! per-thread [`ObjectiveWorkspace`], so an evaluation does not depend on the
+//! thread count.
+
+use crate::error::{Error, Result};
+use crate::robot::dynamics::{regressor_generic, Terms};
+use crate::robot::kinematics::Kin;
+use crate::robot::{regressor_rows, Robot, Workspace};
+use crate::trajectory::{Basis, FourierLayout, FourierTrajectory};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
+use faer::{Mat, Par};
+use num_dual::Dual64;
+use serde::{Deserialize, Serialize};
+
+/// Identifiability criterion (minimised).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Criterion {
+    /// Condition number σ_max/σ_min of the scaled regressor (default; paper 000 §II-C, paper 002 eq. 20).
+    #[default]
+    Cond,
+    /// −log det(C̃ᵀC̃) (D-optimality).
+    LogDet,
+    /// 1/σ_min (E-optimality).
+    InvSigmaMin,
+}
+
+/// Column scaling of the stacked regressor before the criterion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Scaling {
+    /// Unit column norms (default).
+    #[default]
+    UnitColumn,
+    /// Columns times the nominal base-parameter values.
+    Nominal,
+    /// No scaling.
+    None,
+}
+
+/// Which regressor columns form C.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Columns {
+    /// Base parameters including drive columns (Ia, friction) — the default.
+    #[default]
+    Base,
+    /// Base parameters of the rigid-body (inertial) columns only.
+    Inertial,
+}
+
+/// Largest condition number reported; rank-deficient matrices are clamped to it.
+pub const COND_CAP: f64 = 1e12;
+
+/// The criterion J(x) of a design vector, with everything fixed that does not
+/// depend on x (robot, columns, sample times, weights, scaling).
+#[derive(Debug, Clone)]
+pub struct Objective {
+    /// The robot (nominal parameters used by [`Scaling::Nominal`]).
+    pub robot: Robot,
+    /// Design vector ↔ trajectory.
+    pub layout: FourierLayout,
+    /// Standard-parameter indices of C's columns.
+    pub columns: Vec<usize>,
+    /// Names of the columns (base-parameter names).
+    pub column_names: Vec<String>,
+    /// Sample times (s) over one period.
+    pub times: Vec<f64>,
+    /// Criterion.
+    pub criterion: Criterion,
+    /// Column scaling.
+    pub scaling: Scaling,
+    /// Row weight per joint, 1/σ_j (σ_j the torque noise standard deviation).
+    pub row_weight: Vec<f64>,
+    /// Fixed column factors for [`Scaling::Nominal`] (|θ_b,j|, floored), else ones.
+    pub fixed_scale: Vec<f64>,
+}
+
+/// Per-thread buffers of [`Objective`] evaluations.
+pub struct ObjectiveWorkspace {
+    ws: Workspace,
+    dual: Kin<Dual64>,
+    y: Vec<f64>,
+    y0: Vec<f64>,
+    yk: Vec<f64>,
+    yd: Vec<Dual64>,
+    qd_: Vec<Dual64>,
+    q_: Vec<Dual64>,
+    qdd_: Vec<Dual64>,
+    /// Raw stacked regressor C (N·n × m).
+    pub c: Mat<f64>,
+    /// Scaled regressor C̃.
+    pub cs: Mat<f64>,
+    col_norm: Vec<f64>,
+    s: faer::diag::Diag<f64>,
+    v: Mat<f64>,
+    mem_novec: MemBuffer,
+    mem_vec: MemBuffer,
+    basis: Basis,
+    states: Vec<[Vec<f64>; 3]>,
+    g_q0: Vec<f64>,
+    g_a: Vec<Vec<f64>>,
+    g_b: Vec<Vec<f64>>,
+    /// Number of criterion evaluations made with this workspace.
+    pub evaluations: u64,
+    /// Number of gradient evaluations made with this workspace.
+    pub gradients: u64,
+}
+
+impl std::fmt::Debug for ObjectiveWorkspace {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ObjectiveWorkspace").field("rows", &self.c.nrows()).field("cols", &self.c.ncols()).finish()
+    }
+}
+
+/// Singular values and the derived identifiability measures of one trajectory.
+#[derive(Debug, Clone, Serialize)]
+pub struct Spectrum {
+    /// Singular values of the scaled stacked regressor, decreasing.
+    pub singular_values: Vec<f64>,
+    /// Condition number σ_1/σ_m (capped at [`COND_CAP`]).
+    pub cond: f64,
+    /// Criterion value.
+    pub criterion: f64,
+}
+
+impl Objective {
+    /// Builds the objective. `columns` are standard-parameter indices into
+    /// the robot's parameter vector, `names` their labels, `base_nominal` the
+    /// nominal value of each column's parameter (for [`Scaling::Nominal`]),
+    /// `noise` the per-joint torque noise standard deviations (N·m or N).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        robot: Robot,
+        layout: FourierLayout,
+        columns: Vec<usize>,
+        column_names: Vec<String>,
+        base_nominal: &[f64],
+        times: Vec<f64>,
+        criterion: Criterion,
+        scaling: Scaling,
+        noise: &[f64],
+    ) -> Result<Self> {
+        let n = robot.dof();
+        if layout.n != n {
+            return Err(Error::dim("trajectory joints vs robot joints", n, layout.n));
+        }
+        if noise.len() != n {
+            return Err(Error::dim("noise levels (one per joint)", n, noise.len()));
+        }
+        if let Some(j) = noise.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(Error::invalid("objective", format!("noise[{j}]"), "expected a positive torque noise level"));
+        }
+        if columns.is_empty() || columns.iter().any(|&c| c >= robot.n_params()) {
+            return Err(Error::invalid("objective", "columns", "expected a non-empty set of valid parameter indices"));
+        }
+        if base_nominal.len() != columns.len() || column_names.len() != columns.len() {
+            return Err(Error::dim("nominal values / names per column", columns.len(), base_nominal.len()));
+        }
+        let rows = times.len() * n;
+        if rows < columns.len() {
+            return Err(Error::invalid(
+                "objective",
+                "sample_rate",
+                format!(
+                    "{} samples × {n} joints = {rows} rows cannot determine {} parameters; raise the sample rate",
+                    times.len(),
+                    columns.len()
+                ),
+            ));
+        }
+        let fixed_scale = match scaling {
+            Scaling::Nominal => {
+                let mx = base_nominal.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                let floor = 1e-6 * mx.max(1e-300);
+                base_nominal.iter().map(|v| v.abs().max(floor)).collect()
+            }
+            _ => vec![1.0; columns.len()],
+        };
+        Ok(Objective {
+            row_weight: noise.iter().map(|s| 1.0 / s).collect(),
+            robot,
+            layout,
+            columns,
+            column_names,
+            times,
+            criterion,
+            scaling,
+            fixed_scale,
+        })
+    }
+
+    /// Number of columns m of C.
+    pub fn n_cols(&self) -> usize {
+        self.columns.len()
+    }
+
+    /// Number of rows N·n of C.
+    pub fn n_rows(&self) -> usize {
+        self.times.len() * self.robot.dof()
+    }
+
+    /// A workspace for this objective (one per thread).
+    pub fn workspace(&self) -> ObjectiveWorkspace {
+        let n = self.robot.dof();
+        let p = self.robot.n_params();
+        let (r, m) = (self.n_rows(), self.n_cols());
+        let req_no = svd_scratch::<f64>(r, m, ComputeSvdVectors::No, ComputeSvdVectors::No, Par::Seq, Default::default());
+        let req_v = svd_scratch::<f64>(r, m, ComputeSvdVectors::No, ComputeSvdVectors::Thin, Par::Seq, Default::default());
+        let nh = self.layout.n_h;
+        ObjectiveWorkspace {
+            ws: Workspace::new(&self.robot),
+            dual: Kin::new(n),
+            y: vec![0.0; n * p],
+            y0: vec![0.0; n * p],
+            yk: vec![0.0; n * p],
+            yd: vec![Dual64::from(0.0); n * p],
+            q_: vec![Dual64::from(0.0); n],
+            qd_: vec![Dual64::from(0.0); n],
+            qdd_: vec![Dual64::from(0.0); n],
+            c: Mat::zeros(r, m),
+            cs: Mat::zeros(r, m),
+            col_norm: vec![0.0; m],
+            s: faer::diag::Diag::zeros(m),
+            v: Mat::zeros(m, m),
+            mem_novec: MemBuffer::new(req_no),
+            mem_vec: MemBuffer::new(req_v),
+            basis: Basis::default(),
+            states: vec![[vec![0.0; n], vec![0.0; n], vec![0.0; n]]; self.times.len()],
+            g_q0: vec![0.0; n],
+            g_a: vec![vec![0.0; nh]; n],
+            g_b: vec![vec![0.0; nh]; n],
+            evaluations: 0,
+            gradients: 0,
+        }
+    }
+
+    /// Fills C and C̃ for the trajectory `tr`.
+    fn fill(&self, tr: &FourierTrajectory, w: &mut ObjectiveWorkspace) {
+        let n = self.robot.dof();
+        let p = self.robot.n_params();
+        for (i, &t) in self.times.iter().enumerate() {
+            let [q, qd, qdd] = &mut w.states[i];
+            tr.eval(t, q, qd, qdd);
+            regressor_rows(&self.robot, &mut w.ws, q, qd, qdd, &mut w.y);
+            for r in 0..n {
+                let wr = self.row_weight[r];
+                for (j, &c) in self.columns.iter().enumerate() {
+                    w.c[(i * n + r, j)] = wr * w.y[r * p + c];
+                }
+            }
+        }
+        let m = self.n_cols();
+        for j in 0..m {
+            let col = w.c.col(j);
+            let nrm = col.norm_l2();
+            w.col_norm[j] = nrm;
+            let f = match self.scaling {
+                Scaling::UnitColumn => {
+                    if nrm > 0.0 {
+                        1.0 / nrm
+                    } else {
+                        0.0
+                    }
+                }
+                _ => self.fixed_scale[j],
+            };
+            let (src, mut dst) = (w.c.col(j), w.cs.col_mut(j));
+            for r in 0..src.nrows() {
+                dst[r] = src[r] * f;
+            }
+        }
+    }
+
+    /// Runs the SVD of C̃ into w.s (and w.v when `vectors`). Returns false if it failed.
+    fn decompose(&self, w: &mut ObjectiveWorkspace, vectors: bool) -> bool {
+        let finite = (0..w.cs.ncols()).all(|j| w.cs.col(j).iter().all(|v| v.is_finite()));
+        if !finite {
+            return false;
+        }
+        let res = if vectors {
+            let stack = MemStack::new(&mut w.mem_vec);
+            svd(w.cs.as_ref(), w.s.as_mut(), None, Some(w.v.as_mut()), Par::Seq, stack, Default::default())
+        } else {
+            let stack = MemStack::new(&mut w.mem_novec);
+            svd(w.cs.as_ref(), w.s.as_mut(), None, None, Par::Seq, stack, Default::default())
+        };
+        res.is_ok()
+    }
+
+    fn sigmas(w: &ObjectiveWorkspace) -> (f64, f64) {
+        let s = w.s.column_vector();
+        let m = s.nrows();
+        (s[0], s[m - 1])
+    }
+
+    /// Criterion value from the singular values in the workspace.
+    fn criterion_value(&self, w: &ObjectiveWorkspace) -> f64 {
+        let (s1, sm) = Self::sigmas(w);
+        match self.criterion {
+            Criterion::Cond => cond_of(s1, sm),
+            Criterion::LogDet => {
+                let s = w.s.column_vector();
+                let floor = s1 / COND_CAP;
+                -2.0 * s.iter().map(|v| v.max(floor).max(1e-300).ln()).sum::<f64>()
+            }
+            Criterion::InvSigmaMin => 1.0 / sm.max(s1 / COND_CAP).max(1e-300),
+        }
+    }
+
+    /// The criterion J(x). Rank-deficient regressors give the capped value
+    /// (cond = [`COND_CAP`]); non-finite regressors give +∞.
+    pub fn value(&self, x: &[f64], w: &mut ObjectiveWorkspace) -> f64 {
+        let tr = self.layout.trajectory(x);
+        self.value_of(&tr, w)
+    }
+
+    /// The criterion of a given trajectory.
+    pub fn value_of(&self, tr: &FourierTrajectory, w: &mut ObjectiveWorkspace) -> f64 {
+        w.evaluations += 1;
+        self.fill(tr, w);
+        if !self.decompose(w, false) {
+            return f64::INFINITY;
+        }
+        self.criterion_value(w)
+    }
+
+    /// Singular values, condition number and criterion of a trajectory.
+    pub fn spectrum(&self, tr: &FourierTrajectory, w: &mut ObjectiveWorkspace) -> Result<Spectrum> {
+        let j = self.value_of(tr, w);
+        if !j.is_finite() && j != f64::INFINITY {
+            return Err(Error::Numerical("criterion is not a number".into()));
+        }
+        let s: Vec<f64> = w.s.column_vector().iter().copied().collect();
+        let (s1, sm) = Self::sigmas(w);
+        Ok(Spectrum {
+            singular_values: s,
+            cond: cond_of(s1, sm),
+            criterion: j,
+        })
+    }
+
+    /// J(x) and its gradient ∂J/∂x (analytic, see the module docs) into `grad`.
+    pub fn value_grad(&self, x: &[f64], w: &mut ObjectiveWorkspace, grad: &mut [f64]) -> f64 {
+        assert_eq!(grad.len(), self.layout.n_vars(), "gradient length");
+        w.evaluations += 1;
+        w.gradients += 1;
+        let tr = self.layout.trajectory(x);
+        self.fill(&tr, w);
+        if !self.decompose(w, true) {
+            grad.iter_mut().for_each(|g| *g = 0.0);
+            return f64::INFINITY;
+        }
+        let jval = self.criterion_value(w);
+        let m = self.n_cols();
+        let rows = self.n_rows();
+        let s: Vec<f64> = w.s.column_vector().iter().copied().collect();
+        let (s1, sm_raw) = (s[0], s[m - 1]);
+        let sm = sm_raw.max(s1 / COND_CAP).max(1e-300);
+        // M (m×m, symmetric)
+        let mut mm = Mat::<f64>::zeros(m, m);
+        let v = &w.v;
+        let rank1 = |coef: f64, k: usize, mm: &mut Mat<f64>| {
+            for a in 0..m {
+                let va = coef * v[(a, k)];
+                for b in 0..m {
+                    mm[(a, b)] += va * v[(b, k)];
+                }
+            }
+        };
+        match self.criterion {
+            Criterion::Cond => {
+                rank1(1.0 / (s1 * sm), 0, &mut mm);
+                rank1(-s1 / (sm * sm * sm), m - 1, &mut mm);
+            }
+            Criterion::InvSigmaMin => rank1(-1.0 / (sm * sm * sm), m - 1, &mut mm),
+            Criterion::LogDet => {
+                let floor = s1 / COND_CAP;
+                for k in 0..m {
+                    let sk = s[k].max(floor).max(1e-300);
+                    rank1(-2.0 / (sk * sk), k, &mut mm);
+                }
+            }
+        }
+        // G = C̃ M, then H (w.r.t. raw C)
+        let mut h = Mat::<f64>::zeros(rows, m);
+        faer::linalg::matmul::matmul(h.as_mut(), faer::Accum::Replace, w.cs.as_ref(), mm.as_ref(), 1.0, Par::Seq);
+        match self.scaling {
+            Scaling::UnitColumn => {
+                for j in 0..m {
+                    let nrm = w.col_norm[j];
+                    if nrm <= 0.0 {
+                        h.col_mut(j).fill(0.0);
+                        continue;
+                    }
+                    let cj = w.cs.col(j);
+                    let mut dot = 0.0;
+                    for r in 0..rows {
+                        dot += cj[r] * h[(r, j)];
+                    }
+                    for r in 0..rows {
+                        h[(r, j)] = (h[(r, j)] - cj[r] * dot) / nrm;
+                    }
+                }
+            }
+            _ => {
+                for j in 0..m {
+                    let f = self.fixed_scale[j];
+                    for r in 0..rows {
+                        h[(r, j)] *= f;
+                    }
+                }
+            }
+        }
+        // per-sample contraction with the regressor derivatives
+        let n = self.robot.dof();
+        let p = self.robot.n_params();
+        let nh = self.layout.n_h;
+        for j in 0..n {
+            w.g_q0[j] = 0.0;
+            w.g_a[j].iter_mut().for_each(|v| *v = 0.0);
+            w.g_b[j].iter_mut().for_each(|v| *v = 0.0);
+        }
+        let no_grav = Terms { gravity: false, drive: true };
+        let all = Terms { gravity: true, drive: true };
+        let zeros = vec![0.0; n];
+        let mut e = vec![0.0; n];
+        let (mut gq, mut gqd, mut gqdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        for (i, &t) in self.times.iter().enumerate() {
+            let [q, qd, qdd] = &w.states[i];
+            let hrow = |r: usize, j: usize| h[(i * n + r, j)] * self.row_weight[r];
+            // ∂/∂q_k and ∂/∂q̇_k with duals
+            for which in 0..2 {
+                for k in 0..n {
+                    for a in 0..n {
+                        w.q_[a] = Dual64::new(q[a], if which == 0 && a == k { 1.0 } else { 0.0 });
+                        w.qd_[a] = Dual64::new(qd[a], if which == 1 && a == k { 1.0 } else { 0.0 });
+                        w.qdd_[a] = Dual64::from(qdd[a]);
+                    }
+                    regressor_generic(&self.robot, &w.q_, &w.qd_, &w.qdd_, all, &mut w.dual, &mut w.yd);
+                    let mut acc = 0.0;
+                    for r in 0..n {
+                        for (j, &c) in self.columns.iter().enumerate() {
+                            acc += hrow(r, j) * w.yd[r * p + c].eps;
+                        }
+                    }
+                    if which == 0 {
+                        gq[k] = acc;
+                    } else {
+                        gqd[k] = acc;
+                    }
+                }
+            }
+            // ∂/∂q̈_k: Y(q,0,e_k) − Y(q,0,0) without gravity
+            regressor_generic(&self.robot, q, &zeros, &zeros, no_grav, &mut w.ws.kin, &mut w.y0);
+            for k in 0..n {
+                e.iter_mut().for_each(|v| *v = 0.0);
+                e[k] = 1.0;
+                regressor_generic(&self.robot, q, &zeros, &e, no_grav, &mut w.ws.kin, &mut w.yk);
+                let mut acc = 0.0;
+                for r in 0..n {
+                    for (j, &c) in self.columns.iter().enumerate() {
+                        acc += hrow(r, j) * (w.yk[r * p + c] - w.y0[r * p + c]);
+                    }
+                }
+                gqdd[k] = acc;
+            }
+            tr.basis(t, &mut w.basis);
+            for j in 0..n {
+                w.g_q0[j] += gq[j];
+                for k in 0..nh {
+                    let b = &w.basis.k[k];
+                    w.g_a[j][k] += gq[j] * b[0] + gqd[j] * b[2] + gqdd[j] * b[4];
+                    w.g_b[j][k] += gq[j] * b[1] + gqd[j] * b[3] + gqdd[j] * b[5];
+                }
+            }
+        }
+        self.layout.pullback(&w.g_q0, &w.g_a, &w.g_b, grad);
+        jval
+    }
+}
+
+/// σ_1/σ_m clamped to [`COND_CAP`] (and to the cap for σ_m ≤ 0).
+pub fn cond_of(s1: f64, sm: f64) -> f64 {
+    if !(s1.is_finite() && sm.is_finite()) {
+        return f64::INFINITY;
+    }
+    if sm <= s1 / COND_CAP {
+        COND_CAP
+    } else {
+        s1 / sm
+    }
+}
