@@ -24,6 +24,7 @@
 //! [`Constraints::verify`] evaluates every constraint on a uniform grid (1 kHz
 //! by default) in natural units, for the report.
 
+use super::grid::TrigGrid;
 use crate::error::{Error, Result};
 use crate::robot::cartesian::{CartesianConstraint, Shape};
 use crate::robot::{frame_jacobian, frame_pose, id_derivatives, inverse_dynamics, motor_inertia, Frame, Robot, Workspace};
@@ -92,8 +93,8 @@ pub struct Constraints {
     pub info: Vec<ConstraintInfo>,
     items: Vec<Item>,
     cart: Vec<CartItem>,
-    grid: Vec<f64>,
-    scan: Vec<f64>,
+    grid: TrigGrid,
+    scan: TrigGrid,
     theta: Vec<f64>,
 }
 
@@ -156,36 +157,80 @@ fn order_name(order: usize) -> (&'static str, ConstraintKind, &'static str) {
 
 /// m-th time derivative of q_j at t (m = 0 includes q0).
 pub fn series_derivative(tr: &FourierTrajectory, j: usize, m: usize, t: f64) -> f64 {
+    series_derivatives(tr, j, m, t)[0]
+}
+
+/// Time derivatives of orders m, m+1, m+2 of q_j at t (order 0 includes q0),
+/// with one sin_cos and the angle-addition recurrence for the harmonics.
+pub fn series_derivatives(tr: &FourierTrajectory, j: usize, m: usize, t: f64) -> [f64; 3] {
     let w = tr.omega;
-    let mut v = if m == 0 { tr.q0[j] } else { 0.0 };
-    let shift = m as f64 * std::f64::consts::FRAC_PI_2;
+    let (s1, c1) = (w * t).sin_cos();
+    let (mut s, mut c) = (s1, c1);
+    let mut out = [0.0; 3];
+    if m == 0 {
+        out[0] = tr.q0[j];
+    }
     for (k0, (&a, &b)) in tr.a[j].iter().zip(&tr.b[j]).enumerate() {
         let kw = (k0 + 1) as f64 * w;
-        let (s, c) = (kw * t + shift).sin_cos();
-        v += kw.powi(m as i32 - 1) * (a * s - b * c);
+        for (d, o) in out.iter_mut().enumerate() {
+            let order = m + d;
+            let (sm, cm) = match order % 4 {
+                0 => (s, c),
+                1 => (c, -s),
+                2 => (-s, -c),
+                _ => (-c, s),
+            };
+            *o += kw.powi(order as i32 - 1) * (a * sm - b * cm);
+        }
+        let sn = s * c1 + c * s1;
+        c = c * c1 - s * s1;
+        s = sn;
     }
-    v
+    out
 }
 
 /// Extremum of q_j^(order) over the continuous period: (value, time).
-/// `upper`: maximum, else minimum.
-pub fn joint_extremum(tr: &FourierTrajectory, scan: &[f64], j: usize, order: usize, upper: bool) -> (f64, f64) {
+/// `upper`: maximum, else minimum. `scan` is a uniform grid over the period:
+/// the best two grid local extrema are refined by Newton steps on
+/// d/dt q_j^(order) = 0.
+pub fn joint_extremum(tr: &FourierTrajectory, scan: &TrigGrid, j: usize, order: usize, upper: bool) -> (f64, f64) {
     let sgn = if upper { 1.0 } else { -1.0 };
-    let f = |t: f64| sgn * series_derivative(tr, j, order, t);
     let ns = scan.len();
-    let vals: Vec<f64> = scan.iter().map(|&t| f(t)).collect();
-    // local maxima of f on the periodic grid, best three
-    let mut cand: Vec<usize> = (0..ns).filter(|&i| vals[i] >= vals[(i + ns - 1) % ns] && vals[i] >= vals[(i + 1) % ns]).collect();
-    cand.sort_by(|&a, &b| vals[b].total_cmp(&vals[a]));
-    cand.truncate(3);
+    let vals: Vec<f64> = (0..ns).map(|i| sgn * scan.derivative(tr, j, order, i)).collect();
+    let scan = &scan.times;
+    let mut cand: [Option<usize>; 2] = [None, None];
+    for i in 0..ns {
+        if vals[i] >= vals[(i + ns - 1) % ns] && vals[i] >= vals[(i + 1) % ns] {
+            match cand {
+                [None, _] => cand[0] = Some(i),
+                [Some(a), None] => {
+                    if vals[i] > vals[a] {
+                        cand = [Some(i), Some(a)];
+                    } else {
+                        cand[1] = Some(i);
+                    }
+                }
+                [Some(a), Some(b)] => {
+                    if vals[i] > vals[a] {
+                        cand = [Some(i), Some(a)];
+                    } else if vals[i] > vals[b] {
+                        cand[1] = Some(i);
+                    }
+                }
+            }
+        }
+    }
+    if cand[0].is_none() {
+        return (sgn * vals[0], scan[0]);
+    }
     let h = if ns > 1 { scan[1] - scan[0] } else { 1.0 };
     let (mut best, mut tbest) = (f64::NEG_INFINITY, 0.0);
-    for &i in &cand {
+    for i in cand.iter().flatten().copied() {
         let (mut t, mut fv) = (scan[i], vals[i]);
         let t_grid = t;
-        for _ in 0..6 {
-            let d1 = sgn * series_derivative(tr, j, order + 1, t);
-            let d2 = sgn * series_derivative(tr, j, order + 2, t);
+        let mut d = series_derivatives(tr, j, order, t);
+        for _ in 0..8 {
+            let (d1, d2) = (sgn * d[1], sgn * d[2]);
             if d2 >= 0.0 {
                 break;
             }
@@ -194,13 +239,15 @@ pub fn joint_extremum(tr: &FourierTrajectory, scan: &[f64], j: usize, order: usi
             if (tn - t_grid).abs() > 1.5 * h {
                 break;
             }
-            let fnv = f(tn);
+            let dn = series_derivatives(tr, j, order, tn);
+            let fnv = sgn * dn[0];
             if fnv < fv - 1e-15 * fv.abs().max(1.0) {
                 break;
             }
             t = tn;
             fv = fnv;
-            if step.abs() < 1e-12 {
+            d = dn;
+            if step.abs() < 1e-9 * h {
                 break;
             }
         }
@@ -208,10 +255,6 @@ pub fn joint_extremum(tr: &FourierTrajectory, scan: &[f64], j: usize, order: usi
             best = fv;
             tbest = t;
         }
-    }
-    if cand.is_empty() {
-        // constant function
-        return (sgn * vals[0], scan[0]);
     }
     (sgn * best, tbest)
 }
@@ -238,10 +281,18 @@ impl Constraints {
         for j in 0..n {
             let [lo, hi] = limits.position[j];
             if lo.is_finite() && hi.is_finite() && lo >= hi {
-                return Err(Error::invalid(ctx, "limits.position", format!("joint `{}`: empty allowed range [{lo}, {hi}]", jn(j))));
+                return Err(Error::invalid(
+                    ctx,
+                    "limits.position",
+                    format!("joint `{}`: empty allowed range [{lo}, {hi}]", jn(j)),
+                ));
             }
             let half = if lo.is_finite() && hi.is_finite() { 0.5 * (hi - lo) } else { 1.0 };
-            for (order, lims) in [(0usize, [lo, hi]), (1, [-limits.velocity[j], limits.velocity[j]]), (2, [-limits.acceleration[j], limits.acceleration[j]])] {
+            for (order, lims) in [
+                (0usize, [lo, hi]),
+                (1, [-limits.velocity[j], limits.velocity[j]]),
+                (2, [-limits.acceleration[j], limits.acceleration[j]]),
+            ] {
                 let (sym, kind, unit) = order_name(order);
                 let scale = if order == 0 { half } else { lims[1] };
                 for (upper, lim) in [(true, lims[1]), (false, lims[0])] {
@@ -267,7 +318,11 @@ impl Constraints {
                 continue;
             }
             if tl <= 0.0 {
-                return Err(Error::invalid(ctx, "limits.torque", format!("joint `{}`: expected a positive torque limit, got {tl}", jn(j))));
+                return Err(Error::invalid(
+                    ctx,
+                    "limits.torque",
+                    format!("joint `{}`: expected a positive torque limit, got {tl}", jn(j)),
+                ));
             }
             for (upper, lim) in [(true, tl), (false, -tl)] {
                 info.push(ConstraintInfo {
@@ -308,9 +363,9 @@ impl Constraints {
             });
         }
         let period = std::f64::consts::TAU / layout.omega;
-        let grid = period_grid(period, grid_rate)?;
+        let grid = TrigGrid::new(period_grid(period, grid_rate)?, layout.omega, layout.n_h);
         let ns = (SCAN_PER_HARMONIC * layout.n_h).max(32);
-        let scan = (0..ns).map(|i| period * i as f64 / ns as f64).collect();
+        let scan = TrigGrid::new((0..ns).map(|i| period * i as f64 / ns as f64).collect(), layout.omega, layout.n_h);
         Ok(Constraints {
             robot: robot.clone(),
             layout: layout.clone(),
@@ -386,8 +441,8 @@ impl Constraints {
         // grid quantities
         let has_torque = self.items.iter().any(|i| matches!(i, Item::Torque { .. }));
         if has_torque {
-            for (g, &t) in self.grid.iter().enumerate() {
-                tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
+            for g in 0..self.grid.len() {
+                self.grid.state(tr, g, &mut cw.q, &mut cw.qd, &mut cw.qdd);
                 inverse_dynamics(&self.robot, &mut cw.ws, &self.theta, &cw.q, &cw.qd, &cw.qdd, &mut cw.tau);
                 cw.tau_grid[g].copy_from_slice(&cw.tau);
             }
@@ -418,11 +473,15 @@ impl Constraints {
                 }
                 Item::Torque { j } => {
                     let vals: Vec<f64> = cw.tau_grid.iter().map(|r| sgn * r[j]).collect();
-                    let (fv, t) = self.refine_grid(&vals, |t, cw: &mut ConstraintWorkspace| {
-                        tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
-                        inverse_dynamics(&self.robot, &mut cw.ws, &self.theta, &cw.q, &cw.qd, &cw.qdd, &mut cw.tau);
-                        sgn * cw.tau[j]
-                    }, cw);
+                    let (fv, t) = self.refine_grid(
+                        &vals,
+                        |t, cw: &mut ConstraintWorkspace| {
+                            tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
+                            inverse_dynamics(&self.robot, &mut cw.ws, &self.theta, &cw.q, &cw.qd, &cw.qdd, &mut cw.tau);
+                            sgn * cw.tau[j]
+                        },
+                        cw,
+                    );
                     c[i] = (fv - sgn * inf.limit) / inf.scale;
                     if want_grad {
                         tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
@@ -443,8 +502,8 @@ impl Constraints {
                 Item::Cart { idx, margin } => {
                     let ci = &self.cart[idx];
                     if last_cart != idx {
-                        for (g, &t) in self.grid.iter().enumerate() {
-                            tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
+                        for g in 0..self.grid.len() {
+                            self.grid.state(tr, g, &mut cw.q, &mut cw.qd, &mut cw.qdd);
                             let p = frame_pose(&self.robot, &mut cw.ws, &cw.q, &ci.frame).translation.vector;
                             cw.margins.clear();
                             ci.shape.margins(&p, &mut cw.margins);
@@ -456,13 +515,17 @@ impl Constraints {
                     }
                     // minimise the margin: maximise −g
                     let vals: Vec<f64> = cw.marg_grid.iter().map(|r| -r[margin]).collect();
-                    let (fv, t) = self.refine_grid(&vals, |t, cw: &mut ConstraintWorkspace| {
-                        tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
-                        let p = frame_pose(&self.robot, &mut cw.ws, &cw.q, &ci.frame).translation.vector;
-                        cw.margins.clear();
-                        ci.shape.margins(&p, &mut cw.margins);
-                        -cw.margins[margin].0
-                    }, cw);
+                    let (fv, t) = self.refine_grid(
+                        &vals,
+                        |t, cw: &mut ConstraintWorkspace| {
+                            tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
+                            let p = frame_pose(&self.robot, &mut cw.ws, &cw.q, &ci.frame).translation.vector;
+                            cw.margins.clear();
+                            ci.shape.margins(&p, &mut cw.margins);
+                            -cw.margins[margin].0
+                        },
+                        cw,
+                    );
                     c[i] = fv;
                     if want_grad {
                         tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
@@ -499,14 +562,15 @@ impl Constraints {
                 ib = i;
             }
         }
-        let h = if ng > 1 { self.grid[1] - self.grid[0] } else { 0.0 };
+        let grid = &self.grid.times;
+        let h = if ng > 1 { grid[1] - grid[0] } else { 0.0 };
         let (fm, f0, fp) = (vals[(ib + ng - 1) % ng], vals[ib], vals[(ib + 1) % ng]);
         let den = fm - 2.0 * f0 + fp;
-        let (mut best, mut tb) = (f0, self.grid[ib]);
+        let (mut best, mut tb) = (f0, grid[ib]);
         if den < 0.0 && h > 0.0 {
             let d = (0.5 * (fm - fp) / den).clamp(-1.0, 1.0) * h;
             if d.abs() > 1e-12 * h.max(1.0) {
-                let t = self.grid[ib] + d;
+                let t = grid[ib] + d;
                 let v = f(t, cw);
                 if v > best {
                     best = v;

@@ -301,7 +301,10 @@ impl ExciteDesign {
             );
         }
         if !(tr.frequency.is_finite() && tr.frequency > 0.0 && tr.frequency <= 100.0) {
-            return bad("trajectory.frequency", format!("expected a base frequency in (0, 100] Hz, got {}", tr.frequency));
+            return bad(
+                "trajectory.frequency",
+                format!("expected a base frequency in (0, 100] Hz, got {}", tr.frequency),
+            );
         }
         if !(tr.controller_rate.is_finite() && tr.controller_rate >= 1.0 && tr.controller_rate <= 1e5) {
             return bad("trajectory.controller_rate", format!("expected 1..=100000 Hz, got {}", tr.controller_rate));
@@ -334,7 +337,11 @@ impl ExciteDesign {
         if !(l.position > 0.0 && l.position <= 1.0) {
             return bad("limits.position", format!("expected a fraction in (0, 1], got {}", l.position));
         }
-        for (f, v) in [("limits.velocity", l.velocity), ("limits.acceleration", l.acceleration), ("limits.torque", l.torque)] {
+        for (f, v) in [
+            ("limits.velocity", l.velocity),
+            ("limits.acceleration", l.acceleration),
+            ("limits.torque", l.torque),
+        ] {
             if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
                 return bad(f, format!("expected a fraction in [0, 1] (0: not imposed), got {v}"));
             }
@@ -359,7 +366,10 @@ impl ExciteDesign {
             return bad("ga.population", format!("expected 4..=100000, got {}", g.population));
         }
         if g.elite >= g.population {
-            return bad("ga.elite", format!("expected fewer elites than the population ({}), got {}", g.population, g.elite));
+            return bad(
+                "ga.elite",
+                format!("expected fewer elites than the population ({}), got {}", g.population, g.elite),
+            );
         }
         if !(0.0..=1.0).contains(&g.crossover) || !(0.0..=1.0).contains(&g.mutation) {
             return bad("ga.crossover", "crossover and mutation are probabilities in [0, 1]".into());
@@ -372,7 +382,10 @@ impl ExciteDesign {
         }
         let r = &self.refine;
         if r.algorithm != RefineAlgorithm::None && (r.starts == 0 || r.max_evals == 0) {
-            return bad("refine.starts", "refinement needs at least one start and one evaluation (or algorithm = \"none\")".into());
+            return bad(
+                "refine.starts",
+                "refinement needs at least one start and one evaluation (or algorithm = \"none\")".into(),
+            );
         }
         if !(r.xtol_rel >= 0.0 && r.ftol_rel >= 0.0) {
             return bad("refine.xtol_rel", "tolerances must be ≥ 0".into());
@@ -385,7 +398,11 @@ impl ExciteDesign {
         let n = robot.dof();
         let check = |field: &str, len: usize| {
             if len != n {
-                Err(Error::invalid(ctx, field, format!("expected {n} values (one per joint of `{}`), got {len}", robot.name)))
+                Err(Error::invalid(
+                    ctx,
+                    field,
+                    format!("expected {n} values (one per joint of `{}`), got {len}", robot.name),
+                ))
             } else {
                 Ok(())
             }

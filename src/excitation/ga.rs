@@ -204,7 +204,17 @@ where
     let mut rng = ChaCha8Rng::seed_from_u64(mix(s.seed, 0, 0));
     let mut genes: Vec<Vec<f64>> = initial.iter().take(np).cloned().collect();
     while genes.len() < np {
-        genes.push((0..nv).map(|i| if upper[i] > lower[i] { rng.random_range(lower[i]..upper[i]) } else { lower[i] }).collect());
+        genes.push(
+            (0..nv)
+                .map(|i| {
+                    if upper[i] > lower[i] {
+                        rng.random_range(lower[i]..upper[i])
+                    } else {
+                        lower[i]
+                    }
+                })
+                .collect(),
+        );
     }
     let mut pop = evaluate(genes);
     let mut evaluations = np as u64;

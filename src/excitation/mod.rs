@@ -38,6 +38,7 @@ pub mod cli;
 pub mod constraints;
 pub mod design;
 pub mod ga;
+pub mod grid;
 pub mod objective;
 pub mod refine;
 pub mod report;
@@ -205,7 +206,10 @@ impl Problem {
         let tr = &design.trajectory;
         let q0 = match &tr.q0 {
             Some(q) => q.clone(),
-            None => position.iter().map(|&[lo, hi]| if lo.is_finite() && hi.is_finite() { 0.5 * (lo + hi) } else { 0.0 }).collect(),
+            None => position
+                .iter()
+                .map(|&[lo, hi]| if lo.is_finite() && hi.is_finite() { 0.5 * (lo + hi) } else { 0.0 })
+                .collect(),
         };
         let omega = std::f64::consts::TAU * tr.frequency;
         let layout = FourierLayout::new(q0.clone(), tr.harmonics, omega, tr.vary_q0, tr.at_rest)?;
@@ -245,7 +249,11 @@ impl Problem {
                 }
             };
             if tr.vary_q0 {
-                let (a, b) = if lo.is_finite() && hi.is_finite() { (lo, hi) } else { (q0[j] - std::f64::consts::PI, q0[j] + std::f64::consts::PI) };
+                let (a, b) = if lo.is_finite() && hi.is_finite() {
+                    (lo, hi)
+                } else {
+                    (q0[j] - std::f64::consts::PI, q0[j] + std::f64::consts::PI)
+                };
                 lower[j * vpj] = a;
                 upper[j * vpj] = b;
             }
@@ -348,13 +356,15 @@ pub fn run(p: &Problem, progress: bool) -> Result<ExciteResult> {
         if starts.len() >= d.refine.starts {
             break;
         }
-        let dup = starts.iter().any(|s| s.x.iter().zip(&ind.x).all(|(a, b)| (a - b).abs() <= 1e-12 * (1.0 + a.abs())));
+        let dup = starts
+            .iter()
+            .any(|s| s.x.iter().zip(&ind.x).all(|(a, b)| (a - b).abs() <= 1e-12 * (1.0 + a.abs())));
         if !dup {
             starts.push(ind);
         }
     }
     let mut refinements: Vec<refine::RefineOutcome> = Vec::new();
-    if d.refine.algorithm != RefineAlgorithm::None && stopped_by.is_none() {
+    if d.refine.algorithm != RefineAlgorithm::None && gares.stop != ga::GaStop::Interrupted {
         let rs = refine::RefineSettings {
             algorithm: d.refine.algorithm,
             max_evals: d.refine.max_evals,
@@ -384,7 +394,10 @@ pub fn run(p: &Problem, progress: bool) -> Result<ExciteResult> {
         if crate::io::stop::requested() {
             stopped_by = Some("interrupted (Ctrl-C) during refinement".into());
         } else if deadline_all.is_some_and(|dl| Instant::now() >= dl) {
-            stopped_by = Some("time limit (during refinement)".into());
+            stopped_by = Some(match stopped_by {
+                Some(s) => format!("{s} and time limit (during refinement)"),
+                None => "time limit (during refinement)".into(),
+            });
         }
     }
     // choose: feasibility first, then criterion

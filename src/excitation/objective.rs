@@ -44,15 +44,18 @@
 //! per-thread [`ObjectiveWorkspace`], so an evaluation does not depend on the
 //! thread count.
 
+use super::grid::TrigGrid;
 use crate::error::{Error, Result};
 use crate::robot::dynamics::{regressor_generic, Terms};
 use crate::robot::kinematics::Kin;
 use crate::robot::{regressor_rows, Robot, Workspace};
 use crate::trajectory::{Basis, FourierLayout, FourierTrajectory};
 use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::evd::{self_adjoint_evd, self_adjoint_evd_scratch, ComputeEigenvectors};
 use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
-use faer::{Mat, Par};
+use faer::{Mat, MatMut, MatRef, Par};
 use num_dual::Dual64;
+
 use serde::{Deserialize, Serialize};
 
 /// Identifiability criterion (minimised).
@@ -117,6 +120,8 @@ pub struct Objective {
     pub row_weight: Vec<f64>,
     /// Fixed column factors for [`Scaling::Nominal`] (|θ_b,j|, floored), else ones.
     pub fixed_scale: Vec<f64>,
+    /// The sample grid with its trigonometric table.
+    pub grid: TrigGrid,
 }
 
 /// Per-thread buffers of [`Objective`] evaluations.
@@ -130,15 +135,21 @@ pub struct ObjectiveWorkspace {
     qd_: Vec<Dual64>,
     q_: Vec<Dual64>,
     qdd_: Vec<Dual64>,
-    /// Raw stacked regressor C (N·n × m).
-    pub c: Mat<f64>,
-    /// Scaled regressor C̃.
-    pub cs: Mat<f64>,
+    /// Raw stacked regressor C (N·n × m), column-major.
+    pub c: Vec<f64>,
+    /// Scaled regressor C̃, column-major.
+    pub cs: Vec<f64>,
+    h: Vec<f64>,
+    rows: usize,
     col_norm: Vec<f64>,
-    s: faer::diag::Diag<f64>,
+    sd: faer::diag::Diag<f64>,
+    s: Vec<f64>,
     v: Mat<f64>,
+    vs: Mat<f64>,
+    gram: Mat<f64>,
     mem_novec: MemBuffer,
     mem_vec: MemBuffer,
+    mem_evd: MemBuffer,
     basis: Basis,
     states: Vec<[Vec<f64>; 3]>,
     g_q0: Vec<f64>,
@@ -152,7 +163,7 @@ pub struct ObjectiveWorkspace {
 
 impl std::fmt::Debug for ObjectiveWorkspace {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("ObjectiveWorkspace").field("rows", &self.c.nrows()).field("cols", &self.c.ncols()).finish()
+        f.debug_struct("ObjectiveWorkspace").field("rows", &self.rows).finish()
     }
 }
 
@@ -220,7 +231,9 @@ impl Objective {
             }
             _ => vec![1.0; columns.len()],
         };
+        let grid = TrigGrid::new(times.clone(), layout.omega, layout.n_h);
         Ok(Objective {
+            grid,
             row_weight: noise.iter().map(|s| 1.0 / s).collect(),
             robot,
             layout,
@@ -261,13 +274,19 @@ impl Objective {
             q_: vec![Dual64::from(0.0); n],
             qd_: vec![Dual64::from(0.0); n],
             qdd_: vec![Dual64::from(0.0); n],
-            c: Mat::zeros(r, m),
-            cs: Mat::zeros(r, m),
+            c: vec![0.0; r * m],
+            cs: vec![0.0; r * m],
+            h: vec![0.0; r * m],
+            rows: r,
             col_norm: vec![0.0; m],
-            s: faer::diag::Diag::zeros(m),
+            sd: faer::diag::Diag::zeros(m),
+            s: vec![0.0; m],
             v: Mat::zeros(m, m),
+            vs: Mat::zeros(m, m),
+            gram: Mat::zeros(m, m),
             mem_novec: MemBuffer::new(req_no),
             mem_vec: MemBuffer::new(req_v),
+            mem_evd: MemBuffer::new(self_adjoint_evd_scratch::<f64>(m, ComputeEigenvectors::Yes, Par::Seq, Default::default())),
             basis: Basis::default(),
             states: vec![[vec![0.0; n], vec![0.0; n], vec![0.0; n]]; self.times.len()],
             g_q0: vec![0.0; n],
@@ -282,21 +301,23 @@ impl Objective {
     fn fill(&self, tr: &FourierTrajectory, w: &mut ObjectiveWorkspace) {
         let n = self.robot.dof();
         let p = self.robot.n_params();
-        for (i, &t) in self.times.iter().enumerate() {
+        let rows = w.rows;
+        for i in 0..self.grid.len() {
             let [q, qd, qdd] = &mut w.states[i];
-            tr.eval(t, q, qd, qdd);
+            self.grid.state(tr, i, q, qd, qdd);
             regressor_rows(&self.robot, &mut w.ws, q, qd, qdd, &mut w.y);
             for r in 0..n {
                 let wr = self.row_weight[r];
+                let yr = &w.y[r * p..(r + 1) * p];
                 for (j, &c) in self.columns.iter().enumerate() {
-                    w.c[(i * n + r, j)] = wr * w.y[r * p + c];
+                    w.c[j * rows + i * n + r] = wr * yr[c];
                 }
             }
         }
         let m = self.n_cols();
         for j in 0..m {
-            let col = w.c.col(j);
-            let nrm = col.norm_l2();
+            let col = &w.c[j * rows..(j + 1) * rows];
+            let nrm = col.iter().map(|v| v * v).sum::<f64>().sqrt();
             w.col_norm[j] = nrm;
             let f = match self.scaling {
                 Scaling::UnitColumn => {
@@ -308,33 +329,64 @@ impl Objective {
                 }
                 _ => self.fixed_scale[j],
             };
-            let (src, mut dst) = (w.c.col(j), w.cs.col_mut(j));
-            for r in 0..src.nrows() {
-                dst[r] = src[r] * f;
+            for r in j * rows..(j + 1) * rows {
+                w.cs[r] = w.c[r] * f;
             }
         }
     }
 
-    /// Runs the SVD of C̃ into w.s (and w.v when `vectors`). Returns false if it failed.
+    /// Singular values (into w.s, decreasing) and, with `vectors`, right
+    /// singular vectors (w.v) of C̃. Through the eigendecomposition of the
+    /// m×m Gram matrix C̃ᵀC̃ when it is well conditioned (σ_1/σ_m < 10⁴, where
+    /// its relative accuracy is ≈ ε·κ² ≤ 10⁻⁸), else by a direct SVD of C̃.
+    /// Returns false if C̃ is not finite or the decomposition failed.
     fn decompose(&self, w: &mut ObjectiveWorkspace, vectors: bool) -> bool {
-        let finite = (0..w.cs.ncols()).all(|j| w.cs.col(j).iter().all(|v| v.is_finite()));
-        if !finite {
+        if !w.cs.iter().all(|v| v.is_finite()) {
             return false;
+        }
+        let m = self.n_cols();
+        let cs = MatRef::from_column_major_slice(&w.cs, w.rows, m);
+        faer::linalg::matmul::matmul(w.gram.as_mut(), faer::Accum::Replace, cs.transpose(), cs, 1.0, Par::Seq);
+        let ok = {
+            let stack = MemStack::new(&mut w.mem_evd);
+            self_adjoint_evd(w.gram.as_ref(), w.sd.as_mut(), Some(w.vs.as_mut()), Par::Seq, stack, Default::default()).is_ok()
+        };
+        if ok {
+            // ascending eigenvalues λ; σ_i = √λ in decreasing order
+            let lam = w.sd.column_vector();
+            let mut idx: Vec<usize> = (0..m).collect();
+            idx.sort_by(|&a, &b| lam[b].total_cmp(&lam[a]));
+            let (lmax, lmin) = (lam[idx[0]], lam[idx[m - 1]]);
+            if lmax > 0.0 && lmin > 1e-8 * lmax {
+                for (i, &k) in idx.iter().enumerate() {
+                    w.s[i] = lam[k].max(0.0).sqrt();
+                    if vectors {
+                        for a in 0..m {
+                            w.v[(a, i)] = w.vs[(a, k)];
+                        }
+                    }
+                }
+                return true;
+            }
         }
         let res = if vectors {
             let stack = MemStack::new(&mut w.mem_vec);
-            svd(w.cs.as_ref(), w.s.as_mut(), None, Some(w.v.as_mut()), Par::Seq, stack, Default::default())
+            svd(cs, w.sd.as_mut(), None, Some(w.v.as_mut()), Par::Seq, stack, Default::default())
         } else {
             let stack = MemStack::new(&mut w.mem_novec);
-            svd(w.cs.as_ref(), w.s.as_mut(), None, None, Par::Seq, stack, Default::default())
+            svd(cs, w.sd.as_mut(), None, None, Par::Seq, stack, Default::default())
         };
-        res.is_ok()
+        if res.is_err() {
+            return false;
+        }
+        for i in 0..m {
+            w.s[i] = w.sd.column_vector()[i];
+        }
+        true
     }
 
     fn sigmas(w: &ObjectiveWorkspace) -> (f64, f64) {
-        let s = w.s.column_vector();
-        let m = s.nrows();
-        (s[0], s[m - 1])
+        (w.s[0], w.s[w.s.len() - 1])
     }
 
     /// Criterion value from the singular values in the workspace.
@@ -343,9 +395,8 @@ impl Objective {
         match self.criterion {
             Criterion::Cond => cond_of(s1, sm),
             Criterion::LogDet => {
-                let s = w.s.column_vector();
                 let floor = s1 / COND_CAP;
-                -2.0 * s.iter().map(|v| v.max(floor).max(1e-300).ln()).sum::<f64>()
+                -2.0 * w.s.iter().map(|v| v.max(floor).max(1e-300).ln()).sum::<f64>()
             }
             Criterion::InvSigmaMin => 1.0 / sm.max(s1 / COND_CAP).max(1e-300),
         }
@@ -374,7 +425,7 @@ impl Objective {
         if !j.is_finite() && j != f64::INFINITY {
             return Err(Error::Numerical("criterion is not a number".into()));
         }
-        let s: Vec<f64> = w.s.column_vector().iter().copied().collect();
+        let s: Vec<f64> = w.s.clone();
         let (s1, sm) = Self::sigmas(w);
         Ok(Spectrum {
             singular_values: s,
@@ -397,7 +448,7 @@ impl Objective {
         let jval = self.criterion_value(w);
         let m = self.n_cols();
         let rows = self.n_rows();
-        let s: Vec<f64> = w.s.column_vector().iter().copied().collect();
+        let s: Vec<f64> = w.s.clone();
         let (s1, sm_raw) = (s[0], s[m - 1]);
         let sm = sm_raw.max(s1 / COND_CAP).max(1e-300);
         // M (m×m, symmetric)
@@ -426,32 +477,32 @@ impl Objective {
             }
         }
         // G = C̃ M, then H (w.r.t. raw C)
-        let mut h = Mat::<f64>::zeros(rows, m);
-        faer::linalg::matmul::matmul(h.as_mut(), faer::Accum::Replace, w.cs.as_ref(), mm.as_ref(), 1.0, Par::Seq);
+        let mut h = std::mem::take(&mut w.h);
+        {
+            let cs = MatRef::from_column_major_slice(&w.cs, rows, m);
+            let hm = MatMut::from_column_major_slice_mut(&mut h, rows, m);
+            faer::linalg::matmul::matmul(hm, faer::Accum::Replace, cs, mm.as_ref(), 1.0, Par::Seq);
+        }
         match self.scaling {
             Scaling::UnitColumn => {
                 for j in 0..m {
                     let nrm = w.col_norm[j];
+                    let hj = &mut h[j * rows..(j + 1) * rows];
                     if nrm <= 0.0 {
-                        h.col_mut(j).fill(0.0);
+                        hj.iter_mut().for_each(|v| *v = 0.0);
                         continue;
                     }
-                    let cj = w.cs.col(j);
-                    let mut dot = 0.0;
-                    for r in 0..rows {
-                        dot += cj[r] * h[(r, j)];
-                    }
-                    for r in 0..rows {
-                        h[(r, j)] = (h[(r, j)] - cj[r] * dot) / nrm;
+                    let cj = &w.cs[j * rows..(j + 1) * rows];
+                    let dot: f64 = cj.iter().zip(hj.iter()).map(|(a, b)| a * b).sum();
+                    for (hv, cv) in hj.iter_mut().zip(cj) {
+                        *hv = (*hv - cv * dot) / nrm;
                     }
                 }
             }
             _ => {
                 for j in 0..m {
                     let f = self.fixed_scale[j];
-                    for r in 0..rows {
-                        h[(r, j)] *= f;
-                    }
+                    h[j * rows..(j + 1) * rows].iter_mut().for_each(|v| *v *= f);
                 }
             }
         }
@@ -469,28 +520,30 @@ impl Objective {
         let zeros = vec![0.0; n];
         let mut e = vec![0.0; n];
         let (mut gq, mut gqd, mut gqdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        for (i, &t) in self.times.iter().enumerate() {
+        for i in 0..self.grid.len() {
             let [q, qd, qdd] = &w.states[i];
-            let hrow = |r: usize, j: usize| h[(i * n + r, j)] * self.row_weight[r];
+            let hrow = |r: usize, j: usize| h[j * rows + i * n + r] * self.row_weight[r];
             // ∂/∂q_k and ∂/∂q̇_k with duals
-            for which in 0..2 {
-                for k in 0..n {
-                    for a in 0..n {
-                        w.q_[a] = Dual64::new(q[a], if which == 0 && a == k { 1.0 } else { 0.0 });
-                        w.qd_[a] = Dual64::new(qd[a], if which == 1 && a == k { 1.0 } else { 0.0 });
-                        w.qdd_[a] = Dual64::from(qdd[a]);
-                    }
-                    regressor_generic(&self.robot, &w.q_, &w.qd_, &w.qdd_, all, &mut w.dual, &mut w.yd);
-                    let mut acc = 0.0;
-                    for r in 0..n {
-                        for (j, &c) in self.columns.iter().enumerate() {
-                            acc += hrow(r, j) * w.yd[r * p + c].eps;
+            {
+                for which in 0..2 {
+                    for k in 0..n {
+                        for a in 0..n {
+                            w.q_[a] = Dual64::new(q[a], if which == 0 && a == k { 1.0 } else { 0.0 });
+                            w.qd_[a] = Dual64::new(qd[a], if which == 1 && a == k { 1.0 } else { 0.0 });
+                            w.qdd_[a] = Dual64::from(qdd[a]);
                         }
-                    }
-                    if which == 0 {
-                        gq[k] = acc;
-                    } else {
-                        gqd[k] = acc;
+                        regressor_generic(&self.robot, &w.q_, &w.qd_, &w.qdd_, all, &mut w.dual, &mut w.yd);
+                        let mut acc = 0.0;
+                        for r in 0..n {
+                            for (j, &c) in self.columns.iter().enumerate() {
+                                acc += hrow(r, j) * w.yd[r * p + c].eps;
+                            }
+                        }
+                        if which == 0 {
+                            gq[k] = acc;
+                        } else {
+                            gqd[k] = acc;
+                        }
                     }
                 }
             }
@@ -508,7 +561,7 @@ impl Objective {
                 }
                 gqdd[k] = acc;
             }
-            tr.basis(t, &mut w.basis);
+            self.grid.basis(i, &mut w.basis);
             for j in 0..n {
                 w.g_q0[j] += gq[j];
                 for k in 0..nh {
@@ -518,6 +571,7 @@ impl Objective {
                 }
             }
         }
+        w.h = h;
         self.layout.pullback(&w.g_q0, &w.g_a, &w.g_b, grad);
         jval
     }

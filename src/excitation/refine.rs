@@ -159,7 +159,11 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSetting
         Ok((st, _)) => format!("{st:?}"),
         Err((st, _)) => format!("{st:?}"),
     };
-    let status = if crate::io::stop::requested() { format!("{status} (interrupted)") } else { status };
+    let status = if crate::io::stop::requested() {
+        format!("{status} (interrupted)")
+    } else {
+        status
+    };
     drop(opt);
     let t = tracker.into_inner();
     // final candidate: the best feasible point met, else the last iterate

@@ -127,7 +127,13 @@ pub fn assess(robot: &Robot, base: &BaseParams, states: &States, noise: &[f64]) 
         }
     }
     let rel_std_dev: Vec<f64> = (0..m)
-        .map(|i| if nominal[i].abs() > 0.0 { std_dev[i] / nominal[i].abs() } else { f64::INFINITY })
+        .map(|i| {
+            if nominal[i].abs() > 0.0 {
+                std_dev[i] / nominal[i].abs()
+            } else {
+                f64::INFINITY
+            }
+        })
         .collect();
     let mut unexcited = Vec::new();
     for i in 0..m {
@@ -137,7 +143,10 @@ pub fn assess(robot: &Robot, base: &BaseParams, states: &States, noise: &[f64]) 
             unexcited.push(base.names[i].clone());
         }
     }
-    let poorly_identifiable = (0..m).filter(|&i| !std_dev[i].is_finite() || (nominal[i] != 0.0 && rel_std_dev[i] > 1.0)).map(|i| base.names[i].clone()).collect();
+    let poorly_identifiable = (0..m)
+        .filter(|&i| !std_dev[i].is_finite() || (nominal[i] != 0.0 && rel_std_dev[i] > 1.0))
+        .map(|i| base.names[i].clone())
+        .collect();
     Ok(Identifiability {
         samples: ns,
         rows: ns * n,
@@ -176,7 +185,12 @@ impl Identifiability {
             let _ = writeln!(s, "NOT excited ({}): {}", self.unexcited.len(), self.unexcited.join(" "));
         }
         if !self.poorly_identifiable.is_empty() {
-            let _ = writeln!(s, "relative std dev > 100 % ({}): {}", self.poorly_identifiable.len(), self.poorly_identifiable.join(" "));
+            let _ = writeln!(
+                s,
+                "relative std dev > 100 % ({}): {}",
+                self.poorly_identifiable.len(),
+                self.poorly_identifiable.join(" ")
+            );
         }
         let _ = writeln!(s, "\n  #  parameter        nominal      sensitivity c̄   std dev σ     rel. σ*");
         for i in 0..m {
@@ -188,7 +202,11 @@ impl Identifiability {
                 fmt_num(self.nominal[i]),
                 fmt_num(self.sensitivity[i]),
                 fmt_num(self.std_dev[i]),
-                if self.rel_std_dev[i].is_finite() { format!("{:.2} %", 100.0 * self.rel_std_dev[i]) } else { "∞".into() }
+                if self.rel_std_dev[i].is_finite() {
+                    format!("{:.2} %", 100.0 * self.rel_std_dev[i])
+                } else {
+                    "∞".into()
+                }
             );
         }
         s
@@ -283,7 +301,11 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Identi
         },
     )?;
     crate::io::write_atomic(&dir.join("report.txt"), excite_text(p, r, &ident).as_bytes())?;
-    spectrum_svg(&dir.join("singular_values.svg"), &r.spectrum.singular_values, &format!("{}: singular values", d.name))?;
+    spectrum_svg(
+        &dir.join("singular_values.svg"),
+        &r.spectrum.singular_values,
+        &format!("{}: singular values", d.name),
+    )?;
     joints_svg(p, r, &dir.join("joints.svg"))?;
     ee_svg(p, r, &dir.join("ee_path.svg"))?;
     Ok(ident)
@@ -318,7 +340,11 @@ pub fn excite_text(p: &Problem, r: &ExciteResult, ident: &Identifiability) -> St
         Status::Feasible => "FEASIBLE".to_string(),
         Status::Infeasible => "INFEASIBLE".to_string(),
     };
-    let _ = writeln!(s, "status: {status}{}", r.stopped_by.as_ref().map(|b| format!(" (stopped early: {b})")).unwrap_or_default());
+    let _ = writeln!(
+        s,
+        "status: {status}{}",
+        r.stopped_by.as_ref().map(|b| format!(" (stopped early: {b})")).unwrap_or_default()
+    );
     let _ = writeln!(s, "criterion value: {}", fmt_num(r.criterion));
     let _ = writeln!(s, "condition number: {}", fmt_num(r.spectrum.cond));
     if !r.violated.is_empty() {
@@ -360,7 +386,11 @@ pub fn excite_text(p: &Problem, r: &ExciteResult, ident: &Identifiability) -> St
             rf.evaluations,
             rf.seconds,
             rf.status,
-            if rf.violation > 0.0 { format!(", violation {:.2e}", rf.violation) } else { String::new() }
+            if rf.violation > 0.0 {
+                format!(", violation {:.2e}", rf.violation)
+            } else {
+                String::new()
+            }
         );
     }
     let _ = writeln!(s, "chosen: {}; total {:.2} s on {} threads", r.chosen, r.seconds, r.threads);
@@ -418,14 +448,13 @@ fn ee_svg(p: &Problem, r: &ExciteResult, path: &Path) -> Result<()> {
     };
     let s = r.trajectory.sample((200.0 * p.design.trajectory.frequency).max(20.0))?;
     let mut ws = Workspace::new(&p.robot);
-    let pts: Vec<[f64; 3]> = s
-        .q
-        .iter()
-        .map(|q| {
-            let v = frame_pose(&p.robot, &mut ws, q, &frame).translation.vector;
-            [v.x, v.y, v.z]
-        })
-        .collect();
+    let pts: Vec<[f64; 3]> =
+        s.q.iter()
+            .map(|q| {
+                let v = frame_pose(&p.robot, &mut ws, q, &frame).translation.vector;
+                [v.x, v.y, v.z]
+            })
+            .collect();
     let ax = ["x", "y", "z"];
     let mut panels = Vec::new();
     for (a, b) in [(0usize, 1usize), (0, 2), (1, 2)] {
@@ -482,7 +511,10 @@ fn outline(shape: &crate::robot::cartesian::Shape, a: usize, b: usize, lo: [f64;
         Shape::Sphere { center, radius } => {
             let k = 72;
             let th: Vec<f64> = (0..=k).map(|i| std::f64::consts::TAU * i as f64 / k as f64).collect();
-            vec![(th.iter().map(|t| center[a] + radius * t.cos()).collect(), th.iter().map(|t| center[b] + radius * t.sin()).collect())]
+            vec![(
+                th.iter().map(|t| center[a] + radius * t.cos()).collect(),
+                th.iter().map(|t| center[b] + radius * t.sin()).collect(),
+            )]
         }
         Shape::HalfSpace { normal, offset } => {
             let nn = (normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]).sqrt();
@@ -506,9 +538,17 @@ fn outline(shape: &crate::robot::cartesian::Shape, a: usize, b: usize, lo: [f64;
                 let k = 48;
                 let arc = |r: f64| -> (Vec<f64>, Vec<f64>) {
                     let ph: Vec<f64> = (0..=k).map(|i| azimuth[0] + (azimuth[1] - azimuth[0]) * i as f64 / k as f64).collect();
-                    (ph.iter().map(|p| center[0] + r * p.cos()).collect(), ph.iter().map(|p| center[1] + r * p.sin()).collect())
+                    (
+                        ph.iter().map(|p| center[0] + r * p.cos()).collect(),
+                        ph.iter().map(|p| center[1] + r * p.sin()).collect(),
+                    )
                 };
-                let ray = |p: f64| (vec![center[0] + radius[0] * p.cos(), center[0] + radius[1] * p.cos()], vec![center[1] + radius[0] * p.sin(), center[1] + radius[1] * p.sin()]);
+                let ray = |p: f64| {
+                    (
+                        vec![center[0] + radius[0] * p.cos(), center[0] + radius[1] * p.cos()],
+                        vec![center[1] + radius[0] * p.sin(), center[1] + radius[1] * p.sin()],
+                    )
+                };
                 vec![arc(radius[0]), arc(radius[1]), ray(azimuth[0]), ray(azimuth[1])]
             } else {
                 let zz = [center[2] + z[0], center[2] + z[1]];
