@@ -27,7 +27,7 @@
 use super::grid::TrigGrid;
 use crate::error::{Error, Result};
 use crate::robot::cartesian::{CartesianConstraint, Shape};
-use crate::robot::{frame_jacobian, frame_pose, id_derivatives, inverse_dynamics, motor_inertia, Frame, Robot, Workspace};
+use crate::robot::{frame_jacobian, id_derivatives, inverse_dynamics, motor_inertia, Frame, Robot, Workspace};
 use crate::trajectory::{period_grid, Basis, FourierLayout, FourierTrajectory};
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -504,7 +504,7 @@ impl Constraints {
                     if last_cart != idx {
                         for g in 0..self.grid.len() {
                             self.grid.state(tr, g, &mut cw.q, &mut cw.qd, &mut cw.qdd);
-                            let p = frame_pose(&self.robot, &mut cw.ws, &cw.q, &ci.frame).translation.vector;
+                            let p = frame_point(&self.robot, &mut cw.ws, &cw.q, &ci.frame);
                             cw.margins.clear();
                             ci.shape.margins(&p, &mut cw.margins);
                             let row = &mut cw.marg_grid[g];
@@ -519,7 +519,7 @@ impl Constraints {
                         &vals,
                         |t, cw: &mut ConstraintWorkspace| {
                             tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
-                            let p = frame_pose(&self.robot, &mut cw.ws, &cw.q, &ci.frame).translation.vector;
+                            let p = frame_point(&self.robot, &mut cw.ws, &cw.q, &ci.frame);
                             cw.margins.clear();
                             ci.shape.margins(&p, &mut cw.margins);
                             -cw.margins[margin].0
@@ -529,7 +529,7 @@ impl Constraints {
                     c[i] = fv;
                     if want_grad {
                         tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
-                        let p = frame_pose(&self.robot, &mut cw.ws, &cw.q, &ci.frame).translation.vector;
+                        let p = frame_point(&self.robot, &mut cw.ws, &cw.q, &ci.frame);
                         cw.margins.clear();
                         ci.shape.margins(&p, &mut cw.margins);
                         let dgdp = cw.margins[margin].1;
@@ -605,7 +605,7 @@ impl Constraints {
         for (ci, c) in self.cart.iter().enumerate() {
             let mut m = Vec::with_capacity(6);
             for k in 0..s.len() {
-                let p = frame_pose(&self.robot, &mut ws, &s.q[k], &c.frame).translation.vector;
+                let p = frame_point(&self.robot, &mut ws, &s.q[k], &c.frame);
                 m.clear();
                 c.shape.margins(&p, &mut m);
                 marg_all[ci].push(m.iter().map(|v| v.0).collect());
@@ -697,6 +697,17 @@ impl Constraints {
                 }
             }
         }
+    }
+}
+
+/// World position of a frame origin at q (forward kinematics without the
+/// rotation-to-quaternion conversion of [`crate::robot::frame_pose`]).
+pub fn frame_point(robot: &Robot, ws: &mut Workspace, q: &[f64], frame: &Frame) -> Vector3<f64> {
+    crate::robot::kinematics::forward_kinematics(robot, q, &mut ws.kin);
+    let pp = frame.placement.translation.vector;
+    match frame.link {
+        None => pp,
+        Some(l) => ws.kin.wpos[l] + ws.kin.wrot[l] * pp,
     }
 }
 

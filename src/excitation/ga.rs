@@ -178,10 +178,13 @@ fn poly_mutation(x: f64, lo: f64, hi: f64, eta: f64, rng: &mut ChaCha8Rng) -> f6
 }
 
 /// Runs the GA. `initial` individuals (genes) are put first into the
-/// initial population, the rest drawn uniformly in [lower, upper].
+/// initial population, the rest drawn uniformly in [lower, upper] and then,
+/// for every other one, shrunk towards `centre` by a factor u², u ~ U(0, 1)
+/// (small-amplitude individuals near a feasible rest point keep tight
+/// workspace constraints satisfiable from the start).
 /// `eval(ws, x)` returns (objective, violation) and may repair x in place.
 /// `observe(gen, best)` is called after each generation (progress bars).
-pub fn run<W, M, E, O>(s: &GaSettings, lower: &[f64], upper: &[f64], initial: &[Vec<f64>], make_ws: M, eval: E, mut observe: O) -> GaResult
+pub fn run<W, M, E, O>(s: &GaSettings, lower: &[f64], upper: &[f64], centre: &[f64], initial: &[Vec<f64>], make_ws: M, eval: E, mut observe: O) -> GaResult
 where
     M: Fn() -> W + Sync + Send,
     E: Fn(&mut W, &mut Vec<f64>) -> (f64, f64) + Sync + Send,
@@ -204,17 +207,14 @@ where
     let mut rng = ChaCha8Rng::seed_from_u64(mix(s.seed, 0, 0));
     let mut genes: Vec<Vec<f64>> = initial.iter().take(np).cloned().collect();
     while genes.len() < np {
-        genes.push(
-            (0..nv)
-                .map(|i| {
-                    if upper[i] > lower[i] {
-                        rng.random_range(lower[i]..upper[i])
-                    } else {
-                        lower[i]
-                    }
-                })
-                .collect(),
-        );
+        let mut x: Vec<f64> = (0..nv).map(|i| if upper[i] > lower[i] { rng.random_range(lower[i]..upper[i]) } else { lower[i] }).collect();
+        if genes.len() % 2 == 1 {
+            let u: f64 = rng.random_range(0.0..1.0);
+            for (v, c) in x.iter_mut().zip(centre) {
+                *v = c + u * u * (*v - c);
+            }
+        }
+        genes.push(x);
     }
     let mut pop = evaluate(genes);
     let mut evaluations = np as u64;
@@ -305,11 +305,11 @@ mod tests {
             deadline: None,
         };
         let ev = |_: &mut (), x: &mut Vec<f64>| ((x[0] - 1.0).powi(2) + (x[1] + 0.5).powi(2), (1.0 - x[0] - x[1]).max(0.0));
-        let r = run(&s, &[-3.0, -3.0], &[3.0, 3.0], &[], || (), ev, |_, _| {});
+        let r = run(&s, &[-3.0, -3.0], &[3.0, 3.0], &[0.0, 0.0], &[], || (), ev, |_, _| {});
         let b = &r.population[0];
         assert!(b.feasible());
         assert!((b.x[0] - 1.25).abs() < 0.05 && (b.x[1] + 0.25).abs() < 0.05, "{:?}", b.x);
-        let r2 = run(&s, &[-3.0, -3.0], &[3.0, 3.0], &[], || (), ev, |_, _| {});
+        let r2 = run(&s, &[-3.0, -3.0], &[3.0, 3.0], &[0.0, 0.0], &[], || (), ev, |_, _| {});
         assert_eq!(r.population, r2.population);
     }
 }

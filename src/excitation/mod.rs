@@ -301,6 +301,85 @@ impl Problem {
     }
 }
 
+/// A candidate design after verification on the check grid.
+struct Finalised {
+    x: Vec<f64>,
+    trajectory: FourierTrajectory,
+    spectrum: Spectrum,
+    margins: Vec<Margin>,
+    violated: Vec<Margin>,
+    shrink: f64,
+}
+
+impl Finalised {
+    fn key(&self) -> ga::Individual {
+        ga::Individual {
+            x: Vec::new(),
+            f: self.spectrum.criterion,
+            violation: self.violated.iter().map(|m| -m.margin / scale_of(m)).sum(),
+        }
+    }
+}
+
+fn scale_of(m: &Margin) -> f64 {
+    if m.limit != 0.0 {
+        m.limit.abs()
+    } else {
+        1.0
+    }
+}
+
+/// Factors tried, in order, to bring a slightly violating design inside its limits.
+const SHRINK_STEPS: [f64; 9] = [0.9999, 0.9995, 0.999, 0.998, 0.995, 0.99, 0.98, 0.95, 0.9];
+
+/// Verifies x on the check grid; if some constraint is violated there but
+/// the rest pose at q0 is feasible, scales the harmonics by the first factor
+/// of [`SHRINK_STEPS`] that meets every constraint (none below 0.9).
+fn finalise(p: &Problem, x: &[f64]) -> Result<Finalised> {
+    let rate = p.design.limits.check_rate;
+    let n = p.robot.dof();
+    let vpj = p.layout.vars_per_joint();
+    let off = usize::from(p.layout.vary_q0);
+    let scaled = |s: f64| -> Vec<f64> {
+        let mut y = x.to_vec();
+        for j in 0..n {
+            for v in &mut y[j * vpj + off..(j + 1) * vpj] {
+                *v *= s;
+            }
+        }
+        y
+    };
+    let check = |y: &[f64]| -> Result<Vec<Margin>> { p.constraints.verify(&p.layout.trajectory(y), rate) };
+    let feasible = |m: &[Margin]| m.iter().all(|m| m.margin >= 0.0);
+    let mut margins = check(x)?;
+    let mut xs = x.to_vec();
+    let mut shrink = 1.0;
+    if !feasible(&margins) && feasible(&check(&scaled(0.0))?) {
+        for f in SHRINK_STEPS {
+            let m = check(&scaled(f))?;
+            if feasible(&m) {
+                shrink = f;
+                xs = scaled(f);
+                margins = m;
+                break;
+            }
+        }
+    }
+    let trajectory = p.layout.trajectory(&xs);
+    let mut ow = p.objective.workspace();
+    let spectrum = p.objective.spectrum(&trajectory, &mut ow)?;
+    let mut violated: Vec<Margin> = margins.iter().filter(|m| m.margin < 0.0).cloned().collect();
+    violated.sort_by(|a, b| (a.margin / scale_of(a)).total_cmp(&(b.margin / scale_of(b))));
+    Ok(Finalised {
+        x: xs,
+        trajectory,
+        spectrum,
+        margins,
+        violated,
+        shrink,
+    })
+}
+
 /// Runs the design: GA, refinement, verification (see the module docs).
 /// `progress`: show a progress bar on stderr.
 pub fn run(p: &Problem, progress: bool) -> Result<ExciteResult> {
@@ -324,11 +403,13 @@ pub fn run(p: &Problem, progress: bool) -> Result<ExciteResult> {
     } else {
         indicatif::ProgressBar::hidden()
     };
-    // the initial population also holds the rest trajectory scaled harmonics: none — all random
+    // shrink centre: the rest trajectory at q0 (harmonics zero)
+    let centre = p.layout.vars(&crate::trajectory::FourierTrajectory::at_rest(p.layout.q0.clone(), p.layout.n_h, p.layout.omega));
     let gares = ga::run(
         &settings,
         &p.lower,
         &p.upper,
+        &centre,
         &[],
         || (p.objective.workspace(), p.constraints.workspace(), Vec::new()),
         |w: &mut (objective::ObjectiveWorkspace, constraints::ConstraintWorkspace, Vec<f64>), x: &mut Vec<f64>| {
@@ -400,37 +481,45 @@ pub fn run(p: &Problem, progress: bool) -> Result<ExciteResult> {
             });
         }
     }
-    // choose: feasibility first, then criterion
+    // verify every candidate on the check grid (shrinking it towards the rest
+    // pose if the fine grid shows a small violation), then choose:
+    // feasibility first, then criterion
     let best_ga = gares.population.first().ok_or_else(|| Error::Numerical("empty GA population".into()))?;
-    let mut chosen = ga::Individual {
-        x: best_ga.x.clone(),
-        f: best_ga.f,
-        violation: best_ga.violation,
-    };
-    let mut chosen_from = "ga".to_string();
+    let mut cands: Vec<(String, Vec<f64>)> = vec![("ga".to_string(), best_ga.x.clone())];
     for (k, r) in refinements.iter().enumerate() {
-        let cand = ga::Individual {
-            x: r.x.clone(),
-            f: r.f,
-            violation: r.violation,
+        cands.push((format!("refine #{}", k + 1), r.x.clone()));
+    }
+    let mut best: Option<(String, Finalised)> = None;
+    for (name, x) in cands {
+        let f = finalise(p, &x)?;
+        let better = match &best {
+            None => true,
+            Some((_, b)) => f.key().cmp_fitness(&b.key()) == std::cmp::Ordering::Less,
         };
-        if cand.cmp_fitness(&chosen) == std::cmp::Ordering::Less {
-            chosen = cand;
-            chosen_from = format!("refine #{}", k + 1);
+        if better {
+            best = Some((name, f));
         }
     }
-    let trajectory = p.layout.trajectory(&chosen.x);
-    let mut ow = p.objective.workspace();
-    let spectrum = p.objective.spectrum(&trajectory, &mut ow)?;
-    let margins = p.constraints.verify(&trajectory, d.limits.check_rate)?;
-    let mut violated: Vec<Margin> = margins.iter().filter(|m| m.margin < 0.0).cloned().collect();
-    violated.sort_by(|a, b| a.margin.total_cmp(&b.margin));
+    let (chosen_from, fin) = best.ok_or_else(|| Error::Numerical("no candidate design".into()))?;
+    let Finalised {
+        x,
+        trajectory,
+        spectrum,
+        margins,
+        violated,
+        shrink,
+    } = fin;
+    let chosen_from = if shrink < 1.0 {
+        format!("{chosen_from}, harmonics scaled by {shrink:.6} to meet the {} Hz check", d.limits.check_rate)
+    } else {
+        chosen_from
+    };
     let status = if violated.is_empty() { Status::Feasible } else { Status::Infeasible };
     let last = gares.history.last();
     Ok(ExciteResult {
         status,
         stopped_by,
-        x: chosen.x.clone(),
+        x,
         criterion: spectrum.criterion,
         spectrum,
         margins,

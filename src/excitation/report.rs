@@ -21,7 +21,7 @@ use crate::error::{Error, Result};
 use crate::io::plot::{write_svg, Panel, Series};
 use crate::io::States;
 use crate::params::BaseParams;
-use crate::robot::{frame_pose, regressor_rows, Robot, Workspace};
+use crate::robot::{regressor_rows, Robot, Workspace};
 use nalgebra::DMatrix;
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -451,7 +451,7 @@ fn ee_svg(p: &Problem, r: &ExciteResult, path: &Path) -> Result<()> {
     let pts: Vec<[f64; 3]> =
         s.q.iter()
             .map(|q| {
-                let v = frame_pose(&p.robot, &mut ws, q, &frame).translation.vector;
+                let v = super::constraints::frame_point(&p.robot, &mut ws, q, &frame);
                 [v.x, v.y, v.z]
             })
             .collect();
