@@ -207,7 +207,15 @@ where
     let mut rng = ChaCha8Rng::seed_from_u64(mix(s.seed, 0, 0));
     let mut genes: Vec<Vec<f64>> = initial.iter().take(np).cloned().collect();
     while genes.len() < np {
-        let mut x: Vec<f64> = (0..nv).map(|i| if upper[i] > lower[i] { rng.random_range(lower[i]..upper[i]) } else { lower[i] }).collect();
+        let mut x: Vec<f64> = (0..nv)
+            .map(|i| {
+                if upper[i] > lower[i] {
+                    rng.random_range(lower[i]..upper[i])
+                } else {
+                    lower[i]
+                }
+            })
+            .collect();
         if genes.len() % 2 == 1 {
             let u: f64 = rng.random_range(0.0..1.0);
             for (v, c) in x.iter_mut().zip(centre) {

@@ -404,7 +404,11 @@ pub fn run(p: &Problem, progress: bool) -> Result<ExciteResult> {
         indicatif::ProgressBar::hidden()
     };
     // shrink centre: the rest trajectory at q0 (harmonics zero)
-    let centre = p.layout.vars(&crate::trajectory::FourierTrajectory::at_rest(p.layout.q0.clone(), p.layout.n_h, p.layout.omega));
+    let centre = p.layout.vars(&crate::trajectory::FourierTrajectory::at_rest(
+        p.layout.q0.clone(),
+        p.layout.n_h,
+        p.layout.omega,
+    ));
     let gares = ga::run(
         &settings,
         &p.lower,

@@ -19,7 +19,8 @@
 //!   D = diag(1/‖c_j‖), every column of unit norm — D depends on x;
 //! * [`Scaling::Nominal`]: D = diag(|θ_b,j|), each column weighted by its
 //!   nominal base-parameter value (its torque contribution); values below
-//!   1e-6·max|θ_b| are raised to that floor;
+//!   10⁻³·max|θ_b| (products of inertia that are nominally zero, say) are
+//!   raised to that floor;
 //! * [`Scaling::None`]: D = I.
 //!
 //! # Criteria and gradients
@@ -94,6 +95,10 @@ pub enum Columns {
     /// Base parameters of the rigid-body (inertial) columns only.
     Inertial,
 }
+
+/// Velocities below this (rad/s or m/s) are taken as exactly zero in the
+/// regressor samples, so Coulomb columns sign(q̇) do not flip on round-off.
+pub const ZERO_VELOCITY: f64 = 1e-12;
 
 /// Largest condition number reported; rank-deficient matrices are clamped to it.
 pub const COND_CAP: f64 = 1e12;
@@ -226,7 +231,7 @@ impl Objective {
         let fixed_scale = match scaling {
             Scaling::Nominal => {
                 let mx = base_nominal.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-                let floor = 1e-6 * mx.max(1e-300);
+                let floor = 1e-3 * mx.max(1e-300);
                 base_nominal.iter().map(|v| v.abs().max(floor)).collect()
             }
             _ => vec![1.0; columns.len()],
@@ -305,6 +310,13 @@ impl Objective {
         for i in 0..self.grid.len() {
             let [q, qd, qdd] = &mut w.states[i];
             self.grid.state(tr, i, q, qd, qdd);
+            // velocities that are zero up to round-off (t = 0 of an at-rest
+            // trajectory) must give sign(q̇) = 0, not a random ±1
+            for v in qd.iter_mut() {
+                if v.abs() < ZERO_VELOCITY {
+                    *v = 0.0;
+                }
+            }
             regressor_rows(&self.robot, &mut w.ws, q, qd, qdd, &mut w.y);
             for r in 0..n {
                 let wr = self.row_weight[r];

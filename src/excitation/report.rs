@@ -83,13 +83,20 @@ pub fn assess(robot: &Robot, base: &BaseParams, states: &States, noise: &[f64]) 
     let mut ws = Workspace::new(robot);
     let mut y = vec![0.0; n * p];
     let mut c = DMatrix::<f64>::zeros(ns * n, m);
+    let mut qd = vec![0.0; n];
     for i in 0..ns {
         for (what, v) in [("q", &states.q[i]), ("qd", &states.qd[i]), ("qdd", &states.qdd[i])] {
             if v.len() != n {
                 return Err(Error::dim(format!("{what} of sample {i}"), n, v.len()));
             }
         }
-        regressor_rows(robot, &mut ws, &states.q[i], &states.qd[i], &states.qdd[i], &mut y);
+        qd.copy_from_slice(&states.qd[i]);
+        for v in qd.iter_mut() {
+            if v.abs() < super::objective::ZERO_VELOCITY {
+                *v = 0.0;
+            }
+        }
+        regressor_rows(robot, &mut ws, &states.q[i], &qd, &states.qdd[i], &mut y);
         for r in 0..n {
             for (j, &col) in base.independent.iter().enumerate() {
                 c[(i * n + r, j)] = y[r * p + col];
