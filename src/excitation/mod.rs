@@ -385,7 +385,8 @@ fn finalise(p: &Problem, x: &[f64]) -> Result<Finalised> {
 pub fn run(p: &Problem, progress: bool) -> Result<ExciteResult> {
     let t0 = Instant::now();
     let d = &p.design;
-    let deadline_all = d.time_limit.map(|t| t0 + std::time::Duration::from_secs_f64(t));
+    // 3 % of the budget is left for the verification on the check grid
+    let deadline_all = d.time_limit.map(|t| t0 + std::time::Duration::from_secs_f64(0.97 * t));
     let deadline_ga = d.time_limit.map(|t| t0 + std::time::Duration::from_secs_f64(t * d.ga.time_fraction));
     let settings = ga::GaSettings {
         population: d.ga.population,

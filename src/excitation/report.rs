@@ -8,10 +8,12 @@
 //! * the singular values and the condition number of C_w with unit columns,
 //!   and the numerical rank (σ_k > 10⁻⁸ σ_1);
 //! * the sensitivity of each parameter, c̄_i = ‖c_i‖₁ / (n N) (paper 000 eq. 10);
-//! * the covariance of the WLS estimate from one period of data with noise
+//! * the covariance of the WLS estimate from the given data with noise
 //!   σ_j on joint j, var(θ̂) = (C_wᵀ C_w)⁻¹ (paper 000 eq. 13 with N_f = 1),
 //!   the standard deviations σ_i and the relative ones σ*_i = σ_i / |θ_i|
-//!   (eq. 14) at the nominal base-parameter values (∞ for a rank-deficient C);
+//!   (eq. 14) at the nominal base-parameter values; when C is rank
+//!   deficient, those of the model without the non-excited parameters (which
+//!   get ∞);
 //! * the parameters that are not excited: zero columns, and those with a
 //!   component above 0.1 in a right singular vector of the numerical null space.
 
@@ -47,6 +49,8 @@ pub struct Identifiability {
     pub cond: f64,
     /// Singular values of C_w with unit columns, decreasing.
     pub singular_values: Vec<f64>,
+    /// Condition number of the model without the non-excited parameters (= `cond` at full rank).
+    pub cond_excited: f64,
     /// Sensitivities c̄_i (paper 000 eq. 10), in the units of torque per unit parameter.
     pub sensitivity: Vec<f64>,
     /// Nominal base-parameter values.
@@ -59,7 +63,7 @@ pub struct Identifiability {
     pub noise: Vec<f64>,
     /// Parameters not excited (zero column or in the numerical null space).
     pub unexcited: Vec<String>,
-    /// Parameters whose predicted relative standard deviation exceeds 100 % (nominal ≠ 0) or is unbounded.
+    /// Excited parameters whose predicted relative standard deviation exceeds 100 % (nominal ≠ 0) or is unbounded.
     pub poorly_identifiable: Vec<String>,
 }
 
@@ -125,12 +129,36 @@ pub fn assess(robot: &Robot, base: &BaseParams, states: &States, noise: &[f64]) 
     let cond = if rank < m { f64::INFINITY } else { s1 / s[m - 1] };
     let theta = robot.nominal_params();
     let nominal: Vec<f64> = base.base_values(theta.as_slice()).iter().copied().collect();
+    let mut unexcited_idx = Vec::new();
+    for i in 0..m {
+        let zero = norms[i] <= 1e-14 * maxn.max(1e-300);
+        let null = (rank..m).any(|k| v[(i, k)].abs() > 0.1);
+        if zero || null {
+            unexcited_idx.push(i);
+        }
+    }
+    let unexcited: Vec<String> = unexcited_idx.iter().map(|&i| base.names[i].clone()).collect();
+    // standard deviations: of the full model when C has full rank, else of the
+    // model with the non-excited parameters removed (they stay at ∞)
     let mut std_dev = vec![f64::INFINITY; m];
+    let keep: Vec<usize> = (0..m).filter(|i| !unexcited_idx.contains(i)).collect();
+    let mut cond_excited = cond;
     if rank == m {
         for i in 0..m {
             let d = 1.0 / norms[i];
             let var: f64 = (0..m).map(|k| (v[(i, k)] / s[k]).powi(2)).sum();
             std_dev[i] = d * var.sqrt();
+        }
+    } else if !keep.is_empty() {
+        let sub = DMatrix::from_fn(cn.nrows(), keep.len(), |r, c| cn[(r, keep[c])]);
+        let (_, s2, v2) = crate::linalg::thin_svd(&sub)?;
+        let k = keep.len();
+        cond_excited = if s2[k - 1] > RANK_TOL * s2[0] { s2[0] / s2[k - 1] } else { f64::INFINITY };
+        if s2[k - 1] > RANK_TOL * s2[0] {
+            for (a, &i) in keep.iter().enumerate() {
+                let var: f64 = (0..k).map(|c| (v2[(a, c)] / s2[c]).powi(2)).sum();
+                std_dev[i] = var.sqrt() / norms[i];
+            }
         }
     }
     let rel_std_dev: Vec<f64> = (0..m)
@@ -142,16 +170,8 @@ pub fn assess(robot: &Robot, base: &BaseParams, states: &States, noise: &[f64]) 
             }
         })
         .collect();
-    let mut unexcited = Vec::new();
-    for i in 0..m {
-        let zero = norms[i] <= 1e-14 * maxn.max(1e-300);
-        let null = (rank..m).any(|k| v[(i, k)].abs() > 0.1);
-        if zero || null {
-            unexcited.push(base.names[i].clone());
-        }
-    }
     let poorly_identifiable = (0..m)
-        .filter(|&i| !std_dev[i].is_finite() || (nominal[i] != 0.0 && rel_std_dev[i] > 1.0))
+        .filter(|&i| !unexcited_idx.contains(&i) && (!std_dev[i].is_finite() || (nominal[i] != 0.0 && rel_std_dev[i] > 1.0)))
         .map(|i| base.names[i].clone())
         .collect();
     Ok(Identifiability {
@@ -162,6 +182,7 @@ pub fn assess(robot: &Robot, base: &BaseParams, states: &States, noise: &[f64]) 
         rank,
         cond,
         singular_values: s.iter().copied().collect(),
+        cond_excited,
         sensitivity,
         nominal,
         std_dev,
@@ -190,6 +211,7 @@ impl Identifiability {
             let _ = writeln!(s, "every base parameter is excited");
         } else {
             let _ = writeln!(s, "NOT excited ({}): {}", self.unexcited.len(), self.unexcited.join(" "));
+            let _ = writeln!(s, "condition number without them: {}", fmt_num(self.cond_excited));
         }
         if !self.poorly_identifiable.is_empty() {
             let _ = writeln!(
