@@ -31,17 +31,18 @@ fn design_run() {
     let r = run(&p, false).expect("bench design run");
     println!(
         "excite_ur5_bench: {:?}, cond {:.4} in {:.2} s wall on {} threads (GA {} generations / {} evaluations in {:.2} s; chosen {})",
-        r.status,
-        r.spectrum.cond,
-        r.seconds,
-        r.threads,
-        r.ga.generations,
-        r.ga.evaluations,
-        r.ga.seconds,
-        r.chosen
+        r.status, r.spectrum.cond, r.seconds, r.threads, r.ga.generations, r.ga.evaluations, r.ga.seconds, r.chosen
     );
     for (k, rf) in r.refinements.iter().enumerate() {
-        println!("  refine #{}: {:.4} -> {:.4}, {} evaluations, {:.2} s, {}", k + 1, rf.start, rf.end, rf.evaluations, rf.seconds, rf.status);
+        println!(
+            "  refine #{}: {:.4} -> {:.4}, {} evaluations, {:.2} s, {}",
+            k + 1,
+            rf.start,
+            rf.end,
+            rf.evaluations,
+            rf.seconds,
+            rf.status
+        );
     }
 }
 
@@ -59,7 +60,9 @@ fn bench(c: &mut Criterion) {
     let mut jac = vec![0.0; p.constraints.len() * nv];
     let mut grp = c.benchmark_group("excite_ur5_bench");
     grp.bench_function("criterion", |b| b.iter(|| black_box(p.objective.value(black_box(&x), &mut ow))));
-    grp.bench_function("criterion_and_gradient", |b| b.iter(|| black_box(p.objective.value_grad(black_box(&x), &mut ow, &mut grad))));
+    grp.bench_function("criterion_and_gradient", |b| {
+        b.iter(|| black_box(p.objective.value_grad(black_box(&x), &mut ow, &mut grad)))
+    });
     grp.bench_function("constraints_and_jacobian", |b| {
         b.iter(|| {
             p.constraints.eval(black_box(&x), &mut cw, &mut cval, Some(&mut jac));

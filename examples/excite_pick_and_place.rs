@@ -14,11 +14,18 @@ use std::path::PathBuf;
 /// Quintic rest-to-rest blend s(τ), τ ∈ [0, 1], with s', s''.
 fn quintic(tau: f64) -> (f64, f64, f64) {
     let (t2, t3) = (tau * tau, tau * tau * tau);
-    (10.0 * t3 - 15.0 * t3 * tau + 6.0 * t3 * t2, 30.0 * t2 - 60.0 * t3 + 30.0 * t2 * t2, 60.0 * tau - 180.0 * t2 + 120.0 * t3)
+    (
+        10.0 * t3 - 15.0 * t3 * tau + 6.0 * t3 * t2,
+        30.0 * t2 - 60.0 * t3 + 30.0 * t2 * t2,
+        60.0 * tau - 180.0 * t2 + 120.0 * t3,
+    )
 }
 
 fn main() -> Result<(), idexp::Error> {
-    let out = std::env::args().nth(1).map(PathBuf::from).unwrap_or_else(|| PathBuf::from("out/pick_and_place.csv"));
+    let out = std::env::args()
+        .nth(1)
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("out/pick_and_place.csv"));
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(42);
     let mut area = |centre: f64, rng: &mut rand_chacha::ChaCha8Rng| -> [f64; 6] {
         [
@@ -62,6 +69,11 @@ fn main() -> Result<(), idexp::Error> {
         }
     }
     s.write(&out)?;
-    println!("wrote {} samples ({:.0} s of pick and place) to {}", s.len(), s.len() as f64 / rate, out.display());
+    println!(
+        "wrote {} samples ({:.0} s of pick and place) to {}",
+        s.len(),
+        s.len() as f64 / rate,
+        out.display()
+    );
     Ok(())
 }

@@ -350,3 +350,27 @@ fn design_files_are_validated_with_the_field_named() {
         }
     }
 }
+
+#[test]
+fn smooth_condition_surrogate_gradient_matches_finite_differences_and_bounds_the_cond() {
+    let r = load("ur5");
+    let lay = FourierLayout::new(vec![0.0; 6], 3, std::f64::consts::TAU * 0.2, false, false).unwrap();
+    let (o, _) = objective(&r, &lay, 8.0, Criterion::Cond, Scaling::UnitColumn, &[1.0; 6]);
+    let mut w = o.workspace();
+    let x = random_x(lay.n_vars(), 0.5, 9);
+    let mut g = vec![0.0; x.len()];
+    let p = 20.0;
+    let l = o.soft_log_cond_grad(&x, &mut w, &mut g, p);
+    let cond = o.value(&x, &mut w);
+    let m = o.n_cols() as f64;
+    assert!(l >= 2.0 * cond.ln() - 1e-12 && l <= 2.0 * cond.ln() + 2.0 * m.ln() / p + 1e-12, "{l} vs 2 ln {cond}");
+    let mut gt = vec![0.0; x.len()];
+    let gmax = g.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    for i in 0..x.len() {
+        let (mut xp, mut xm) = (x.clone(), x.clone());
+        xp[i] += 1e-6;
+        xm[i] -= 1e-6;
+        let fd = (o.soft_log_cond_grad(&xp, &mut w, &mut gt, p) - o.soft_log_cond_grad(&xm, &mut w, &mut gt, p)) / 2e-6;
+        assert!((fd - g[i]).abs() < 1e-5 * gmax, "var {i}: {} vs {fd}", g[i]);
+    }
+}

@@ -48,6 +48,7 @@
 //! starts = 2                        # best distinct GA individuals refined
 //! max_evals = 300                   # per start
 //! xtol_rel = 1e-7
+//! smooth = 0.0                      # cond: > 0 adds a first stage on a smooth surrogate with this exponent
 //! ```
 
 use super::objective::{Columns, Criterion, Scaling};
@@ -251,6 +252,8 @@ pub struct RefineSpec {
     pub xtol_rel: f64,
     /// Relative objective tolerance.
     pub ftol_rel: f64,
+    /// Exponent p of the smooth first stage for `criterion = "cond"` (0: off).
+    pub smooth: f64,
 }
 
 impl Default for RefineSpec {
@@ -261,6 +264,7 @@ impl Default for RefineSpec {
             max_evals: 300,
             xtol_rel: 1e-7,
             ftol_rel: 1e-9,
+            smooth: 0.0,
         }
     }
 }
@@ -386,6 +390,9 @@ impl ExciteDesign {
                 "refine.starts",
                 "refinement needs at least one start and one evaluation (or algorithm = \"none\")".into(),
             );
+        }
+        if !(r.smooth == 0.0 || (r.smooth >= 1.0 && r.smooth <= 1000.0)) {
+            return bad("refine.smooth", format!("expected 0 (off) or an exponent in [1, 1000], got {}", r.smooth));
         }
         if !(r.xtol_rel >= 0.0 && r.ftol_rel >= 0.0) {
             return bad("refine.xtol_rel", "tolerances must be ≥ 0".into());

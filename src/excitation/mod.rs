@@ -436,12 +436,10 @@ pub fn run(p: &Problem, progress: bool) -> Result<ExciteResult> {
         ga::GaStop::Interrupted => Some("interrupted (Ctrl-C)".to_string()),
         ga::GaStop::Generations => None,
     };
-    // distinct starts
+    // distinct individuals, best first: the first `starts` are refined; with a
+    // time limit, further ones are refined in batches while time remains
     let mut starts: Vec<&ga::Individual> = Vec::new();
     for ind in &gares.population {
-        if starts.len() >= d.refine.starts {
-            break;
-        }
         let dup = starts
             .iter()
             .any(|s| s.x.iter().zip(&ind.x).all(|(a, b)| (a - b).abs() <= 1e-12 * (1.0 + a.abs())));
@@ -459,23 +457,37 @@ pub fn run(p: &Problem, progress: bool) -> Result<ExciteResult> {
             lower: p.lower.clone(),
             upper: p.upper.clone(),
             deadline: deadline_all,
+            smooth: if d.refine.smooth > 0.0 { Some(d.refine.smooth) } else { None },
             tol: 1e-9,
         };
+        let first = d.refine.starts.min(starts.len());
         let spin = if progress {
-            let s = crate::io::progress_bar(starts.len() as u64, "excite refine");
-            s.set_message(format!("{} {:?} start(s), analytic gradients", starts.len(), d.refine.algorithm));
+            let s = crate::io::progress_bar(first as u64, "excite refine");
+            s.set_message(format!("{first} {:?} start(s), analytic gradients", d.refine.algorithm));
             s
         } else {
             indicatif::ProgressBar::hidden()
         };
-        refinements = starts
-            .par_iter()
-            .map(|s| {
-                let r = refine::refine(&p.objective, &p.constraints, &s.x, &rs);
-                spin.inc(1);
-                r
-            })
-            .collect();
+        let batch = |set: &[&ga::Individual]| -> Vec<refine::RefineOutcome> {
+            set.par_iter()
+                .map(|s| {
+                    let r = refine::refine(&p.objective, &p.constraints, &s.x, &rs);
+                    spin.inc(1);
+                    r
+                })
+                .collect()
+        };
+        refinements = batch(&starts[..first]);
+        if let Some(dl) = deadline_all {
+            let width = rayon::current_num_threads().max(2);
+            let mut next = first;
+            while next < starts.len() && Instant::now() < dl && !crate::io::stop::requested() {
+                let end = (next + width).min(starts.len());
+                spin.inc_length((end - next) as u64);
+                refinements.extend(batch(&starts[next..end]));
+                next = end;
+            }
+        }
         spin.finish_and_clear();
         if crate::io::stop::requested() {
             stopped_by = Some("interrupted (Ctrl-C) during refinement".into());
@@ -490,19 +502,33 @@ pub fn run(p: &Problem, progress: bool) -> Result<ExciteResult> {
     // pose if the fine grid shows a small violation), then choose:
     // feasibility first, then criterion
     let best_ga = gares.population.first().ok_or_else(|| Error::Numerical("empty GA population".into()))?;
-    let mut cands: Vec<(String, Vec<f64>)> = vec![("ga".to_string(), best_ga.x.clone())];
+    let mut cands: Vec<(String, ga::Individual)> = vec![("ga".to_string(), best_ga.clone())];
     for (k, r) in refinements.iter().enumerate() {
-        cands.push((format!("refine #{}", k + 1), r.x.clone()));
+        cands.push((
+            format!("refine #{}", k + 1),
+            ga::Individual {
+                x: r.x.clone(),
+                f: r.f,
+                violation: r.violation,
+            },
+        ));
     }
+    // best first by the search's own measure; the first candidate that passes
+    // the check grid wins (later ones are worse), else the least violating
+    cands.sort_by(|a, b| a.1.cmp_fitness(&b.1));
     let mut best: Option<(String, Finalised)> = None;
-    for (name, x) in cands {
-        let f = finalise(p, &x)?;
+    for (name, ind) in cands {
+        let f = finalise(p, &ind.x)?;
         let better = match &best {
             None => true,
             Some((_, b)) => f.key().cmp_fitness(&b.key()) == std::cmp::Ordering::Less,
         };
+        let done = f.violated.is_empty();
         if better {
             best = Some((name, f));
+        }
+        if done {
+            break;
         }
     }
     let (chosen_from, fin) = best.ok_or_else(|| Error::Numerical("no candidate design".into()))?;

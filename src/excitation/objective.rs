@@ -448,6 +448,19 @@ impl Objective {
 
     /// J(x) and its gradient ∂J/∂x (analytic, see the module docs) into `grad`.
     pub fn value_grad(&self, x: &[f64], w: &mut ObjectiveWorkspace, grad: &mut [f64]) -> f64 {
+        self.value_grad_mode(x, w, grad, None)
+    }
+
+    /// A smooth surrogate of 2 ln cond(C̃) and its gradient:
+    /// L_p = (1/p) ln Σ λ_i^p + (1/p) ln Σ λ_i^{−p}, λ_i = σ_i², which tends to
+    /// ln λ_max − ln λ_min = 2 ln κ as p → ∞ (overestimating it by at most
+    /// 2 ln(m)/p) and, unlike κ, is differentiable where singular values
+    /// coincide. dλ_i = 2 v_iᵀ C̃ᵀ dC̃ v_i. Used by the refinement's first stage.
+    pub fn soft_log_cond_grad(&self, x: &[f64], w: &mut ObjectiveWorkspace, grad: &mut [f64], p: f64) -> f64 {
+        self.value_grad_mode(x, w, grad, Some(p))
+    }
+
+    fn value_grad_mode(&self, x: &[f64], w: &mut ObjectiveWorkspace, grad: &mut [f64], soft: Option<f64>) -> f64 {
         assert_eq!(grad.len(), self.layout.n_vars(), "gradient length");
         w.evaluations += 1;
         w.gradients += 1;
@@ -474,17 +487,31 @@ impl Objective {
                 }
             }
         };
-        match self.criterion {
-            Criterion::Cond => {
-                rank1(1.0 / (s1 * sm), 0, &mut mm);
-                rank1(-s1 / (sm * sm * sm), m - 1, &mut mm);
+        let mut jval = jval;
+        if let Some(pw) = soft {
+            let lam: Vec<f64> = s.iter().map(|v| (v * v).max(sm * sm)).collect();
+            let (lmax, lmin) = (lam[0], lam[m - 1]);
+            let a: Vec<f64> = lam.iter().map(|l| (l / lmax).powf(pw)).collect();
+            let b: Vec<f64> = lam.iter().map(|l| (lmin / l).powf(pw)).collect();
+            let (sa, sb): (f64, f64) = (a.iter().sum(), b.iter().sum());
+            jval = lmax.ln() + sa.ln() / pw - lmin.ln() + sb.ln() / pw;
+            for k in 0..m {
+                let wk = a[k] / (lam[k] * sa) - b[k] / (lam[k] * sb);
+                rank1(2.0 * wk, k, &mut mm);
             }
-            Criterion::InvSigmaMin => rank1(-1.0 / (sm * sm * sm), m - 1, &mut mm),
-            Criterion::LogDet => {
-                let floor = s1 / COND_CAP;
-                for k in 0..m {
-                    let sk = s[k].max(floor).max(1e-300);
-                    rank1(-2.0 / (sk * sk), k, &mut mm);
+        } else {
+            match self.criterion {
+                Criterion::Cond => {
+                    rank1(1.0 / (s1 * sm), 0, &mut mm);
+                    rank1(-s1 / (sm * sm * sm), m - 1, &mut mm);
+                }
+                Criterion::InvSigmaMin => rank1(-1.0 / (sm * sm * sm), m - 1, &mut mm),
+                Criterion::LogDet => {
+                    let floor = s1 / COND_CAP;
+                    for k in 0..m {
+                        let sk = s[k].max(floor).max(1e-300);
+                        rank1(-2.0 / (sk * sk), k, &mut mm);
+                    }
                 }
             }
         }

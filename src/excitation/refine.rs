@@ -32,6 +32,8 @@ pub struct RefineSettings {
     pub upper: Vec<f64>,
     /// Stop by this instant.
     pub deadline: Option<Instant>,
+    /// Exponent p of the smooth first stage for the condition number (None: one stage on ln κ).
+    pub smooth: Option<f64>,
     /// Feasibility tolerance of nlopt on the scaled constraints; the
     /// constraints are imposed as c + 2·tol ≤ 0, so accepted points have c < 0.
     pub tol: f64,
@@ -70,9 +72,17 @@ fn internal(criterion: Criterion, j: f64) -> f64 {
     }
 }
 
-/// Refines `x0` (see the module docs).
-pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSettings) -> RefineOutcome {
-    let t0 = Instant::now();
+/// One nlopt run from x0: returns (last iterate, best feasible point met with
+/// its stage objective, nlopt status, evaluations). `soft`: minimise the
+/// smooth surrogate [`Objective::soft_log_cond_grad`] with that exponent.
+fn stage(
+    obj: &Objective,
+    cons: &Constraints,
+    x0: &[f64],
+    s: &RefineSettings,
+    soft: Option<f64>,
+    max_evals: u32,
+) -> (Vec<f64>, Option<(Vec<f64>, f64)>, String, u64) {
     let nv = x0.len();
     let m = cons.len();
     let tracker = RefCell::new(Tracker {
@@ -81,13 +91,18 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSetting
         best: None,
         evals: 0,
     });
-    let mut ow = obj.workspace();
-    let start_f = obj.value(x0, &mut ow);
     let crit = obj.criterion;
     let stop_now = || crate::io::stop::requested() || s.deadline.is_some_and(|d| Instant::now() >= d);
     let f_cb = |x: &[f64], grad: Option<&mut [f64]>, w: &mut super::objective::ObjectiveWorkspace| -> f64 {
-        let j = match grad {
-            Some(g) => {
+        let (j, internal_j) = match (grad, soft) {
+            (Some(g), Some(p)) => {
+                let l = obj.soft_log_cond_grad(x, w, g, p);
+                if stop_now() || !l.is_finite() {
+                    g.iter_mut().for_each(|v| *v = 0.0);
+                }
+                (l, l)
+            }
+            (Some(g), None) => {
                 let j = obj.value_grad(x, w, g);
                 if crit != Criterion::LogDet {
                     let jj = j.max(1e-300);
@@ -96,9 +111,17 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSetting
                 if stop_now() || !j.is_finite() {
                     g.iter_mut().for_each(|v| *v = 0.0);
                 }
-                j
+                (j, internal(crit, j))
             }
-            None => obj.value(x, w),
+            (None, Some(p)) => {
+                let mut g = vec![0.0; x.len()];
+                let l = obj.soft_log_cond_grad(x, w, &mut g, p);
+                (l, l)
+            }
+            (None, None) => {
+                let j = obj.value(x, w);
+                (j, internal(crit, j))
+            }
         };
         let mut t = tracker.borrow_mut();
         t.evals += 1;
@@ -108,8 +131,8 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSetting
         if m == 0 && j.is_finite() && t.best.as_ref().is_none_or(|b| j < b.1) {
             t.best = Some((x.to_vec(), j));
         }
-        if j.is_finite() {
-            internal(crit, j)
+        if internal_j.is_finite() {
+            internal_j
         } else {
             1e300
         }
@@ -122,11 +145,11 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSetting
         nv,
         f_cb,
         nlopt::Target::Minimize,
-        ow,
+        obj.workspace(),
     );
     let _ = opt.set_lower_bounds(&s.lower);
     let _ = opt.set_upper_bounds(&s.upper);
-    let _ = opt.set_maxeval(s.max_evals);
+    let _ = opt.set_maxeval(max_evals.max(1));
     if s.xtol_rel > 0.0 {
         let _ = opt.set_xtol_rel(s.xtol_rel);
     }
@@ -159,18 +182,43 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSetting
         Ok((st, _)) => format!("{st:?}"),
         Err((st, _)) => format!("{st:?}"),
     };
+    drop(opt);
+    let t = tracker.into_inner();
+    (x, t.best, status, t.evals)
+}
+
+/// Refines `x0` (see the module docs). For the condition number with
+/// `smooth = Some(p)`, a first stage (60 % of the evaluations) minimises the
+/// smooth surrogate L_p of 2 ln κ, and a second stage polishes ln κ itself
+/// from the best feasible point of the first.
+pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSettings) -> RefineOutcome {
+    let t0 = Instant::now();
+    let m = cons.len();
+    let mut ow = obj.workspace();
+    let start_f = obj.value(x0, &mut ow);
+    let mut evals = 0;
+    let mut x_start = x0.to_vec();
+    let mut status_soft = String::new();
+    if let (Some(p), Criterion::Cond) = (s.smooth, obj.criterion) {
+        let budget = (s.max_evals as f64 * 0.6) as u32;
+        let (last, best, st, ev) = stage(obj, cons, x0, s, Some(p), budget);
+        evals += ev;
+        status_soft = format!("{st} (smooth stage), ");
+        x_start = best.map(|b| b.0).unwrap_or(last);
+    }
+    let left = s.max_evals.saturating_sub(evals as u32).max(1);
+    let (x, best, status, ev) = stage(obj, cons, &x_start, s, None, left);
+    evals += ev;
+    let status = format!("{status_soft}{status}");
     let status = if crate::io::stop::requested() {
         format!("{status} (interrupted)")
     } else {
         status
     };
-    drop(opt);
-    let t = tracker.into_inner();
     // final candidate: the best feasible point met, else the last iterate
-    let mut ow = obj.workspace();
     let mut cw = cons.workspace();
     let mut c = vec![0.0; m];
-    let (xf, ff) = match t.best {
+    let (xf, ff) = match best {
         Some((bx, bf)) => (bx, bf),
         None => {
             let f = obj.value(&x, &mut ow);
@@ -185,7 +233,7 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSetting
         violation,
         start_f,
         status,
-        evaluations: t.evals,
+        evaluations: evals,
         seconds: t0.elapsed().as_secs_f64(),
     }
 }
