@@ -27,13 +27,13 @@ fn main() -> Result<(), idexp::Error> {
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from("out/pick_and_place.csv"));
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(42);
-    let mut area = |centre: f64, rng: &mut rand_chacha::ChaCha8Rng| -> [f64; 6] {
+    let area = |centre: f64, rng: &mut rand_chacha::ChaCha8Rng| -> [f64; 6] {
         [
             centre + rng.random_range(-0.25..0.25),
             -1.2 + rng.random_range(-0.2..0.2),
             1.6 + rng.random_range(-0.2..0.2),
             -1.97 + rng.random_range(-0.1..0.1),
-            -1.5708,
+            -std::f64::consts::FRAC_PI_2,
             rng.random_range(-1.0..1.0),
         ]
     };
@@ -62,7 +62,9 @@ fn main() -> Result<(), idexp::Error> {
             let tau = i as f64 / steps as f64;
             let (b, bd, bdd) = quintic(tau);
             let t = s.q.len() as f64 / rate;
-            s.t.as_mut().map(|v| v.push(t));
+            if let Some(v) = s.t.as_mut() {
+                v.push(t);
+            }
             s.q.push((0..6).map(|j| w[0][j] + b * (w[1][j] - w[0][j])).collect());
             s.qd.push((0..6).map(|j| bd / seg * (w[1][j] - w[0][j])).collect());
             s.qdd.push((0..6).map(|j| bdd / (seg * seg) * (w[1][j] - w[0][j])).collect());

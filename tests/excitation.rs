@@ -363,7 +363,10 @@ fn smooth_condition_surrogate_gradient_matches_finite_differences_and_bounds_the
     let l = o.soft_log_cond_grad(&x, &mut w, &mut g, p);
     let cond = o.value(&x, &mut w);
     let m = o.n_cols() as f64;
-    assert!(l >= 2.0 * cond.ln() - 1e-12 && l <= 2.0 * cond.ln() + 2.0 * m.ln() / p + 1e-12, "{l} vs 2 ln {cond}");
+    assert!(
+        l >= 2.0 * cond.ln() - 1e-12 && l <= 2.0 * cond.ln() + 2.0 * m.ln() / p + 1e-12,
+        "{l} vs 2 ln {cond}"
+    );
     let mut gt = vec![0.0; x.len()];
     let gmax = g.iter().fold(0.0f64, |a, v| a.max(v.abs()));
     for i in 0..x.len() {

@@ -138,12 +138,11 @@ fn sbx(x1: f64, x2: f64, lo: f64, hi: f64, eta: f64, rng: &mut ChaCha8Rng) -> (f
     let u: f64 = rng.random_range(0.0..1.0);
     let child = |beta: f64| {
         let alpha = 2.0 - beta.powf(-(eta + 1.0));
-        let bq = if u <= 1.0 / alpha {
+        if u <= 1.0 / alpha {
             (u * alpha).powf(1.0 / (eta + 1.0))
         } else {
             (1.0 / (2.0 - u * alpha)).powf(1.0 / (eta + 1.0))
-        };
-        bq
+        }
     };
     let d = y2 - y1;
     let b1 = 1.0 + 2.0 * (y1 - lo) / d;

@@ -72,17 +72,13 @@ fn internal(criterion: Criterion, j: f64) -> f64 {
     }
 }
 
+/// (last iterate, best feasible point and its value, nlopt status, evaluations).
+type StageResult = (Vec<f64>, Option<(Vec<f64>, f64)>, String, u64);
+
 /// One nlopt run from x0: returns (last iterate, best feasible point met with
 /// its stage objective, nlopt status, evaluations). `soft`: minimise the
 /// smooth surrogate [`Objective::soft_log_cond_grad`] with that exponent.
-fn stage(
-    obj: &Objective,
-    cons: &Constraints,
-    x0: &[f64],
-    s: &RefineSettings,
-    soft: Option<f64>,
-    max_evals: u32,
-) -> (Vec<f64>, Option<(Vec<f64>, f64)>, String, u64) {
+fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSettings, soft: Option<f64>, max_evals: u32) -> StageResult {
     let nv = x0.len();
     let m = cons.len();
     let tracker = RefCell::new(Tracker {
