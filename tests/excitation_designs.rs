@@ -198,7 +198,9 @@ fn idexp_excite_on_the_readme_design_writes_every_output_and_assess_reads_the_tr
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{text}{}", String::from_utf8_lossy(&o.stderr));
     assert!(text.contains("rank: 48") && text.contains("every base parameter is excited"), "{text}");
-    assert!(dir.path().join("assess/report.json").is_file() && dir.path().join("assess/singular_values.svg").is_file());
+    for f in ["report.json", "report.txt", "singular_values.svg", "inputs.json"] {
+        assert!(dir.path().join("assess").join(f).is_file(), "assess output {f}");
+    }
     // bad input: errors name the file
     let o = idexp().args(["excite", "designs/does_not_exist.toml"]).output().unwrap();
     assert!(!o.status.success());

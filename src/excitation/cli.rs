@@ -38,7 +38,7 @@ pub struct AssessArgs {
     /// Rigid-body (inertial) base parameters only, no drive/friction columns.
     #[arg(long)]
     pub inertial: bool,
-    /// Also write report.json, report.txt and singular_values.svg into this folder.
+    /// Also write report.json, report.txt, singular_values.svg and inputs.json into this folder.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Print JSON instead of text.
@@ -118,6 +118,16 @@ pub fn run_assess(a: &AssessArgs) -> Result<()> {
     let title = format!("identifiability of {} on robot `{}`", a.trajectory.display(), robot.name);
     if let Some(dir) = &a.out {
         id.write(dir, &title)?;
+        let inputs = serde_json::json!({
+            "command": "assess",
+            "robot": a.robot.display().to_string(),
+            "trajectory": a.trajectory.display().to_string(),
+            "noise": noise,
+            "every": a.every,
+            "inertial": a.inertial,
+            "status": if id.unexcited.is_empty() { "every base parameter excited" } else { "some base parameters not excited" },
+        });
+        crate::io::write_json(&dir.join("inputs.json"), &inputs)?;
     }
     if a.json {
         let s = serde_json::to_string_pretty(&id).map_err(|e| Error::Numerical(e.to_string()))?;
