@@ -56,6 +56,7 @@ use faer::linalg::evd::{self_adjoint_evd, self_adjoint_evd_scratch, ComputeEigen
 use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
 use faer::{Mat, MatMut, MatRef, Par};
 use num_dual::Dual64;
+use rayon::prelude::*;
 
 use serde::{Deserialize, Serialize};
 
@@ -132,14 +133,7 @@ pub struct Objective {
 /// Per-thread buffers of [`Objective`] evaluations.
 pub struct ObjectiveWorkspace {
     ws: Workspace,
-    dual: Kin<Dual64>,
     y: Vec<f64>,
-    y0: Vec<f64>,
-    yk: Vec<f64>,
-    yd: Vec<Dual64>,
-    qd_: Vec<Dual64>,
-    q_: Vec<Dual64>,
-    qdd_: Vec<Dual64>,
     /// Raw stacked regressor C (N·n × m), column-major.
     pub c: Vec<f64>,
     /// Scaled regressor C̃, column-major.
@@ -155,7 +149,6 @@ pub struct ObjectiveWorkspace {
     mem_novec: MemBuffer,
     mem_vec: MemBuffer,
     mem_evd: MemBuffer,
-    basis: Basis,
     states: Vec<[Vec<f64>; 3]>,
     g_q0: Vec<f64>,
     g_a: Vec<Vec<f64>>,
@@ -271,14 +264,7 @@ impl Objective {
         let nh = self.layout.n_h;
         ObjectiveWorkspace {
             ws: Workspace::new(&self.robot),
-            dual: Kin::new(n),
             y: vec![0.0; n * p],
-            y0: vec![0.0; n * p],
-            yk: vec![0.0; n * p],
-            yd: vec![Dual64::from(0.0); n * p],
-            q_: vec![Dual64::from(0.0); n],
-            qd_: vec![Dual64::from(0.0); n],
-            qdd_: vec![Dual64::from(0.0); n],
             c: vec![0.0; r * m],
             cs: vec![0.0; r * m],
             h: vec![0.0; r * m],
@@ -292,7 +278,6 @@ impl Objective {
             mem_novec: MemBuffer::new(req_no),
             mem_vec: MemBuffer::new(req_v),
             mem_evd: MemBuffer::new(self_adjoint_evd_scratch::<f64>(m, ComputeEigenvectors::Yes, Par::Seq, Default::default())),
-            basis: Basis::default(),
             states: vec![[vec![0.0; n], vec![0.0; n], vec![0.0; n]]; self.times.len()],
             g_q0: vec![0.0; n],
             g_a: vec![vec![0.0; nh]; n],
@@ -545,74 +530,128 @@ impl Objective {
                 }
             }
         }
-        // per-sample contraction with the regressor derivatives
+        // per-sample contraction with the regressor derivatives, in fixed
+        // chunks of samples evaluated in parallel and summed in chunk order
+        // (the result does not depend on the thread count)
         let n = self.robot.dof();
-        let p = self.robot.n_params();
         let nh = self.layout.n_h;
-        for j in 0..n {
-            w.g_q0[j] = 0.0;
-            w.g_a[j].iter_mut().for_each(|v| *v = 0.0);
-            w.g_b[j].iter_mut().for_each(|v| *v = 0.0);
-        }
-        let no_grav = Terms { gravity: false, drive: true };
-        let all = Terms { gravity: true, drive: true };
-        let zeros = vec![0.0; n];
-        let mut e = vec![0.0; n];
-        let (mut gq, mut gqd, mut gqdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        for i in 0..self.grid.len() {
-            let [q, qd, qdd] = &w.states[i];
-            let hrow = |r: usize, j: usize| h[j * rows + i * n + r] * self.row_weight[r];
-            // ∂/∂q_k and ∂/∂q̇_k with duals
-            {
-                for which in 0..2 {
-                    for k in 0..n {
-                        for a in 0..n {
-                            w.q_[a] = Dual64::new(q[a], if which == 0 && a == k { 1.0 } else { 0.0 });
-                            w.qd_[a] = Dual64::new(qd[a], if which == 1 && a == k { 1.0 } else { 0.0 });
-                            w.qdd_[a] = Dual64::from(qdd[a]);
-                        }
-                        regressor_generic(&self.robot, &w.q_, &w.qd_, &w.qdd_, all, &mut w.dual, &mut w.yd);
-                        let mut acc = 0.0;
-                        for r in 0..n {
-                            for (j, &c) in self.columns.iter().enumerate() {
-                                acc += hrow(r, j) * w.yd[r * p + c].eps;
+        let len = 1 + 2 * nh;
+        let nchunks = self.grid.len().div_ceil(GRAD_CHUNK);
+        let states = &w.states;
+        let hs = &h;
+        let parts: Vec<Vec<f64>> = (0..nchunks)
+            .into_par_iter()
+            .map_init(
+                || SampleBuffers::new(&self.robot),
+                |buf, c| {
+                    let mut acc = vec![0.0; n * len];
+                    let mut g = vec![0.0; 3 * n];
+                    for i in c * GRAD_CHUNK..((c + 1) * GRAD_CHUNK).min(self.grid.len()) {
+                        self.sample_gradient(i, &states[i], hs, rows, buf, &mut g);
+                        self.grid.basis(i, &mut buf.basis);
+                        for j in 0..n {
+                            let (gq, gqd, gqdd) = (g[j], g[n + j], g[2 * n + j]);
+                            acc[j * len] += gq;
+                            for k in 0..nh {
+                                let b = &buf.basis.k[k];
+                                acc[j * len + 1 + k] += gq * b[0] + gqd * b[2] + gqdd * b[4];
+                                acc[j * len + 1 + nh + k] += gq * b[1] + gqd * b[3] + gqdd * b[5];
                             }
                         }
-                        if which == 0 {
-                            gq[k] = acc;
-                        } else {
-                            gqd[k] = acc;
-                        }
                     }
-                }
-            }
-            // ∂/∂q̈_k: Y(q,0,e_k) − Y(q,0,0) without gravity
-            regressor_generic(&self.robot, q, &zeros, &zeros, no_grav, &mut w.ws.kin, &mut w.y0);
-            for k in 0..n {
-                e.iter_mut().for_each(|v| *v = 0.0);
-                e[k] = 1.0;
-                regressor_generic(&self.robot, q, &zeros, &e, no_grav, &mut w.ws.kin, &mut w.yk);
-                let mut acc = 0.0;
-                for r in 0..n {
-                    for (j, &c) in self.columns.iter().enumerate() {
-                        acc += hrow(r, j) * (w.yk[r * p + c] - w.y0[r * p + c]);
-                    }
-                }
-                gqdd[k] = acc;
-            }
-            self.grid.basis(i, &mut w.basis);
-            for j in 0..n {
-                w.g_q0[j] += gq[j];
-                for k in 0..nh {
-                    let b = &w.basis.k[k];
-                    w.g_a[j][k] += gq[j] * b[0] + gqd[j] * b[2] + gqdd[j] * b[4];
-                    w.g_b[j][k] += gq[j] * b[1] + gqd[j] * b[3] + gqdd[j] * b[5];
-                }
+                    acc
+                },
+            )
+            .collect();
+        for j in 0..n {
+            w.g_q0[j] = parts.iter().map(|a| a[j * len]).sum();
+            for k in 0..nh {
+                w.g_a[j][k] = parts.iter().map(|a| a[j * len + 1 + k]).sum();
+                w.g_b[j][k] = parts.iter().map(|a| a[j * len + 1 + nh + k]).sum();
             }
         }
         w.h = h;
         self.layout.pullback(&w.g_q0, &w.g_a, &w.g_b, grad);
         jval
+    }
+}
+
+/// Samples per parallel chunk of the gradient's per-sample work.
+const GRAD_CHUNK: usize = 10;
+
+/// Buffers of one worker of the gradient's per-sample work.
+struct SampleBuffers {
+    kin: Kin<f64>,
+    dual: Kin<Dual64>,
+    yd: Vec<Dual64>,
+    y0: Vec<f64>,
+    yk: Vec<f64>,
+    q_: Vec<Dual64>,
+    qd_: Vec<Dual64>,
+    qdd_: Vec<Dual64>,
+    basis: Basis,
+}
+
+impl SampleBuffers {
+    fn new(robot: &Robot) -> Self {
+        let (n, p) = (robot.dof(), robot.n_params());
+        SampleBuffers {
+            kin: Kin::new(n),
+            dual: Kin::new(n),
+            yd: vec![Dual64::from(0.0); n * p],
+            y0: vec![0.0; n * p],
+            yk: vec![0.0; n * p],
+            q_: vec![Dual64::from(0.0); n],
+            qd_: vec![Dual64::from(0.0); n],
+            qdd_: vec![Dual64::from(0.0); n],
+            basis: Basis::default(),
+        }
+    }
+}
+
+impl Objective {
+    /// ∂J/∂q, ∂J/∂q̇, ∂J/∂q̈ at sample i (into g: 3n values) from H (column-major, `rows` rows).
+    fn sample_gradient(&self, i: usize, state: &[Vec<f64>; 3], h: &[f64], rows: usize, b: &mut SampleBuffers, g: &mut [f64]) {
+        let n = self.robot.dof();
+        let p = self.robot.n_params();
+        let [q, qd, qdd] = state;
+        let hrow = |r: usize, j: usize| h[j * rows + i * n + r] * self.row_weight[r];
+        let all = Terms { gravity: true, drive: true };
+        let no_grav = Terms { gravity: false, drive: true };
+        // ∂/∂q_k and ∂/∂q̇_k with duals
+        for which in 0..2 {
+            for k in 0..n {
+                for a in 0..n {
+                    b.q_[a] = Dual64::new(q[a], if which == 0 && a == k { 1.0 } else { 0.0 });
+                    b.qd_[a] = Dual64::new(qd[a], if which == 1 && a == k { 1.0 } else { 0.0 });
+                    b.qdd_[a] = Dual64::from(qdd[a]);
+                }
+                regressor_generic(&self.robot, &b.q_, &b.qd_, &b.qdd_, all, &mut b.dual, &mut b.yd);
+                let mut acc = 0.0;
+                for r in 0..n {
+                    for (j, &c) in self.columns.iter().enumerate() {
+                        acc += hrow(r, j) * b.yd[r * p + c].eps;
+                    }
+                }
+                g[which * n + k] = acc;
+            }
+        }
+        // ∂/∂q̈_k: Y(q,0,e_k) − Y(q,0,0) without gravity (Y is affine in q̈)
+        let zeros = vec![0.0; n];
+        let mut e = vec![0.0; n];
+        regressor_generic(&self.robot, q, &zeros, &zeros, no_grav, &mut b.kin, &mut b.y0);
+        for k in 0..n {
+            e.iter_mut().for_each(|v| *v = 0.0);
+            e[k] = 1.0;
+            regressor_generic(&self.robot, q, &zeros, &e, no_grav, &mut b.kin, &mut b.yk);
+            let mut acc = 0.0;
+            for r in 0..n {
+                for (j, &c) in self.columns.iter().enumerate() {
+                    acc += hrow(r, j) * (b.yk[r * p + c] - b.y0[r * p + c]);
+                }
+            }
+            g[2 * n + k] = acc;
+        }
     }
 }
 
