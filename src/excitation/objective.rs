@@ -41,9 +41,12 @@
 //! and finally through the Fourier basis ([`FourierTrajectory::basis`]) and
 //! the layout ([`FourierLayout::pullback`]).
 //!
-//! The SVD runs sequentially in a preallocated faer stack held by the
-//! per-thread [`ObjectiveWorkspace`], so an evaluation does not depend on the
-//! thread count.
+//! The decomposition (eigendecomposition of the m×m Gram matrix C̃ᵀC̃ when
+//! C̃ is well conditioned, else a thin SVD of C̃) runs sequentially in
+//! preallocated faer stacks held by the per-thread [`ObjectiveWorkspace`]; the
+//! per-sample gradient work runs in fixed chunks of samples on the rayon pool
+//! and is summed in chunk order. An evaluation therefore does not depend on
+//! the thread count.
 
 use super::grid::TrigGrid;
 use crate::error::{Error, Result};
