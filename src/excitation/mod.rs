@@ -50,7 +50,6 @@ use crate::trajectory::{period_grid, FourierLayout, FourierTrajectory};
 use constraints::{Constraints, JointLimitSpec, Margin};
 use design::{ExciteDesign, RefineAlgorithm};
 use objective::{Columns, Objective, Spectrum};
-use rayon::prelude::*;
 use serde::Serialize;
 use std::time::Instant;
 
@@ -468,24 +467,26 @@ pub fn run(p: &Problem, progress: bool) -> Result<ExciteResult> {
         } else {
             indicatif::ProgressBar::hidden()
         };
-        let batch = |set: &[&ga::Individual]| -> Vec<refine::RefineOutcome> {
-            set.par_iter()
-                .map(|s| {
-                    let r = refine::refine(&p.objective, &p.constraints, &s.x, &rs);
-                    spin.inc(1);
-                    r
-                })
-                .collect()
+        // one start at a time, best first: the gradient's per-sample work is
+        // what runs in parallel (no nested pools competing for the threads)
+        let one = |s: &ga::Individual| -> refine::RefineOutcome {
+            let r = refine::refine(&p.objective, &p.constraints, &s.x, &rs);
+            spin.inc(1);
+            r
         };
-        refinements = batch(&starts[..first]);
+        for s in &starts[..first] {
+            if crate::io::stop::requested() || deadline_all.is_some_and(|dl| Instant::now() >= dl) {
+                break;
+            }
+            refinements.push(one(s));
+        }
         if let Some(dl) = deadline_all {
-            let width = rayon::current_num_threads().max(2);
-            let mut next = first;
-            while next < starts.len() && Instant::now() < dl && !crate::io::stop::requested() {
-                let end = (next + width).min(starts.len());
-                spin.inc_length((end - next) as u64);
-                refinements.extend(batch(&starts[next..end]));
-                next = end;
+            for s in &starts[first..] {
+                if Instant::now() >= dl || crate::io::stop::requested() {
+                    break;
+                }
+                spin.inc_length(1);
+                refinements.push(one(s));
             }
         }
         spin.finish_and_clear();
