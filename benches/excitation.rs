@@ -5,7 +5,8 @@
 //!
 //! First the whole design is run once with its 10 s wall-clock budget and the
 //! condition number reached and the wall time are printed (skip with
-//! `IDEXP_BENCH_DESIGN=0`); then criterion measures the kernels, one thread:
+//! `IDEXP_BENCH_DESIGN=0`); then criterion measures the kernels (single
+//! threaded except the gradient's per-sample work, which uses the rayon pool):
 //! the criterion alone, the criterion with its analytic gradient, the
 //! constraints with their Jacobian, one GA evaluation (repair + criterion +
 //! constraints).
