@@ -32,6 +32,10 @@ enum Cmd {
     Merge(idexp::frf::cli::MergeArgs),
     /// Optimal measurement positions by convex relaxed experiment design (D/A/E, Clarabel).
     Positions(idexp::positions::cli::PositionsArgs),
+    /// Design an optimal excitation trajectory (GA + gradient refinement) from a design file.
+    Excite(idexp::excitation::cli::ExciteArgs),
+    /// Identifiability of a given trajectory CSV: rank, condition number, unexcited parameters.
+    Assess(idexp::excitation::cli::AssessArgs),
 }
 
 fn main() {
@@ -76,6 +80,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Cmd::Fit(a) => idexp::frf::cli::run_fit(a)?,
         Cmd::Merge(a) => idexp::frf::cli::run_merge(a)?,
         Cmd::Positions(a) => idexp::positions::cli::run(a)?,
+        Cmd::Excite(a) => idexp::excitation::cli::run_excite(a)?,
+        Cmd::Assess(a) => idexp::excitation::cli::run_assess(a)?,
     }
     Ok(())
 }

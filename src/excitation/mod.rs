@@ -1,1 +1,584 @@
-//! (module under construction on its branch)
+//! Excitation trajectory design (paper 000 §II-C, §III-B; paper 002 §2.3,
+//! §3.3, eq. 17–20): the Fourier coefficients of a periodic joint trajectory
+//! that make the base parameters identifiable, inside the joint, torque and
+//! Cartesian limits of the cell.
+//!
+//! # The problem
+//!
+//! For joint j, q_j(t) = q0_j + Σ_{k=1..n_h} [a_kj/(kω) sin(kωt) − b_kj/(kω) cos(kωt)]
+//! ([`crate::trajectory::FourierTrajectory`]; design vector x = (a, b[, q0]) by
+//! [`crate::trajectory::FourierLayout`], optionally starting and ending at rest).
+//!
+//! minimise J(C̃(x))  subject to  c_i(x) ≤ 0,  x in a box,
+//!
+//! J the criterion of the scaled stacked base regressor ([`objective`]:
+//! cond by default, or −log det, 1/σ_min), c_i the joint position, velocity,
+//! acceleration, torque and Cartesian constraints ([`constraints`]), checked
+//! on the continuous trajectory or a fine grid and verified on a 1 kHz grid.
+//!
+//! # The method
+//!
+//! 1. A real-coded genetic algorithm ([`ga`]) over the box: feasibility-first
+//!    selection, elitism, the joint limits repaired by scaling each joint's
+//!    harmonics, population evaluated in parallel.
+//! 2. Gradient refinement ([`refine`]) of the best distinct individuals with
+//!    nlopt SLSQP or MMA, analytic gradients (dσ_i = u_iᵀ dC v_i through the
+//!    regressor derivatives and the Fourier basis; envelope-theorem gradients
+//!    of the constraint extrema).
+//! 3. The report ([`report`]): criterion, condition number, singular values,
+//!    sensitivities c̄_i (paper 000 eq. 10), predicted relative standard
+//!    deviations (eq. 13–14), the worst margin of every constraint on the
+//!    verification grid, solver statistics; the trajectory at the controller
+//!    rate, reloadable coefficients, SVG plots.
+//!
+//! Results depend only on the design (and its seed), not on the thread count,
+//! unless a wall-clock `time_limit` cuts the search short.
+
+pub mod cli;
+pub mod constraints;
+pub mod design;
+pub mod ga;
+pub mod grid;
+pub mod objective;
+pub mod refine;
+pub mod report;
+
+use crate::error::{Error, Result};
+use crate::params::{BaseOptions, BaseParams};
+use crate::robot::Robot;
+use crate::trajectory::{period_grid, FourierLayout, FourierTrajectory};
+use constraints::{Constraints, JointLimitSpec, Margin};
+use design::{ExciteDesign, RefineAlgorithm};
+use objective::{Columns, Objective, Spectrum};
+use serde::Serialize;
+use std::time::Instant;
+
+pub use design::{GaSpec, LimitsSpec, ObjectiveSpec, RefineSpec, TrajectorySpec};
+pub use objective::{Criterion, Scaling};
+pub use report::{assess, Identifiability};
+
+/// A design resolved against its robot: objective, constraints, bounds.
+#[derive(Debug, Clone)]
+pub struct Problem {
+    /// The design (validated, robot path resolved).
+    pub design: ExciteDesign,
+    /// The robot.
+    pub robot: Robot,
+    /// Base parameters (numerical, Gautier 1991).
+    pub base: BaseParams,
+    /// Nominal base-parameter values K θ_nominal.
+    pub nominal_base: Vec<f64>,
+    /// Design vector layout.
+    pub layout: FourierLayout,
+    /// The criterion.
+    pub objective: Objective,
+    /// The constraints.
+    pub constraints: Constraints,
+    /// The joint limits imposed.
+    pub limits: JointLimitSpec,
+    /// Lower bounds of x.
+    pub lower: Vec<f64>,
+    /// Upper bounds of x.
+    pub upper: Vec<f64>,
+}
+
+/// Outcome of a design run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    /// Every constraint holds on the verification grid.
+    Feasible,
+    /// Some constraint is violated on the verification grid (see the margins).
+    Infeasible,
+}
+
+/// Result of [`run`].
+#[derive(Debug, Clone, Serialize)]
+pub struct ExciteResult {
+    /// Feasible or not (on the verification grid).
+    pub status: Status,
+    /// Whether the run was cut short (time limit, Ctrl-C) and by what.
+    pub stopped_by: Option<String>,
+    /// The designed trajectory.
+    pub trajectory: FourierTrajectory,
+    /// Its design vector.
+    pub x: Vec<f64>,
+    /// Criterion value.
+    pub criterion: f64,
+    /// Singular values and condition number of the scaled regressor.
+    pub spectrum: Spectrum,
+    /// Worst margin of every constraint on the verification grid.
+    pub margins: Vec<Margin>,
+    /// The violated constraints (empty when feasible), worst first.
+    pub violated: Vec<Margin>,
+    /// GA statistics.
+    pub ga: GaSummary,
+    /// One entry per refinement start.
+    pub refinements: Vec<RefineSummary>,
+    /// Where the final design came from (`ga` or `refine #k`).
+    pub chosen: String,
+    /// Wall time of the search (s).
+    pub seconds: f64,
+    /// Worker threads used.
+    pub threads: usize,
+}
+
+/// GA statistics in the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct GaSummary {
+    /// Generations completed.
+    pub generations: usize,
+    /// Evaluations.
+    pub evaluations: u64,
+    /// Wall time (s).
+    pub seconds: f64,
+    /// Stop reason.
+    pub stop: ga::GaStop,
+    /// Best criterion of the final population (feasible individuals; ∞ if none).
+    pub best: f64,
+    /// Smallest violation of the final population.
+    pub least_violation: f64,
+    /// Per-generation statistics.
+    pub history: Vec<ga::GaGeneration>,
+}
+
+/// Refinement statistics in the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct RefineSummary {
+    /// Criterion at the start (the GA individual).
+    pub start: f64,
+    /// Criterion at the end.
+    pub end: f64,
+    /// Scaled violation at the end.
+    pub violation: f64,
+    /// nlopt status.
+    pub status: String,
+    /// Objective evaluations.
+    pub evaluations: u64,
+    /// Wall time (s).
+    pub seconds: f64,
+}
+
+impl Problem {
+    /// Loads a design file and its robot.
+    pub fn from_file(path: &std::path::Path) -> Result<Problem> {
+        let d = ExciteDesign::load(path)?;
+        let robot = crate::robot::load(&d.robot)?;
+        Problem::new(d, robot, &path.display().to_string())
+    }
+
+    /// Resolves a validated design against its robot.
+    pub fn new(design: ExciteDesign, robot: Robot, ctx: &str) -> Result<Problem> {
+        design.validate(ctx)?;
+        design.validate_for(&robot, ctx)?;
+        let n = robot.dof();
+        let opts = BaseOptions {
+            inertial_only: design.objective.columns == Columns::Inertial,
+            ..BaseOptions::default()
+        };
+        let base = BaseParams::compute(&robot, &opts)?;
+        let theta = robot.nominal_params();
+        let nominal_base: Vec<f64> = base.base_values(theta.as_slice()).iter().copied().collect();
+        let l = &design.limits;
+        let ranges: Vec<[f64; 2]> = match &l.position_range {
+            Some(r) => r.clone(),
+            None => robot.joints.iter().map(|j| [j.limits.lower, j.limits.upper]).collect(),
+        };
+        let position: Vec<[f64; 2]> = ranges
+            .iter()
+            .map(|&[lo, hi]| {
+                if lo.is_finite() && hi.is_finite() {
+                    let (c, h) = (0.5 * (lo + hi), 0.5 * (hi - lo));
+                    [c - l.position * h, c + l.position * h]
+                } else {
+                    [lo, hi]
+                }
+            })
+            .collect();
+        let frac = |f: f64, v: f64| if f > 0.0 { f * v } else { f64::INFINITY };
+        let limits = JointLimitSpec {
+            position: position.clone(),
+            velocity: robot.joints.iter().map(|j| frac(l.velocity, j.limits.velocity)).collect(),
+            acceleration: robot.joints.iter().map(|j| frac(l.acceleration, j.limits.acceleration)).collect(),
+            torque: robot.joints.iter().map(|j| frac(l.torque, j.limits.effort)).collect(),
+        };
+        let tr = &design.trajectory;
+        let q0 = match &tr.q0 {
+            Some(q) => q.clone(),
+            None => position
+                .iter()
+                .map(|&[lo, hi]| if lo.is_finite() && hi.is_finite() { 0.5 * (lo + hi) } else { 0.0 })
+                .collect(),
+        };
+        let omega = std::f64::consts::TAU * tr.frequency;
+        let layout = FourierLayout::new(q0.clone(), tr.harmonics, omega, tr.vary_q0, tr.at_rest)?;
+        let times = period_grid(1.0 / tr.frequency, design.objective.sample_rate)?;
+        let noise = design.objective.noise.clone().unwrap_or_else(|| vec![1.0; n]);
+        let nominal_cols = nominal_base.clone();
+        let objective = Objective::new(
+            robot.clone(),
+            layout.clone(),
+            base.independent.clone(),
+            base.names.clone(),
+            &nominal_cols,
+            times,
+            design.objective.criterion,
+            design.objective.scaling,
+            &noise,
+        )?;
+        let constraints = Constraints::new(&robot, &layout, &limits, &design.workspace, l.grid_rate, ctx)?;
+        // box: each harmonic alone within the joint's limits
+        let mut lower = vec![0.0; layout.n_vars()];
+        let mut upper = vec![0.0; layout.n_vars()];
+        let vpj = layout.vars_per_joint();
+        for j in 0..n {
+            let [lo, hi] = position[j];
+            let room = if tr.vary_q0 {
+                if lo.is_finite() && hi.is_finite() {
+                    0.5 * (hi - lo)
+                } else {
+                    std::f64::consts::PI
+                }
+            } else {
+                let r = (hi - q0[j]).min(q0[j] - lo);
+                if r.is_finite() {
+                    r.max(1e-9)
+                } else {
+                    std::f64::consts::PI
+                }
+            };
+            if tr.vary_q0 {
+                let (a, b) = if lo.is_finite() && hi.is_finite() {
+                    (lo, hi)
+                } else {
+                    (q0[j] - std::f64::consts::PI, q0[j] + std::f64::consts::PI)
+                };
+                lower[j * vpj] = a;
+                upper[j * vpj] = b;
+            }
+            for k0 in usize::from(tr.at_rest)..tr.harmonics {
+                let kw = (k0 + 1) as f64 * omega;
+                let mut r = kw * room;
+                if limits.velocity[j].is_finite() {
+                    r = r.min(limits.velocity[j]);
+                }
+                if limits.acceleration[j].is_finite() {
+                    r = r.min(limits.acceleration[j] / kw);
+                }
+                let (ia, ib) = layout.index(j, k0);
+                for i in [ia, ib] {
+                    lower[i] = -r;
+                    upper[i] = r;
+                }
+            }
+        }
+        Ok(Problem {
+            design,
+            robot,
+            base,
+            nominal_base,
+            layout,
+            objective,
+            constraints,
+            limits,
+            lower,
+            upper,
+        })
+    }
+
+    /// Repairs the joint limits of x (in place), then returns (criterion,
+    /// total violation) — the GA's evaluation.
+    pub fn evaluate(&self, x: &mut [f64], ow: &mut objective::ObjectiveWorkspace, cw: &mut constraints::ConstraintWorkspace, c: &mut Vec<f64>) -> (f64, f64) {
+        for (i, v) in x.iter_mut().enumerate() {
+            *v = v.clamp(self.lower[i], self.upper[i]);
+        }
+        self.constraints.repair_joints(x, &self.limits, 1e-6);
+        c.resize(self.constraints.len(), 0.0);
+        self.constraints.eval(x, cw, c, None);
+        let f = self.objective.value(x, ow);
+        (f, Constraints::violation(c))
+    }
+}
+
+/// A candidate design after verification on the check grid.
+struct Finalised {
+    x: Vec<f64>,
+    trajectory: FourierTrajectory,
+    spectrum: Spectrum,
+    margins: Vec<Margin>,
+    violated: Vec<Margin>,
+    shrink: f64,
+}
+
+impl Finalised {
+    fn key(&self) -> ga::Individual {
+        ga::Individual {
+            x: Vec::new(),
+            f: self.spectrum.criterion,
+            violation: self.violated.iter().map(|m| -m.margin / scale_of(m)).sum(),
+        }
+    }
+}
+
+fn scale_of(m: &Margin) -> f64 {
+    if m.limit != 0.0 {
+        m.limit.abs()
+    } else {
+        1.0
+    }
+}
+
+/// Factors tried, in order, to bring a slightly violating design inside its limits.
+const SHRINK_STEPS: [f64; 9] = [0.9999, 0.9995, 0.999, 0.998, 0.995, 0.99, 0.98, 0.95, 0.9];
+
+/// Verifies x on the check grid; if some constraint is violated there but
+/// the rest pose at q0 is feasible, scales the harmonics by the first factor
+/// of [`SHRINK_STEPS`] that meets every constraint (none below 0.9).
+fn finalise(p: &Problem, x: &[f64]) -> Result<Finalised> {
+    let rate = p.design.limits.check_rate;
+    let n = p.robot.dof();
+    let vpj = p.layout.vars_per_joint();
+    let off = usize::from(p.layout.vary_q0);
+    let scaled = |s: f64| -> Vec<f64> {
+        let mut y = x.to_vec();
+        for j in 0..n {
+            for v in &mut y[j * vpj + off..(j + 1) * vpj] {
+                *v *= s;
+            }
+        }
+        y
+    };
+    let check = |y: &[f64]| -> Result<Vec<Margin>> { p.constraints.verify(&p.layout.trajectory(y), rate) };
+    let feasible = |m: &[Margin]| m.iter().all(|m| m.margin >= 0.0);
+    let mut margins = check(x)?;
+    let mut xs = x.to_vec();
+    let mut shrink = 1.0;
+    if !feasible(&margins) && feasible(&check(&scaled(0.0))?) {
+        for f in SHRINK_STEPS {
+            let m = check(&scaled(f))?;
+            if feasible(&m) {
+                shrink = f;
+                xs = scaled(f);
+                margins = m;
+                break;
+            }
+        }
+    }
+    let trajectory = p.layout.trajectory(&xs);
+    let mut ow = p.objective.workspace();
+    let spectrum = p.objective.spectrum(&trajectory, &mut ow)?;
+    let mut violated: Vec<Margin> = margins.iter().filter(|m| m.margin < 0.0).cloned().collect();
+    violated.sort_by(|a, b| (a.margin / scale_of(a)).total_cmp(&(b.margin / scale_of(b))));
+    Ok(Finalised {
+        x: xs,
+        trajectory,
+        spectrum,
+        margins,
+        violated,
+        shrink,
+    })
+}
+
+/// Runs the design: GA, refinement, verification (see the module docs).
+/// `progress`: show a progress bar on stderr.
+pub fn run(p: &Problem, progress: bool) -> Result<ExciteResult> {
+    let t0 = Instant::now();
+    let d = &p.design;
+    // 3 % of the budget is left for the verification on the check grid
+    let deadline_all = d.time_limit.map(|t| t0 + std::time::Duration::from_secs_f64(0.97 * t));
+    let deadline_ga = d.time_limit.map(|t| t0 + std::time::Duration::from_secs_f64(t * d.ga.time_fraction));
+    let settings = ga::GaSettings {
+        population: d.ga.population,
+        generations: d.ga.generations,
+        elite: d.ga.elite,
+        crossover: d.ga.crossover,
+        eta_crossover: d.ga.eta_crossover,
+        mutation: d.ga.mutation,
+        eta_mutation: d.ga.eta_mutation,
+        seed: d.seed,
+        deadline: deadline_ga,
+    };
+    let pb = if progress {
+        crate::io::progress_bar(d.ga.generations as u64, "excite GA")
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    // shrink centre: the rest trajectory at q0 (harmonics zero)
+    let centre = p.layout.vars(&crate::trajectory::FourierTrajectory::at_rest(
+        p.layout.q0.clone(),
+        p.layout.n_h,
+        p.layout.omega,
+    ));
+    let gares = ga::run(
+        &settings,
+        &p.lower,
+        &p.upper,
+        &centre,
+        &[],
+        || (p.objective.workspace(), p.constraints.workspace(), Vec::new()),
+        |w: &mut (objective::ObjectiveWorkspace, constraints::ConstraintWorkspace, Vec<f64>), x: &mut Vec<f64>| {
+            let (ow, cw, c) = w;
+            p.evaluate(x, ow, cw, c)
+        },
+        |g, best| {
+            pb.set_position(g as u64);
+            pb.set_message(if best.feasible() {
+                format!("best {:.4} (feasible)", best.f)
+            } else {
+                format!("violation {:.3e} (none feasible yet)", best.violation)
+            });
+        },
+    );
+    pb.finish_and_clear();
+    let mut stopped_by = match gares.stop {
+        ga::GaStop::TimeLimit => Some("time limit (during the GA)".to_string()),
+        ga::GaStop::Interrupted => Some("interrupted (Ctrl-C)".to_string()),
+        ga::GaStop::Generations => None,
+    };
+    // distinct individuals, best first: the first `starts` are refined; with a
+    // time limit, further ones are refined in batches while time remains
+    let mut starts: Vec<&ga::Individual> = Vec::new();
+    for ind in &gares.population {
+        let dup = starts
+            .iter()
+            .any(|s| s.x.iter().zip(&ind.x).all(|(a, b)| (a - b).abs() <= 1e-12 * (1.0 + a.abs())));
+        if !dup {
+            starts.push(ind);
+        }
+    }
+    let mut refinements: Vec<refine::RefineOutcome> = Vec::new();
+    if d.refine.algorithm != RefineAlgorithm::None && gares.stop != ga::GaStop::Interrupted {
+        let rs = refine::RefineSettings {
+            algorithm: d.refine.algorithm,
+            max_evals: d.refine.max_evals,
+            xtol_rel: d.refine.xtol_rel,
+            ftol_rel: d.refine.ftol_rel,
+            lower: p.lower.clone(),
+            upper: p.upper.clone(),
+            deadline: deadline_all,
+            smooth: if d.refine.smooth > 0.0 { Some(d.refine.smooth) } else { None },
+            tol: 1e-9,
+        };
+        let first = d.refine.starts.min(starts.len());
+        let spin = if progress {
+            let s = crate::io::progress_bar(first as u64, "excite refine");
+            s.set_message(format!("{first} {:?} start(s), analytic gradients", d.refine.algorithm));
+            s
+        } else {
+            indicatif::ProgressBar::hidden()
+        };
+        // one start at a time, best first: the gradient's per-sample work is
+        // what runs in parallel (no nested pools competing for the threads)
+        let one = |s: &ga::Individual| -> refine::RefineOutcome {
+            let r = refine::refine(&p.objective, &p.constraints, &s.x, &rs);
+            spin.inc(1);
+            r
+        };
+        for s in &starts[..first] {
+            if crate::io::stop::requested() || deadline_all.is_some_and(|dl| Instant::now() >= dl) {
+                break;
+            }
+            refinements.push(one(s));
+        }
+        if let Some(dl) = deadline_all {
+            for s in &starts[first..] {
+                if Instant::now() >= dl || crate::io::stop::requested() {
+                    break;
+                }
+                spin.inc_length(1);
+                refinements.push(one(s));
+            }
+        }
+        spin.finish_and_clear();
+        if crate::io::stop::requested() {
+            stopped_by = Some("interrupted (Ctrl-C) during refinement".into());
+        } else if deadline_all.is_some_and(|dl| Instant::now() >= dl) {
+            stopped_by = Some(match stopped_by {
+                Some(s) => format!("{s} and time limit (during refinement)"),
+                None => "time limit (during refinement)".into(),
+            });
+        }
+    }
+    // verify every candidate on the check grid (shrinking it towards the rest
+    // pose if the fine grid shows a small violation), then choose:
+    // feasibility first, then criterion
+    let best_ga = gares.population.first().ok_or_else(|| Error::Numerical("empty GA population".into()))?;
+    let mut cands: Vec<(String, ga::Individual)> = vec![("ga".to_string(), best_ga.clone())];
+    for (k, r) in refinements.iter().enumerate() {
+        cands.push((
+            format!("refine #{}", k + 1),
+            ga::Individual {
+                x: r.x.clone(),
+                f: r.f,
+                violation: r.violation,
+            },
+        ));
+    }
+    // best first by the search's own measure; the first candidate that passes
+    // the check grid wins (later ones are worse), else the least violating
+    cands.sort_by(|a, b| a.1.cmp_fitness(&b.1));
+    let mut best: Option<(String, Finalised)> = None;
+    for (name, ind) in cands {
+        let f = finalise(p, &ind.x)?;
+        let better = match &best {
+            None => true,
+            Some((_, b)) => f.key().cmp_fitness(&b.key()) == std::cmp::Ordering::Less,
+        };
+        let done = f.violated.is_empty();
+        if better {
+            best = Some((name, f));
+        }
+        if done {
+            break;
+        }
+    }
+    let (chosen_from, fin) = best.ok_or_else(|| Error::Numerical("no candidate design".into()))?;
+    let Finalised {
+        x,
+        trajectory,
+        spectrum,
+        margins,
+        violated,
+        shrink,
+    } = fin;
+    let chosen_from = if shrink < 1.0 {
+        format!("{chosen_from}, harmonics scaled by {shrink:.6} to meet the {} Hz check", d.limits.check_rate)
+    } else {
+        chosen_from
+    };
+    let status = if violated.is_empty() { Status::Feasible } else { Status::Infeasible };
+    let last = gares.history.last();
+    Ok(ExciteResult {
+        status,
+        stopped_by,
+        x,
+        criterion: spectrum.criterion,
+        spectrum,
+        margins,
+        violated,
+        ga: GaSummary {
+            generations: gares.generations,
+            evaluations: gares.evaluations,
+            seconds: gares.seconds,
+            stop: gares.stop,
+            best: last.map_or(f64::INFINITY, |h| h.best_feasible),
+            least_violation: last.map_or(f64::INFINITY, |h| h.least_violation),
+            history: gares.history.clone(),
+        },
+        refinements: refinements
+            .iter()
+            .map(|r| RefineSummary {
+                start: r.start_f,
+                end: r.f,
+                violation: r.violation,
+                status: r.status.clone(),
+                evaluations: r.evaluations,
+                seconds: r.seconds,
+            })
+            .collect(),
+        chosen: chosen_from,
+        trajectory,
+        seconds: t0.elapsed().as_secs_f64(),
+        threads: rayon::current_num_threads(),
+    })
+}

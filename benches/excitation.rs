@@ -1,0 +1,84 @@
+//! Excitation design benchmarks on the speed case
+//! (designs/excite_ur5_bench.toml: UR5, q0 = 0, 5 harmonics of 0.1 Hz, 60
+//! coefficients, 48 unit-column base columns sampled at 10 Hz, position and
+//! velocity limits).
+//!
+//! First the whole design is run once with its 10 s wall-clock budget and the
+//! condition number reached and the wall time are printed (skip with
+//! `IDEXP_BENCH_DESIGN=0`); then criterion measures the kernels (single
+//! threaded except the gradient's per-sample work, which uses the rayon pool):
+//! the criterion alone, the criterion with its analytic gradient, the
+//! constraints with their Jacobian, one GA evaluation (repair + criterion +
+//! constraints).
+//!
+//! Run: `cargo bench --bench excitation -- --warm-up-time 1 --measurement-time 3`.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use idexp::excitation::{run, Problem};
+use rand::{RngExt, SeedableRng};
+use std::hint::black_box;
+use std::path::Path;
+
+fn problem() -> Problem {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    Problem::from_file(&root.join("designs/excite_ur5_bench.toml")).expect("bench design")
+}
+
+fn design_run() {
+    if std::env::var("IDEXP_BENCH_DESIGN").is_ok_and(|v| v == "0") {
+        return;
+    }
+    let p = problem();
+    let r = run(&p, false).expect("bench design run");
+    println!(
+        "excite_ur5_bench: {:?}, cond {:.4} in {:.2} s wall on {} threads (GA {} generations / {} evaluations in {:.2} s; chosen {})",
+        r.status, r.spectrum.cond, r.seconds, r.threads, r.ga.generations, r.ga.evaluations, r.ga.seconds, r.chosen
+    );
+    for (k, rf) in r.refinements.iter().enumerate() {
+        println!(
+            "  refine #{}: {:.4} -> {:.4}, {} evaluations, {:.2} s, {}",
+            k + 1,
+            rf.start,
+            rf.end,
+            rf.evaluations,
+            rf.seconds,
+            rf.status
+        );
+    }
+}
+
+fn bench(c: &mut Criterion) {
+    design_run();
+    let p = problem();
+    let nv = p.layout.n_vars();
+    let mut g = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let mut x: Vec<f64> = (0..nv).map(|i| g.random_range(p.lower[i]..p.upper[i]) * 0.5).collect();
+    p.constraints.repair_joints(&mut x, &p.limits, 1e-6);
+    let mut ow = p.objective.workspace();
+    let mut cw = p.constraints.workspace();
+    let mut grad = vec![0.0; nv];
+    let mut cval = vec![0.0; p.constraints.len()];
+    let mut jac = vec![0.0; p.constraints.len() * nv];
+    let mut grp = c.benchmark_group("excite_ur5_bench");
+    grp.bench_function("criterion", |b| b.iter(|| black_box(p.objective.value(black_box(&x), &mut ow))));
+    grp.bench_function("criterion_and_gradient", |b| {
+        b.iter(|| black_box(p.objective.value_grad(black_box(&x), &mut ow, &mut grad)))
+    });
+    grp.bench_function("constraints_and_jacobian", |b| {
+        b.iter(|| {
+            p.constraints.eval(black_box(&x), &mut cw, &mut cval, Some(&mut jac));
+            black_box(&jac);
+        })
+    });
+    let mut cbuf = Vec::new();
+    grp.bench_function("ga_evaluation", |b| {
+        b.iter(|| {
+            let mut y = x.clone();
+            black_box(p.evaluate(&mut y, &mut ow, &mut cw, &mut cbuf))
+        })
+    });
+    grp.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

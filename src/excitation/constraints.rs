@@ -1,0 +1,730 @@
+//! Constraints of the excitation design and their analytic gradients.
+//!
+//! Every constraint is a scalar c_i(x) ≤ 0 (feasible), scaled to be
+//! dimensionless: c_i = (worst value over the period − limit) / scale.
+//!
+//! * **Joint position, velocity, acceleration** (per joint, upper and lower):
+//!   the extremum over the *continuous* period of the trigonometric
+//!   polynomial q_j^(m)(t), m = 0, 1, 2. It is found by scanning a grid of
+//!   [`SCAN_PER_HARMONIC`] points per period of the highest harmonic, then
+//!   Newton steps on d/dt q_j^(m) = 0 from the best grid local extrema
+//!   (analytic derivatives up to order 4). By the envelope theorem the
+//!   gradient is ∂q_j^(m)(t*)/∂x — the Fourier basis at t*. Scale: half the
+//!   allowed position range, the velocity or acceleration limit.
+//! * **Joint torque** (per joint, upper and lower): τ_j(t) of inverse dynamics
+//!   with the nominal parameters (motor side, friction included) on the
+//!   constraint grid, the extremum refined by a parabola through the grid
+//!   neighbours; gradient ∂τ/∂q · ∂q/∂x + ∂τ/∂q̇ · ∂q̇/∂x + (∂τ/∂q̈) ∂q̈/∂x at
+//!   t* from [`crate::robot::id_derivatives`] and [`crate::robot::motor_inertia`].
+//!   Scale: the effort limit.
+//! * **Cartesian** ([`CartesianConstraint`]): each margin g_k(p) ≥ 0 of the
+//!   shape at the frame origin p(q(t)); the minimum over the constraint grid,
+//!   refined like torques; gradient ∂g_k/∂p · J_v(q(t*)) · ∂q/∂x. Scale 1 m.
+//!
+//! [`Constraints::verify`] evaluates every constraint on a uniform grid (1 kHz
+//! by default) in natural units, for the report.
+
+use super::grid::TrigGrid;
+use crate::error::{Error, Result};
+use crate::robot::cartesian::{CartesianConstraint, Shape};
+use crate::robot::{frame_jacobian, id_derivatives, inverse_dynamics, motor_inertia, Frame, Robot, Workspace};
+use crate::trajectory::{period_grid, Basis, FourierLayout, FourierTrajectory};
+use nalgebra::Vector3;
+use serde::Serialize;
+
+/// Grid points per period of the highest harmonic used to bracket joint extrema.
+pub const SCAN_PER_HARMONIC: usize = 24;
+
+/// What a constraint limits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ConstraintKind {
+    /// Joint position.
+    Position,
+    /// Joint velocity.
+    Velocity,
+    /// Joint acceleration.
+    Acceleration,
+    /// Joint (motor-side) torque.
+    Torque,
+    /// Cartesian workspace margin of a frame.
+    Cartesian,
+}
+
+/// Description of one scalar constraint.
+#[derive(Debug, Clone, Serialize)]
+pub struct ConstraintInfo {
+    /// Readable name, e.g. `q3 ≤ upper`, `tool0 inside box: z ≤ max`.
+    pub name: String,
+    /// Kind.
+    pub kind: ConstraintKind,
+    /// Joint index (0-based) for joint constraints.
+    pub joint: Option<usize>,
+    /// The limit (natural units: rad, rad/s, rad/s², N·m, m of margin).
+    pub limit: f64,
+    /// True for an upper limit (value ≤ limit), false for a lower limit (value ≥ limit).
+    pub upper: bool,
+    /// Scale of the dimensionless constraint value.
+    pub scale: f64,
+    /// Unit of `limit`.
+    pub unit: String,
+}
+
+#[derive(Debug, Clone)]
+enum Item {
+    Joint { j: usize, order: usize },
+    Torque { j: usize },
+    Cart { idx: usize, margin: usize },
+}
+
+#[derive(Debug, Clone)]
+struct CartItem {
+    frame: Frame,
+    shape: Shape,
+    label: String,
+}
+
+/// The constraint set of a design.
+#[derive(Debug, Clone)]
+pub struct Constraints {
+    robot: Robot,
+    layout: FourierLayout,
+    /// One entry per scalar constraint.
+    pub info: Vec<ConstraintInfo>,
+    items: Vec<Item>,
+    cart: Vec<CartItem>,
+    grid: TrigGrid,
+    scan: TrigGrid,
+    theta: Vec<f64>,
+}
+
+/// Per-thread buffers for constraint evaluations.
+#[derive(Debug, Clone)]
+pub struct ConstraintWorkspace {
+    ws: Workspace,
+    basis: Basis,
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    qdd: Vec<f64>,
+    tau: Vec<f64>,
+    tau_grid: Vec<Vec<f64>>,
+    marg_grid: Vec<Vec<f64>>,
+    margins: Vec<(f64, Vector3<f64>)>,
+    g_q0: Vec<f64>,
+    g_a: Vec<Vec<f64>>,
+    g_b: Vec<Vec<f64>>,
+}
+
+/// Which joint limits are imposed and how much of each is usable.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointLimitSpec {
+    /// Per joint allowed [lower, upper] position (rad or m); infinite: none.
+    pub position: Vec<[f64; 2]>,
+    /// Per joint velocity limit (infinite: none).
+    pub velocity: Vec<f64>,
+    /// Per joint acceleration limit (infinite: none).
+    pub acceleration: Vec<f64>,
+    /// Per joint torque limit (infinite: none).
+    pub torque: Vec<f64>,
+}
+
+/// Worst margin of one constraint on a verification grid.
+#[derive(Debug, Clone, Serialize)]
+pub struct Margin {
+    /// Constraint name.
+    pub name: String,
+    /// Kind.
+    pub kind: ConstraintKind,
+    /// The limit.
+    pub limit: f64,
+    /// The worst value reached (maximum for upper limits, minimum for lower).
+    pub worst: f64,
+    /// Margin in natural units: limit − worst (upper) or worst − limit (lower); ≥ 0 is feasible.
+    pub margin: f64,
+    /// Time of the worst value (s).
+    pub at: f64,
+    /// Unit.
+    pub unit: String,
+}
+
+fn order_name(order: usize) -> (&'static str, ConstraintKind, &'static str) {
+    match order {
+        0 => ("q", ConstraintKind::Position, "rad"),
+        1 => ("qd", ConstraintKind::Velocity, "rad/s"),
+        _ => ("qdd", ConstraintKind::Acceleration, "rad/s²"),
+    }
+}
+
+/// m-th time derivative of q_j at t (m = 0 includes q0).
+pub fn series_derivative(tr: &FourierTrajectory, j: usize, m: usize, t: f64) -> f64 {
+    series_derivatives(tr, j, m, t)[0]
+}
+
+/// Time derivatives of orders m, m+1, m+2 of q_j at t (order 0 includes q0),
+/// with one sin_cos and the angle-addition recurrence for the harmonics.
+pub fn series_derivatives(tr: &FourierTrajectory, j: usize, m: usize, t: f64) -> [f64; 3] {
+    let w = tr.omega;
+    let (s1, c1) = (w * t).sin_cos();
+    let (mut s, mut c) = (s1, c1);
+    let mut out = [0.0; 3];
+    if m == 0 {
+        out[0] = tr.q0[j];
+    }
+    for (k0, (&a, &b)) in tr.a[j].iter().zip(&tr.b[j]).enumerate() {
+        let kw = (k0 + 1) as f64 * w;
+        for (d, o) in out.iter_mut().enumerate() {
+            let order = m + d;
+            let (sm, cm) = match order % 4 {
+                0 => (s, c),
+                1 => (c, -s),
+                2 => (-s, -c),
+                _ => (-c, s),
+            };
+            *o += kw.powi(order as i32 - 1) * (a * sm - b * cm);
+        }
+        let sn = s * c1 + c * s1;
+        c = c * c1 - s * s1;
+        s = sn;
+    }
+    out
+}
+
+/// Extremum of q_j^(order) over the continuous period: (value, time).
+/// `upper`: maximum, else minimum. `scan` is a uniform grid over the period:
+/// the best two grid local extrema are refined by Newton steps on
+/// d/dt q_j^(order) = 0.
+pub fn joint_extremum(tr: &FourierTrajectory, scan: &TrigGrid, j: usize, order: usize, upper: bool) -> (f64, f64) {
+    let sgn = if upper { 1.0 } else { -1.0 };
+    let ns = scan.len();
+    let vals: Vec<f64> = (0..ns).map(|i| sgn * scan.derivative(tr, j, order, i)).collect();
+    let scan = &scan.times;
+    let mut cand: [Option<usize>; 2] = [None, None];
+    for i in 0..ns {
+        if vals[i] >= vals[(i + ns - 1) % ns] && vals[i] >= vals[(i + 1) % ns] {
+            match cand {
+                [None, _] => cand[0] = Some(i),
+                [Some(a), None] => {
+                    if vals[i] > vals[a] {
+                        cand = [Some(i), Some(a)];
+                    } else {
+                        cand[1] = Some(i);
+                    }
+                }
+                [Some(a), Some(b)] => {
+                    if vals[i] > vals[a] {
+                        cand = [Some(i), Some(a)];
+                    } else if vals[i] > vals[b] {
+                        cand[1] = Some(i);
+                    }
+                }
+            }
+        }
+    }
+    if cand[0].is_none() {
+        return (sgn * vals[0], scan[0]);
+    }
+    let h = if ns > 1 { scan[1] - scan[0] } else { 1.0 };
+    let (mut best, mut tbest) = (f64::NEG_INFINITY, 0.0);
+    for i in cand.iter().flatten().copied() {
+        let (mut t, mut fv) = (scan[i], vals[i]);
+        let t_grid = t;
+        let mut d = series_derivatives(tr, j, order, t);
+        for _ in 0..8 {
+            let (d1, d2) = (sgn * d[1], sgn * d[2]);
+            if d2 >= 0.0 {
+                break;
+            }
+            let step = -d1 / d2;
+            let tn = t + step;
+            if (tn - t_grid).abs() > 1.5 * h {
+                break;
+            }
+            let dn = series_derivatives(tr, j, order, tn);
+            let fnv = sgn * dn[0];
+            if fnv < fv - 1e-15 * fv.abs().max(1.0) {
+                break;
+            }
+            t = tn;
+            fv = fnv;
+            d = dn;
+            if step.abs() < 1e-9 * h {
+                break;
+            }
+        }
+        if fv > best {
+            best = fv;
+            tbest = t;
+        }
+    }
+    (sgn * best, tbest)
+}
+
+impl Constraints {
+    /// Builds the constraint set: joint limits from `limits` (infinite entries
+    /// are skipped), Cartesian constraints resolved on `robot`, `grid_rate`
+    /// (Hz) the constraint grid for torques and Cartesian margins.
+    pub fn new(robot: &Robot, layout: &FourierLayout, limits: &JointLimitSpec, cartesian: &[CartesianConstraint], grid_rate: f64, ctx: &str) -> Result<Self> {
+        let n = robot.dof();
+        for (name, len) in [
+            ("position", limits.position.len()),
+            ("velocity", limits.velocity.len()),
+            ("acceleration", limits.acceleration.len()),
+            ("torque", limits.torque.len()),
+        ] {
+            if len != n {
+                return Err(Error::dim(format!("{name} limits (one per joint)"), n, len));
+            }
+        }
+        let mut info = Vec::new();
+        let mut items = Vec::new();
+        let jn = |j: usize| robot.joints[j].name.clone();
+        for j in 0..n {
+            let [lo, hi] = limits.position[j];
+            if lo.is_finite() && hi.is_finite() && lo >= hi {
+                return Err(Error::invalid(
+                    ctx,
+                    "limits.position",
+                    format!("joint `{}`: empty allowed range [{lo}, {hi}]", jn(j)),
+                ));
+            }
+            let half = if lo.is_finite() && hi.is_finite() { 0.5 * (hi - lo) } else { 1.0 };
+            for (order, lims) in [
+                (0usize, [lo, hi]),
+                (1, [-limits.velocity[j], limits.velocity[j]]),
+                (2, [-limits.acceleration[j], limits.acceleration[j]]),
+            ] {
+                let (sym, kind, unit) = order_name(order);
+                let scale = if order == 0 { half } else { lims[1] };
+                for (upper, lim) in [(true, lims[1]), (false, lims[0])] {
+                    if !lim.is_finite() {
+                        continue;
+                    }
+                    info.push(ConstraintInfo {
+                        name: format!("{sym}{} ({}) {} {lim:.4}", j + 1, jn(j), if upper { "≤" } else { "≥" }),
+                        kind,
+                        joint: Some(j),
+                        limit: lim,
+                        upper,
+                        scale,
+                        unit: unit.into(),
+                    });
+                    items.push(Item::Joint { j, order });
+                }
+            }
+        }
+        for j in 0..n {
+            let tl = limits.torque[j];
+            if !tl.is_finite() {
+                continue;
+            }
+            if tl <= 0.0 {
+                return Err(Error::invalid(
+                    ctx,
+                    "limits.torque",
+                    format!("joint `{}`: expected a positive torque limit, got {tl}", jn(j)),
+                ));
+            }
+            for (upper, lim) in [(true, tl), (false, -tl)] {
+                info.push(ConstraintInfo {
+                    name: format!("tau{} ({}) {} {lim:.4}", j + 1, jn(j), if upper { "≤" } else { "≥" }),
+                    kind: ConstraintKind::Torque,
+                    joint: Some(j),
+                    limit: lim,
+                    upper,
+                    scale: tl,
+                    unit: "N·m".into(),
+                });
+                items.push(Item::Torque { j });
+            }
+        }
+        let mut cart = Vec::new();
+        for (ci, c) in cartesian.iter().enumerate() {
+            let field = format!("workspace[{ci}]");
+            let frame = c.resolve(robot, ctx, &field)?;
+            let label = format!("{} {}", frame.name, c.shape.describe());
+            let nm = c.shape.n_margins();
+            let names = margin_names(&c.shape);
+            for k in 0..nm {
+                info.push(ConstraintInfo {
+                    name: format!("{}: {}", label, names[k]),
+                    kind: ConstraintKind::Cartesian,
+                    joint: None,
+                    limit: 0.0,
+                    upper: false,
+                    scale: 1.0,
+                    unit: "m".into(),
+                });
+                items.push(Item::Cart { idx: cart.len(), margin: k });
+            }
+            cart.push(CartItem {
+                frame,
+                shape: c.shape.clone(),
+                label,
+            });
+        }
+        let period = std::f64::consts::TAU / layout.omega;
+        let grid = TrigGrid::new(period_grid(period, grid_rate)?, layout.omega, layout.n_h);
+        let ns = (SCAN_PER_HARMONIC * layout.n_h).max(32);
+        let scan = TrigGrid::new((0..ns).map(|i| period * i as f64 / ns as f64).collect(), layout.omega, layout.n_h);
+        Ok(Constraints {
+            robot: robot.clone(),
+            layout: layout.clone(),
+            info,
+            items,
+            cart,
+            grid,
+            scan,
+            theta: robot.nominal_params().as_slice().to_vec(),
+        })
+    }
+
+    /// Number of scalar constraints.
+    pub fn len(&self) -> usize {
+        self.items.len()
+    }
+
+    /// True when there is no constraint.
+    pub fn is_empty(&self) -> bool {
+        self.items.is_empty()
+    }
+
+    /// Number of torque or Cartesian constraints (the ones that need the grid).
+    pub fn needs_grid(&self) -> bool {
+        self.items.iter().any(|i| !matches!(i, Item::Joint { .. }))
+    }
+
+    /// Descriptions of the Cartesian constraints (frame and shape).
+    pub fn cartesian_labels(&self) -> Vec<String> {
+        self.cart.iter().map(|c| c.label.clone()).collect()
+    }
+
+    /// A workspace (one per thread).
+    pub fn workspace(&self) -> ConstraintWorkspace {
+        let n = self.robot.dof();
+        let nh = self.layout.n_h;
+        ConstraintWorkspace {
+            ws: Workspace::new(&self.robot),
+            basis: Basis::default(),
+            q: vec![0.0; n],
+            qd: vec![0.0; n],
+            qdd: vec![0.0; n],
+            tau: vec![0.0; n],
+            tau_grid: vec![vec![0.0; n]; self.grid.len()],
+            marg_grid: vec![Vec::new(); self.grid.len()],
+            margins: Vec::with_capacity(6),
+            g_q0: vec![0.0; n],
+            g_a: vec![vec![0.0; nh]; n],
+            g_b: vec![vec![0.0; nh]; n],
+        }
+    }
+
+    fn clear_grad(cw: &mut ConstraintWorkspace) {
+        cw.g_q0.iter_mut().for_each(|v| *v = 0.0);
+        for r in cw.g_a.iter_mut().chain(cw.g_b.iter_mut()) {
+            r.iter_mut().for_each(|v| *v = 0.0);
+        }
+    }
+
+    /// Constraint values c(x) (≤ 0 feasible) into `c`, and if `jac` is given
+    /// the Jacobian, row-major (`jac[i * n_vars + v]` = ∂c_i/∂x_v, the nlopt layout).
+    pub fn eval(&self, x: &[f64], cw: &mut ConstraintWorkspace, c: &mut [f64], jac: Option<&mut [f64]>) {
+        let tr = self.layout.trajectory(x);
+        self.eval_traj(&tr, cw, c, jac)
+    }
+
+    /// As [`Self::eval`] for a trajectory (the Jacobian is still w.r.t. the layout's x).
+    pub fn eval_traj(&self, tr: &FourierTrajectory, cw: &mut ConstraintWorkspace, c: &mut [f64], mut jac: Option<&mut [f64]>) {
+        assert_eq!(c.len(), self.len(), "constraint output length");
+        let nv = self.layout.n_vars();
+        let n = self.robot.dof();
+        let nh = self.layout.n_h;
+        // grid quantities
+        let has_torque = self.items.iter().any(|i| matches!(i, Item::Torque { .. }));
+        if has_torque {
+            for g in 0..self.grid.len() {
+                self.grid.state(tr, g, &mut cw.q, &mut cw.qd, &mut cw.qdd);
+                inverse_dynamics(&self.robot, &mut cw.ws, &self.theta, &cw.q, &cw.qd, &cw.qdd, &mut cw.tau);
+                cw.tau_grid[g].copy_from_slice(&cw.tau);
+            }
+        }
+        let mut last_cart = usize::MAX;
+        for (i, item) in self.items.iter().enumerate() {
+            let inf = &self.info[i];
+            let sgn = if inf.upper { 1.0 } else { -1.0 };
+            let want_grad = jac.is_some();
+            if want_grad {
+                Self::clear_grad(cw);
+            }
+            match *item {
+                Item::Joint { j, order } => {
+                    let (v, t) = joint_extremum(tr, &self.scan, j, order, inf.upper);
+                    c[i] = sgn * (v - inf.limit) / inf.scale;
+                    if want_grad {
+                        tr.basis(t, &mut cw.basis);
+                        let f = sgn / inf.scale;
+                        if order == 0 {
+                            cw.g_q0[j] = f;
+                        }
+                        for k in 0..nh {
+                            cw.g_a[j][k] = f * cw.basis.k[k][2 * order];
+                            cw.g_b[j][k] = f * cw.basis.k[k][2 * order + 1];
+                        }
+                    }
+                }
+                Item::Torque { j } => {
+                    let vals: Vec<f64> = cw.tau_grid.iter().map(|r| sgn * r[j]).collect();
+                    let (fv, t) = self.refine_grid(
+                        &vals,
+                        |t, cw: &mut ConstraintWorkspace| {
+                            tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
+                            inverse_dynamics(&self.robot, &mut cw.ws, &self.theta, &cw.q, &cw.qd, &cw.qdd, &mut cw.tau);
+                            sgn * cw.tau[j]
+                        },
+                        cw,
+                    );
+                    c[i] = (fv - sgn * inf.limit) / inf.scale;
+                    if want_grad {
+                        tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
+                        let (dq, dqd) = id_derivatives(&self.robot, &mut cw.ws, &self.theta, &cw.q, &cw.qd, &cw.qdd);
+                        let mi = motor_inertia(&self.robot, &mut cw.ws, &self.theta, &cw.q);
+                        tr.basis(t, &mut cw.basis);
+                        let f = sgn / inf.scale;
+                        for a in 0..n {
+                            cw.g_q0[a] = f * dq[(j, a)];
+                            for k in 0..nh {
+                                let b = &cw.basis.k[k];
+                                cw.g_a[a][k] = f * (dq[(j, a)] * b[0] + dqd[(j, a)] * b[2] + mi[(j, a)] * b[4]);
+                                cw.g_b[a][k] = f * (dq[(j, a)] * b[1] + dqd[(j, a)] * b[3] + mi[(j, a)] * b[5]);
+                            }
+                        }
+                    }
+                }
+                Item::Cart { idx, margin } => {
+                    let ci = &self.cart[idx];
+                    if last_cart != idx {
+                        for g in 0..self.grid.len() {
+                            self.grid.state(tr, g, &mut cw.q, &mut cw.qd, &mut cw.qdd);
+                            let p = frame_point(&self.robot, &mut cw.ws, &cw.q, &ci.frame);
+                            cw.margins.clear();
+                            ci.shape.margins(&p, &mut cw.margins);
+                            let row = &mut cw.marg_grid[g];
+                            row.clear();
+                            row.extend(cw.margins.iter().map(|m| m.0));
+                        }
+                        last_cart = idx;
+                    }
+                    // minimise the margin: maximise −g
+                    let vals: Vec<f64> = cw.marg_grid.iter().map(|r| -r[margin]).collect();
+                    let (fv, t) = self.refine_grid(
+                        &vals,
+                        |t, cw: &mut ConstraintWorkspace| {
+                            tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
+                            let p = frame_point(&self.robot, &mut cw.ws, &cw.q, &ci.frame);
+                            cw.margins.clear();
+                            ci.shape.margins(&p, &mut cw.margins);
+                            -cw.margins[margin].0
+                        },
+                        cw,
+                    );
+                    c[i] = fv;
+                    if want_grad {
+                        tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
+                        let p = frame_point(&self.robot, &mut cw.ws, &cw.q, &ci.frame);
+                        cw.margins.clear();
+                        ci.shape.margins(&p, &mut cw.margins);
+                        let dgdp = cw.margins[margin].1;
+                        let jm = frame_jacobian(&self.robot, &mut cw.ws, &cw.q, &ci.frame);
+                        tr.basis(t, &mut cw.basis);
+                        for a in 0..n {
+                            let dgdq = dgdp.x * jm[(0, a)] + dgdp.y * jm[(1, a)] + dgdp.z * jm[(2, a)];
+                            cw.g_q0[a] = -dgdq;
+                            for k in 0..nh {
+                                cw.g_a[a][k] = -dgdq * cw.basis.k[k][0];
+                                cw.g_b[a][k] = -dgdq * cw.basis.k[k][1];
+                            }
+                        }
+                    }
+                }
+            }
+            if let Some(jac) = jac.as_deref_mut() {
+                self.layout.pullback(&cw.g_q0, &cw.g_a, &cw.g_b, &mut jac[i * nv..(i + 1) * nv]);
+            }
+        }
+    }
+
+    /// Maximum of a function sampled on the constraint grid (periodic), refined
+    /// by a parabola through the best grid point and its neighbours. Returns (value, time).
+    fn refine_grid(&self, vals: &[f64], f: impl Fn(f64, &mut ConstraintWorkspace) -> f64, cw: &mut ConstraintWorkspace) -> (f64, f64) {
+        let ng = vals.len();
+        let mut ib = 0;
+        for i in 1..ng {
+            if vals[i] > vals[ib] {
+                ib = i;
+            }
+        }
+        let grid = &self.grid.times;
+        let h = if ng > 1 { grid[1] - grid[0] } else { 0.0 };
+        let (fm, f0, fp) = (vals[(ib + ng - 1) % ng], vals[ib], vals[(ib + 1) % ng]);
+        let den = fm - 2.0 * f0 + fp;
+        let (mut best, mut tb) = (f0, grid[ib]);
+        if den < 0.0 && h > 0.0 {
+            let d = (0.5 * (fm - fp) / den).clamp(-1.0, 1.0) * h;
+            if d.abs() > 1e-12 * h.max(1.0) {
+                let t = grid[ib] + d;
+                let v = f(t, cw);
+                if v > best {
+                    best = v;
+                    tb = t;
+                }
+            }
+        }
+        (best, tb)
+    }
+
+    /// Sum of positive constraint values (the violation measure of the GA).
+    pub fn violation(c: &[f64]) -> f64 {
+        c.iter().map(|v| v.max(0.0)).sum()
+    }
+
+    /// Every constraint evaluated on a uniform grid at `rate` Hz over one
+    /// period, in natural units.
+    pub fn verify(&self, tr: &FourierTrajectory, rate: f64) -> Result<Vec<Margin>> {
+        let times = period_grid(tr.period(), rate)?;
+        let n = self.robot.dof();
+        let mut ws = Workspace::new(&self.robot);
+        let s = tr.sample_at(&times);
+        let mut tau_all = Vec::new();
+        if self.items.iter().any(|i| matches!(i, Item::Torque { .. })) {
+            let mut tau = vec![0.0; n];
+            for k in 0..s.len() {
+                inverse_dynamics(&self.robot, &mut ws, &self.theta, &s.q[k], &s.qd[k], &s.qdd[k], &mut tau);
+                tau_all.push(tau.clone());
+            }
+        }
+        let mut marg_all: Vec<Vec<Vec<f64>>> = vec![Vec::new(); self.cart.len()];
+        for (ci, c) in self.cart.iter().enumerate() {
+            let mut m = Vec::with_capacity(6);
+            for k in 0..s.len() {
+                let p = frame_point(&self.robot, &mut ws, &s.q[k], &c.frame);
+                m.clear();
+                c.shape.margins(&p, &mut m);
+                marg_all[ci].push(m.iter().map(|v| v.0).collect());
+            }
+        }
+        let mut out = Vec::with_capacity(self.len());
+        for (i, item) in self.items.iter().enumerate() {
+            let inf = &self.info[i];
+            let value = |k: usize| -> f64 {
+                match *item {
+                    Item::Joint { j, order } => match order {
+                        0 => s.q[k][j],
+                        1 => s.qd[k][j],
+                        _ => s.qdd[k][j],
+                    },
+                    Item::Torque { j } => tau_all[k][j],
+                    Item::Cart { idx, margin } => marg_all[idx][k][margin],
+                }
+            };
+            let (mut worst, mut at) = (if inf.upper { f64::NEG_INFINITY } else { f64::INFINITY }, 0.0);
+            for k in 0..s.len() {
+                let v = value(k);
+                if (inf.upper && v > worst) || (!inf.upper && v < worst) {
+                    worst = v;
+                    at = times[k];
+                }
+            }
+            let margin = if inf.upper { inf.limit - worst } else { worst - inf.limit };
+            out.push(Margin {
+                name: inf.name.clone(),
+                kind: inf.kind,
+                limit: inf.limit,
+                worst,
+                margin,
+                at,
+                unit: inf.unit.clone(),
+            });
+        }
+        Ok(out)
+    }
+
+    /// Scales each joint's harmonics (about q0) so that its position,
+    /// velocity and acceleration constraints hold with relative slack
+    /// `slack` (the GA's repair operator; torque and Cartesian constraints are
+    /// left to the feasibility-first selection). `x` is changed in place; q0
+    /// (if a design variable) is first clamped into the allowed range.
+    pub fn repair_joints(&self, x: &mut [f64], limits: &JointLimitSpec, slack: f64) {
+        let n = self.robot.dof();
+        let vpj = self.layout.vars_per_joint();
+        if self.layout.vary_q0 {
+            for j in 0..n {
+                let [lo, hi] = limits.position[j];
+                let v = &mut x[j * vpj];
+                if lo.is_finite() && hi.is_finite() {
+                    let pad = 1e-3 * (hi - lo);
+                    *v = v.clamp(lo + pad, hi - pad);
+                }
+            }
+        }
+        let tr = self.layout.trajectory(x);
+        for j in 0..n {
+            let q0 = tr.q0[j];
+            let mut s: f64 = 1.0;
+            let [lo, hi] = limits.position[j];
+            let (mx, _) = joint_extremum(&tr, &self.scan, j, 0, true);
+            let (mn, _) = joint_extremum(&tr, &self.scan, j, 0, false);
+            if hi.is_finite() && mx - q0 > 0.0 {
+                s = s.min(((hi - q0) / (mx - q0)).max(0.0));
+            }
+            if lo.is_finite() && q0 - mn > 0.0 {
+                s = s.min(((q0 - lo) / (q0 - mn)).max(0.0));
+            }
+            for (order, lim) in [(1usize, limits.velocity[j]), (2, limits.acceleration[j])] {
+                if !lim.is_finite() {
+                    continue;
+                }
+                let (vmax, _) = joint_extremum(&tr, &self.scan, j, order, true);
+                let (vmin, _) = joint_extremum(&tr, &self.scan, j, order, false);
+                let amp = vmax.max(-vmin);
+                if amp > 0.0 {
+                    s = s.min(lim / amp);
+                }
+            }
+            if s < 1.0 {
+                let s = s * (1.0 - slack);
+                let base = j * vpj + usize::from(self.layout.vary_q0);
+                for v in &mut x[base..(j + 1) * vpj] {
+                    *v *= s;
+                }
+            }
+        }
+    }
+}
+
+/// World position of a frame origin at q (forward kinematics without the
+/// rotation-to-quaternion conversion of [`crate::robot::frame_pose`]).
+pub fn frame_point(robot: &Robot, ws: &mut Workspace, q: &[f64], frame: &Frame) -> Vector3<f64> {
+    crate::robot::kinematics::forward_kinematics(robot, q, &mut ws.kin);
+    let pp = frame.placement.translation.vector;
+    match frame.link {
+        None => pp,
+        Some(l) => ws.kin.wpos[l] + ws.kin.wrot[l] * pp,
+    }
+}
+
+fn margin_names(shape: &Shape) -> Vec<String> {
+    let ax = ["x", "y", "z"];
+    match shape {
+        Shape::Box { .. } => (0..3).flat_map(|i| [format!("{} ≥ min", ax[i]), format!("{} ≤ max", ax[i])]).collect(),
+        Shape::Sphere { .. } => vec!["inside radius".into()],
+        Shape::HalfSpace { .. } => vec!["on the allowed side".into()],
+        Shape::OutsideBox { .. } => vec!["outside the obstacle".into()],
+        Shape::Sector { .. } => vec![
+            "azimuth ≥ min".into(),
+            "azimuth ≤ max".into(),
+            "radius ≥ min".into(),
+            "radius ≤ max".into(),
+            "z ≥ min".into(),
+            "z ≤ max".into(),
+        ],
+    }
+}

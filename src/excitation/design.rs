@@ -1,0 +1,428 @@
+//! The excitation design file (TOML): robot, trajectory parameterisation,
+//! criterion, limits, workspace constraints, solver settings.
+//!
+//! ```toml
+//! name = "ur5_full"                 # output folder name (default: the file stem)
+//! robot = "robots/ur5.toml"         # relative to this file
+//! seed = 1
+//! time_limit = 60.0                 # optional wall-clock budget (s); results then depend on the machine
+//!
+//! [trajectory]
+//! harmonics = 5                     # n_h
+//! frequency = 0.1                   # base frequency f = ω/2π (Hz)
+//! q0 = [0, 0, 0, 0, 0, 0]           # offsets (default: the middle of each joint range, 0 for unbounded joints)
+//! vary_q0 = false                   # q0 a design variable too
+//! at_rest = false                   # start and end at rest (q̇ = q̈ = 0 at t = 0)
+//! controller_rate = 1000.0          # rate of trajectory.csv (Hz)
+//!
+//! [objective]
+//! criterion = "cond"                # cond | log_det | inv_sigma_min
+//! scaling = "unit_column"           # unit_column | nominal | none
+//! columns = "base"                  # base (with drive/friction) | inertial
+//! sample_rate = 10.0                # regressor samples per second over one period
+//! noise = [1.0, ...]                # torque noise std per joint (N·m): weights W and predicted std devs
+//!
+//! [limits]
+//! position = 0.8                    # usable fraction of each joint's half range, about its centre
+//! velocity = 1.0                    # fraction of the velocity limit (0: not imposed)
+//! acceleration = 1.0                # fraction of the acceleration limit (0: not imposed)
+//! torque = 0.0                      # fraction of the effort limit (0: not imposed)
+//! grid_rate = 50.0                  # grid of torque and Cartesian constraints (Hz)
+//! check_rate = 1000.0               # verification grid of the report (Hz)
+//!
+//! [[workspace]]                     # Cartesian constraints, any number
+//! frame = "tool0"                   # default: the end effector
+//! shape = { type = "half_space", normal = [0, 0, 1], offset = 0.05 }
+//!
+//! [ga]
+//! population = 40
+//! generations = 30
+//! elite = 2
+//! crossover = 0.9                   # SBX probability
+//! eta_crossover = 10.0
+//! mutation = 0.05                   # per-gene probability (default 1/n_vars when 0)
+//! eta_mutation = 20.0
+//!
+//! [refine]
+//! algorithm = "slsqp"               # slsqp | mma | none
+//! starts = 2                        # best distinct GA individuals refined
+//! max_evals = 300                   # per start
+//! xtol_rel = 1e-7
+//! smooth = 0.0                      # cond: > 0 adds a first stage on a smooth surrogate with this exponent
+//! ```
+
+use super::objective::{Columns, Criterion, Scaling};
+use crate::error::{Error, Result};
+use crate::robot::cartesian::CartesianConstraint;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// A complete excitation design.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExciteDesign {
+    /// Design name (output folder); default: the file stem.
+    #[serde(default)]
+    pub name: String,
+    /// Robot file, relative to the design file.
+    pub robot: PathBuf,
+    /// Seed of every random choice.
+    #[serde(default = "one")]
+    pub seed: u64,
+    /// Optional wall-clock budget in seconds for the whole search (GA + refinement).
+    #[serde(default)]
+    pub time_limit: Option<f64>,
+    /// Trajectory parameterisation.
+    #[serde(default)]
+    pub trajectory: TrajectorySpec,
+    /// Criterion.
+    #[serde(default)]
+    pub objective: ObjectiveSpec,
+    /// Joint limits used.
+    #[serde(default)]
+    pub limits: LimitsSpec,
+    /// Cartesian workspace constraints.
+    #[serde(default)]
+    pub workspace: Vec<CartesianConstraint>,
+    /// Genetic algorithm.
+    #[serde(default)]
+    pub ga: GaSpec,
+    /// Gradient refinement.
+    #[serde(default)]
+    pub refine: RefineSpec,
+}
+
+fn one() -> u64 {
+    1
+}
+
+/// `[trajectory]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrajectorySpec {
+    /// Number of harmonics n_h (default 5, paper 000).
+    pub harmonics: usize,
+    /// Base frequency in Hz (default 0.1, paper 000 / 002).
+    pub frequency: f64,
+    /// Offsets q0 (default: middle of each joint range).
+    pub q0: Option<Vec<f64>>,
+    /// q0 is a design variable.
+    pub vary_q0: bool,
+    /// Start and end at rest.
+    pub at_rest: bool,
+    /// Rate of trajectory.csv (Hz).
+    pub controller_rate: f64,
+}
+
+impl Default for TrajectorySpec {
+    fn default() -> Self {
+        TrajectorySpec {
+            harmonics: 5,
+            frequency: 0.1,
+            q0: None,
+            vary_q0: false,
+            at_rest: false,
+            controller_rate: 1000.0,
+        }
+    }
+}
+
+/// `[objective]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ObjectiveSpec {
+    /// Criterion (default cond).
+    pub criterion: Criterion,
+    /// Column scaling (default unit columns).
+    pub scaling: Scaling,
+    /// Columns of C (default: base parameters with drive columns).
+    pub columns: Columns,
+    /// Regressor samples per second (default 10 Hz).
+    pub sample_rate: f64,
+    /// Torque noise std per joint (N·m); default 1 for every joint.
+    pub noise: Option<Vec<f64>>,
+}
+
+impl Default for ObjectiveSpec {
+    fn default() -> Self {
+        ObjectiveSpec {
+            criterion: Criterion::Cond,
+            scaling: Scaling::UnitColumn,
+            columns: Columns::Base,
+            sample_rate: 10.0,
+            noise: None,
+        }
+    }
+}
+
+/// `[limits]`: fractions of the robot's limits that the trajectory may use.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LimitsSpec {
+    /// Fraction of each joint's half range, about the centre of the range (0 < f ≤ 1).
+    pub position: f64,
+    /// Fraction of the velocity limit (0: not imposed).
+    pub velocity: f64,
+    /// Fraction of the acceleration limit (0: not imposed).
+    pub acceleration: f64,
+    /// Fraction of the effort limit (0: not imposed).
+    pub torque: f64,
+    /// Constraint grid for torque and Cartesian constraints (Hz).
+    pub grid_rate: f64,
+    /// Verification grid (Hz).
+    pub check_rate: f64,
+    /// Per-joint position ranges overriding the robot's ([lower, upper] each; rad or m).
+    pub position_range: Option<Vec<[f64; 2]>>,
+}
+
+impl Default for LimitsSpec {
+    fn default() -> Self {
+        LimitsSpec {
+            position: 0.8,
+            velocity: 1.0,
+            acceleration: 1.0,
+            torque: 0.0,
+            grid_rate: 50.0,
+            check_rate: 1000.0,
+            position_range: None,
+        }
+    }
+}
+
+/// `[ga]`: real-coded genetic algorithm.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GaSpec {
+    /// Population size.
+    pub population: usize,
+    /// Number of generations.
+    pub generations: usize,
+    /// Individuals copied unchanged into the next generation.
+    pub elite: usize,
+    /// Crossover probability (SBX).
+    pub crossover: f64,
+    /// SBX distribution index.
+    pub eta_crossover: f64,
+    /// Per-gene mutation probability (0: 1/n_vars).
+    pub mutation: f64,
+    /// Polynomial-mutation distribution index.
+    pub eta_mutation: f64,
+    /// Fraction of `time_limit` the GA may use.
+    pub time_fraction: f64,
+}
+
+impl Default for GaSpec {
+    fn default() -> Self {
+        GaSpec {
+            population: 40,
+            generations: 30,
+            elite: 2,
+            crossover: 0.9,
+            eta_crossover: 10.0,
+            mutation: 0.0,
+            eta_mutation: 20.0,
+            time_fraction: 0.3,
+        }
+    }
+}
+
+/// Gradient refinement algorithm.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RefineAlgorithm {
+    /// nlopt SLSQP (sequential quadratic programming).
+    Slsqp,
+    /// nlopt MMA (method of moving asymptotes).
+    Mma,
+    /// No refinement: the GA's best.
+    None,
+}
+
+/// `[refine]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RefineSpec {
+    /// Algorithm.
+    pub algorithm: RefineAlgorithm,
+    /// Number of best distinct GA individuals refined.
+    pub starts: usize,
+    /// Evaluation budget per start.
+    pub max_evals: u32,
+    /// Relative x tolerance.
+    pub xtol_rel: f64,
+    /// Relative objective tolerance.
+    pub ftol_rel: f64,
+    /// Exponent p of the smooth first stage for `criterion = "cond"` (0: off).
+    pub smooth: f64,
+}
+
+impl Default for RefineSpec {
+    fn default() -> Self {
+        RefineSpec {
+            algorithm: RefineAlgorithm::Slsqp,
+            starts: 2,
+            max_evals: 300,
+            xtol_rel: 1e-7,
+            ftol_rel: 1e-9,
+            smooth: 0.0,
+        }
+    }
+}
+
+impl ExciteDesign {
+    /// Reads and validates a design file; the robot path is resolved relative
+    /// to the file and the name defaults to the file stem.
+    pub fn load(path: &Path) -> Result<ExciteDesign> {
+        let mut d: ExciteDesign = crate::io::read_toml(path)?;
+        if d.name.is_empty() {
+            d.name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "excite".into());
+        }
+        if d.robot.is_relative() {
+            if let Some(dir) = path.parent() {
+                d.robot = dir.join(&d.robot);
+            }
+        }
+        d.validate(&path.display().to_string())?;
+        Ok(d)
+    }
+
+    /// Checks every value; `ctx` names the file in messages.
+    pub fn validate(&self, ctx: &str) -> Result<()> {
+        let bad = |field: &str, msg: String| Err(Error::invalid(ctx, field, msg));
+        if self.name.is_empty() || self.name.contains(['/', '\\']) {
+            return bad("name", format!("expected a plain folder name, got `{}`", self.name));
+        }
+        if let Some(t) = self.time_limit {
+            if !(t.is_finite() && t > 0.0) {
+                return bad("time_limit", format!("expected a positive number of seconds, got {t}"));
+            }
+        }
+        let tr = &self.trajectory;
+        if tr.harmonics == 0 || tr.harmonics > 50 || (tr.at_rest && tr.harmonics < 2) {
+            return bad(
+                "trajectory.harmonics",
+                format!("expected 1..=50 harmonics (≥ 2 with at_rest), got {}", tr.harmonics),
+            );
+        }
+        if !(tr.frequency.is_finite() && tr.frequency > 0.0 && tr.frequency <= 100.0) {
+            return bad(
+                "trajectory.frequency",
+                format!("expected a base frequency in (0, 100] Hz, got {}", tr.frequency),
+            );
+        }
+        if !(tr.controller_rate.is_finite() && tr.controller_rate >= 1.0 && tr.controller_rate <= 1e5) {
+            return bad("trajectory.controller_rate", format!("expected 1..=100000 Hz, got {}", tr.controller_rate));
+        }
+        if let Some(q0) = &tr.q0 {
+            if let Some(j) = q0.iter().position(|v| !v.is_finite()) {
+                return bad(&format!("trajectory.q0[{j}]"), "expected a finite number".into());
+            }
+        }
+        let o = &self.objective;
+        let nyq = 2.0 * tr.harmonics as f64 * tr.frequency;
+        if !(o.sample_rate.is_finite() && o.sample_rate > 0.0) {
+            return bad("objective.sample_rate", format!("expected a positive rate in Hz, got {}", o.sample_rate));
+        }
+        if o.sample_rate / tr.frequency > 1e6 {
+            return bad("objective.sample_rate", "more than 10⁶ samples per period".into());
+        }
+        if o.sample_rate < nyq {
+            return bad(
+                "objective.sample_rate",
+                format!("{} Hz is below twice the highest harmonic ({nyq} Hz)", o.sample_rate),
+            );
+        }
+        if let Some(nz) = &o.noise {
+            if let Some(j) = nz.iter().position(|v| !(v.is_finite() && *v > 0.0)) {
+                return bad(&format!("objective.noise[{j}]"), "expected a positive noise level".into());
+            }
+        }
+        let l = &self.limits;
+        if !(l.position > 0.0 && l.position <= 1.0) {
+            return bad("limits.position", format!("expected a fraction in (0, 1], got {}", l.position));
+        }
+        for (f, v) in [
+            ("limits.velocity", l.velocity),
+            ("limits.acceleration", l.acceleration),
+            ("limits.torque", l.torque),
+        ] {
+            if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+                return bad(f, format!("expected a fraction in [0, 1] (0: not imposed), got {v}"));
+            }
+        }
+        for (f, v) in [("limits.grid_rate", l.grid_rate), ("limits.check_rate", l.check_rate)] {
+            if !(v.is_finite() && v > 0.0 && v <= 1e5) {
+                return bad(f, format!("expected a rate in (0, 100000] Hz, got {v}"));
+            }
+        }
+        if let Some(r) = &l.position_range {
+            for (j, [lo, hi]) in r.iter().enumerate() {
+                if lo.is_nan() || hi.is_nan() || lo >= hi {
+                    return bad(&format!("limits.position_range[{j}]"), format!("expected lower < upper, got [{lo}, {hi}]"));
+                }
+            }
+        }
+        for (i, w) in self.workspace.iter().enumerate() {
+            w.shape.validate(ctx, &format!("workspace[{i}].shape"))?;
+        }
+        let g = &self.ga;
+        if g.population < 4 || g.population > 100_000 {
+            return bad("ga.population", format!("expected 4..=100000, got {}", g.population));
+        }
+        if g.elite >= g.population {
+            return bad(
+                "ga.elite",
+                format!("expected fewer elites than the population ({}), got {}", g.population, g.elite),
+            );
+        }
+        if !(0.0..=1.0).contains(&g.crossover) || !(0.0..=1.0).contains(&g.mutation) {
+            return bad("ga.crossover", "crossover and mutation are probabilities in [0, 1]".into());
+        }
+        if !(g.eta_crossover > 0.0 && g.eta_mutation > 0.0) {
+            return bad("ga.eta_crossover", "distribution indices must be positive".into());
+        }
+        if !(g.time_fraction > 0.0 && g.time_fraction <= 1.0) {
+            return bad("ga.time_fraction", format!("expected a fraction in (0, 1], got {}", g.time_fraction));
+        }
+        let r = &self.refine;
+        if r.algorithm != RefineAlgorithm::None && (r.starts == 0 || r.max_evals == 0) {
+            return bad(
+                "refine.starts",
+                "refinement needs at least one start and one evaluation (or algorithm = \"none\")".into(),
+            );
+        }
+        if !(r.smooth == 0.0 || (r.smooth >= 1.0 && r.smooth <= 1000.0)) {
+            return bad("refine.smooth", format!("expected 0 (off) or an exponent in [1, 1000], got {}", r.smooth));
+        }
+        if !(r.xtol_rel >= 0.0 && r.ftol_rel >= 0.0) {
+            return bad("refine.xtol_rel", "tolerances must be ≥ 0".into());
+        }
+        Ok(())
+    }
+
+    /// Per-joint checks that need the robot (q0 length, noise length, ranges).
+    pub fn validate_for(&self, robot: &crate::robot::Robot, ctx: &str) -> Result<()> {
+        let n = robot.dof();
+        let check = |field: &str, len: usize| {
+            if len != n {
+                Err(Error::invalid(
+                    ctx,
+                    field,
+                    format!("expected {n} values (one per joint of `{}`), got {len}", robot.name),
+                ))
+            } else {
+                Ok(())
+            }
+        };
+        if let Some(q0) = &self.trajectory.q0 {
+            check("trajectory.q0", q0.len())?;
+        }
+        if let Some(nz) = &self.objective.noise {
+            check("objective.noise", nz.len())?;
+        }
+        if let Some(r) = &self.limits.position_range {
+            check("limits.position_range", r.len())?;
+        }
+        Ok(())
+    }
+}

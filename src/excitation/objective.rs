@@ -1,0 +1,671 @@
+//! The identifiability criterion of an excitation trajectory and its analytic
+//! gradient with respect to the Fourier design vector.
+//!
+//! # The stacked regressor
+//!
+//! For the trajectory q(t; x) of design vector x ([`FourierLayout`]) and the
+//! sample times t_1..t_N (one period at the design's sample rate), the stacked
+//! base regressor is
+//!
+//! C(x) = [ W½ Y_b(q(t_1), q̇(t_1), q̈(t_1)) ; … ; W½ Y_b(q(t_N), …) ]   (N·n × m),
+//!
+//! Y_b the columns of the motor-side regressor [`crate::robot::regressor_rows`]
+//! selected by `columns` (by default the base parameters, drive and friction
+//! columns included: paper 000 eq. 4, paper 002 eq. 20's Φ) and W½ =
+//! diag(1/σ_j) the optional per-joint torque-noise weights. The criterion is
+//! evaluated on the scaled matrix C̃ = C D:
+//!
+//! * [`Scaling::UnitColumn`] (default, Sun & Hollerbach / paper 000 ref. [15]):
+//!   D = diag(1/‖c_j‖), every column of unit norm — D depends on x;
+//! * [`Scaling::Nominal`]: D = diag(|θ_b,j|), each column weighted by its
+//!   nominal base-parameter value (its torque contribution); values below
+//!   10⁻³·max|θ_b| (products of inertia that are nominally zero, say) are
+//!   raised to that floor;
+//! * [`Scaling::None`]: D = I.
+//!
+//! # Criteria and gradients
+//!
+//! With the thin SVD C̃ = U Σ Vᵀ (σ_1 ≥ … ≥ σ_m) and dσ_i = u_iᵀ dC̃ v_i,
+//! u_i = C̃ v_i / σ_i, every criterion J has dJ = ⟨C̃ M, dC̃⟩ with a symmetric
+//! m × m matrix M:
+//!
+//! * [`Criterion::Cond`]: J = σ_1/σ_m, M = v_1v_1ᵀ/(σ_1σ_m) − σ_1 v_mv_mᵀ/σ_m³;
+//! * [`Criterion::LogDet`]: J = −log det(C̃ᵀC̃) = −2 Σ log σ_i, M = −2 V Σ⁻² Vᵀ;
+//! * [`Criterion::InvSigmaMin`]: J = 1/σ_m, M = −v_mv_mᵀ/σ_m³.
+//!
+//! G = C̃ M is pulled back through the scaling (for unit columns
+//! dc̃_j = (dc_j − c̃_j c̃_jᵀ dc_j)/‖c_j‖) to H with dJ = ⟨H, dC⟩, then through
+//! the regressor, per sample, ∂J/∂q_k(t_i) = Σ_{r,j} H_(i,r),j ∂Y_b,rj/∂q_k
+//! (likewise q̇, q̈; ∂Y/∂q, ∂Y/∂q̇ by forward-mode dual numbers, ∂Y/∂q̈ exactly
+//! as Y(q, 0, e_k) − Y(q, 0, 0) without gravity, since Y is affine in q̈),
+//! and finally through the Fourier basis ([`FourierTrajectory::basis`]) and
+//! the layout ([`FourierLayout::pullback`]).
+//!
+//! The decomposition (eigendecomposition of the m×m Gram matrix C̃ᵀC̃ when
+//! C̃ is well conditioned, else a thin SVD of C̃) runs sequentially in
+//! preallocated faer stacks held by the per-thread [`ObjectiveWorkspace`]; the
+//! per-sample gradient work runs in fixed chunks of samples on the rayon pool
+//! and is summed in chunk order. An evaluation therefore does not depend on
+//! the thread count.
+
+use super::grid::TrigGrid;
+use crate::error::{Error, Result};
+use crate::robot::dynamics::{regressor_generic, Terms};
+use crate::robot::kinematics::Kin;
+use crate::robot::{regressor_rows, Robot, Workspace};
+use crate::trajectory::{Basis, FourierLayout, FourierTrajectory};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::evd::{self_adjoint_evd, self_adjoint_evd_scratch, ComputeEigenvectors};
+use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
+use faer::{Mat, MatMut, MatRef, Par};
+use num_dual::Dual64;
+use rayon::prelude::*;
+
+use serde::{Deserialize, Serialize};
+
+/// Identifiability criterion (minimised).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Criterion {
+    /// Condition number σ_max/σ_min of the scaled regressor (default; paper 000 §II-C, paper 002 eq. 20).
+    #[default]
+    Cond,
+    /// −log det(C̃ᵀC̃) (D-optimality).
+    LogDet,
+    /// 1/σ_min (E-optimality).
+    InvSigmaMin,
+}
+
+/// Column scaling of the stacked regressor before the criterion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Scaling {
+    /// Unit column norms (default).
+    #[default]
+    UnitColumn,
+    /// Columns times the nominal base-parameter values.
+    Nominal,
+    /// No scaling.
+    None,
+}
+
+/// Which regressor columns form C.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Columns {
+    /// Base parameters including drive columns (Ia, friction) — the default.
+    #[default]
+    Base,
+    /// Base parameters of the rigid-body (inertial) columns only.
+    Inertial,
+}
+
+/// Velocities below this (rad/s or m/s) are taken as exactly zero in the
+/// regressor samples, so Coulomb columns sign(q̇) do not flip on round-off.
+pub const ZERO_VELOCITY: f64 = 1e-12;
+
+/// Largest condition number reported; rank-deficient matrices are clamped to it.
+pub const COND_CAP: f64 = 1e12;
+
+/// The criterion J(x) of a design vector, with everything fixed that does not
+/// depend on x (robot, columns, sample times, weights, scaling).
+#[derive(Debug, Clone)]
+pub struct Objective {
+    /// The robot (nominal parameters used by [`Scaling::Nominal`]).
+    pub robot: Robot,
+    /// Design vector ↔ trajectory.
+    pub layout: FourierLayout,
+    /// Standard-parameter indices of C's columns.
+    pub columns: Vec<usize>,
+    /// Names of the columns (base-parameter names).
+    pub column_names: Vec<String>,
+    /// Sample times (s) over one period.
+    pub times: Vec<f64>,
+    /// Criterion.
+    pub criterion: Criterion,
+    /// Column scaling.
+    pub scaling: Scaling,
+    /// Row weight per joint, 1/σ_j (σ_j the torque noise standard deviation).
+    pub row_weight: Vec<f64>,
+    /// Fixed column factors for [`Scaling::Nominal`] (|θ_b,j|, floored), else ones.
+    pub fixed_scale: Vec<f64>,
+    /// The sample grid with its trigonometric table.
+    pub grid: TrigGrid,
+}
+
+/// Per-thread buffers of [`Objective`] evaluations.
+pub struct ObjectiveWorkspace {
+    ws: Workspace,
+    y: Vec<f64>,
+    /// Raw stacked regressor C (N·n × m), column-major.
+    pub c: Vec<f64>,
+    /// Scaled regressor C̃, column-major.
+    pub cs: Vec<f64>,
+    h: Vec<f64>,
+    rows: usize,
+    col_norm: Vec<f64>,
+    sd: faer::diag::Diag<f64>,
+    s: Vec<f64>,
+    v: Mat<f64>,
+    vs: Mat<f64>,
+    gram: Mat<f64>,
+    mem_novec: MemBuffer,
+    mem_vec: MemBuffer,
+    mem_evd: MemBuffer,
+    states: Vec<[Vec<f64>; 3]>,
+    g_q0: Vec<f64>,
+    g_a: Vec<Vec<f64>>,
+    g_b: Vec<Vec<f64>>,
+    /// Number of criterion evaluations made with this workspace.
+    pub evaluations: u64,
+    /// Number of gradient evaluations made with this workspace.
+    pub gradients: u64,
+}
+
+impl std::fmt::Debug for ObjectiveWorkspace {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ObjectiveWorkspace").field("rows", &self.rows).finish()
+    }
+}
+
+/// Singular values and the derived identifiability measures of one trajectory.
+#[derive(Debug, Clone, Serialize)]
+pub struct Spectrum {
+    /// Singular values of the scaled stacked regressor, decreasing.
+    pub singular_values: Vec<f64>,
+    /// Condition number σ_1/σ_m (capped at [`COND_CAP`]).
+    pub cond: f64,
+    /// Criterion value.
+    pub criterion: f64,
+}
+
+impl Objective {
+    /// Builds the objective. `columns` are standard-parameter indices into
+    /// the robot's parameter vector, `names` their labels, `base_nominal` the
+    /// nominal value of each column's parameter (for [`Scaling::Nominal`]),
+    /// `noise` the per-joint torque noise standard deviations (N·m or N).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        robot: Robot,
+        layout: FourierLayout,
+        columns: Vec<usize>,
+        column_names: Vec<String>,
+        base_nominal: &[f64],
+        times: Vec<f64>,
+        criterion: Criterion,
+        scaling: Scaling,
+        noise: &[f64],
+    ) -> Result<Self> {
+        let n = robot.dof();
+        if layout.n != n {
+            return Err(Error::dim("trajectory joints vs robot joints", n, layout.n));
+        }
+        if noise.len() != n {
+            return Err(Error::dim("noise levels (one per joint)", n, noise.len()));
+        }
+        if let Some(j) = noise.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(Error::invalid("objective", format!("noise[{j}]"), "expected a positive torque noise level"));
+        }
+        if columns.is_empty() || columns.iter().any(|&c| c >= robot.n_params()) {
+            return Err(Error::invalid("objective", "columns", "expected a non-empty set of valid parameter indices"));
+        }
+        if base_nominal.len() != columns.len() || column_names.len() != columns.len() {
+            return Err(Error::dim("nominal values / names per column", columns.len(), base_nominal.len()));
+        }
+        let rows = times.len() * n;
+        if rows < columns.len() {
+            return Err(Error::invalid(
+                "objective",
+                "sample_rate",
+                format!(
+                    "{} samples × {n} joints = {rows} rows cannot determine {} parameters; raise the sample rate",
+                    times.len(),
+                    columns.len()
+                ),
+            ));
+        }
+        let fixed_scale = match scaling {
+            Scaling::Nominal => {
+                let mx = base_nominal.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                let floor = 1e-3 * mx.max(1e-300);
+                base_nominal.iter().map(|v| v.abs().max(floor)).collect()
+            }
+            _ => vec![1.0; columns.len()],
+        };
+        let grid = TrigGrid::new(times.clone(), layout.omega, layout.n_h);
+        Ok(Objective {
+            grid,
+            row_weight: noise.iter().map(|s| 1.0 / s).collect(),
+            robot,
+            layout,
+            columns,
+            column_names,
+            times,
+            criterion,
+            scaling,
+            fixed_scale,
+        })
+    }
+
+    /// Number of columns m of C.
+    pub fn n_cols(&self) -> usize {
+        self.columns.len()
+    }
+
+    /// Number of rows N·n of C.
+    pub fn n_rows(&self) -> usize {
+        self.times.len() * self.robot.dof()
+    }
+
+    /// A workspace for this objective (one per thread).
+    pub fn workspace(&self) -> ObjectiveWorkspace {
+        let n = self.robot.dof();
+        let p = self.robot.n_params();
+        let (r, m) = (self.n_rows(), self.n_cols());
+        let req_no = svd_scratch::<f64>(r, m, ComputeSvdVectors::No, ComputeSvdVectors::No, Par::Seq, Default::default());
+        let req_v = svd_scratch::<f64>(r, m, ComputeSvdVectors::No, ComputeSvdVectors::Thin, Par::Seq, Default::default());
+        let nh = self.layout.n_h;
+        ObjectiveWorkspace {
+            ws: Workspace::new(&self.robot),
+            y: vec![0.0; n * p],
+            c: vec![0.0; r * m],
+            cs: vec![0.0; r * m],
+            h: vec![0.0; r * m],
+            rows: r,
+            col_norm: vec![0.0; m],
+            sd: faer::diag::Diag::zeros(m),
+            s: vec![0.0; m],
+            v: Mat::zeros(m, m),
+            vs: Mat::zeros(m, m),
+            gram: Mat::zeros(m, m),
+            mem_novec: MemBuffer::new(req_no),
+            mem_vec: MemBuffer::new(req_v),
+            mem_evd: MemBuffer::new(self_adjoint_evd_scratch::<f64>(m, ComputeEigenvectors::Yes, Par::Seq, Default::default())),
+            states: vec![[vec![0.0; n], vec![0.0; n], vec![0.0; n]]; self.times.len()],
+            g_q0: vec![0.0; n],
+            g_a: vec![vec![0.0; nh]; n],
+            g_b: vec![vec![0.0; nh]; n],
+            evaluations: 0,
+            gradients: 0,
+        }
+    }
+
+    /// Fills C and C̃ for the trajectory `tr`.
+    fn fill(&self, tr: &FourierTrajectory, w: &mut ObjectiveWorkspace) {
+        let n = self.robot.dof();
+        let p = self.robot.n_params();
+        let rows = w.rows;
+        for i in 0..self.grid.len() {
+            let [q, qd, qdd] = &mut w.states[i];
+            self.grid.state(tr, i, q, qd, qdd);
+            // velocities that are zero up to round-off (t = 0 of an at-rest
+            // trajectory) must give sign(q̇) = 0, not a random ±1
+            for v in qd.iter_mut() {
+                if v.abs() < ZERO_VELOCITY {
+                    *v = 0.0;
+                }
+            }
+            regressor_rows(&self.robot, &mut w.ws, q, qd, qdd, &mut w.y);
+            for r in 0..n {
+                let wr = self.row_weight[r];
+                let yr = &w.y[r * p..(r + 1) * p];
+                for (j, &c) in self.columns.iter().enumerate() {
+                    w.c[j * rows + i * n + r] = wr * yr[c];
+                }
+            }
+        }
+        let m = self.n_cols();
+        for j in 0..m {
+            let col = &w.c[j * rows..(j + 1) * rows];
+            let nrm = col.iter().map(|v| v * v).sum::<f64>().sqrt();
+            w.col_norm[j] = nrm;
+            let f = match self.scaling {
+                Scaling::UnitColumn => {
+                    if nrm > 0.0 {
+                        1.0 / nrm
+                    } else {
+                        0.0
+                    }
+                }
+                _ => self.fixed_scale[j],
+            };
+            for r in j * rows..(j + 1) * rows {
+                w.cs[r] = w.c[r] * f;
+            }
+        }
+    }
+
+    /// Singular values (into w.s, decreasing) and, with `vectors`, right
+    /// singular vectors (w.v) of C̃. Through the eigendecomposition of the
+    /// m×m Gram matrix C̃ᵀC̃ when it is well conditioned (σ_1/σ_m < 10⁴, where
+    /// its relative accuracy is ≈ ε·κ² ≤ 10⁻⁸), else by a direct SVD of C̃.
+    /// Returns false if C̃ is not finite or the decomposition failed.
+    fn decompose(&self, w: &mut ObjectiveWorkspace, vectors: bool) -> bool {
+        if !w.cs.iter().all(|v| v.is_finite()) {
+            return false;
+        }
+        let m = self.n_cols();
+        let cs = MatRef::from_column_major_slice(&w.cs, w.rows, m);
+        faer::linalg::matmul::matmul(w.gram.as_mut(), faer::Accum::Replace, cs.transpose(), cs, 1.0, Par::Seq);
+        let ok = {
+            let stack = MemStack::new(&mut w.mem_evd);
+            self_adjoint_evd(w.gram.as_ref(), w.sd.as_mut(), Some(w.vs.as_mut()), Par::Seq, stack, Default::default()).is_ok()
+        };
+        if ok {
+            // ascending eigenvalues λ; σ_i = √λ in decreasing order
+            let lam = w.sd.column_vector();
+            let mut idx: Vec<usize> = (0..m).collect();
+            idx.sort_by(|&a, &b| lam[b].total_cmp(&lam[a]));
+            let (lmax, lmin) = (lam[idx[0]], lam[idx[m - 1]]);
+            if lmax > 0.0 && lmin > 1e-8 * lmax {
+                for (i, &k) in idx.iter().enumerate() {
+                    w.s[i] = lam[k].max(0.0).sqrt();
+                    if vectors {
+                        for a in 0..m {
+                            w.v[(a, i)] = w.vs[(a, k)];
+                        }
+                    }
+                }
+                return true;
+            }
+        }
+        let res = if vectors {
+            let stack = MemStack::new(&mut w.mem_vec);
+            svd(cs, w.sd.as_mut(), None, Some(w.v.as_mut()), Par::Seq, stack, Default::default())
+        } else {
+            let stack = MemStack::new(&mut w.mem_novec);
+            svd(cs, w.sd.as_mut(), None, None, Par::Seq, stack, Default::default())
+        };
+        if res.is_err() {
+            return false;
+        }
+        for i in 0..m {
+            w.s[i] = w.sd.column_vector()[i];
+        }
+        true
+    }
+
+    fn sigmas(w: &ObjectiveWorkspace) -> (f64, f64) {
+        (w.s[0], w.s[w.s.len() - 1])
+    }
+
+    /// Criterion value from the singular values in the workspace.
+    fn criterion_value(&self, w: &ObjectiveWorkspace) -> f64 {
+        let (s1, sm) = Self::sigmas(w);
+        match self.criterion {
+            Criterion::Cond => cond_of(s1, sm),
+            Criterion::LogDet => {
+                let floor = s1 / COND_CAP;
+                -2.0 * w.s.iter().map(|v| v.max(floor).max(1e-300).ln()).sum::<f64>()
+            }
+            Criterion::InvSigmaMin => 1.0 / sm.max(s1 / COND_CAP).max(1e-300),
+        }
+    }
+
+    /// The criterion J(x). Rank-deficient regressors give the capped value
+    /// (cond = [`COND_CAP`]); non-finite regressors give +∞.
+    pub fn value(&self, x: &[f64], w: &mut ObjectiveWorkspace) -> f64 {
+        let tr = self.layout.trajectory(x);
+        self.value_of(&tr, w)
+    }
+
+    /// The criterion of a given trajectory.
+    pub fn value_of(&self, tr: &FourierTrajectory, w: &mut ObjectiveWorkspace) -> f64 {
+        w.evaluations += 1;
+        self.fill(tr, w);
+        if !self.decompose(w, false) {
+            return f64::INFINITY;
+        }
+        self.criterion_value(w)
+    }
+
+    /// Singular values, condition number and criterion of a trajectory.
+    pub fn spectrum(&self, tr: &FourierTrajectory, w: &mut ObjectiveWorkspace) -> Result<Spectrum> {
+        let j = self.value_of(tr, w);
+        if !j.is_finite() && j != f64::INFINITY {
+            return Err(Error::Numerical("criterion is not a number".into()));
+        }
+        let s: Vec<f64> = w.s.clone();
+        let (s1, sm) = Self::sigmas(w);
+        Ok(Spectrum {
+            singular_values: s,
+            cond: cond_of(s1, sm),
+            criterion: j,
+        })
+    }
+
+    /// J(x) and its gradient ∂J/∂x (analytic, see the module docs) into `grad`.
+    pub fn value_grad(&self, x: &[f64], w: &mut ObjectiveWorkspace, grad: &mut [f64]) -> f64 {
+        self.value_grad_mode(x, w, grad, None)
+    }
+
+    /// A smooth surrogate of 2 ln cond(C̃) and its gradient:
+    /// L_p = (1/p) ln Σ λ_i^p + (1/p) ln Σ λ_i^{−p}, λ_i = σ_i², which tends to
+    /// ln λ_max − ln λ_min = 2 ln κ as p → ∞ (overestimating it by at most
+    /// 2 ln(m)/p) and, unlike κ, is differentiable where singular values
+    /// coincide. dλ_i = 2 v_iᵀ C̃ᵀ dC̃ v_i. Used by the refinement's first stage.
+    pub fn soft_log_cond_grad(&self, x: &[f64], w: &mut ObjectiveWorkspace, grad: &mut [f64], p: f64) -> f64 {
+        self.value_grad_mode(x, w, grad, Some(p))
+    }
+
+    fn value_grad_mode(&self, x: &[f64], w: &mut ObjectiveWorkspace, grad: &mut [f64], soft: Option<f64>) -> f64 {
+        assert_eq!(grad.len(), self.layout.n_vars(), "gradient length");
+        w.evaluations += 1;
+        w.gradients += 1;
+        let tr = self.layout.trajectory(x);
+        self.fill(&tr, w);
+        if !self.decompose(w, true) {
+            grad.iter_mut().for_each(|g| *g = 0.0);
+            return f64::INFINITY;
+        }
+        let jval = self.criterion_value(w);
+        let m = self.n_cols();
+        let rows = self.n_rows();
+        let s: Vec<f64> = w.s.clone();
+        let (s1, sm_raw) = (s[0], s[m - 1]);
+        let sm = sm_raw.max(s1 / COND_CAP).max(1e-300);
+        // M (m×m, symmetric)
+        let mut mm = Mat::<f64>::zeros(m, m);
+        let v = &w.v;
+        let rank1 = |coef: f64, k: usize, mm: &mut Mat<f64>| {
+            for a in 0..m {
+                let va = coef * v[(a, k)];
+                for b in 0..m {
+                    mm[(a, b)] += va * v[(b, k)];
+                }
+            }
+        };
+        let mut jval = jval;
+        if let Some(pw) = soft {
+            let lam: Vec<f64> = s.iter().map(|v| (v * v).max(sm * sm)).collect();
+            let (lmax, lmin) = (lam[0], lam[m - 1]);
+            let a: Vec<f64> = lam.iter().map(|l| (l / lmax).powf(pw)).collect();
+            let b: Vec<f64> = lam.iter().map(|l| (lmin / l).powf(pw)).collect();
+            let (sa, sb): (f64, f64) = (a.iter().sum(), b.iter().sum());
+            jval = lmax.ln() + sa.ln() / pw - lmin.ln() + sb.ln() / pw;
+            for k in 0..m {
+                let wk = a[k] / (lam[k] * sa) - b[k] / (lam[k] * sb);
+                rank1(2.0 * wk, k, &mut mm);
+            }
+        } else {
+            match self.criterion {
+                Criterion::Cond => {
+                    rank1(1.0 / (s1 * sm), 0, &mut mm);
+                    rank1(-s1 / (sm * sm * sm), m - 1, &mut mm);
+                }
+                Criterion::InvSigmaMin => rank1(-1.0 / (sm * sm * sm), m - 1, &mut mm),
+                Criterion::LogDet => {
+                    let floor = s1 / COND_CAP;
+                    for k in 0..m {
+                        let sk = s[k].max(floor).max(1e-300);
+                        rank1(-2.0 / (sk * sk), k, &mut mm);
+                    }
+                }
+            }
+        }
+        // G = C̃ M, then H (w.r.t. raw C)
+        let mut h = std::mem::take(&mut w.h);
+        {
+            let cs = MatRef::from_column_major_slice(&w.cs, rows, m);
+            let hm = MatMut::from_column_major_slice_mut(&mut h, rows, m);
+            faer::linalg::matmul::matmul(hm, faer::Accum::Replace, cs, mm.as_ref(), 1.0, Par::Seq);
+        }
+        match self.scaling {
+            Scaling::UnitColumn => {
+                for j in 0..m {
+                    let nrm = w.col_norm[j];
+                    let hj = &mut h[j * rows..(j + 1) * rows];
+                    if nrm <= 0.0 {
+                        hj.iter_mut().for_each(|v| *v = 0.0);
+                        continue;
+                    }
+                    let cj = &w.cs[j * rows..(j + 1) * rows];
+                    let dot: f64 = cj.iter().zip(hj.iter()).map(|(a, b)| a * b).sum();
+                    for (hv, cv) in hj.iter_mut().zip(cj) {
+                        *hv = (*hv - cv * dot) / nrm;
+                    }
+                }
+            }
+            _ => {
+                for j in 0..m {
+                    let f = self.fixed_scale[j];
+                    h[j * rows..(j + 1) * rows].iter_mut().for_each(|v| *v *= f);
+                }
+            }
+        }
+        // per-sample contraction with the regressor derivatives, in fixed
+        // chunks of samples evaluated in parallel and summed in chunk order
+        // (the result does not depend on the thread count)
+        let n = self.robot.dof();
+        let nh = self.layout.n_h;
+        let len = 1 + 2 * nh;
+        let nchunks = self.grid.len().div_ceil(GRAD_CHUNK);
+        let states = &w.states;
+        let hs = &h;
+        let parts: Vec<Vec<f64>> = (0..nchunks)
+            .into_par_iter()
+            .map_init(
+                || SampleBuffers::new(&self.robot),
+                |buf, c| {
+                    let mut acc = vec![0.0; n * len];
+                    let mut g = vec![0.0; 3 * n];
+                    for i in c * GRAD_CHUNK..((c + 1) * GRAD_CHUNK).min(self.grid.len()) {
+                        self.sample_gradient(i, &states[i], hs, rows, buf, &mut g);
+                        self.grid.basis(i, &mut buf.basis);
+                        for j in 0..n {
+                            let (gq, gqd, gqdd) = (g[j], g[n + j], g[2 * n + j]);
+                            acc[j * len] += gq;
+                            for k in 0..nh {
+                                let b = &buf.basis.k[k];
+                                acc[j * len + 1 + k] += gq * b[0] + gqd * b[2] + gqdd * b[4];
+                                acc[j * len + 1 + nh + k] += gq * b[1] + gqd * b[3] + gqdd * b[5];
+                            }
+                        }
+                    }
+                    acc
+                },
+            )
+            .collect();
+        for j in 0..n {
+            w.g_q0[j] = parts.iter().map(|a| a[j * len]).sum();
+            for k in 0..nh {
+                w.g_a[j][k] = parts.iter().map(|a| a[j * len + 1 + k]).sum();
+                w.g_b[j][k] = parts.iter().map(|a| a[j * len + 1 + nh + k]).sum();
+            }
+        }
+        w.h = h;
+        self.layout.pullback(&w.g_q0, &w.g_a, &w.g_b, grad);
+        jval
+    }
+}
+
+/// Samples per parallel chunk of the gradient's per-sample work.
+const GRAD_CHUNK: usize = 10;
+
+/// Buffers of one worker of the gradient's per-sample work.
+struct SampleBuffers {
+    kin: Kin<f64>,
+    dual: Kin<Dual64>,
+    yd: Vec<Dual64>,
+    y0: Vec<f64>,
+    yk: Vec<f64>,
+    q_: Vec<Dual64>,
+    qd_: Vec<Dual64>,
+    qdd_: Vec<Dual64>,
+    basis: Basis,
+}
+
+impl SampleBuffers {
+    fn new(robot: &Robot) -> Self {
+        let (n, p) = (robot.dof(), robot.n_params());
+        SampleBuffers {
+            kin: Kin::new(n),
+            dual: Kin::new(n),
+            yd: vec![Dual64::from(0.0); n * p],
+            y0: vec![0.0; n * p],
+            yk: vec![0.0; n * p],
+            q_: vec![Dual64::from(0.0); n],
+            qd_: vec![Dual64::from(0.0); n],
+            qdd_: vec![Dual64::from(0.0); n],
+            basis: Basis::default(),
+        }
+    }
+}
+
+impl Objective {
+    /// ∂J/∂q, ∂J/∂q̇, ∂J/∂q̈ at sample i (into g: 3n values) from H (column-major, `rows` rows).
+    fn sample_gradient(&self, i: usize, state: &[Vec<f64>; 3], h: &[f64], rows: usize, b: &mut SampleBuffers, g: &mut [f64]) {
+        let n = self.robot.dof();
+        let p = self.robot.n_params();
+        let [q, qd, qdd] = state;
+        let hrow = |r: usize, j: usize| h[j * rows + i * n + r] * self.row_weight[r];
+        let all = Terms { gravity: true, drive: true };
+        let no_grav = Terms { gravity: false, drive: true };
+        // ∂/∂q_k and ∂/∂q̇_k with duals
+        for which in 0..2 {
+            for k in 0..n {
+                for a in 0..n {
+                    b.q_[a] = Dual64::new(q[a], if which == 0 && a == k { 1.0 } else { 0.0 });
+                    b.qd_[a] = Dual64::new(qd[a], if which == 1 && a == k { 1.0 } else { 0.0 });
+                    b.qdd_[a] = Dual64::from(qdd[a]);
+                }
+                regressor_generic(&self.robot, &b.q_, &b.qd_, &b.qdd_, all, &mut b.dual, &mut b.yd);
+                let mut acc = 0.0;
+                for r in 0..n {
+                    for (j, &c) in self.columns.iter().enumerate() {
+                        acc += hrow(r, j) * b.yd[r * p + c].eps;
+                    }
+                }
+                g[which * n + k] = acc;
+            }
+        }
+        // ∂/∂q̈_k: Y(q,0,e_k) − Y(q,0,0) without gravity (Y is affine in q̈)
+        let zeros = vec![0.0; n];
+        let mut e = vec![0.0; n];
+        regressor_generic(&self.robot, q, &zeros, &zeros, no_grav, &mut b.kin, &mut b.y0);
+        for k in 0..n {
+            e.iter_mut().for_each(|v| *v = 0.0);
+            e[k] = 1.0;
+            regressor_generic(&self.robot, q, &zeros, &e, no_grav, &mut b.kin, &mut b.yk);
+            let mut acc = 0.0;
+            for r in 0..n {
+                for (j, &c) in self.columns.iter().enumerate() {
+                    acc += hrow(r, j) * (b.yk[r * p + c] - b.y0[r * p + c]);
+                }
+            }
+            g[2 * n + k] = acc;
+        }
+    }
+}
+
+/// σ_1/σ_m clamped to [`COND_CAP`] (and to the cap for σ_m ≤ 0).
+pub fn cond_of(s1: f64, sm: f64) -> f64 {
+    if !(s1.is_finite() && sm.is_finite()) {
+        return f64::INFINITY;
+    }
+    if sm <= s1 / COND_CAP {
+        COND_CAP
+    } else {
+        s1 / sm
+    }
+}

@@ -1,0 +1,235 @@
+//! Constrained gradient refinement with nlopt (SLSQP or MMA) using the
+//! analytic gradients of [`Objective::value_grad`] and [`Constraints::eval`].
+//!
+//! The minimised function is ln J for the condition number and 1/σ_min (a
+//! monotone transform with better scaling; the same minimiser) and J itself for
+//! −log det. Box bounds are the GA's. The best feasible point met during the
+//! run is kept (SLSQP may end on a slightly infeasible iterate); wall-clock
+//! budgets map to nlopt's `maxtime`; Ctrl-C makes the callbacks return a zero
+//! gradient so the solver ends at once.
+
+use super::constraints::Constraints;
+use super::design::RefineAlgorithm;
+use super::objective::{Criterion, Objective};
+use serde::Serialize;
+use std::cell::RefCell;
+use std::time::Instant;
+
+/// Settings of one refinement.
+#[derive(Debug, Clone)]
+pub struct RefineSettings {
+    /// Algorithm (not `None`).
+    pub algorithm: RefineAlgorithm,
+    /// Evaluation budget.
+    pub max_evals: u32,
+    /// Relative x tolerance.
+    pub xtol_rel: f64,
+    /// Relative objective tolerance.
+    pub ftol_rel: f64,
+    /// Lower bounds of x.
+    pub lower: Vec<f64>,
+    /// Upper bounds of x.
+    pub upper: Vec<f64>,
+    /// Stop by this instant.
+    pub deadline: Option<Instant>,
+    /// Exponent p of the smooth first stage for the condition number (None: one stage on ln κ).
+    pub smooth: Option<f64>,
+    /// Feasibility tolerance of nlopt on the scaled constraints; the
+    /// constraints are imposed as c + 2·tol ≤ 0, so accepted points have c < 0.
+    pub tol: f64,
+}
+
+/// Outcome of one refinement.
+#[derive(Debug, Clone, Serialize)]
+pub struct RefineOutcome {
+    /// Final design vector (best feasible point met, else the last iterate).
+    pub x: Vec<f64>,
+    /// Criterion J at x.
+    pub f: f64,
+    /// Total scaled violation at x.
+    pub violation: f64,
+    /// Criterion at the start.
+    pub start_f: f64,
+    /// nlopt status.
+    pub status: String,
+    /// Objective evaluations.
+    pub evaluations: u64,
+    /// Wall time (s).
+    pub seconds: f64,
+}
+
+struct Tracker {
+    last_x: Vec<f64>,
+    last_f: f64,
+    best: Option<(Vec<f64>, f64)>,
+    evals: u64,
+}
+
+fn internal(criterion: Criterion, j: f64) -> f64 {
+    match criterion {
+        Criterion::LogDet => j,
+        _ => j.max(1e-300).ln(),
+    }
+}
+
+/// (last iterate, best feasible point and its value, nlopt status, evaluations).
+type StageResult = (Vec<f64>, Option<(Vec<f64>, f64)>, String, u64);
+
+/// One nlopt run from x0: returns (last iterate, best feasible point met with
+/// its stage objective, nlopt status, evaluations). `soft`: minimise the
+/// smooth surrogate [`Objective::soft_log_cond_grad`] with that exponent.
+fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSettings, soft: Option<f64>, max_evals: u32) -> StageResult {
+    let nv = x0.len();
+    let m = cons.len();
+    let tracker = RefCell::new(Tracker {
+        last_x: Vec::new(),
+        last_f: f64::INFINITY,
+        best: None,
+        evals: 0,
+    });
+    let crit = obj.criterion;
+    let stop_now = || crate::io::stop::requested() || s.deadline.is_some_and(|d| Instant::now() >= d);
+    let f_cb = |x: &[f64], grad: Option<&mut [f64]>, w: &mut super::objective::ObjectiveWorkspace| -> f64 {
+        let (j, internal_j) = match (grad, soft) {
+            (Some(g), Some(p)) => {
+                let l = obj.soft_log_cond_grad(x, w, g, p);
+                if stop_now() || !l.is_finite() {
+                    g.iter_mut().for_each(|v| *v = 0.0);
+                }
+                (l, l)
+            }
+            (Some(g), None) => {
+                let j = obj.value_grad(x, w, g);
+                if crit != Criterion::LogDet {
+                    let jj = j.max(1e-300);
+                    g.iter_mut().for_each(|v| *v /= jj);
+                }
+                if stop_now() || !j.is_finite() {
+                    g.iter_mut().for_each(|v| *v = 0.0);
+                }
+                (j, internal(crit, j))
+            }
+            (None, Some(p)) => {
+                let mut g = vec![0.0; x.len()];
+                let l = obj.soft_log_cond_grad(x, w, &mut g, p);
+                (l, l)
+            }
+            (None, None) => {
+                let j = obj.value(x, w);
+                (j, internal(crit, j))
+            }
+        };
+        let mut t = tracker.borrow_mut();
+        t.evals += 1;
+        t.last_x.clear();
+        t.last_x.extend_from_slice(x);
+        t.last_f = j;
+        if m == 0 && j.is_finite() && t.best.as_ref().is_none_or(|b| j < b.1) {
+            t.best = Some((x.to_vec(), j));
+        }
+        if internal_j.is_finite() {
+            internal_j
+        } else {
+            1e300
+        }
+    };
+    let mut opt = nlopt::Nlopt::new(
+        match s.algorithm {
+            RefineAlgorithm::Mma => nlopt::Algorithm::Mma,
+            _ => nlopt::Algorithm::Slsqp,
+        },
+        nv,
+        f_cb,
+        nlopt::Target::Minimize,
+        obj.workspace(),
+    );
+    let _ = opt.set_lower_bounds(&s.lower);
+    let _ = opt.set_upper_bounds(&s.upper);
+    let _ = opt.set_maxeval(max_evals.max(1));
+    if s.xtol_rel > 0.0 {
+        let _ = opt.set_xtol_rel(s.xtol_rel);
+    }
+    if s.ftol_rel > 0.0 {
+        let _ = opt.set_ftol_rel(s.ftol_rel);
+    }
+    if let Some(d) = s.deadline {
+        let left = d.saturating_duration_since(Instant::now()).as_secs_f64();
+        let _ = opt.set_maxtime(left.max(1e-3));
+    }
+    if m > 0 {
+        let c_cb = |res: &mut [f64], x: &[f64], grad: Option<&mut [f64]>, cw: &mut super::constraints::ConstraintWorkspace| {
+            cons.eval(x, cw, res, grad);
+            // shifted by 2·tol so that a point accepted within nlopt's tolerance is strictly feasible
+            res.iter_mut().for_each(|v| *v += 2.0 * s.tol);
+            let feasible = res.iter().all(|v| *v <= s.tol);
+            let mut t = tracker.borrow_mut();
+            if feasible && t.last_x.as_slice() == x && t.last_f.is_finite() {
+                let f = t.last_f;
+                if t.best.as_ref().is_none_or(|b| f < b.1) {
+                    t.best = Some((x.to_vec(), f));
+                }
+            }
+        };
+        let tol = vec![s.tol; m];
+        let _ = opt.add_inequality_mconstraint(m, c_cb, cons.workspace(), &tol);
+    }
+    let mut x = x0.to_vec();
+    let status = match opt.optimize(&mut x) {
+        Ok((st, _)) => format!("{st:?}"),
+        Err((st, _)) => format!("{st:?}"),
+    };
+    drop(opt);
+    let t = tracker.into_inner();
+    (x, t.best, status, t.evals)
+}
+
+/// Refines `x0` (see the module docs). For the condition number with
+/// `smooth = Some(p)`, a first stage (60 % of the evaluations) minimises the
+/// smooth surrogate L_p of 2 ln κ, and a second stage polishes ln κ itself
+/// from the best feasible point of the first.
+pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSettings) -> RefineOutcome {
+    let t0 = Instant::now();
+    let m = cons.len();
+    let mut ow = obj.workspace();
+    let start_f = obj.value(x0, &mut ow);
+    let mut evals = 0;
+    let mut x_start = x0.to_vec();
+    let mut status_soft = String::new();
+    if let (Some(p), Criterion::Cond) = (s.smooth, obj.criterion) {
+        let budget = (s.max_evals as f64 * 0.6) as u32;
+        let (last, best, st, ev) = stage(obj, cons, x0, s, Some(p), budget);
+        evals += ev;
+        status_soft = format!("{st} (smooth stage), ");
+        x_start = best.map(|b| b.0).unwrap_or(last);
+    }
+    let left = s.max_evals.saturating_sub(evals as u32).max(1);
+    let (x, best, status, ev) = stage(obj, cons, &x_start, s, None, left);
+    evals += ev;
+    let status = format!("{status_soft}{status}");
+    let status = if crate::io::stop::requested() {
+        format!("{status} (interrupted)")
+    } else {
+        status
+    };
+    // final candidate: the best feasible point met, else the last iterate
+    let mut cw = cons.workspace();
+    let mut c = vec![0.0; m];
+    let (xf, ff) = match best {
+        Some((bx, bf)) => (bx, bf),
+        None => {
+            let f = obj.value(&x, &mut ow);
+            (x, f)
+        }
+    };
+    cons.eval(&xf, &mut cw, &mut c, None);
+    let violation = Constraints::violation(&c);
+    RefineOutcome {
+        x: xf,
+        f: ff,
+        violation,
+        start_f,
+        status,
+        evaluations: evals,
+        seconds: t0.elapsed().as_secs_f64(),
+    }
+}

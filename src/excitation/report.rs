@@ -1,0 +1,620 @@
+//! Identifiability report of a trajectory and the output files of
+//! `idexp excite` / `idexp assess`.
+//!
+//! For samples (q, q̇, q̈)_i, i = 1..N, of any trajectory, C is the stacked
+//! base regressor (N·n × m, unweighted) and C_w = W½ C with W½ = diag(1/σ_j)
+//! the torque-noise weights. The report gives
+//!
+//! * the singular values and the condition number of C_w with unit columns,
+//!   and the numerical rank (σ_k > 10⁻⁸ σ_1);
+//! * the sensitivity of each parameter, c̄_i = ‖c_i‖₁ / (n N) (paper 000 eq. 10);
+//! * the covariance of the WLS estimate from the given data with noise
+//!   σ_j on joint j, var(θ̂) = (C_wᵀ C_w)⁻¹ (paper 000 eq. 13 with N_f = 1),
+//!   the standard deviations σ_i and the relative ones σ*_i = σ_i / |θ_i|
+//!   (eq. 14) at the nominal base-parameter values; when C is rank
+//!   deficient, those of the model without the non-excited parameters (which
+//!   get ∞);
+//! * the parameters that are not excited: zero columns, and those with a
+//!   component above 0.1 in a right singular vector of the numerical null space.
+
+use super::constraints::Margin;
+use super::{ExciteResult, Problem, Status};
+use crate::error::{Error, Result};
+use crate::io::plot::{write_svg, Panel, Series};
+use crate::io::States;
+use crate::params::BaseParams;
+use crate::robot::{regressor_rows, Robot, Workspace};
+use nalgebra::DMatrix;
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// Relative rank tolerance on the singular values of the unit-column matrix.
+pub const RANK_TOL: f64 = 1e-8;
+
+/// Identifiability measures of a sampled trajectory.
+#[derive(Debug, Clone, Serialize)]
+pub struct Identifiability {
+    /// Number of samples N.
+    pub samples: usize,
+    /// Rows N·n of C.
+    pub rows: usize,
+    /// Base-parameter names (columns of C).
+    pub names: Vec<String>,
+    /// Each base parameter as a combination of standard ones.
+    pub groupings: Vec<String>,
+    /// Numerical rank of C.
+    pub rank: usize,
+    /// Condition number of C_w with unit columns (∞ when rank deficient).
+    pub cond: f64,
+    /// Singular values of C_w with unit columns, decreasing.
+    pub singular_values: Vec<f64>,
+    /// Condition number of the model without the non-excited parameters (= `cond` at full rank).
+    pub cond_excited: f64,
+    /// Sensitivities c̄_i (paper 000 eq. 10), in the units of torque per unit parameter.
+    pub sensitivity: Vec<f64>,
+    /// Nominal base-parameter values.
+    pub nominal: Vec<f64>,
+    /// Predicted standard deviations σ_i from one period (eq. 13).
+    pub std_dev: Vec<f64>,
+    /// Predicted relative standard deviations σ*_i = σ_i/|θ_i| (eq. 14; ∞ if θ_i = 0 or rank deficient).
+    pub rel_std_dev: Vec<f64>,
+    /// Torque noise standard deviation per joint used for W and σ_i.
+    pub noise: Vec<f64>,
+    /// Parameters not excited (zero column or in the numerical null space).
+    pub unexcited: Vec<String>,
+    /// Excited parameters whose predicted relative standard deviation exceeds 100 % (nominal ≠ 0) or is unbounded.
+    pub poorly_identifiable: Vec<String>,
+}
+
+/// Stacks the base regressor of `states` and computes the report.
+/// `noise`: σ_j per joint (N·m).
+pub fn assess(robot: &Robot, base: &BaseParams, states: &States, noise: &[f64]) -> Result<Identifiability> {
+    let n = robot.dof();
+    let p = robot.n_params();
+    if noise.len() != n {
+        return Err(Error::dim("noise levels (one per joint)", n, noise.len()));
+    }
+    let m = base.n_base();
+    let ns = states.len();
+    if ns * n < m {
+        return Err(Error::invalid(
+            "assess",
+            "states",
+            format!("{ns} samples × {n} joints cannot determine {m} base parameters"),
+        ));
+    }
+    let mut ws = Workspace::new(robot);
+    let mut y = vec![0.0; n * p];
+    let mut c = DMatrix::<f64>::zeros(ns * n, m);
+    let mut qd = vec![0.0; n];
+    for i in 0..ns {
+        for (what, v) in [("q", &states.q[i]), ("qd", &states.qd[i]), ("qdd", &states.qdd[i])] {
+            if v.len() != n {
+                return Err(Error::dim(format!("{what} of sample {i}"), n, v.len()));
+            }
+        }
+        qd.copy_from_slice(&states.qd[i]);
+        for v in qd.iter_mut() {
+            if v.abs() < super::objective::ZERO_VELOCITY {
+                *v = 0.0;
+            }
+        }
+        regressor_rows(robot, &mut ws, &states.q[i], &qd, &states.qdd[i], &mut y);
+        for r in 0..n {
+            for (j, &col) in base.independent.iter().enumerate() {
+                c[(i * n + r, j)] = y[r * p + col];
+            }
+        }
+    }
+    let sensitivity: Vec<f64> = (0..m).map(|j| c.column(j).iter().map(|v| v.abs()).sum::<f64>() / (ns * n) as f64).collect();
+    let mut cw = c.clone();
+    for i in 0..ns {
+        for r in 0..n {
+            for j in 0..m {
+                cw[(i * n + r, j)] /= noise[r];
+            }
+        }
+    }
+    let norms: Vec<f64> = (0..m).map(|j| cw.column(j).norm()).collect();
+    let maxn = norms.iter().cloned().fold(0.0, f64::max);
+    let mut cn = cw.clone();
+    for j in 0..m {
+        let f = if norms[j] > 1e-14 * maxn.max(1e-300) { 1.0 / norms[j] } else { 0.0 };
+        cn.column_mut(j).scale_mut(f);
+    }
+    let (_, s, v) = crate::linalg::thin_svd(&cn)?;
+    let s1 = s[0];
+    let rank = s.iter().filter(|&&x| x > RANK_TOL * s1).count();
+    let cond = if rank < m { f64::INFINITY } else { s1 / s[m - 1] };
+    let theta = robot.nominal_params();
+    let nominal: Vec<f64> = base.base_values(theta.as_slice()).iter().copied().collect();
+    let mut unexcited_idx = Vec::new();
+    for i in 0..m {
+        let zero = norms[i] <= 1e-14 * maxn.max(1e-300);
+        let null = (rank..m).any(|k| v[(i, k)].abs() > 0.1);
+        if zero || null {
+            unexcited_idx.push(i);
+        }
+    }
+    let unexcited: Vec<String> = unexcited_idx.iter().map(|&i| base.names[i].clone()).collect();
+    // standard deviations: of the full model when C has full rank, else of the
+    // model with the non-excited parameters removed (they stay at ∞)
+    let mut std_dev = vec![f64::INFINITY; m];
+    let keep: Vec<usize> = (0..m).filter(|i| !unexcited_idx.contains(i)).collect();
+    let mut cond_excited = cond;
+    if rank == m {
+        for i in 0..m {
+            let d = 1.0 / norms[i];
+            let var: f64 = (0..m).map(|k| (v[(i, k)] / s[k]).powi(2)).sum();
+            std_dev[i] = d * var.sqrt();
+        }
+    } else if !keep.is_empty() {
+        let sub = DMatrix::from_fn(cn.nrows(), keep.len(), |r, c| cn[(r, keep[c])]);
+        let (_, s2, v2) = crate::linalg::thin_svd(&sub)?;
+        let k = keep.len();
+        cond_excited = if s2[k - 1] > RANK_TOL * s2[0] { s2[0] / s2[k - 1] } else { f64::INFINITY };
+        if s2[k - 1] > RANK_TOL * s2[0] {
+            for (a, &i) in keep.iter().enumerate() {
+                let var: f64 = (0..k).map(|c| (v2[(a, c)] / s2[c]).powi(2)).sum();
+                std_dev[i] = var.sqrt() / norms[i];
+            }
+        }
+    }
+    let rel_std_dev: Vec<f64> = (0..m)
+        .map(|i| {
+            if nominal[i].abs() > 0.0 {
+                std_dev[i] / nominal[i].abs()
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect();
+    let poorly_identifiable = (0..m)
+        .filter(|&i| !unexcited_idx.contains(&i) && (!std_dev[i].is_finite() || (nominal[i] != 0.0 && rel_std_dev[i] > 1.0)))
+        .map(|i| base.names[i].clone())
+        .collect();
+    Ok(Identifiability {
+        samples: ns,
+        rows: ns * n,
+        names: base.names.clone(),
+        groupings: base.groupings.clone(),
+        rank,
+        cond,
+        singular_values: s.iter().copied().collect(),
+        cond_excited,
+        sensitivity,
+        nominal,
+        std_dev,
+        rel_std_dev,
+        noise: noise.to_vec(),
+        unexcited,
+        poorly_identifiable,
+    })
+}
+
+impl Identifiability {
+    /// A short text summary.
+    pub fn text(&self) -> String {
+        let mut s = String::new();
+        let m = self.names.len();
+        let _ = writeln!(s, "samples: {} ({} rows), base parameters: {m}, rank: {}", self.samples, self.rows, self.rank);
+        let _ = writeln!(s, "condition number (unit columns): {}", fmt_num(self.cond));
+        let _ = writeln!(
+            s,
+            "singular values: {} … {}",
+            fmt_num(self.singular_values[0]),
+            fmt_num(*self.singular_values.last().unwrap_or(&0.0))
+        );
+        let _ = writeln!(s, "torque noise per joint (N·m): {:?}", self.noise);
+        if self.unexcited.is_empty() {
+            let _ = writeln!(s, "every base parameter is excited");
+        } else {
+            let _ = writeln!(s, "NOT excited ({}): {}", self.unexcited.len(), self.unexcited.join(" "));
+            let _ = writeln!(s, "condition number without them: {}", fmt_num(self.cond_excited));
+        }
+        if !self.poorly_identifiable.is_empty() {
+            let _ = writeln!(
+                s,
+                "relative std dev > 100 % ({}): {}",
+                self.poorly_identifiable.len(),
+                self.poorly_identifiable.join(" ")
+            );
+        }
+        let _ = writeln!(s, "\n  #  parameter        nominal      sensitivity c̄   std dev σ     rel. σ*");
+        for i in 0..m {
+            let _ = writeln!(
+                s,
+                "{:>3}  {:<14} {:>12} {:>14} {:>13} {:>10}",
+                i + 1,
+                self.names[i],
+                fmt_num(self.nominal[i]),
+                fmt_num(self.sensitivity[i]),
+                fmt_num(self.std_dev[i]),
+                if self.rel_std_dev[i].is_finite() {
+                    format!("{:.2} %", 100.0 * self.rel_std_dev[i])
+                } else {
+                    "∞".into()
+                }
+            );
+        }
+        s
+    }
+
+    /// Writes report.json, report.txt and singular_values.svg into `dir`.
+    pub fn write(&self, dir: &Path, title: &str) -> Result<()> {
+        crate::io::write_json(&dir.join("report.json"), self)?;
+        crate::io::write_atomic(&dir.join("report.txt"), format!("{title}\n\n{}", self.text()).as_bytes())?;
+        spectrum_svg(&dir.join("singular_values.svg"), &self.singular_values, title)
+    }
+}
+
+fn fmt_num(v: f64) -> String {
+    if !v.is_finite() {
+        return if v > 0.0 { "∞".into() } else { format!("{v}") };
+    }
+    let a = v.abs();
+    if a != 0.0 && !(1e-3..1e5).contains(&a) {
+        format!("{v:.3e}")
+    } else {
+        format!("{v:.4}")
+    }
+}
+
+fn spectrum_svg(path: &Path, s: &[f64], title: &str) -> Result<()> {
+    let x: Vec<f64> = (1..=s.len()).map(|i| i as f64).collect();
+    let panel = Panel {
+        title: "singular values of the unit-column regressor".into(),
+        x_label: "index".into(),
+        y_label: "σ".into(),
+        series: vec![Series::bars("σ_i", x, s.to_vec())],
+        log_y: true,
+        ..Default::default()
+    };
+    write_svg(path, title, &[panel], 1)
+}
+
+/// Everything `idexp excite` writes, in one JSON document (report.json).
+#[derive(Debug, Serialize)]
+struct ExciteReport<'a> {
+    design: &'a super::design::ExciteDesign,
+    robot: &'a str,
+    result: &'a ExciteResult,
+    identifiability: &'a Identifiability,
+    verification_rate: f64,
+}
+
+/// Writes the outputs of a design run into `dir`: coefficients.json,
+/// trajectory.csv, report.json, report.txt, design.json, status.json and
+/// the SVG plots (joints.svg, singular_values.svg, ee_path.svg).
+pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Identifiability> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let d = &p.design;
+    let noise = d.objective.noise.clone().unwrap_or_else(|| vec![1.0; p.robot.dof()]);
+    let samples = r.trajectory.sample(d.objective.sample_rate)?;
+    let ident = assess(&p.robot, &p.base, &samples, &noise)?;
+    let coeff = serde_json::json!({
+        "design": d.name,
+        "robot": d.robot.display().to_string(),
+        "status": r.status,
+        "criterion": d.objective.criterion,
+        "criterion_value": r.criterion,
+        "cond": r.spectrum.cond,
+        "frequency_hz": d.trajectory.frequency,
+        "harmonics": d.trajectory.harmonics,
+        "at_rest": d.trajectory.at_rest,
+        "layout": p.layout,
+        "x": r.x,
+        "trajectory": r.trajectory,
+    });
+    crate::io::write_json(&dir.join("coefficients.json"), &coeff)?;
+    r.trajectory.sample(d.trajectory.controller_rate)?.write(&dir.join("trajectory.csv"))?;
+    crate::io::write_json(&dir.join("design.json"), d)?;
+    let status = serde_json::json!({
+        "status": r.status,
+        "stopped_by": r.stopped_by,
+        "violated": r.violated.iter().map(|m| format!("{}: {} {} beyond the limit", m.name, fmt_num(-m.margin), m.unit)).collect::<Vec<_>>(),
+        "cond": r.spectrum.cond,
+        "seconds": r.seconds,
+    });
+    crate::io::write_json(&dir.join("status.json"), &status)?;
+    let robot_path = d.robot.display().to_string();
+    crate::io::write_json(
+        &dir.join("report.json"),
+        &ExciteReport {
+            design: d,
+            robot: &robot_path,
+            result: r,
+            identifiability: &ident,
+            verification_rate: d.limits.check_rate,
+        },
+    )?;
+    crate::io::write_atomic(&dir.join("report.txt"), excite_text(p, r, &ident).as_bytes())?;
+    spectrum_svg(
+        &dir.join("singular_values.svg"),
+        &r.spectrum.singular_values,
+        &format!("{}: singular values", d.name),
+    )?;
+    joints_svg(p, r, &dir.join("joints.svg"))?;
+    ee_svg(p, r, &dir.join("ee_path.svg"))?;
+    Ok(ident)
+}
+
+/// The text summary of a design run (report.txt).
+pub fn excite_text(p: &Problem, r: &ExciteResult, ident: &Identifiability) -> String {
+    let d = &p.design;
+    let mut s = String::new();
+    let _ = writeln!(s, "excitation design `{}` for robot `{}` ({})", d.name, p.robot.name, d.robot.display());
+    let _ = writeln!(
+        s,
+        "trajectory: {} harmonics of {} Hz (period {} s), {} design variables{}{}",
+        d.trajectory.harmonics,
+        d.trajectory.frequency,
+        1.0 / d.trajectory.frequency,
+        p.layout.n_vars(),
+        if d.trajectory.vary_q0 { ", q0 free" } else { "" },
+        if d.trajectory.at_rest { ", starts and ends at rest" } else { "" }
+    );
+    let _ = writeln!(
+        s,
+        "criterion: {:?} of the {:?}-scaled base regressor ({} columns, {} samples at {} Hz)",
+        d.objective.criterion,
+        d.objective.scaling,
+        p.objective.n_cols(),
+        p.objective.times.len(),
+        d.objective.sample_rate
+    );
+    let _ = writeln!(s);
+    let status = match r.status {
+        Status::Feasible => "FEASIBLE".to_string(),
+        Status::Infeasible => "INFEASIBLE".to_string(),
+    };
+    let _ = writeln!(
+        s,
+        "status: {status}{}",
+        r.stopped_by.as_ref().map(|b| format!(" (stopped early: {b})")).unwrap_or_default()
+    );
+    let _ = writeln!(s, "criterion value: {}", fmt_num(r.criterion));
+    let _ = writeln!(s, "condition number: {}", fmt_num(r.spectrum.cond));
+    if !r.violated.is_empty() {
+        let _ = writeln!(s, "\nviolated constraints (on the {} Hz verification grid), worst first:", d.limits.check_rate);
+        for m in &r.violated {
+            let _ = writeln!(
+                s,
+                "  {}: reaches {} {} at t = {:.3} s, {} {} beyond the limit",
+                m.name,
+                fmt_num(m.worst),
+                m.unit,
+                m.at,
+                fmt_num(-m.margin),
+                m.unit
+            );
+        }
+        let _ = writeln!(s, "  (no trajectory found by the search meets these; relax them or move q0 / the workspace)");
+    }
+    let _ = writeln!(s, "\nworst margin per constraint ({} Hz grid; ≥ 0 holds):", d.limits.check_rate);
+    for m in &r.margins {
+        let _ = writeln!(s, "  {:<60} margin {:>12} {}", m.name, fmt_num(m.margin), m.unit);
+    }
+    let _ = writeln!(
+        s,
+        "\nsolver: GA {} generations, {} evaluations, {:.2} s ({:?}); best GA criterion {}",
+        r.ga.generations,
+        r.ga.evaluations,
+        r.ga.seconds,
+        r.ga.stop,
+        fmt_num(r.ga.best)
+    );
+    for (k, rf) in r.refinements.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "  refine #{}: {} → {} in {} evaluations, {:.2} s, {}{}",
+            k + 1,
+            fmt_num(rf.start),
+            fmt_num(rf.end),
+            rf.evaluations,
+            rf.seconds,
+            rf.status,
+            if rf.violation > 0.0 {
+                format!(", violation {:.2e}", rf.violation)
+            } else {
+                String::new()
+            }
+        );
+    }
+    let _ = writeln!(s, "chosen: {}; total {:.2} s on {} threads", r.chosen, r.seconds, r.threads);
+    let _ = writeln!(s, "\nidentifiability (one period, predicted for the stated torque noise):");
+    s.push_str(&ident.text());
+    s
+}
+
+fn joints_svg(p: &Problem, r: &ExciteResult, path: &Path) -> Result<()> {
+    let n = p.robot.dof();
+    let rate = (400.0 * p.design.trajectory.frequency).max(50.0 * p.design.trajectory.frequency * p.design.trajectory.harmonics as f64);
+    let s = r.trajectory.sample(rate)?;
+    let t = s.t.clone().unwrap_or_default();
+    let mut panels = Vec::new();
+    for j in 0..n {
+        let name = &p.robot.joints[j].name;
+        let mut hl = Vec::new();
+        let [lo, hi] = p.limits.position[j];
+        if lo.is_finite() {
+            hl.push((lo, "lower".to_string()));
+        }
+        if hi.is_finite() {
+            hl.push((hi, "upper".to_string()));
+        }
+        panels.push(Panel {
+            title: format!("q{} ({name})", j + 1),
+            x_label: "t (s)".into(),
+            y_label: "rad".into(),
+            series: vec![Series::line("", t.clone(), s.q.iter().map(|v| v[j]).collect())],
+            hlines: hl,
+            ..Default::default()
+        });
+        let mut hv = Vec::new();
+        let v = p.limits.velocity[j];
+        if v.is_finite() {
+            hv.push((v, "limit".to_string()));
+            hv.push((-v, "limit".to_string()));
+        }
+        panels.push(Panel {
+            title: format!("qd{} ({name})", j + 1),
+            x_label: "t (s)".into(),
+            y_label: "rad/s".into(),
+            series: vec![Series::line("", t.clone(), s.qd.iter().map(|v| v[j]).collect())],
+            hlines: hv,
+            ..Default::default()
+        });
+    }
+    write_svg(path, &format!("{}: joint trajectories and limits", p.design.name), &panels, 2)
+}
+
+fn ee_svg(p: &Problem, r: &ExciteResult, path: &Path) -> Result<()> {
+    let frame = match p.design.workspace.first() {
+        Some(c) => c.resolve(&p.robot, "design", "workspace[0]")?,
+        None => p.robot.end_effector(),
+    };
+    let s = r.trajectory.sample((200.0 * p.design.trajectory.frequency).max(20.0))?;
+    let mut ws = Workspace::new(&p.robot);
+    let pts: Vec<[f64; 3]> =
+        s.q.iter()
+            .map(|q| {
+                let v = super::constraints::frame_point(&p.robot, &mut ws, q, &frame);
+                [v.x, v.y, v.z]
+            })
+            .collect();
+    let ax = ["x", "y", "z"];
+    let mut panels = Vec::new();
+    for (a, b) in [(0usize, 1usize), (0, 2), (1, 2)] {
+        let mut series = vec![Series::line(
+            format!("{} path", frame.name),
+            pts.iter().map(|v| v[a]).collect(),
+            pts.iter().map(|v| v[b]).collect(),
+        )];
+        let (lo, hi) = bounds(&pts);
+        for (ci, c) in p.design.workspace.iter().enumerate() {
+            for (k, (xs, ys)) in outline(&c.shape, a, b, lo, hi).into_iter().enumerate() {
+                series.push(Series::line(if k == 0 { format!("constraint {}", ci + 1) } else { String::new() }, xs, ys));
+            }
+        }
+        panels.push(Panel {
+            title: format!("{}–{} projection", ax[a], ax[b]),
+            x_label: format!("{} (m)", ax[a]),
+            y_label: format!("{} (m)", ax[b]),
+            series,
+            ..Default::default()
+        });
+    }
+    write_svg(path, &format!("{}: {} path and workspace constraints", p.design.name, frame.name), &panels, 3)
+}
+
+fn bounds(pts: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in pts {
+        for i in 0..3 {
+            lo[i] = lo[i].min(p[i]);
+            hi[i] = hi[i].max(p[i]);
+        }
+    }
+    for i in 0..3 {
+        let pad = 0.2 * (hi[i] - lo[i]).max(0.1);
+        lo[i] -= pad;
+        hi[i] += pad;
+    }
+    (lo, hi)
+}
+
+/// Outline(s) of a shape projected on axes (a, b), as polylines.
+fn outline(shape: &crate::robot::cartesian::Shape, a: usize, b: usize, lo: [f64; 3], hi: [f64; 3]) -> Vec<(Vec<f64>, Vec<f64>)> {
+    use crate::robot::cartesian::Shape;
+    let rect = |mn: [f64; 3], mx: [f64; 3]| (vec![mn[a], mx[a], mx[a], mn[a], mn[a]], vec![mn[b], mn[b], mx[b], mx[b], mn[b]]);
+    match shape {
+        Shape::Box { min, max } => vec![rect(*min, *max)],
+        Shape::OutsideBox { min, max, clearance } => {
+            let mn = [min[0] - clearance, min[1] - clearance, min[2] - clearance];
+            let mx = [max[0] + clearance, max[1] + clearance, max[2] + clearance];
+            vec![rect(mn, mx)]
+        }
+        Shape::Sphere { center, radius } => {
+            let k = 72;
+            let th: Vec<f64> = (0..=k).map(|i| std::f64::consts::TAU * i as f64 / k as f64).collect();
+            vec![(
+                th.iter().map(|t| center[a] + radius * t.cos()).collect(),
+                th.iter().map(|t| center[b] + radius * t.sin()).collect(),
+            )]
+        }
+        Shape::HalfSpace { normal, offset } => {
+            let nn = (normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]).sqrt();
+            let nv = [normal[0] / nn, normal[1] / nn, normal[2] / nn];
+            let third = 3 - a - b;
+            if nv[third].abs() > 1e-9 {
+                return vec![];
+            }
+            // n_a x + n_b y = offset
+            if nv[b].abs() > 1e-9 {
+                let xs = vec![lo[a], hi[a]];
+                let ys = xs.iter().map(|x| (offset - nv[a] * x) / nv[b]).collect();
+                vec![(xs, ys)]
+            } else {
+                let x = offset / nv[a];
+                vec![(vec![x, x], vec![lo[b], hi[b]])]
+            }
+        }
+        Shape::Sector { center, azimuth, radius, z } => {
+            if (a, b) == (0, 1) {
+                let k = 48;
+                let arc = |r: f64| -> (Vec<f64>, Vec<f64>) {
+                    let ph: Vec<f64> = (0..=k).map(|i| azimuth[0] + (azimuth[1] - azimuth[0]) * i as f64 / k as f64).collect();
+                    (
+                        ph.iter().map(|p| center[0] + r * p.cos()).collect(),
+                        ph.iter().map(|p| center[1] + r * p.sin()).collect(),
+                    )
+                };
+                let ray = |p: f64| {
+                    (
+                        vec![center[0] + radius[0] * p.cos(), center[0] + radius[1] * p.cos()],
+                        vec![center[1] + radius[0] * p.sin(), center[1] + radius[1] * p.sin()],
+                    )
+                };
+                vec![arc(radius[0]), arc(radius[1]), ray(azimuth[0]), ray(azimuth[1])]
+            } else {
+                let zz = [center[2] + z[0], center[2] + z[1]];
+                zz.iter().map(|&h| (vec![lo[a], hi[a]], vec![h, h])).collect()
+            }
+        }
+    }
+}
+
+/// Reads a trajectory CSV (`t, q, qd, qdd`) for `idexp assess`, optionally
+/// keeping every `every`-th row.
+pub fn read_states(path: &Path, n: usize, every: usize) -> Result<States> {
+    let s = States::read(path, n)?;
+    if s.is_empty() {
+        return Err(Error::Data {
+            path: path.to_path_buf(),
+            row: 0,
+            column: "q1".into(),
+            msg: "the file has no data rows".into(),
+        });
+    }
+    if every <= 1 {
+        return Ok(s);
+    }
+    let keep = |v: &Vec<Vec<f64>>| v.iter().step_by(every).cloned().collect::<Vec<_>>();
+    Ok(States {
+        t: s.t.as_ref().map(|t| t.iter().step_by(every).copied().collect()),
+        q: keep(&s.q),
+        qd: keep(&s.qd),
+        qdd: keep(&s.qdd),
+    })
+}
+
+/// The margins that are violated, as readable lines.
+pub fn violation_lines(m: &[Margin]) -> Vec<String> {
+    m.iter()
+        .filter(|m| m.margin < 0.0)
+        .map(|m| format!("{}: {} {} beyond the limit", m.name, fmt_num(-m.margin), m.unit))
+        .collect()
+}
