@@ -379,11 +379,11 @@ pub fn run_design(design: &PositionsDesign, dir: &Path) -> Result<PositionsRun> 
             let pb = crate::io::progress_bar(c.q.len() as u64, "information");
             let factors: Vec<Result<DMatrix<f64>>> =
                 c.q.par_iter()
-                    .map(|q| {
+                    .map_init(Vec::new, |buf, q| {
                         if crate::io::stop::requested() {
                             return Err(Error::Interrupted);
                         }
-                        let h = src.factor(q);
+                        let h = src.factor_with(q, buf);
                         pb.inc(1);
                         h
                     })

@@ -112,50 +112,105 @@ impl ElasticSource {
         self.model.operating_point(q0, &self.vals)
     }
 
-    /// The thin real factor G(q0) with F = G Gᵀ, rows in the scaled units
-    /// (row k multiplied by s_k): p × (2 n_a² K) for NLS and LLS, p × (n_a² K)
-    /// for the magnitude-only LLS (elements with zero or non-finite weight
-    /// are left out).
-    pub fn jacobian_factor(&self, q0: &[f64]) -> Result<DMatrix<f64>> {
+    /// Rows of the stacked real Jacobian: `per` · n_a² · K (per = 2 for NLS
+    /// and LLS, real and imaginary parts; 1 for the magnitude-only LLS).
+    pub fn n_rows(&self) -> usize {
+        let per = if self.estimator == Estimator::LlsMagnitude { 1 } else { 2 };
+        per * self.model.n_motors().pow(2) * self.omegas.len()
+    }
+
+    /// Fills `buf` with Gᵀ (m × p, column-major, m = [`ElasticSource::n_rows`]):
+    /// column k holds s_k λ_e^{-1/2} (Re ψ_e,k, Im ψ_e,k) over the lines and
+    /// elements; rows of elements with zero or non-finite weight stay zero.
+    fn fill(&self, q0: &[f64], buf: &mut Vec<f64>) -> Result<usize> {
         let op = self.operating_point(q0)?;
         let lin = self.model.linear_model(&op, &self.vals);
         let p = self.theta.len();
         let na = self.model.n_motors();
-        let per = if self.estimator == Estimator::LlsMagnitude { 1 } else { 2 };
-        let mut cols: Vec<f64> = Vec::with_capacity(p * per * na * na * self.omegas.len());
+        let mag = self.estimator == Estimator::LlsMagnitude;
+        let m = self.n_rows();
+        buf.clear();
+        buf.resize(m * p, 0.0);
         let mut dg = Vec::new();
+        let mut row = 0;
         for &w in &self.omegas {
             let g = self.kernel.eval(&lin, &op, w, self.output, true, &mut dg)?;
             for j in 0..na {
                 for i in 0..na {
                     let gij = g[(i, j)];
                     let var = self.noise.variance(gij);
-                    let var_dom = match self.estimator {
-                        Estimator::Nls => var,
-                        Estimator::Lls | Estimator::LlsMagnitude => var / gij.norm_sqr().max(f64::MIN_POSITIVE),
+                    let (var_dom, scale) = match self.estimator {
+                        Estimator::Nls => (var, crate::elastic::C64::new(1.0, 0.0)),
+                        Estimator::Lls | Estimator::LlsMagnitude => (var / gij.norm_sqr().max(f64::MIN_POSITIVE), gij.inv()),
                     };
-                    if !(var_dom > 0.0 && var_dom.is_finite()) {
+                    let r = row;
+                    row += if mag { 1 } else { 2 };
+                    if !(var_dom > 0.0 && var_dom.is_finite() && scale.re.is_finite() && scale.im.is_finite()) {
                         continue;
                     }
                     let sw = var_dom.sqrt().recip();
-                    let start = cols.len();
-                    cols.resize(start + per * p, 0.0);
                     for (k, d) in dg.iter().enumerate() {
-                        let psi = match self.estimator {
-                            Estimator::Nls => d[(i, j)],
-                            Estimator::Lls | Estimator::LlsMagnitude => d[(i, j)] / gij,
-                        };
-                        cols[start + k] = sw * psi.re * self.scaling[k];
-                        if per == 2 {
-                            cols[start + p + k] = sw * psi.im * self.scaling[k];
+                        let psi = d[(i, j)] * scale * (sw * self.scaling[k]);
+                        buf[k * m + r] = psi.re;
+                        if !mag {
+                            buf[k * m + r + 1] = psi.im;
                         }
                     }
                 }
             }
         }
-        let ncol = cols.len() / p;
-        Ok(DMatrix::from_vec(p, ncol, cols))
+        debug_assert_eq!(row, m);
+        Ok(m)
     }
+
+    /// The thin real factor G(q0) with F = G Gᵀ (p × [`ElasticSource::n_rows`]),
+    /// rows in the scaled units (row k multiplied by s_k); columns of
+    /// elements with zero or non-finite weight are zero.
+    pub fn jacobian_factor(&self, q0: &[f64]) -> Result<DMatrix<f64>> {
+        let mut buf = Vec::new();
+        let m = self.fill(q0, &mut buf)?;
+        Ok(DMatrix::from_vec(m, self.theta.len(), buf).transpose())
+    }
+
+    /// F(q0) = G Gᵀ (p×p) using the caller's buffer for G (one per thread:
+    /// no allocation of the long factor per candidate).
+    pub fn information_with(&self, q0: &[f64], buf: &mut Vec<f64>) -> Result<DMatrix<f64>> {
+        let m = self.fill(q0, buf)?;
+        let p = self.theta.len();
+        let mut f = DMatrix::zeros(p, p);
+        for a in 0..p {
+            let ca = &buf[a * m..(a + 1) * m];
+            for b in a..p {
+                let v = dot(ca, &buf[b * m..(b + 1) * m]);
+                f[(a, b)] = v;
+                f[(b, a)] = v;
+            }
+        }
+        Ok(f)
+    }
+
+    /// The compressed factor H (p × r, r ≤ p, F = H Hᵀ) using the caller's buffer.
+    pub fn factor_with(&self, q0: &[f64], buf: &mut Vec<f64>) -> Result<DMatrix<f64>> {
+        psd_factor(&self.information_with(q0, buf)?, "elastic information")
+    }
+}
+
+/// Dot product with eight independent partial sums (vectorises; the
+/// summation order is fixed, so results do not depend on the thread count).
+fn dot(x: &[f64], y: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 8];
+    let (xc, yc) = (x.chunks_exact(8), y.chunks_exact(8));
+    let (xr, yr) = (xc.remainder(), yc.remainder());
+    for (a, b) in xc.zip(yc) {
+        for l in 0..8 {
+            acc[l] += a[l] * b[l];
+        }
+    }
+    let mut s = xr.iter().zip(yr).map(|(a, b)| a * b).sum::<f64>();
+    for v in acc {
+        s += v;
+    }
+    s
 }
 
 impl InformationSource for ElasticSource {
@@ -171,16 +226,13 @@ impl InformationSource for ElasticSource {
         }
     }
     fn information(&self, q: &[f64]) -> Result<DMatrix<f64>> {
-        let g = self.jacobian_factor(q)?;
-        let mut f = &g * g.transpose();
-        super::problem::symmetrize(&mut f);
-        Ok(f)
+        self.information_with(q, &mut Vec::new())
     }
     /// The compressed factor H (p × r, r ≤ p): F = H Hᵀ from the
-    /// eigendecomposition of G Gᵀ (computing the Gram matrix with one
-    /// matrix product is cheaper than a QR of the long factor).
+    /// eigendecomposition of G Gᵀ (the Gram matrix costs p²m/2 flops, less
+    /// than a QR of the long factor).
     fn factor(&self, q: &[f64]) -> Result<DMatrix<f64>> {
-        psd_factor(&self.information(q)?, "elastic information")
+        self.factor_with(q, &mut Vec::new())
     }
 }
 
