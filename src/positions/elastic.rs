@@ -115,26 +115,32 @@ impl ElasticSource {
     /// Rows of the stacked real Jacobian: `per` · n_a² · K (per = 2 for NLS
     /// and LLS, real and imaginary parts; 1 for the magnitude-only LLS).
     pub fn n_rows(&self) -> usize {
-        let per = if self.estimator == Estimator::LlsMagnitude { 1 } else { 2 };
-        per * self.model.n_motors().pow(2) * self.omegas.len()
+        self.rows_per_line() * self.omegas.len()
     }
 
-    /// Fills `buf` with Gᵀ (m × p, column-major, m = [`ElasticSource::n_rows`]):
-    /// column k holds s_k λ_e^{-1/2} (Re ψ_e,k, Im ψ_e,k) over the lines and
-    /// elements; rows of elements with zero or non-finite weight stay zero.
-    fn fill(&self, q0: &[f64], buf: &mut Vec<f64>) -> Result<usize> {
+    /// Rows of the stacked real Jacobian per frequency line.
+    fn rows_per_line(&self) -> usize {
+        let per = if self.estimator == Estimator::LlsMagnitude { 1 } else { 2 };
+        per * self.model.n_motors().pow(2)
+    }
+
+    /// Calls `line(block)` for every frequency line with block = the rows of
+    /// Gᵀ of that line (r × p column-major, r = rows per line, entry (row, k)
+    /// at `block[k * r + row]`): s_k λ_e^{-1/2} (Re ψ_e,k, Im ψ_e,k) for every
+    /// element e; rows of elements with zero or non-finite weight are zero.
+    fn for_each_line(&self, q0: &[f64], buf: &mut Vec<f64>, mut line: impl FnMut(usize, &[f64])) -> Result<()> {
         let op = self.operating_point(q0)?;
         let lin = self.model.linear_model(&op, &self.vals);
         let p = self.theta.len();
         let na = self.model.n_motors();
         let mag = self.estimator == Estimator::LlsMagnitude;
-        let m = self.n_rows();
-        buf.clear();
-        buf.resize(m * p, 0.0);
+        let r = self.rows_per_line();
         let mut dg = Vec::new();
-        let mut row = 0;
-        for &w in &self.omegas {
+        for (l, &w) in self.omegas.iter().enumerate() {
             let g = self.kernel.eval(&lin, &op, w, self.output, true, &mut dg)?;
+            buf.clear();
+            buf.resize(r * p, 0.0);
+            let mut row = 0;
             for j in 0..na {
                 for i in 0..na {
                     let gij = g[(i, j)];
@@ -143,7 +149,7 @@ impl ElasticSource {
                         Estimator::Nls => (var, crate::elastic::C64::new(1.0, 0.0)),
                         Estimator::Lls | Estimator::LlsMagnitude => (var / gij.norm_sqr().max(f64::MIN_POSITIVE), gij.inv()),
                     };
-                    let r = row;
+                    let e = row;
                     row += if mag { 1 } else { 2 };
                     if !(var_dom > 0.0 && var_dom.is_finite() && scale.re.is_finite() && scale.im.is_finite()) {
                         continue;
@@ -151,39 +157,54 @@ impl ElasticSource {
                     let sw = var_dom.sqrt().recip();
                     for (k, d) in dg.iter().enumerate() {
                         let psi = d[(i, j)] * scale * (sw * self.scaling[k]);
-                        buf[k * m + r] = psi.re;
+                        buf[k * r + e] = psi.re;
                         if !mag {
-                            buf[k * m + r + 1] = psi.im;
+                            buf[k * r + e + 1] = psi.im;
                         }
                     }
                 }
             }
+            line(l, buf);
         }
-        debug_assert_eq!(row, m);
-        Ok(m)
+        Ok(())
     }
 
-    /// The thin real factor G(q0) with F = G Gᵀ (p × [`ElasticSource::n_rows`]),
-    /// rows in the scaled units (row k multiplied by s_k); columns of
-    /// elements with zero or non-finite weight are zero.
+    /// The thin real factor G(q0) with F = G Gᵀ (p × [`ElasticSource::n_rows`],
+    /// columns ordered by line, then element (column-major over (i, j)), then
+    /// real/imaginary part), rows in the scaled units (row k multiplied by
+    /// s_k); columns of elements with zero or non-finite weight are zero.
     pub fn jacobian_factor(&self, q0: &[f64]) -> Result<DMatrix<f64>> {
-        let mut buf = Vec::new();
-        let m = self.fill(q0, &mut buf)?;
-        Ok(DMatrix::from_vec(m, self.theta.len(), buf).transpose())
+        let p = self.theta.len();
+        let r = self.rows_per_line();
+        let mut g = DMatrix::zeros(p, self.n_rows());
+        self.for_each_line(q0, &mut Vec::new(), |l, b| {
+            for k in 0..p {
+                for e in 0..r {
+                    g[(k, l * r + e)] = b[k * r + e];
+                }
+            }
+        })?;
+        Ok(g)
     }
 
-    /// F(q0) = G Gᵀ (p×p) using the caller's buffer for G (one per thread:
-    /// no allocation of the long factor per candidate).
+    /// F(q0) = G Gᵀ (p×p), accumulated line by line (the block of one line
+    /// stays in cache) in the caller's buffer (one per thread: no allocation
+    /// per candidate).
     pub fn information_with(&self, q0: &[f64], buf: &mut Vec<f64>) -> Result<DMatrix<f64>> {
-        let m = self.fill(q0, buf)?;
         let p = self.theta.len();
+        let r = self.rows_per_line();
         let mut f = DMatrix::zeros(p, p);
+        self.for_each_line(q0, buf, |_, b| {
+            for a in 0..p {
+                let ca = &b[a * r..(a + 1) * r];
+                for c in a..p {
+                    f[(a, c)] += dot(ca, &b[c * r..(c + 1) * r]);
+                }
+            }
+        })?;
         for a in 0..p {
-            let ca = &buf[a * m..(a + 1) * m];
-            for b in a..p {
-                let v = dot(ca, &buf[b * m..(b + 1) * m]);
-                f[(a, b)] = v;
-                f[(b, a)] = v;
+            for c in 0..a {
+                f[(a, c)] = f[(c, a)];
             }
         }
         Ok(f)
