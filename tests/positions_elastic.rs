@@ -144,7 +144,17 @@ fn run_cli(design: &str, out: &Path) -> serde_json::Value {
         .output()
         .unwrap();
     assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
-    for f in ["plan.csv", "plan.json", "candidates.csv", "report.json", "report.txt", "design.json", "status.json", "weights.svg", "poses.svg"] {
+    for f in [
+        "plan.csv",
+        "plan.json",
+        "candidates.csv",
+        "report.json",
+        "report.txt",
+        "design.json",
+        "status.json",
+        "weights.svg",
+        "poses.svg",
+    ] {
         assert!(out.join(f).exists(), "{f} missing");
     }
     serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap()

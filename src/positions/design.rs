@@ -12,7 +12,7 @@
 //! # prior = "prior.json"               # p×p JSON array: information already available (one-experiment units)
 //!
 //! [information]
-//! source = "rigid"                     # rigid | file   (elastic: after the elastic model lands)
+//! source = "rigid"                     # rigid | file | elastic (see [`super::elastic`])
 //! parameters = "inertial"              # base parameters of the rigid body alone, or "all" (with drives/friction)
 //! amplitude = 0.15                     # rad, one value or one per joint
 //! period = 2.0                         # s
@@ -30,6 +30,11 @@
 //! [solver]                             # all optional, see relax::SolverOptions
 //! tol = 1e-6
 //! ```
+//!
+//! With `source = "elastic"` the `[information]` table names an elastic
+//! design (`design = "elastic_industrial6.toml"`, optional `frequencies_hz`,
+//! `noise`, `estimator`, `output`, `scale`), the robot is the elastic model's
+//! (`robot` must be absent) and the candidates are its rigid joints.
 //!
 //! With `source = "file"` (see [`super::information`]) the candidates, their
 //! joint values, costs and the prior come from the JSON file, and
@@ -340,6 +345,7 @@ pub fn run_design(design: &PositionsDesign, dir: &Path) -> Result<PositionsRun> 
         None => None,
     };
     let t_info = std::time::Instant::now();
+    let mut resolved = design.clone();
     let (names, q, factors, costs, prior, generation) = match &design.information {
         InformationSpec::File { path } => {
             let f = InformationFile::read(&dir.join(path))?;
@@ -373,6 +379,14 @@ pub fn run_design(design: &PositionsDesign, dir: &Path) -> Result<PositionsRun> 
                 .ok_or_else(|| Error::invalid(&ctx, "candidates", "source = \"elastic\" needs a [candidates] section"))?;
             // static positions: no margin to the joint limits
             let c = spec.generate(&model.rigid, &vec![0.0; model.n_motors()], design.seed, dir, &ctx)?;
+            resolved.information = InformationSpec::Elastic {
+                design: file.clone(),
+                frequencies_hz: Some(set.frequencies_hz.clone()),
+                noise: Some(set.noise),
+                estimator: Some(set.estimator),
+                output: Some(set.output),
+                scale: *scale,
+            };
             let omegas: Vec<f64> = set.frequencies_hz.iter().map(|f| 2.0 * std::f64::consts::PI * f).collect();
             robot = Some(model.rigid.clone());
             let src = ElasticSource::new(model, omegas, set.noise, set.estimator, set.output, *scale)?;
@@ -481,7 +495,7 @@ pub fn run_design(design: &PositionsDesign, dir: &Path) -> Result<PositionsRun> 
         costs.as_deref(),
     )?;
     Ok(PositionsRun {
-        design: design.clone(),
+        design: resolved,
         robot,
         names,
         q,

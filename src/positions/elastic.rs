@@ -82,7 +82,11 @@ impl ElasticSource {
             NoiseModel::Relative { rel } => rel,
         };
         if !(v.is_finite() && v > 0.0) {
-            return Err(Error::invalid("elastic information", "noise", format!("expected a positive noise level, found {v}")));
+            return Err(Error::invalid(
+                "elastic information",
+                "noise",
+                format!("expected a positive noise level, found {v}"),
+            ));
         }
         let theta = model.nominal_unknowns();
         let vals = model.full_values(&theta)?;
