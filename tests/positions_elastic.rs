@@ -135,11 +135,12 @@ fn defaults_come_from_the_elastic_design_file() {
     assert_eq!(set2.output, Output::Velocity);
 }
 
-fn run_cli(design: &str, out: &Path) -> serde_json::Value {
+fn run_cli(design: &str, out: &Path, threads: usize) -> serde_json::Value {
     let st = Command::new(env!("CARGO_BIN_EXE_idexp"))
         .args(["positions", design, "--out"])
         .arg(out)
         .env("IDEXP_NO_PROGRESS", "1")
+        .env("RAYON_NUM_THREADS", threads.to_string())
         .current_dir(common::root(""))
         .output()
         .unwrap();
@@ -208,10 +209,21 @@ fn small_elastic_design_is_certified_d_optimal_with_small_support() {
     assert!(dmax <= 26.0 * (1.0 + 1e-5), "max d = {dmax}");
     // and the CLI writes the outputs
     let dir = tempfile::tempdir().unwrap();
-    let rep = run_cli("designs/positions_elastic6_small.toml", dir.path());
+    let rep = run_cli("designs/positions_elastic6_small.toml", &dir.path().join("t2"), 2);
     assert_eq!(rep["status"], "optimal");
     assert_eq!(rep["certificate"]["holds"], true);
     assert_eq!(rep["parameters"], 26);
+    // the resolved design names the settings taken from the elastic file
+    let dj: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("t2/design.json")).unwrap()).unwrap();
+    assert_eq!(dj["information"]["frequencies_hz"].as_array().map(|a| a.len()), Some(74));
+    assert_eq!(dj["information"]["estimator"], "lls");
+    // the same files whatever the thread count
+    run_cli("designs/positions_elastic6_small.toml", &dir.path().join("t1"), 1);
+    for f in ["plan.csv", "candidates.csv"] {
+        let a = std::fs::read(dir.path().join("t1").join(f)).unwrap();
+        let b = std::fs::read(dir.path().join("t2").join(f)).unwrap();
+        assert!(a == b, "{f} differs between 1 and 2 threads");
+    }
 }
 
 /// The shipped design: a few thousand candidates, 26 unknowns.
