@@ -33,7 +33,7 @@ use super::information::InformationSource;
 use super::problem::psd_factor;
 use crate::elastic::{ElasticModel, Estimator, FrfKernel, NoiseModel, OperatingPoint, Output};
 use crate::error::{Error, Result};
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DMatrixView};
 use serde::{Deserialize, Serialize};
 
 /// Units of the parameters the elastic source reports information about.
@@ -199,18 +199,13 @@ impl ElasticSource {
         let r = self.rows_per_line();
         let mut f = DMatrix::zeros(p, p);
         self.for_each_line(q0, buf, |_, b| {
-            for a in 0..p {
-                let ca = &b[a * r..(a + 1) * r];
-                for c in a..p {
-                    f[(a, c)] += dot(ca, &b[c * r..(c + 1) * r]);
-                }
-            }
+            // f += Bᵀ B with B = Gᵀ of the line (r × p, column-major), as one
+            // packed matrix product (Bᵀ is the same slice read with swapped strides)
+            let bm = DMatrixView::from_slice(b, r, p);
+            let bt = DMatrixView::from_slice_with_strides(b, p, r, r, 1);
+            f.gemm(1.0, &bt, &bm, 1.0);
         })?;
-        for a in 0..p {
-            for c in 0..a {
-                f[(a, c)] = f[(c, a)];
-            }
-        }
+        super::problem::symmetrize(&mut f);
         Ok(f)
     }
 
@@ -218,24 +213,6 @@ impl ElasticSource {
     pub fn factor_with(&self, q0: &[f64], buf: &mut Vec<f64>) -> Result<DMatrix<f64>> {
         psd_factor(&self.information_with(q0, buf)?, "elastic information")
     }
-}
-
-/// Dot product with eight independent partial sums (vectorises; the
-/// summation order is fixed, so results do not depend on the thread count).
-fn dot(x: &[f64], y: &[f64]) -> f64 {
-    let mut acc = [0.0f64; 8];
-    let (xc, yc) = (x.chunks_exact(8), y.chunks_exact(8));
-    let (xr, yr) = (xc.remainder(), yc.remainder());
-    for (a, b) in xc.zip(yc) {
-        for l in 0..8 {
-            acc[l] += a[l] * b[l];
-        }
-    }
-    let mut s = xr.iter().zip(yr).map(|(a, b)| a * b).sum::<f64>();
-    for v in acc {
-        s += v;
-    }
-    s
 }
 
 impl InformationSource for ElasticSource {
