@@ -207,6 +207,28 @@ fn small_elastic_design_is_certified_d_optimal_with_small_support() {
         }
     }
     assert!(dmax <= 26.0 * (1.0 + 1e-5), "max d = {dmax}");
+    // physical units: the same D-optimal weights (congruence invariance)
+    let mut phys = design.clone();
+    if let InformationSpec::Elastic { scale, .. } = &mut phys.information {
+        *scale = ElasticScale::Physical;
+    }
+    let run_p = run_design(&phys, path.parent().unwrap()).unwrap();
+    assert_eq!(run_p.relaxed.status, Status::Optimal);
+    let dw = run
+        .relaxed
+        .weights
+        .iter()
+        .zip(&run_p.relaxed.weights)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(dw < 1e-3, "weights differ by {dw}");
+    // log det shifts by 2 Σ ln θ_nom
+    let shift: f64 = s.iter().map(|v| 2.0 * v.ln()).sum();
+    assert!(
+        (run.relaxed.value - run_p.relaxed.value - shift).abs() < 1e-5 * run.relaxed.value.abs(),
+        "log det"
+    );
+    assert_eq!(run.rounded.m, run_p.rounded.m);
     // and the CLI writes the outputs
     let dir = tempfile::tempdir().unwrap();
     let rep = run_cli("designs/positions_elastic6_small.toml", &dir.path().join("t2"), 2);

@@ -22,12 +22,14 @@
 //! ## Parameter scaling
 //!
 //! The unknowns mix spring stiffnesses (~10⁵ N·m/rad) and dampers (~1 N·m·s/rad),
-//! so F in physical units has a dynamic range near the limit of double
-//! precision. With `scale = nominal` (the default) the source reports the
+//! so the diagonal of F in physical units spans about 10¹¹, and the relative
+//! eigenvalue cut of the compressed factor would act on units rather than on
+//! information. With `scale = nominal` (the default) the source reports the
 //! information about θ_k / θ_k,nom, F_s = S F S with S = diag(θ_nom): D-optimal
-//! weights do not change under this congruence; A and E then measure relative
-//! variances, the meaningful choice for parameters in different units.
-//! `scale = physical` keeps θ in its units (S = I).
+//! weights do not change under this congruence (the designer's own scaling
+//! copes with physical units too; the tests check both give the same plan);
+//! A and E then measure relative variances, the meaningful choice for
+//! parameters in different units. `scale = physical` keeps θ in its units (S = I).
 
 use super::information::InformationSource;
 use super::problem::psd_factor;
@@ -231,7 +233,7 @@ impl InformationSource for ElasticSource {
         self.information_with(q, &mut Vec::new())
     }
     /// The compressed factor H (p × r, r ≤ p): F = H Hᵀ from the
-    /// eigendecomposition of G Gᵀ (the Gram matrix costs p²m/2 flops, less
+    /// eigendecomposition of G Gᵀ (the Gram matrix costs p²m flops, less
     /// than a QR of the long factor).
     fn factor(&self, q: &[f64]) -> Result<DMatrix<f64>> {
         self.factor_with(q, &mut Vec::new())
