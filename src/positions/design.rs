@@ -12,7 +12,7 @@
 //! # prior = "prior.json"               # p×p JSON array: information already available (one-experiment units)
 //!
 //! [information]
-//! source = "rigid"                     # rigid | file   (elastic: after the elastic model lands)
+//! source = "rigid"                     # rigid | file | elastic (see [`super::elastic`])
 //! parameters = "inertial"              # base parameters of the rigid body alone, or "all" (with drives/friction)
 //! amplitude = 0.15                     # rad, one value or one per joint
 //! period = 2.0                         # s
@@ -31,15 +31,22 @@
 //! tol = 1e-6
 //! ```
 //!
+//! With `source = "elastic"` the `[information]` table names an elastic
+//! design (`design = "elastic_industrial6.toml"`, optional `frequencies_hz`,
+//! `noise`, `estimator`, `output`, `scale`), the robot is the elastic model's
+//! (`robot` must be absent) and the candidates are its rigid joints.
+//!
 //! With `source = "file"` (see [`super::information`]) the candidates, their
 //! joint values, costs and the prior come from the JSON file, and
 //! `[candidates]` must be absent.
 
 use super::candidates::CandidateSpec;
+use super::elastic::{ElasticScale, ElasticSource};
 use super::information::{InformationFile, InformationSource, RigidSource};
 use super::problem::{Criterion, Problem};
 use super::relax::{solve_relaxed, Relaxed, SolverOptions};
 use super::rounding::{round_design, Rounded};
+use crate::elastic::{Estimator, NoiseModel, Output};
 use crate::error::{Error, Result};
 use crate::robot::{self, Robot, Workspace};
 use nalgebra::DMatrix;
@@ -110,6 +117,28 @@ pub enum InformationSpec {
     File {
         /// The file.
         path: PathBuf,
+    },
+    /// The elastic gray-box model's FRF information (paper 001 eq. 5, see [`super::elastic`]).
+    Elastic {
+        /// Elastic design or model file holding a `[model]` table, relative to this file.
+        design: PathBuf,
+        /// Frequency lines (Hz). Default: the excited lines of the file's `[multisine]`
+        /// (its defaults when the table is absent).
+        #[serde(default)]
+        frequencies_hz: Option<Vec<f64>>,
+        /// Assumed noise on the FRF elements, e.g. `{ kind = "relative", rel = 0.02 }`.
+        /// Default: relative, `[simulate].noise_rel` of the file, else 0.02.
+        #[serde(default)]
+        noise: Option<NoiseModel>,
+        /// nls | lls | lls_magnitude. Default: `[fit].estimator` of the file, else lls.
+        #[serde(default)]
+        estimator: Option<Estimator>,
+        /// FRF output: position | velocity | acceleration. Default: `[frf].output` of the file, else acceleration.
+        #[serde(default)]
+        output: Option<Output>,
+        /// nominal (θ/θ_nom, default) | physical.
+        #[serde(default)]
+        scale: ElasticScale,
     },
     /// Rigid-body local excitation about each pose (see [`super::information`]).
     Rigid {
@@ -214,6 +243,36 @@ impl PositionsDesign {
                     ));
                 }
             }
+            InformationSpec::Elastic { frequencies_hz, noise, .. } => {
+                if self.robot.is_some() {
+                    return Err(Error::invalid(
+                        ctx,
+                        "robot",
+                        "with source = \"elastic\" the robot is the elastic model's; remove `robot`",
+                    ));
+                }
+                if self.candidates.is_none() {
+                    return Err(Error::invalid(ctx, "candidates", "source = \"elastic\" needs a [candidates] section"));
+                }
+                if let Some(f) = frequencies_hz {
+                    if f.is_empty() || f.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+                        return Err(Error::invalid(
+                            ctx,
+                            "information.frequencies_hz",
+                            "expected a non-empty list of positive frequencies (Hz)",
+                        ));
+                    }
+                }
+                if let Some(nm) = noise {
+                    let (v, f) = match nm {
+                        NoiseModel::Absolute { sigma } => (*sigma, "information.noise.sigma"),
+                        NoiseModel::Relative { rel } => (*rel, "information.noise.rel"),
+                    };
+                    if !(v.is_finite() && v > 0.0) {
+                        return Err(Error::invalid(ctx, f, format!("expected a positive finite noise level, found {v}")));
+                    }
+                }
+            }
             InformationSpec::Rigid { period, samples, .. } => {
                 if self.robot.is_none() {
                     return Err(Error::invalid(ctx, "robot", "source = \"rigid\" needs a robot file"));
@@ -281,11 +340,12 @@ fn read_prior(path: &Path, p: usize) -> Result<DMatrix<f64>> {
 pub fn run_design(design: &PositionsDesign, dir: &Path) -> Result<PositionsRun> {
     let ctx = design.name.clone();
     design.validate(&ctx)?;
-    let robot = match &design.robot {
+    let mut robot = match &design.robot {
         Some(r) => Some(robot::load(&dir.join(r))?),
         None => None,
     };
     let t_info = std::time::Instant::now();
+    let mut resolved = design.clone();
     let (names, q, factors, costs, prior, generation) = match &design.information {
         InformationSpec::File { path } => {
             let f = InformationFile::read(&dir.join(path))?;
@@ -303,6 +363,64 @@ pub fn run_design(design: &PositionsDesign, dir: &Path) -> Result<PositionsRun> 
             let n = f.q.len();
             let costs = if f.has_costs { Some(f.costs.clone()) } else { None };
             (f.names.clone(), f.q.clone(), f.factors.clone(), costs, f.prior.clone(), (n, 0, 0))
+        }
+        InformationSpec::Elastic {
+            design: file,
+            frequencies_hz,
+            noise,
+            estimator,
+            output,
+            scale,
+        } => {
+            let (model, set) = super::elastic::load_elastic(&dir.join(file), frequencies_hz.as_deref(), *noise, *estimator, *output)?;
+            let spec = design
+                .candidates
+                .as_ref()
+                .ok_or_else(|| Error::invalid(&ctx, "candidates", "source = \"elastic\" needs a [candidates] section"))?;
+            // static positions: no margin to the joint limits
+            let c = spec.generate(&model.rigid, &vec![0.0; model.n_motors()], design.seed, dir, &ctx)?;
+            resolved.information = InformationSpec::Elastic {
+                design: file.clone(),
+                frequencies_hz: Some(set.frequencies_hz.clone()),
+                noise: Some(set.noise),
+                estimator: Some(set.estimator),
+                output: Some(set.output),
+                scale: *scale,
+            };
+            let omegas: Vec<f64> = set.frequencies_hz.iter().map(|f| 2.0 * std::f64::consts::PI * f).collect();
+            robot = Some(model.rigid.clone());
+            let src = ElasticSource::new(model, omegas, set.noise, set.estimator, set.output, *scale)?;
+            let pb = crate::io::progress_bar(c.q.len() as u64, "information");
+            let factors: Vec<Result<DMatrix<f64>>> =
+                c.q.par_iter()
+                    .map_init(Vec::new, |buf, q| {
+                        if crate::io::stop::requested() {
+                            return Err(Error::Interrupted);
+                        }
+                        let h = src.factor_with(q, buf);
+                        pb.inc(1);
+                        h
+                    })
+                    .collect();
+            pb.finish_and_clear();
+            let factors = factors.into_iter().collect::<Result<Vec<_>>>()?;
+            let prior = match &design.prior {
+                Some(pp) => {
+                    // the prior is given in physical units: F0_s = S F0 S
+                    let f0 = read_prior(&dir.join(pp), src.n_params())?;
+                    let s = &src.scaling;
+                    Some(DMatrix::from_fn(f0.nrows(), f0.ncols(), |i, j| s[i] * f0[(i, j)] * s[j]))
+                }
+                None => None,
+            };
+            (
+                src.names(),
+                c.q,
+                factors,
+                c.costs,
+                prior,
+                (c.generated, c.rejected_limits, c.rejected_workspace),
+            )
         }
         InformationSpec::Rigid {
             parameters,
@@ -377,7 +495,7 @@ pub fn run_design(design: &PositionsDesign, dir: &Path) -> Result<PositionsRun> 
         costs.as_deref(),
     )?;
     Ok(PositionsRun {
-        design: design.clone(),
+        design: resolved,
         robot,
         names,
         q,

@@ -8,8 +8,8 @@
 //!   base-parameter model (needs only the robot);
 //! * [`InformationFile`]: matrices or Jacobians read from a JSON file (any model).
 //!
-//! The elastic model's FRF information (paper 001 eq. 5) plugs in as one more
-//! implementation of the trait.
+//! The elastic model's FRF information (paper 001 eq. 5) is
+//! [`super::elastic::ElasticSource`].
 //!
 //! ## The rigid local-excitation model
 //!

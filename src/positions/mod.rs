@@ -18,12 +18,14 @@
 //! * [`relax`]: the pipeline and the Kiefer–Wolfowitz certificate.
 //! * [`rounding`]: efficient rounding and exchange to whole experiments.
 //! * [`information`]: information sources (rigid local excitation, JSON file).
+//! * [`elastic`]: the elastic gray-box model's FRF information (paper 001 eq. 5).
 //! * [`candidates`]: grids, random samples, CSV files, workspace filtering.
 //! * [`design`]: the design file and [`design::run_design`]; [`cli`]: `idexp positions`.
 pub mod candidates;
 pub mod cli;
 pub mod conic;
 pub mod design;
+pub mod elastic;
 pub mod firstorder;
 pub mod information;
 pub mod problem;
@@ -32,6 +34,7 @@ pub mod rounding;
 
 pub use conic::Formulation;
 pub use design::{run_design, PositionsDesign, PositionsRun};
+pub use elastic::{ElasticScale, ElasticSource};
 pub use information::{InformationFile, InformationSource, RigidSource};
 pub use problem::{Criterion, Problem};
 pub use relax::{certify, solve_relaxed, Certificate, Relaxed, SolverOptions, Status};
