@@ -387,11 +387,7 @@ impl FitProblem {
                 }
             }
         })?;
-        for i in 0..np {
-            for j in 0..i {
-                h[(i, j)] = h[(j, i)];
-            }
-        }
+        h.fill_lower_triangle_with_upper_triangle();
         if !v.is_finite() || grad.iter().any(|x| !x.is_finite()) {
             return Err(Error::Numerical("non-finite cost or gradient".into()));
         }
@@ -540,12 +536,8 @@ impl FitProblem {
                 }
             }
         })?;
-        for i in 0..np {
-            for j in 0..i {
-                h[(i, j)] = h[(j, i)];
-                s[(i, j)] = s[(j, i)];
-            }
-        }
+        h.fill_lower_triangle_with_upper_triangle();
+        s.fill_lower_triangle_with_upper_triangle();
         // scale for conditioning: D H D with D = diag(θ)
         let d: DVector<f64> = DVector::from_fn(np, |i, _| theta[i].abs().max(1e-300));
         let hs = DMatrix::from_fn(np, np, |i, j| h[(i, j)] * d[i] * d[j]);
