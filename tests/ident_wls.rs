@@ -151,10 +151,7 @@ fn identify_error(
         &run,
         reference.setup.reference.fourier(),
         None,
-        &IdentOptions {
-            method,
-            ..Default::default()
-        },
+        &IdentOptions { method, ..Default::default() },
     )
     .unwrap_err()
     .to_string()

@@ -344,7 +344,15 @@ impl FitProblem {
                     for b in 0..g.ncols() {
                         let w = wk[(a, b)];
                         if w != 0.0 {
-                            f(&Element { p, k, a, b, w, g: g[(a, b)], dg: &dg });
+                            f(&Element {
+                                p,
+                                k,
+                                a,
+                                b,
+                                w,
+                                g: g[(a, b)],
+                                dg: &dg,
+                            });
                         }
                     }
                 }
