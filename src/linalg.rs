@@ -56,3 +56,16 @@ pub fn col_piv_qr_diag(m: &DMatrix<f64>) -> (Vec<f64>, Vec<usize>) {
     let perm = qr.P().arrays().0.to_vec();
     (d, perm)
 }
+
+/// Removes from `v` its components along the orthonormal vectors `basis`:
+/// two passes of modified Gram–Schmidt (the second re-orthogonalises against
+/// the rounding left by the first), v ← v − Σ_b (bᵀv) b each pass. The norm of
+/// the result is the distance of v from span(basis).
+pub fn orthogonalize(basis: &[DVector<f64>], v: &mut DVector<f64>) {
+    for _ in 0..2 {
+        for b in basis {
+            let d = b.dot(v);
+            v.axpy(-d, b, 1.0);
+        }
+    }
+}

@@ -160,12 +160,7 @@ impl BaseParams {
                 continue;
             }
             let mut v = w.column(c) / norms[c];
-            for _ in 0..2 {
-                for b in &basis {
-                    let d = b.dot(&v);
-                    v.axpy(-d, b, 1.0);
-                }
-            }
+            crate::linalg::orthogonalize(&basis, &mut v);
             let res = v.norm();
             if res > opts.tol {
                 smallest_kept = smallest_kept.min(res);

@@ -39,6 +39,21 @@ fn opts(out: &Path) -> FitOptions {
     }
 }
 
+/// `cli::fit` of design `p` on the FRF file `data` into `out`, on a rayon pool of `threads` threads.
+fn fit_on_threads(threads: usize, p: &Path, data: &Path, out: &Path) -> cli::FitRun {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+    pool.install(|| {
+        cli::fit(
+            p,
+            &FitOptions {
+                data: Some(data.to_path_buf()),
+                ..opts(out)
+            },
+        )
+    })
+    .unwrap()
+}
+
 fn read(p: &Path) -> String {
     std::fs::read_to_string(p).unwrap()
 }
@@ -51,18 +66,7 @@ fn thread_count_resume_and_shards_give_the_same_file() {
 
     // reference: one run on 2 threads
     let a = dir.path().join("a");
-    let pool2 = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-    let ra = pool2
-        .install(|| {
-            cli::fit(
-                &p,
-                &FitOptions {
-                    data: Some(data.clone()),
-                    ..opts(&a)
-                },
-            )
-        })
-        .unwrap();
+    let ra = fit_on_threads(2, &p, &data, &a);
     assert!(!ra.interrupted && ra.report.is_some());
     let ref_log = read(&ra.dir.join("starts.jsonl"));
     let ref_fit = read(&ra.dir.join("fit.json"));
@@ -70,18 +74,7 @@ fn thread_count_resume_and_shards_give_the_same_file() {
 
     // one thread
     let b = dir.path().join("b");
-    let pool1 = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-    let rb = pool1
-        .install(|| {
-            cli::fit(
-                &p,
-                &FitOptions {
-                    data: Some(data.clone()),
-                    ..opts(&b)
-                },
-            )
-        })
-        .unwrap();
+    let rb = fit_on_threads(1, &p, &data, &b);
     assert_eq!(read(&rb.dir.join("starts.jsonl")), ref_log, "1 thread vs 2 threads");
     assert_eq!(read(&rb.dir.join("fit.json")), ref_fit);
 

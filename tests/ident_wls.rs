@@ -119,38 +119,12 @@ fn one_repetition_and_missing_inputs() {
     // ML needs the noise covariance from repetitions
     let robot = &res.setup.nominal;
     let base = idexp::params::BaseParams::compute(robot, &Default::default()).unwrap();
-    let run = run_of(&res);
-    let e = idexp::ident::identify(
-        robot,
-        &base,
-        &run,
-        res.setup.reference.fourier(),
-        None,
-        &IdentOptions {
-            method: Method::Ml,
-            ..Default::default()
-        },
-    )
-    .unwrap_err()
-    .to_string();
+    let e = identify_error(robot, &base, &res, &res, Method::Ml);
     assert!(e.contains("repetitions"), "{e}");
     // the projection method needs the reference columns
     let mut nor = res.clone();
     nor.reps.iter_mut().for_each(|r| r.r = None);
-    let run = run_of(&nor);
-    let e = idexp::ident::identify(
-        robot,
-        &base,
-        &run,
-        res.setup.reference.fourier(),
-        None,
-        &IdentOptions {
-            method: Method::Projection,
-            ..Default::default()
-        },
-    )
-    .unwrap_err()
-    .to_string();
+    let e = identify_error(robot, &base, &nor, &res, Method::Projection);
     assert!(e.contains("r1..rn"), "{e}");
     // reduction is defined with WLS only
     let opts = IdentOptions {
@@ -159,4 +133,26 @@ fn one_repetition_and_missing_inputs() {
         ..Default::default()
     };
     assert!(idexp::ident::identify(robot, &base, &run_of(&res), None, None, &opts).is_err());
+}
+
+/// The error message of `identify` with `method` on the run of `data`, with the
+/// reference of `reference` (a call expected to fail).
+fn identify_error(
+    robot: &idexp::robot::Robot,
+    base: &idexp::params::BaseParams,
+    data: &idexp::sim::SimResult,
+    reference: &idexp::sim::SimResult,
+    method: Method,
+) -> String {
+    let run = run_of(data);
+    idexp::ident::identify(
+        robot,
+        base,
+        &run,
+        reference.setup.reference.fourier(),
+        None,
+        &IdentOptions { method, ..Default::default() },
+    )
+    .unwrap_err()
+    .to_string()
 }

@@ -471,44 +471,19 @@ impl ElasticModel {
         // unknowns
         let mut unknowns: Vec<usize> = Vec::new();
         for (ui, u) in spec.unknowns.iter().enumerate() {
-            let sel: Vec<usize> = match u.as_str() {
-                "springs" => params
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, p)| matches!(p.role, ParamRole::GearSpring(_) | ParamRole::ArmSpring(_)))
-                    .map(|(i, _)| i)
-                    .collect(),
-                "dampers" => params
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, p)| matches!(p.role, ParamRole::GearDamper(_) | ParamRole::ArmDamper(_)))
-                    .map(|(i, _)| i)
-                    .collect(),
-                "gear_springs" => params
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, p)| matches!(p.role, ParamRole::GearSpring(_)))
-                    .map(|(i, _)| i)
-                    .collect(),
-                "gear_dampers" => params
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, p)| matches!(p.role, ParamRole::GearDamper(_)))
-                    .map(|(i, _)| i)
-                    .collect(),
-                "arm_springs" => params
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, p)| matches!(p.role, ParamRole::ArmSpring(_)))
-                    .map(|(i, _)| i)
-                    .collect(),
-                "arm_dampers" => params
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, p)| matches!(p.role, ParamRole::ArmDamper(_)))
-                    .map(|(i, _)| i)
-                    .collect(),
-                name => {
+            // a group name selects every parameter whose role it covers
+            let group: Option<fn(&ParamRole) -> bool> = match u.as_str() {
+                "springs" => Some(|r| matches!(r, ParamRole::GearSpring(_) | ParamRole::ArmSpring(_))),
+                "dampers" => Some(|r| matches!(r, ParamRole::GearDamper(_) | ParamRole::ArmDamper(_))),
+                "gear_springs" => Some(|r| matches!(r, ParamRole::GearSpring(_))),
+                "gear_dampers" => Some(|r| matches!(r, ParamRole::GearDamper(_))),
+                "arm_springs" => Some(|r| matches!(r, ParamRole::ArmSpring(_))),
+                "arm_dampers" => Some(|r| matches!(r, ParamRole::ArmDamper(_))),
+                _ => None,
+            };
+            let sel: Vec<usize> = match (group, u.as_str()) {
+                (Some(in_group), _) => params.iter().enumerate().filter(|(_, p)| in_group(&p.role)).map(|(i, _)| i).collect(),
+                (None, name) => {
                     let i = params.iter().position(|p| p.name == name).ok_or_else(|| {
                         Error::invalid(
                             &ctxm,

@@ -47,6 +47,32 @@ pub struct PosData {
     pub var: Vec<DMatrix<f64>>,
 }
 
+/// One weighted element of the estimator's sum, as visited by
+/// `FitProblem::for_each_weighted`: position `p`, line `k`, FRF element (a, b),
+/// its weight `w`, the model value `g` = G_ab(ω_k, θ) and the derivatives of
+/// the whole model FRF (`dg[j]` = ∂G/∂θ_j, only when asked for).
+struct Element<'a> {
+    p: &'a PosData,
+    k: usize,
+    a: usize,
+    b: usize,
+    w: f64,
+    g: C64,
+    dg: &'a [DMatrix<C64>],
+}
+
+impl Element<'_> {
+    /// The measured Ĝ_ab(ω_k).
+    fn ghat(&self) -> C64 {
+        self.p.g[self.k][(self.a, self.b)]
+    }
+
+    /// ∂G_ab/∂θ_j.
+    fn dg(&self, j: usize) -> C64 {
+        self.dg[j][(self.a, self.b)]
+    }
+}
+
 /// Everything a cost evaluation needs: model, data, estimator and weights.
 #[derive(Debug, Clone)]
 pub struct FitProblem {
@@ -298,11 +324,14 @@ impl FitProblem {
         }
     }
 
-    /// V(θ).
-    pub fn cost(&self, theta: &[f64]) -> Result<f64> {
+    /// Visits every weighted element of the estimator's sum, in a fixed order:
+    /// for each position, each line ω_k whose weight matrix is not all zero,
+    /// and each element (a, b) with weight w ≠ 0, calls `f` with the model FRF
+    /// G_ab(ω_k, θ) and, when `jac`, its derivatives ∂G_ab/∂θ_j. Serves the
+    /// cost, the normal equations and the covariance alike.
+    fn for_each_weighted(&self, theta: &[f64], jac: bool, mut f: impl FnMut(&Element<'_>)) -> Result<()> {
         let vals = self.model.full_values(theta)?;
         let mut dg = Vec::new();
-        let mut v = 0.0;
         for (pi, p) in self.pos.iter().enumerate() {
             let lin = self.model.linear_model(&p.op, &vals);
             for (k, &w) in self.omegas.iter().enumerate() {
@@ -310,17 +339,32 @@ impl FitProblem {
                 if wk.iter().all(|x| *x == 0.0) {
                     continue;
                 }
-                let g = self.kernel.eval(&lin, &p.op, w, self.output, false, &mut dg)?;
+                let g = self.kernel.eval(&lin, &p.op, w, self.output, jac, &mut dg)?;
                 for a in 0..g.nrows() {
                     for b in 0..g.ncols() {
-                        let ww = wk[(a, b)];
-                        if ww != 0.0 {
-                            v += ww * self.residual(p.g[k][(a, b)], g[(a, b)]).norm_sqr();
+                        let w = wk[(a, b)];
+                        if w != 0.0 {
+                            f(&Element {
+                                p,
+                                k,
+                                a,
+                                b,
+                                w,
+                                g: g[(a, b)],
+                                dg: &dg,
+                            });
                         }
                     }
                 }
             }
         }
+        Ok(())
+    }
+
+    /// V(θ).
+    pub fn cost(&self, theta: &[f64]) -> Result<f64> {
+        let mut v = 0.0;
+        self.for_each_weighted(theta, false, |e| v += e.w * self.residual(e.ghat(), e.g).norm_sqr())?;
         if !v.is_finite() {
             return Err(Error::Numerical("non-finite cost (a model FRF element is zero or infinite)".into()));
         }
@@ -331,48 +375,27 @@ impl FitProblem {
     /// (`in_z`) or to θ.
     pub fn normal_equations(&self, theta: &[f64], in_z: bool) -> Result<(f64, DVector<f64>, DMatrix<f64>)> {
         let np = self.n_params();
-        let vals = self.model.full_values(theta)?;
-        let mut dg = Vec::new();
         let mut v = 0.0;
         let mut grad: DVector<f64> = DVector::zeros(np);
         let mut h: DMatrix<f64> = DMatrix::zeros(np, np);
         let chain: Vec<f64> = (0..np).map(|i| if in_z { self.dtheta_dz(theta, i) } else { 1.0 }).collect();
         let mut psi = vec![C64::new(0.0, 0.0); np];
-        for (pi, p) in self.pos.iter().enumerate() {
-            let lin = self.model.linear_model(&p.op, &vals);
-            for (k, &w) in self.omegas.iter().enumerate() {
-                let wk = &self.weights[pi][k];
-                if wk.iter().all(|x| *x == 0.0) {
-                    continue;
-                }
-                let g = self.kernel.eval(&lin, &p.op, w, self.output, true, &mut dg)?;
-                for a in 0..g.nrows() {
-                    for b in 0..g.ncols() {
-                        let ww = wk[(a, b)];
-                        if ww == 0.0 {
-                            continue;
-                        }
-                        let e = self.residual(p.g[k][(a, b)], g[(a, b)]);
-                        v += ww * e.norm_sqr();
-                        for i in 0..np {
-                            psi[i] = self.dresidual(g[(a, b)], dg[i][(a, b)]) * chain[i];
-                        }
-                        for i in 0..np {
-                            let pr = psi[i];
-                            grad[i] += ww * (pr.re * e.re + pr.im * e.im);
-                            for j in i..np {
-                                h[(i, j)] += ww * (pr.re * psi[j].re + pr.im * psi[j].im);
-                            }
-                        }
-                    }
+        self.for_each_weighted(theta, true, |el| {
+            let ww = el.w;
+            let e = self.residual(el.ghat(), el.g);
+            v += ww * e.norm_sqr();
+            for i in 0..np {
+                psi[i] = self.dresidual(el.g, el.dg(i)) * chain[i];
+            }
+            for i in 0..np {
+                let pr = psi[i];
+                grad[i] += ww * (pr.re * e.re + pr.im * e.im);
+                for j in i..np {
+                    h[(i, j)] += ww * (pr.re * psi[j].re + pr.im * psi[j].im);
                 }
             }
-        }
-        for i in 0..np {
-            for j in 0..i {
-                h[(i, j)] = h[(j, i)];
-            }
-        }
+        })?;
+        h.fill_lower_triangle_with_upper_triangle();
         if !v.is_finite() || grad.iter().any(|x| !x.is_finite()) {
             return Err(Error::Numerical("non-finite cost or gradient".into()));
         }
@@ -501,49 +524,28 @@ impl FitProblem {
     /// (σ̂² for NLS, σ̂²/|G(θ)|² for LLS) and Ψ = ∂E/∂θ (physical units).
     pub fn covariance(&self, theta: &[f64]) -> Result<DMatrix<f64>> {
         let np = self.n_params();
-        let vals = self.model.full_values(theta)?;
-        let mut dg = Vec::new();
         let mut h: DMatrix<f64> = DMatrix::zeros(np, np);
         let mut s: DMatrix<f64> = DMatrix::zeros(np, np);
         let mut psi = vec![C64::new(0.0, 0.0); np];
-        for (pi, p) in self.pos.iter().enumerate() {
-            let lin = self.model.linear_model(&p.op, &vals);
-            for (k, &w) in self.omegas.iter().enumerate() {
-                let wk = &self.weights[pi][k];
-                if wk.iter().all(|x| *x == 0.0) {
-                    continue;
-                }
-                let g = self.kernel.eval(&lin, &p.op, w, self.output, true, &mut dg)?;
-                for a in 0..g.nrows() {
-                    for b in 0..g.ncols() {
-                        let ww = wk[(a, b)];
-                        if ww == 0.0 {
-                            continue;
-                        }
-                        let var = match self.estimator {
-                            Estimator::Nls => p.var[k][(a, b)],
-                            _ => p.var[k][(a, b)] / g[(a, b)].norm_sqr(),
-                        };
-                        for i in 0..np {
-                            psi[i] = self.dresidual(g[(a, b)], dg[i][(a, b)]);
-                        }
-                        for i in 0..np {
-                            for j in i..np {
-                                let r = psi[i].re * psi[j].re + psi[i].im * psi[j].im;
-                                h[(i, j)] += ww * r;
-                                s[(i, j)] += ww * ww * var * r;
-                            }
-                        }
-                    }
+        self.for_each_weighted(theta, true, |el| {
+            let ww = el.w;
+            let var = match self.estimator {
+                Estimator::Nls => el.p.var[el.k][(el.a, el.b)],
+                _ => el.p.var[el.k][(el.a, el.b)] / el.g.norm_sqr(),
+            };
+            for i in 0..np {
+                psi[i] = self.dresidual(el.g, el.dg(i));
+            }
+            for i in 0..np {
+                for j in i..np {
+                    let r = psi[i].re * psi[j].re + psi[i].im * psi[j].im;
+                    h[(i, j)] += ww * r;
+                    s[(i, j)] += ww * ww * var * r;
                 }
             }
-        }
-        for i in 0..np {
-            for j in 0..i {
-                h[(i, j)] = h[(j, i)];
-                s[(i, j)] = s[(j, i)];
-            }
-        }
+        })?;
+        h.fill_lower_triangle_with_upper_triangle();
+        s.fill_lower_triangle_with_upper_triangle();
         // scale for conditioning: D H D with D = diag(θ)
         let d: DVector<f64> = DVector::from_fn(np, |i, _| theta[i].abs().max(1e-300));
         let hs = DMatrix::from_fn(np, np, |i, j| h[(i, j)] * d[i] * d[j]);

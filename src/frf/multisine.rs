@@ -97,29 +97,11 @@ impl Multisine {
         self.lines.iter().map(|&k| k as f64 * self.rate / self.samples as f64).collect()
     }
 
-    /// One period of the references of block `b`, experiment `e`: `out[i][t]`, t = 0..N_P.
-    pub fn reference(&self, b: usize, e: usize) -> Vec<Vec<f64>> {
-        let np = self.samples;
-        (0..self.n)
-            .map(|i| {
-                let shift = std::f64::consts::TAU * (i * e) as f64 / self.n as f64;
-                let mut r = vec![0.0; np];
-                for (li, &k) in self.lines.iter().enumerate() {
-                    let a = self.amplitudes[i][li];
-                    let ph = self.phases[b][i][li] + shift;
-                    for (t, v) in r.iter_mut().enumerate() {
-                        let arg = std::f64::consts::TAU * ((k * t) % np) as f64 / np as f64 + ph;
-                        *v += a * arg.cos();
-                    }
-                }
-                r
-            })
-            .collect()
-    }
-
-    /// Motor-position reference (rad) of one period: the exact integral of the
-    /// speed reference, Σ A/ω sin(ω t + φ) (zero mean, periodic).
-    pub fn position_reference(&self, b: usize, e: usize) -> Vec<Vec<f64>> {
+    /// One period of Σ_l c_{il} f(2π k_l t/N_P + φ_{b,i,l} + 2π i e/n) for every
+    /// drive i, t = 0..N_P, with the amplitude c_{il} = `amp(i, l, ω_l)` (ω_l in
+    /// rad/s) and `f` = cos or sin: the sum of the experiment's phase-shifted
+    /// lines that serves both the speed and the position reference.
+    fn line_sum(&self, b: usize, e: usize, amp: impl Fn(usize, usize, f64) -> f64, f: fn(f64) -> f64) -> Vec<Vec<f64>> {
         let np = self.samples;
         (0..self.n)
             .map(|i| {
@@ -127,16 +109,27 @@ impl Multisine {
                 let mut r = vec![0.0; np];
                 for (li, &k) in self.lines.iter().enumerate() {
                     let w = std::f64::consts::TAU * k as f64 * self.rate / np as f64;
-                    let a = self.amplitudes[i][li] / w;
+                    let a = amp(i, li, w);
                     let ph = self.phases[b][i][li] + shift;
                     for (t, v) in r.iter_mut().enumerate() {
                         let arg = std::f64::consts::TAU * ((k * t) % np) as f64 / np as f64 + ph;
-                        *v += a * arg.sin();
+                        *v += a * f(arg);
                     }
                 }
                 r
             })
             .collect()
+    }
+
+    /// One period of the references of block `b`, experiment `e`: `out[i][t]`, t = 0..N_P.
+    pub fn reference(&self, b: usize, e: usize) -> Vec<Vec<f64>> {
+        self.line_sum(b, e, |i, li, _| self.amplitudes[i][li], f64::cos)
+    }
+
+    /// Motor-position reference (rad) of one period: the exact integral of the
+    /// speed reference, Σ A/ω sin(ω t + φ) (zero mean, periodic).
+    pub fn position_reference(&self, b: usize, e: usize) -> Vec<Vec<f64>> {
+        self.line_sum(b, e, |i, li, w| self.amplitudes[i][li] / w, f64::sin)
     }
 
     /// Speed and position references of block `b`, experiment `e` (for the simulator).

@@ -311,7 +311,54 @@ struct MlData {
     sig: Vec<Vec<f64>>,
 }
 
+/// The terms of one sample of [`MlData`] at θ: Y_i (n×k), J_i (n×3n) with
+/// column m = D_m θ (the derivative of Y_i θ with respect to the m-th measured
+/// state), the covariance blocks Σ_τx (n×3n) and Σ_xx (3n×3n), and the
+/// Cholesky factor of the equation-error covariance
+/// Σ_e = Σ_ττ − J Σ_xτ − Σ_τx Jᵀ + J Σ_xx Jᵀ (+ 10⁻¹² tr Σ_e I), None when it is
+/// not positive definite.
+struct SampleTerms {
+    y: DMatrix<f64>,
+    jm: DMatrix<f64>,
+    stx: DMatrix<f64>,
+    sxx: DMatrix<f64>,
+    chol: Option<nalgebra::Cholesky<f64, nalgebra::Dyn>>,
+}
+
 impl MlData {
+    /// D_m of sample i (n×k), m = 0..3n.
+    fn d_mat(&self, i: usize, m: usize) -> DMatrix<f64> {
+        let nk = self.n * self.k;
+        DMatrix::from_row_slice(self.n, self.k, &self.mats[i][(m + 1) * nk..(m + 2) * nk])
+    }
+
+    /// The terms of sample i at θ, shared by the cost/gradient and the Fisher information.
+    fn sample_terms(&self, i: usize, th: &DVector<f64>) -> SampleTerms {
+        let (n, k) = (self.n, self.k);
+        let y = DMatrix::from_row_slice(n, k, &self.mats[i][..n * k]);
+        let mut jm = DMatrix::zeros(n, 3 * n);
+        for m in 0..3 * n {
+            jm.set_column(m, &(self.d_mat(i, m) * th));
+        }
+        let d4 = 4 * n;
+        let s = DMatrix::from_row_slice(d4, d4, &self.sig[i.min(self.sig.len() - 1)]);
+        let stt = s.view((0, 0), (n, n));
+        let stx = s.view((0, n), (n, 3 * n));
+        let sxx = s.view((n, n), (3 * n, 3 * n));
+        let mut s2 = stt.into_owned() - &jm * stx.transpose() - stx * jm.transpose() + &jm * sxx * jm.transpose();
+        let tr = s2.trace().abs().max(1e-300);
+        for a in 0..n {
+            s2[(a, a)] += 1e-12 * tr;
+        }
+        SampleTerms {
+            y,
+            stx: stx.into_owned(),
+            sxx: sxx.into_owned(),
+            jm,
+            chol: s2.cholesky(),
+        }
+    }
+
     fn cost_grad(&self, theta: &[f64], grad: Option<&mut [f64]>) -> f64 {
         let (n, k) = (self.n, self.k);
         let want_grad = grad.is_some();
@@ -320,33 +367,16 @@ impl MlData {
             .fold(
                 || (0.0, vec![0.0; k]),
                 |(mut c, mut g), i| {
-                    let mat = &self.mats[i];
-                    let nk = n * k;
                     let th = DVector::from_column_slice(theta);
-                    let y = DMatrix::from_row_slice(n, k, &mat[..nk]);
-                    let b = DVector::from_column_slice(&self.tau[i]) - &y * &th;
-                    let mut jm = DMatrix::zeros(n, 3 * n);
-                    for m in 0..3 * n {
-                        let d = DMatrix::from_row_slice(n, k, &mat[(m + 1) * nk..(m + 2) * nk]);
-                        jm.set_column(m, &(d * &th));
-                    }
-                    let d4 = 4 * n;
-                    let s = DMatrix::from_row_slice(d4, d4, &self.sig[i.min(self.sig.len() - 1)]);
-                    let stt = s.view((0, 0), (n, n));
-                    let stx = s.view((0, n), (n, 3 * n));
-                    let sxx = s.view((n, n), (3 * n, 3 * n));
-                    let mut s2 = stt.into_owned() - &jm * stx.transpose() - stx * jm.transpose() + &jm * sxx * jm.transpose();
-                    let tr = s2.trace().abs().max(1e-300);
-                    for a in 0..n {
-                        s2[(a, a)] += 1e-12 * tr;
-                    }
-                    let Some(ch) = s2.cholesky() else {
+                    let SampleTerms { y, jm, stx, sxx, chol } = self.sample_terms(i, &th);
+                    let Some(ch) = chol else {
                         return (f64::INFINITY, g);
                     };
+                    let b = DVector::from_column_slice(&self.tau[i]) - &y * &th;
                     let w = ch.solve(&b);
                     c += 0.5 * b.dot(&w);
                     if want_grad {
-                        let gg = sxx * jm.transpose() * &w - stx.transpose() * &w;
+                        let gg = &sxx * jm.transpose() * &w - stx.transpose() * &w;
                         let yw = y.transpose() * &w;
                         for a in 0..k {
                             g[a] -= yw[a];
@@ -355,8 +385,7 @@ impl MlData {
                             if gg[m] == 0.0 {
                                 continue;
                             }
-                            let d = DMatrix::from_row_slice(n, k, &mat[(m + 1) * nk..(m + 2) * nk]);
-                            let dw = d.transpose() * &w;
+                            let dw = self.d_mat(i, m).transpose() * &w;
                             for a in 0..k {
                                 g[a] -= gg[m] * dw[a];
                             }
@@ -373,31 +402,13 @@ impl MlData {
     }
 
     fn fisher(&self, theta: &[f64]) -> DMatrix<f64> {
-        let (n, k) = (self.n, self.k);
-        let mut f = DMatrix::zeros(k, k);
+        let mut f = DMatrix::zeros(self.k, self.k);
         let th = DVector::from_column_slice(theta);
         for i in 0..self.mats.len() {
-            let mat = &self.mats[i];
-            let nk = n * k;
-            let y = DMatrix::from_row_slice(n, k, &mat[..nk]);
-            let mut jm = DMatrix::zeros(n, 3 * n);
-            for m in 0..3 * n {
-                let d = DMatrix::from_row_slice(n, k, &mat[(m + 1) * nk..(m + 2) * nk]);
-                jm.set_column(m, &(d * &th));
-            }
-            let d4 = 4 * n;
-            let s = DMatrix::from_row_slice(d4, d4, &self.sig[i.min(self.sig.len() - 1)]);
-            let stt = s.view((0, 0), (n, n));
-            let stx = s.view((0, n), (n, 3 * n));
-            let sxx = s.view((n, n), (3 * n, 3 * n));
-            let mut s2 = stt.into_owned() - &jm * stx.transpose() - stx * jm.transpose() + &jm * sxx * jm.transpose();
-            let tr = s2.trace().abs().max(1e-300);
-            for a in 0..n {
-                s2[(a, a)] += 1e-12 * tr;
-            }
-            if let Some(ch) = s2.cholesky() {
-                let sy = ch.solve(&y);
-                f += y.transpose() * sy;
+            let t = self.sample_terms(i, &th);
+            if let Some(ch) = t.chol {
+                let sy = ch.solve(&t.y);
+                f += t.y.transpose() * sy;
             }
         }
         f

@@ -157,12 +157,7 @@ pub fn reduce(robot: &Robot, base: &BaseParams, ds: &Dataset, moving: &[bool], o
             continue;
         }
         let mut v = col / nrm;
-        for _ in 0..2 {
-            for b in &basis {
-                let d = b.dot(&v);
-                v.axpy(-d, b, 1.0);
-            }
-        }
+        crate::linalg::orthogonalize(&basis, &mut v);
         let res = v.norm();
         if res > opts.rank_tol {
             basis.push(v / res);
