@@ -149,6 +149,54 @@ fn svec_index(i: usize, j: usize) -> usize {
     j * (j + 1) / 2 + i
 }
 
+/// svec scaling of entry (i, j): 1 on the diagonal, √2 off it.
+fn svec_scale(i: usize, j: usize) -> f64 {
+    if i == j {
+        1.0
+    } else {
+        std::f64::consts::SQRT_2
+    }
+}
+
+/// Appends the simplex on the weights w (columns `w0..w0 + k`): Σ w = 1 (zero
+/// cone), then w ≥ 0 (nonnegative cone).
+fn push_simplex(a: &mut Triplets, b: &mut Vec<f64>, cones: &mut Vec<SupportedConeT<f64>>, w0: usize, k: usize) {
+    let r = a.rows(1);
+    for i in 0..k {
+        a.push(r, w0 + i, 1.0);
+    }
+    b.push(1.0);
+    cones.push(SupportedConeT::ZeroConeT(1));
+    let r = a.rows(k);
+    for i in 0..k {
+        a.push(r + i, w0 + i, -1.0);
+        b.push(0.0);
+    }
+    cones.push(SupportedConeT::NonnegativeConeT(k));
+}
+
+/// Fills the leading p×p block of a PSD slack s = b − A x whose svec rows start
+/// at `r` with F_0 + Σ_i w_i F_i: the prior goes into `bb` (the block's part of
+/// b), −F_i into the weight columns `w0 + i`.
+fn push_weighted_information(a: &mut Triplets, bb: &mut [f64], r: usize, pb: &Problem, w0: usize) {
+    let p = pb.p();
+    if let Some(f0) = pb.prior() {
+        for j in 0..p {
+            for i in 0..=j {
+                bb[svec_index(i, j)] = f0[(i, j)] * svec_scale(i, j);
+            }
+        }
+    }
+    for i in 0..pb.n() {
+        let f = pb.matrix(i);
+        for jj in 0..p {
+            for ii in 0..=jj {
+                a.push(r + svec_index(ii, jj), w0 + i, -f[(ii, jj)] * svec_scale(ii, jj));
+            }
+        }
+    }
+}
+
 fn solve(
     n_var: usize,
     q: Vec<f64>,
@@ -336,39 +384,13 @@ pub fn solve_d_sdp(pb: &Problem, set: &ConicSettings) -> ConicResult {
     let mut a = Triplets::new();
     let mut b = Vec::new();
     let mut cones = Vec::new();
-    let r = a.rows(1);
-    for i in 0..k {
-        a.push(r, w0 + i, 1.0);
-    }
-    b.push(1.0);
-    cones.push(SupportedConeT::ZeroConeT(1));
-    let r = a.rows(k);
-    for i in 0..k {
-        a.push(r + i, w0 + i, -1.0);
-        b.push(0.0);
-    }
-    cones.push(SupportedConeT::NonnegativeConeT(k));
+    push_simplex(&mut a, &mut b, &mut cones, w0, k);
     // PSD block: s = svec(X), X = [[F0 + Σ w F, Z],[Zᵀ, Diag Z]]
     let nsv = n2 * (n2 + 1) / 2;
     let r = a.rows(nsv);
     let s2 = std::f64::consts::SQRT_2;
-    let scale = |i: usize, j: usize| if i == j { 1.0 } else { s2 };
     let mut bb = vec![0.0; nsv];
-    if let Some(f0) = pb.prior() {
-        for j in 0..p {
-            for i in 0..=j {
-                bb[svec_index(i, j)] = f0[(i, j)] * scale(i, j);
-            }
-        }
-    }
-    for i in 0..k {
-        let f = pb.matrix(i);
-        for jj in 0..p {
-            for ii in 0..=jj {
-                a.push(r + svec_index(ii, jj), w0 + i, -f[(ii, jj)] * scale(ii, jj));
-            }
-        }
-    }
+    push_weighted_information(&mut a, &mut bb, r, pb, w0);
     for aa in 0..p {
         for j in 0..=aa {
             // Z[aa][j] sits at X[aa][p + j]
@@ -473,38 +495,11 @@ pub fn solve_e(pb: &Problem, set: &ConicSettings) -> ConicResult {
     let mut a = Triplets::new();
     let mut b = Vec::new();
     let mut cones = Vec::new();
-    let r = a.rows(1);
-    for i in 0..k {
-        a.push(r, w0 + i, 1.0);
-    }
-    b.push(1.0);
-    cones.push(SupportedConeT::ZeroConeT(1));
-    let r = a.rows(k);
-    for i in 0..k {
-        a.push(r + i, w0 + i, -1.0);
-        b.push(0.0);
-    }
-    cones.push(SupportedConeT::NonnegativeConeT(k));
+    push_simplex(&mut a, &mut b, &mut cones, w0, k);
     let nsv = p * (p + 1) / 2;
     let r_psd = a.rows(nsv);
-    let s2 = std::f64::consts::SQRT_2;
-    let scale = |i: usize, j: usize| if i == j { 1.0 } else { s2 };
     let mut bb = vec![0.0; nsv];
-    if let Some(f0) = pb.prior() {
-        for j in 0..p {
-            for i in 0..=j {
-                bb[svec_index(i, j)] = f0[(i, j)] * scale(i, j);
-            }
-        }
-    }
-    for i in 0..k {
-        let f = pb.matrix(i);
-        for jj in 0..p {
-            for ii in 0..=jj {
-                a.push(r_psd + svec_index(ii, jj), w0 + i, -f[(ii, jj)] * scale(ii, jj));
-            }
-        }
-    }
+    push_weighted_information(&mut a, &mut bb, r_psd, pb, w0);
     for j in 0..p {
         a.push(r_psd + svec_index(j, j), t, 1.0);
     }
@@ -519,7 +514,7 @@ pub fn solve_e(pb: &Problem, set: &ConicSettings) -> ConicResult {
             let mut zm = DMatrix::zeros(p, p);
             for j in 0..p {
                 for i in 0..=j {
-                    let v = z[base + svec_index(i, j)] / scale(i, j);
+                    let v = z[base + svec_index(i, j)] / svec_scale(i, j);
                     zm[(i, j)] = v;
                     zm[(j, i)] = v;
                 }
