@@ -64,6 +64,7 @@ pub mod frf;
 pub mod ident;
 pub mod io;
 pub mod linalg;
+pub mod optim;
 pub mod params;
 pub mod positions;
 pub mod robot;
