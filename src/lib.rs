@@ -57,6 +57,7 @@
 //! outcomes are statuses inside the results.
 #![warn(missing_docs)]
 
+pub mod data;
 pub mod elastic;
 pub mod error;
 pub mod excitation;

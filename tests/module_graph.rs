@@ -134,9 +134,7 @@ fn utf8_len(first: u8) -> usize {
 }
 
 fn ident_at(s: &str) -> &str {
-    let end = s
-        .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
-        .unwrap_or(s.len());
+    let end = s.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).unwrap_or(s.len());
     &s[..end]
 }
 
@@ -188,10 +186,7 @@ fn crate_imports(code: &str) -> Vec<(usize, String)> {
                 vec![ident_at(after).to_string()]
             };
             for name in names {
-                let module = ROOT_ITEMS
-                    .iter()
-                    .find(|(item, _)| *item == name)
-                    .map_or(name.clone(), |(_, m)| m.to_string());
+                let module = ROOT_ITEMS.iter().find(|(item, _)| *item == name).map_or(name.clone(), |(_, m)| m.to_string());
                 found.push((line, module));
             }
         }
@@ -242,27 +237,19 @@ fn no_module_imports_a_higher_layer() {
                 continue;
             }
             let Some(theirs) = layer(&target) else {
-                violations.push(format!(
-                    "{rel}:{line}: `crate::{target}` is not a module with a layer"
-                ));
+                violations.push(format!("{rel}:{line}: `crate::{target}` is not a module with a layer"));
                 continue;
             };
             if theirs > own {
-                violations.push(format!(
-                    "{rel}:{line}: {module} (layer {own}) imports {target} (layer {theirs})"
-                ));
+                violations.push(format!("{rel}:{line}: {module} (layer {own}) imports {target} (layer {theirs})"));
             }
-            edges
-                .entry((module.clone(), target.clone()))
-                .or_insert_with(|| format!("{rel}:{line}"));
+            edges.entry((module.clone(), target.clone())).or_insert_with(|| format!("{rel}:{line}"));
         }
     }
     for ((from, to), at) in &edges {
         if from < to {
             if let Some(back) = edges.get(&(to.clone(), from.clone())) {
-                violations.push(format!(
-                    "cycle: {from} imports {to} ({at}) and {to} imports {from} ({back})"
-                ));
+                violations.push(format!("cycle: {from} imports {to} ({at}) and {to} imports {from} ({back})"));
             }
         }
     }
@@ -270,11 +257,7 @@ fn no_module_imports_a_higher_layer() {
         seen_modules.contains("robot") && seen_modules.contains("ident"),
         "the scan missed the main modules: {seen_modules:?}"
     );
-    assert!(
-        violations.is_empty(),
-        "upward or cyclic module imports:\n  {}",
-        violations.join("\n  ")
-    );
+    assert!(violations.is_empty(), "upward or cyclic module imports:\n  {}", violations.join("\n  "));
 }
 
 #[test]
