@@ -13,6 +13,7 @@
 //! evaluations are pure functions of the genes, run in parallel and collected
 //! in order, so the result does not depend on the thread count.
 
+use crate::rng::mix;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -109,14 +110,6 @@ pub struct GaResult {
     pub stop: GaStop,
     /// Wall time (s).
     pub seconds: f64,
-}
-
-/// splitmix64 mixing of a seed with stream indices.
-pub fn mix(seed: u64, a: u64, b: u64) -> u64 {
-    let mut z = seed ^ a.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ b.wrapping_mul(0xD1B5_4A32_D192_ED03);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
 }
 
 fn tournament<'a>(pop: &'a [Individual], rng: &mut ChaCha8Rng) -> &'a Individual {

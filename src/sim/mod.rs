@@ -486,14 +486,6 @@ fn resolve(base: &Path, p: &Path) -> PathBuf {
     }
 }
 
-fn unit_seed(seed: u64, index: u64) -> u64 {
-    // splitmix64 of (seed, index): independent streams per unit of work
-    let mut z = seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
 /// State of the closed loop carried from one controller period to the next.
 struct Loop {
     q: Vec<f64>,
@@ -613,14 +605,14 @@ impl SimSetup {
         if self.reference.periodic() {
             let steps = (self.reference.duration() * self.rate).round() as usize;
             let mut lp = self.new_loop();
-            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(unit_seed(self.seed, 0));
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(crate::rng::mix(self.seed, 0, 0));
             self.run_steps(&mut lp, 0, steps, 0.0, &mut rng, None)?; // lead-in period
             for i in 0..self.repetitions {
                 if crate::io::stop::requested() {
                     interrupted = true;
                     break;
                 }
-                let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(unit_seed(self.seed, (i + 1) as u64));
+                let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(crate::rng::mix(self.seed, (i + 1) as u64, 0));
                 let mut rep = new_rep();
                 let k0 = (i + 1) * steps;
                 self.run_steps(&mut lp, k0, steps, k0 as f64 * dt, &mut rng, Some(&mut rep))?;
@@ -635,7 +627,7 @@ impl SimSetup {
                     if crate::io::stop::requested() {
                         return None;
                     }
-                    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(unit_seed(self.seed, (i + 1) as u64));
+                    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(crate::rng::mix(self.seed, (i + 1) as u64, 0));
                     let mut lp = self.new_loop();
                     let mut rep = new_rep();
                     let r = self.run_steps(&mut lp, 0, steps, 0.0, &mut rng, Some(&mut rep)).map(|_| rep);
