@@ -9,7 +9,8 @@
 //! uniform on [0, 2π) and independent between blocks and motors. The even
 //! lines are left empty so nonlinear distortion shows there.
 
-use super::design::{lines, Design, Spectrum};
+use super::design::Design;
+use crate::trajectory::multisine::{lines, Spectrum};
 use rand::{RngExt, SeedableRng};
 use serde::Serialize;
 

@@ -15,6 +15,7 @@
 //! A sampled trajectory is an [`crate::io::States`] (`t, q, qd, qdd` CSV).
 
 pub mod differentiate;
+pub mod multisine;
 pub mod reference;
 
 pub use differentiate::differentiate;
