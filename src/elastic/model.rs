@@ -27,7 +27,7 @@
 //! and elastic coordinates.
 
 use crate::error::{Error, Result};
-use crate::robot::{self, Drive, Frame, Friction, Inertial, Joint, JointKind, JointLimits, Link, ParamKind, Robot};
+use crate::robot::{self, Drive, Frame, Friction, Inertial, Joint, JointKind, JointLimits, Link, ParamKind, Robot, RobotParts};
 use nalgebra::{DMatrix, Isometry3, Matrix3, Unit, Vector3};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -365,16 +365,16 @@ impl ElasticModel {
             };
             nx
         ];
-        let ext = Robot::new(
-            format!("{} (elastic)", rigid.name),
+        let ext = Robot::new(RobotParts {
+            name: format!("{} (elastic)", rigid.name),
             joints,
             links,
             drives,
-            None,
+            coupling: None,
             frames,
-            rigid.gravity,
-            format!("extended from {}", rigid.source),
-        )?;
+            gravity: rigid.gravity,
+            source: format!("extended from {}", rigid.source),
+        })?;
         // parameters
         let mut params = Vec::new();
         for j in 0..na {

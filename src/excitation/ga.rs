@@ -176,6 +176,7 @@ fn poly_mutation(x: f64, lo: f64, hi: f64, eta: f64, rng: &mut ChaCha8Rng) -> f6
 /// workspace constraints satisfiable from the start).
 /// `eval(ws, x)` returns (objective, violation) and may repair x in place.
 /// `observe(gen, best)` is called after each generation (progress bars).
+#[allow(clippy::too_many_arguments)] // bounds, start points and the three callbacks; part B replaces this loop with a solver
 pub fn run<W, M, E, O>(s: &GaSettings, lower: &[f64], upper: &[f64], centre: &[f64], initial: &[Vec<f64>], make_ws: M, eval: E, mut observe: O) -> GaResult
 where
     M: Fn() -> W + Sync + Send,

@@ -174,6 +174,7 @@ fn couple_inv_t<T: Real>(robot: &Robot, tau: &mut [T], scratch: &mut [T]) {
 
 /// Generic inverse dynamics (motor side) with arbitrary standard parameters
 /// `theta` (f64 constants) at a generic-scalar state.
+#[allow(clippy::too_many_arguments)] // kernel: robot, inertials, θ, state (q, q̇, q̈), terms, buffers, output
 pub(crate) fn inverse_dynamics_generic<T: Real>(
     robot: &Robot,
     inert: &mut [Inertial],
@@ -449,6 +450,7 @@ pub fn regressor_rows(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64], 
 /// Derivatives of the regressor: `dq[k]`, `dqd[k]`, `dqdd[k]` receive
 /// ∂Y/∂q_k, ∂Y/∂q̇_k, ∂Y/∂q̈_k (each row-major n×p, in slices of length n·p),
 /// and `y` receives Y itself. Sign-function columns have zero derivative.
+#[allow(clippy::too_many_arguments)] // kernel: robot, workspace, state (q, q̇, q̈), outputs (Y, ∂Y/∂q, ∂Y/∂q̇, ∂Y/∂q̈)
 pub fn regressor_derivatives(
     robot: &Robot,
     ws: &mut Workspace,

@@ -4,7 +4,7 @@
 //! acceleration limits), a joint coupling matrix and named frames.
 //! The format is documented in the README ("Robot files").
 
-use super::model::{Drive, Frame, Friction, Inertial, Joint, JointKind, JointLimits, Link, Robot};
+use super::model::{Drive, Frame, Friction, Inertial, Joint, JointKind, JointLimits, Link, Robot, RobotParts};
 use super::urdf::{load_urdf, pose_to_iso};
 use crate::error::{Error, Result};
 use nalgebra::{DMatrix, Isometry3, Matrix3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
@@ -151,16 +151,16 @@ pub fn load(path: &Path) -> Result<Robot> {
     match ext.as_str() {
         "urdf" | "xml" => {
             let parts = load_urdf(path, None, None)?;
-            Robot::new(
-                parts.name,
-                parts.joints,
-                parts.links,
-                parts.drives,
-                None,
-                parts.frames,
-                Vector3::new(0.0, 0.0, -9.81),
-                format!("URDF {}", path.display()),
-            )
+            Robot::new(RobotParts {
+                name: parts.name,
+                joints: parts.joints,
+                links: parts.links,
+                drives: parts.drives,
+                coupling: None,
+                frames: parts.frames,
+                gravity: Vector3::new(0.0, 0.0, -9.81),
+                source: format!("URDF {}", path.display()),
+            })
         }
         "toml" => {
             let text = crate::io::read_to_string(path)?;
@@ -388,7 +388,16 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
         name
     });
     let source = f.source.clone().unwrap_or_else(|| path.display().to_string());
-    Robot::new(name, joints, links, drives, coupling, frames, gravity, source)
+    Robot::new(RobotParts {
+        name,
+        joints,
+        links,
+        drives,
+        coupling,
+        frames,
+        gravity,
+        source,
+    })
 }
 
 fn rot_x(a: f64) -> Isometry3<f64> {

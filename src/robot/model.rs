@@ -368,21 +368,43 @@ pub(crate) struct JointGeometry {
     pub post_identity: bool,
 }
 
+/// The pieces a robot is assembled from (what a loader produces).
+#[derive(Debug, Clone)]
+pub struct RobotParts {
+    /// Robot name.
+    pub name: String,
+    /// Actuated joints, parents before children.
+    pub joints: Vec<Joint>,
+    /// One link per joint (the body the joint moves).
+    pub links: Vec<Link>,
+    /// One drive per joint.
+    pub drives: Vec<Drive>,
+    /// Coupling matrix C (n×n, motor positions θ = C q), if any.
+    pub coupling: Option<DMatrix<f64>>,
+    /// Named frames (tool, sensors).
+    pub frames: Vec<Frame>,
+    /// Gravity vector in the base frame (m/s²).
+    pub gravity: Vector3<f64>,
+    /// Where the model came from (for reports).
+    pub source: String,
+}
+
 impl Robot {
     /// Assembles and checks a robot. Called by the loaders; validates the
     /// topology (parents before children), the coupling matrix (n×n,
     /// invertible), masses (≥ 0) and builds the parameter layout.
-    pub fn new(
-        name: String,
-        joints: Vec<Joint>,
-        links: Vec<Link>,
-        drives: Vec<Drive>,
-        coupling: Option<DMatrix<f64>>,
-        frames: Vec<Frame>,
-        gravity: Vector3<f64>,
-        source: String,
-    ) -> crate::Result<Robot> {
+    pub fn new(parts: RobotParts) -> crate::Result<Robot> {
         use crate::Error;
+        let RobotParts {
+            name,
+            joints,
+            links,
+            drives,
+            coupling,
+            frames,
+            gravity,
+            source,
+        } = parts;
         let n = joints.len();
         let ctx = || format!("robot `{name}`");
         if n == 0 {
