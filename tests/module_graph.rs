@@ -26,7 +26,13 @@
 //! ```text
 //! upward or cyclic module imports:
 //!   src/robot/model.rs:3: robot (layer 1) imports ident (layer 4)
+//!   cycle: ident imports robot (src/ident/closed_loop.rs:39) and robot imports ident (src/robot/model.rs:3)
 //! ```
+//!
+//! and on the code before the `data`/`trajectory` moves it reported
+//! `src/elastic/sim.rs:30: elastic (layer 3) imports frf (layer 4)`,
+//! `src/sim/mod.rs:34: sim (layer 3) imports ident (layer 4)` and the two
+//! cycles sim↔ident and elastic↔frf.
 //!
 //! Files named `cli.rs` are exempt while the command-line code still lives
 //! in the library (it is moved to `src/bin/idexp/`); the lead removes the
