@@ -16,7 +16,7 @@ fn root(p: &str) -> std::path::PathBuf {
 fn bench_wls(c: &mut Criterion) {
     let robot = idexp::robot::load(&root("designs/robots/puma560.toml")).unwrap();
     let base = BaseParams::compute(&robot, &BaseOptions::default()).unwrap();
-    let traj = idexp::sim::reference::random_fourier(&robot, 5, 0.1, 0.8, None, 3, "bench").unwrap();
+    let traj = idexp::trajectory::reference::random_fourier(&robot, 5, 0.1, 0.8, None, 3, "bench").unwrap();
     let s = traj.sample(100.0).unwrap(); // 1000 samples × 6 joints = 6000 rows
     c.bench_function("ident/base_design puma560 1000 samples", |b| {
         b.iter(|| base_design(&robot, &base, &s.q, &s.qd, &s.qdd))

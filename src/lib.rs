@@ -57,6 +57,7 @@
 //! outcomes are statuses inside the results.
 #![warn(missing_docs)]
 
+pub mod data;
 pub mod elastic;
 pub mod error;
 pub mod excitation;
@@ -67,6 +68,7 @@ pub mod linalg;
 pub mod optim;
 pub mod params;
 pub mod positions;
+pub mod rng;
 pub mod robot;
 pub mod sim;
 pub mod trajectory;

@@ -6,7 +6,7 @@
 use idexp::excitation::constraints::{joint_extremum, Constraints, JointLimitSpec};
 use idexp::excitation::design::ExciteDesign;
 use idexp::excitation::grid::TrigGrid;
-use idexp::excitation::objective::{Criterion, Objective, Scaling};
+use idexp::excitation::objective::{BaseColumns, Criterion, Objective, Scaling, Scoring};
 use idexp::excitation::{assess, Problem};
 use idexp::params::{BaseOptions, BaseParams};
 use idexp::robot::cartesian::{CartesianConstraint, Shape};
@@ -36,13 +36,17 @@ fn objective(r: &Robot, lay: &FourierLayout, rate: f64, crit: Criterion, scaling
     let o = Objective::new(
         r.clone(),
         lay.clone(),
-        b.independent.clone(),
-        b.names.clone(),
-        &nom,
+        BaseColumns {
+            indices: b.independent.clone(),
+            names: b.names.clone(),
+            nominal: nom,
+        },
         times,
-        crit,
-        scaling,
-        noise,
+        Scoring {
+            criterion: crit,
+            scaling,
+            noise: noise.to_vec(),
+        },
     )
     .unwrap();
     (o, b)
@@ -86,6 +90,7 @@ fn criterion_equals_an_independent_svd_of_the_stacked_base_regressor() {
     assert!((is - 1.0 / sv.min()).abs() < 1e-9 / sv.min());
 }
 
+#[allow(clippy::too_many_arguments)] // test helper: one argument per varied setting of the gradient check
 fn check_objective_gradient(r: &Robot, lay: &FourierLayout, rate: f64, crit: Criterion, scaling: Scaling, noise: &[f64], seed: u64, tol: f64) {
     let (o, _) = objective(r, lay, rate, crit, scaling, noise);
     let mut w = o.workspace();

@@ -2,8 +2,9 @@
 //! G = Y U⁻¹ on exactly periodic data from a known system, the block
 //! covariance, and design-file errors.
 
+use idexp::data::MotorRecord;
 use idexp::elastic::{Output, C64};
-use idexp::frf::estimate::{self, Run, RunsManifest};
+use idexp::frf::estimate::{self, RunsManifest};
 use idexp::frf::multisine::Multisine;
 use idexp::frf::Design;
 use nalgebra::DMatrix;
@@ -107,7 +108,7 @@ fn y_u_inverse_recovers_a_known_system_and_its_block_variance() {
     };
     let noise = 1e-3;
     let mut gb_expected: Vec<Vec<DMatrix<C64>>> = Vec::new();
-    let runs: Vec<Vec<Run>> = (0..m.blocks)
+    let runs: Vec<Vec<MotorRecord>> = (0..m.blocks)
         .map(|_| {
             let phases: Vec<Vec<f64>> = (0..n)
                 .map(|_| lines.iter().map(|_| rng.random_range(0.0..std::f64::consts::TAU)).collect())
@@ -136,7 +137,7 @@ fn y_u_inverse_recovers_a_known_system_and_its_block_variance() {
                             }
                         }
                     }
-                    Run { u, y }
+                    MotorRecord { u, y }
                 })
                 .collect()
         })

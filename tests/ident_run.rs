@@ -2,7 +2,7 @@
 //! round trip of written repetitions; folder reading; the CLI end to end.
 
 mod ident_util;
-use idexp::ident::{Repetition, Run};
+use idexp::data::{Repetition, Run};
 use idexp::Error;
 use std::path::{Path, PathBuf};
 

@@ -7,8 +7,8 @@
 mod ident_util;
 use ident_util::*;
 use idexp::robot::{mass_matrix, Workspace};
-use idexp::sim::reference::{differentiate, Reference};
 use idexp::sim::{perturb_params, SimDesign, SimSetup};
+use idexp::trajectory::{differentiate, Reference};
 
 fn fourier_design(extra: &str) -> SimDesign {
     design(&format!(
@@ -124,7 +124,7 @@ fn perturbed_truth_is_physical_and_zero_perturbation_is_nominal() {
 fn csv_references_with_and_without_derivatives() {
     let d = tempfile::tempdir().unwrap();
     let robot = idexp::robot::load(&root("tests/data/ident/rpr_drives.toml")).unwrap();
-    let f = idexp::sim::reference::random_fourier(&robot, 3, 0.5, 0.5, None, 1, "t").unwrap();
+    let f = idexp::trajectory::reference::random_fourier(&robot, 3, 0.5, 0.5, None, 1, "t").unwrap();
     let s = f.sample(1000.0).unwrap();
     s.write(&d.path().join("full.csv")).unwrap();
     // positions only
@@ -135,8 +135,8 @@ fn csv_references_with_and_without_derivatives() {
             .map(|(q, t)| format!("{t},{},{},{}\n", q[0], q[1], q[2]))
             .collect();
     std::fs::write(d.path().join("pos.csv"), header + &body).unwrap();
-    let spec_full: idexp::sim::ReferenceSpec = toml::from_str("kind = \"states\"\nfile = \"full.csv\"").unwrap();
-    let spec_pos: idexp::sim::ReferenceSpec = toml::from_str("kind = \"states\"\nfile = \"pos.csv\"").unwrap();
+    let spec_full: idexp::trajectory::ReferenceSpec = toml::from_str("kind = \"states\"\nfile = \"full.csv\"").unwrap();
+    let spec_pos: idexp::trajectory::ReferenceSpec = toml::from_str("kind = \"states\"\nfile = \"pos.csv\"").unwrap();
     let rf = spec_full.build(&robot, d.path(), 1000.0, "t").unwrap();
     let rp = spec_pos.build(&robot, d.path(), 1000.0, "t").unwrap();
     let (mut a, mut b, mut c) = (vec![0.0; 3], vec![0.0; 3], vec![0.0; 3]);
@@ -161,7 +161,7 @@ fn csv_references_with_and_without_derivatives() {
     assert!((v[5][0] - 1.0).abs() < 1e-12 && (acc[5][0] - 2.0).abs() < 1e-9);
     // a non-uniform time column is rejected with the row
     std::fs::write(d.path().join("bad.csv"), "t,q1,q2,q3\n0,0,0,0\n0.1,0,0,0\n0.3,0,0,0\n0.4,0,0,0\n").unwrap();
-    let spec_bad: idexp::sim::ReferenceSpec = toml::from_str("kind = \"states\"\nfile = \"bad.csv\"").unwrap();
+    let spec_bad: idexp::trajectory::ReferenceSpec = toml::from_str("kind = \"states\"\nfile = \"bad.csv\"").unwrap();
     let e = spec_bad.build(&robot, d.path(), 1000.0, "t").unwrap_err().to_string();
     assert!(e.contains("bad.csv") && e.contains("column `t`") && e.contains("uniform"), "{e}");
 }
@@ -176,7 +176,7 @@ fn process_and_experiment_references_start_and_end_at_rest() {
         "kind = \"bang_bang\"\njoint = 3\nacceleration = 4.0\nvelocities = [0.5, 1.0]\nq_rest = [0.0, 0.2, 0.0]",
     ];
     for s in specs {
-        let spec: idexp::sim::ReferenceSpec = toml::from_str(s).unwrap();
+        let spec: idexp::trajectory::ReferenceSpec = toml::from_str(s).unwrap();
         spec.validate("t").unwrap();
         let r = spec.build(&robot, std::path::Path::new("."), 500.0, "t").unwrap();
         assert!(!r.periodic());
@@ -197,7 +197,7 @@ fn process_and_experiment_references_start_and_end_at_rest() {
         }
     }
     // an unreachable target is reported
-    let spec: idexp::sim::ReferenceSpec =
+    let spec: idexp::trajectory::ReferenceSpec =
         toml::from_str("kind = \"pick_and_place\"\narea_a = { center = [3.0, 0.0, 0.0], half_size = [0.0, 0.0, 0.0] }\narea_b = { center = [0.0, -0.4, 0.36], half_size = [0.0, 0.0, 0.0] }").unwrap();
     let e = spec.build(&robot, std::path::Path::new("."), 500.0, "t").unwrap_err().to_string();
     assert!(e.contains("out of reach"), "{e}");
@@ -218,9 +218,9 @@ fn design_errors_name_the_field() {
     bad("[controller]\nbandwidth = 500.0", "controller.bandwidth");
     bad("[noise]\ntorque = -1.0", "noise.torque");
     // unknown keys inside [reference] are caught too, also for the inline trajectory
-    let r: Result<idexp::sim::ReferenceSpec, _> = toml::from_str("kind = \"random_fourier\"\nfoo = 1");
+    let r: Result<idexp::trajectory::ReferenceSpec, _> = toml::from_str("kind = \"random_fourier\"\nfoo = 1");
     assert!(r.unwrap_err().to_string().contains("foo"));
-    let r: Result<idexp::sim::ReferenceSpec, _> = toml::from_str("kind = \"fourier_inline\"\nomega = 1.0\nq0 = [0.0]\na = [[0.1]]\nb = [[0.0]]\nzz = 3");
+    let r: Result<idexp::trajectory::ReferenceSpec, _> = toml::from_str("kind = \"fourier_inline\"\nomega = 1.0\nq0 = [0.0]\na = [[0.1]]\nb = [[0.0]]\nzz = 3");
     assert!(r.unwrap_err().to_string().contains("zz"));
     // a period that is not a whole number of controller steps
     let d = design(

@@ -27,7 +27,7 @@
 //! and elastic coordinates.
 
 use crate::error::{Error, Result};
-use crate::robot::{self, Drive, Frame, Friction, Inertial, Joint, JointKind, JointLimits, Link, ParamKind, Robot};
+use crate::robot::{self, Drive, Frame, Friction, Inertial, Joint, JointKind, JointLimits, Link, ParamKind, Robot, RobotParts};
 use nalgebra::{DMatrix, Isometry3, Matrix3, Unit, Vector3};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -180,6 +180,354 @@ fn rpy_iso(xyz: [f64; 3], rpy: [f64; 3]) -> Isometry3<f64> {
     Isometry3::from_parts(nalgebra::Translation3::new(xyz[0], xyz[1], xyz[2]), r)
 }
 
+/// Adds the payload's inertial (if any) to its link of the rigid robot.
+fn add_payload(rigid: &mut Robot, payload: Option<&PayloadSpec>, rpath: &Path, ctxm: &str) -> Result<()> {
+    if let Some(p) = payload {
+        let i = rigid
+            .links
+            .iter()
+            .position(|l| l.name == p.link)
+            .ok_or_else(|| Error::invalid(ctxm, "payload.link", format!("no link `{}` in {}", p.link, rpath.display())))?;
+        finite_pos(ctxm, "payload.mass", p.mass, true)?;
+        let c = p.com;
+        let ii = p.inertia;
+        if c.iter().chain(ii.iter()).any(|v| !v.is_finite()) {
+            return Err(Error::invalid(ctxm, "payload", "com and inertia must be finite"));
+        }
+        let ic = Matrix3::new(ii[0], ii[1], ii[2], ii[1], ii[3], ii[4], ii[2], ii[4], ii[5]);
+        let add = Inertial::from_com(p.mass, Vector3::new(c[0], c[1], c[2]), ic, Matrix3::identity());
+        rigid.links[i].inertial = rigid.links[i].inertial.add(&add);
+    }
+    Ok(())
+}
+
+/// The gearbox entry of every actuated joint (exactly one each), checked.
+fn gearbox_per_joint<'a>(rigid: &Robot, spec: &'a ElasticSpec, names: &[String], ctxm: &str) -> Result<Vec<&'a GearboxSpec>> {
+    let na = rigid.dof();
+    let mut gear: Vec<Option<&GearboxSpec>> = vec![None; na];
+    for (gi, g) in spec.gearbox.iter().enumerate() {
+        let j = rigid
+            .joints
+            .iter()
+            .position(|jj| jj.name == g.joint)
+            .ok_or_else(|| Error::invalid(ctxm, format!("gearbox[{gi}].joint"), format!("no actuated joint `{}` in the robot", g.joint)))?;
+        if gear[j].is_some() {
+            return Err(Error::invalid(
+                ctxm,
+                format!("gearbox[{gi}].joint"),
+                format!("joint `{}` has two gearbox entries", g.joint),
+            ));
+        }
+        finite_pos(ctxm, &format!("gearbox[{gi}].k"), g.k, false)?;
+        finite_pos(ctxm, &format!("gearbox[{gi}].d"), g.d, true)?;
+        if let Some(ia) = g.ia {
+            finite_pos(ctxm, &format!("gearbox[{gi}].ia"), ia, false)?;
+        }
+        gear[j] = Some(g);
+    }
+    gear.into_iter()
+        .enumerate()
+        .map(|(j, g)| g.ok_or_else(|| Error::invalid(ctxm, "gearbox", format!("missing a [[model.gearbox]] entry for joint `{}`", names[j]))))
+        .collect::<Result<_>>()
+}
+
+/// Host of every elastic joint (None = the base, else the actuated joint it
+/// follows), with the elastic joints' fields checked.
+fn elastic_hosts(spec: &ElasticSpec, names: &[String], ctxm: &str) -> Result<Vec<Option<usize>>> {
+    let mut hosts: Vec<Option<usize>> = Vec::new();
+    for (ei, e) in spec.elastic.iter().enumerate() {
+        let f = |s: &str| format!("elastic[{ei}].{s}");
+        if e.name.is_empty() || spec.elastic[..ei].iter().any(|o| o.name == e.name) || names.contains(&e.name) {
+            return Err(Error::invalid(
+                ctxm,
+                f("name"),
+                format!("`{}` must be a non-empty name unique among joints", e.name),
+            ));
+        }
+        let host = if e.after == "base" {
+            None
+        } else {
+            Some(
+                names
+                    .iter()
+                    .position(|n| *n == e.after)
+                    .ok_or_else(|| Error::invalid(ctxm, f("after"), format!("expected `base` or an actuated joint name, found `{}`", e.after)))?,
+            )
+        };
+        let a = Vector3::from(e.axis);
+        if !a.iter().all(|v| v.is_finite()) || a.norm() < 1e-9 {
+            return Err(Error::invalid(ctxm, f("axis"), "expected a finite non-zero vector"));
+        }
+        if e.xyz.iter().chain(e.rpy.iter()).any(|v| !v.is_finite()) {
+            return Err(Error::invalid(ctxm, f("xyz"), "expected finite numbers"));
+        }
+        finite_pos(ctxm, &f("k"), e.k, false)?;
+        finite_pos(ctxm, &f("d"), e.d, true)?;
+        hosts.push(host);
+    }
+    Ok(hosts)
+}
+
+/// The extended chain: the rigid robot with the elastic joints inserted
+/// (massless links), and where every actuated and elastic joint landed.
+struct ExtendedChain {
+    /// The extended robot (no drives, no coupling).
+    ext: Robot,
+    /// Index in `ext` of actuated joint j.
+    act_index: Vec<usize>,
+    /// Index in `ext` of elastic joint e.
+    elastic_index: Vec<usize>,
+    /// Index in `ext` of the last joint of actuated joint j's segment (its body sits there).
+    tail: Vec<usize>,
+}
+
+/// Builds the extended chain: base elastic joints first, then every actuated
+/// joint followed by the elastic joints it hosts; each rigid body moves to the
+/// tail of its segment.
+fn extended_chain(rigid: &Robot, spec: &ElasticSpec, hosts: &[Option<usize>]) -> Result<ExtendedChain> {
+    let na = rigid.dof();
+    let mut joints: Vec<Joint> = Vec::new();
+    let mut links: Vec<Link> = Vec::new();
+    let mut act_index = vec![0usize; na];
+    let mut elastic_index = vec![0usize; spec.elastic.len()];
+    let mut tail: Vec<usize> = vec![0; na];
+    let push_elastic = |ei: usize, parent: Option<usize>, host_name: &str, joints: &mut Vec<Joint>, links: &mut Vec<Link>| {
+        let e = &spec.elastic[ei];
+        let pl = rpy_iso(e.xyz, e.rpy);
+        joints.push(Joint {
+            name: e.name.clone(),
+            kind: JointKind::Revolute,
+            parent,
+            placement: pl,
+            axis: Unit::new_normalize(Vector3::from(e.axis)),
+            post: pl.inverse(),
+            offset: 0.0,
+            limits: JointLimits::default(),
+        });
+        links.push(Link {
+            name: format!("{host_name}_{}", e.name),
+            inertial: Inertial::zero(),
+        });
+        joints.len() - 1
+    };
+    let mut base_tail: Option<usize> = None;
+    for ei in 0..spec.elastic.len() {
+        if hosts[ei].is_none() {
+            let k = push_elastic(ei, base_tail, "base", &mut joints, &mut links);
+            elastic_index[ei] = k;
+            base_tail = Some(k);
+        }
+    }
+    for j in 0..na {
+        let rj = &rigid.joints[j];
+        let parent = match rj.parent {
+            None => base_tail,
+            Some(p) => Some(tail[p]),
+        };
+        let mut jj = rj.clone();
+        jj.parent = parent;
+        joints.push(jj);
+        links.push(Link {
+            name: rigid.links[j].name.clone(),
+            inertial: Inertial::zero(),
+        });
+        act_index[j] = joints.len() - 1;
+        let mut t = act_index[j];
+        for ei in 0..spec.elastic.len() {
+            if hosts[ei] == Some(j) {
+                let k = push_elastic(ei, Some(t), &rigid.links[j].name, &mut joints, &mut links);
+                elastic_index[ei] = k;
+                t = k;
+            }
+        }
+        tail[j] = t;
+        // the body (and its name, for frames) sits at the tail
+        if t != act_index[j] {
+            let nm = links[act_index[j]].name.clone();
+            links[act_index[j]].name = format!("{nm}_gear");
+            links[t].name = nm;
+        }
+        links[t].inertial = rigid.links[j].inertial;
+    }
+    let frames: Vec<Frame> = rigid
+        .frames
+        .iter()
+        .map(|f| Frame {
+            name: f.name.clone(),
+            link: f.link.map(|l| tail[l]),
+            placement: f.placement,
+        })
+        .collect();
+    let nx = joints.len();
+    let drives = vec![
+        Drive {
+            rotor_inertia: None,
+            gear_ratio: 1.0,
+            friction: Friction::None,
+        };
+        nx
+    ];
+    let ext = Robot::new(RobotParts {
+        name: format!("{} (elastic)", rigid.name),
+        joints,
+        links,
+        drives,
+        coupling: None,
+        frames,
+        gravity: rigid.gravity,
+        source: format!("extended from {}", rigid.source),
+    })?;
+    Ok(ExtendedChain {
+        ext,
+        act_index,
+        elastic_index,
+        tail,
+    })
+}
+
+/// Every parameter of the model in its canonical order: gear spring and
+/// damper per actuated joint, arm spring and damper per elastic joint, rotor
+/// inertia and viscous friction per motor, the ten inertial parameters per link.
+fn model_params(rigid: &Robot, chain: &ExtendedChain, spec: &ElasticSpec, gear: &[&GearboxSpec], names: &[String], ctxm: &str) -> Result<Vec<ModelParam>> {
+    let na = rigid.dof();
+    let (ext, tail) = (&chain.ext, &chain.tail);
+    let mut params = Vec::new();
+    for j in 0..na {
+        let g = gear[j];
+        params.push(ModelParam {
+            name: format!("k_{}", names[j]),
+            role: ParamRole::GearSpring(j),
+            nominal: g.k,
+            positive: true,
+        });
+        params.push(ModelParam {
+            name: format!("d_{}", names[j]),
+            role: ParamRole::GearDamper(j),
+            nominal: g.d,
+            positive: true,
+        });
+    }
+    for (ei, e) in spec.elastic.iter().enumerate() {
+        params.push(ModelParam {
+            name: format!("k_{}", e.name),
+            role: ParamRole::ArmSpring(ei),
+            nominal: e.k,
+            positive: true,
+        });
+        params.push(ModelParam {
+            name: format!("d_{}", e.name),
+            role: ParamRole::ArmDamper(ei),
+            nominal: e.d,
+            positive: true,
+        });
+    }
+    for j in 0..na {
+        let ia = match (gear[j].ia, rigid.drives[j].rotor_inertia) {
+            (Some(v), _) => v,
+            (None, Some(v)) if v > 0.0 => v,
+            _ => {
+                return Err(Error::invalid(
+                    ctxm,
+                    format!("gearbox[{}].ia", names[j]),
+                    "the motor side needs a positive rotor inertia: give `ia` in the robot file's [[drive]] or in the gearbox entry",
+                ))
+            }
+        };
+        params.push(ModelParam {
+            name: format!("Ia{}", j + 1),
+            role: ParamRole::RotorInertia(j),
+            nominal: ia,
+            positive: true,
+        });
+        let fv = match rigid.drives[j].friction {
+            Friction::None => 0.0,
+            Friction::Symmetric { fv, .. } => fv,
+            Friction::Asymmetric { fv_pos, fv_neg, .. } => 0.5 * (fv_pos + fv_neg),
+        };
+        params.push(ModelParam {
+            name: format!("Fv{}", j + 1),
+            role: ParamRole::MotorViscous(j),
+            nominal: fv,
+            positive: fv > 0.0,
+        });
+    }
+    let nominal_ext = ext.nominal_params();
+    for j in 0..na {
+        let off = ext.link_param_offset(tail[j]);
+        for (k, kind) in ParamKind::INERTIAL.iter().enumerate() {
+            let v = nominal_ext[off + k];
+            let positive = matches!(kind, ParamKind::M | ParamKind::XX | ParamKind::YY | ParamKind::ZZ) && v > 0.0;
+            params.push(ModelParam {
+                name: format!("{}{}", kind.label(), j + 1),
+                role: ParamRole::Link(off + k),
+                nominal: v,
+                positive,
+            });
+        }
+    }
+    Ok(params)
+}
+
+/// Applies `[model.nominal]`: name → value, positive where the parameter must be.
+fn apply_nominal_overrides(params: &mut [ModelParam], spec: &ElasticSpec, ctxm: &str) -> Result<()> {
+    for (name, v) in &spec.nominal {
+        let p = params.iter_mut().find(|p| &p.name == name).ok_or_else(|| {
+            Error::invalid(
+                ctxm,
+                format!("nominal.{name}"),
+                "no parameter of that name (k_<joint>, d_<joint>, Ia<j>, Fv<j>, XX<j>..M<j>)",
+            )
+        })?;
+        if !v.is_finite() || (p.positive && *v <= 0.0) {
+            return Err(Error::invalid(
+                ctxm,
+                format!("nominal.{name}"),
+                format!("expected a finite{} value, found {v}", if p.positive { " positive" } else { "" }),
+            ));
+        }
+        p.nominal = *v;
+    }
+    Ok(())
+}
+
+/// Indices of the unknowns (names or groups), in the canonical order of `params`.
+fn select_unknowns(params: &[ModelParam], spec: &ElasticSpec, ctxm: &str) -> Result<Vec<usize>> {
+    let mut unknowns: Vec<usize> = Vec::new();
+    for (ui, u) in spec.unknowns.iter().enumerate() {
+        // a group name selects every parameter whose role it covers
+        let group: Option<fn(&ParamRole) -> bool> = match u.as_str() {
+            "springs" => Some(|r| matches!(r, ParamRole::GearSpring(_) | ParamRole::ArmSpring(_))),
+            "dampers" => Some(|r| matches!(r, ParamRole::GearDamper(_) | ParamRole::ArmDamper(_))),
+            "gear_springs" => Some(|r| matches!(r, ParamRole::GearSpring(_))),
+            "gear_dampers" => Some(|r| matches!(r, ParamRole::GearDamper(_))),
+            "arm_springs" => Some(|r| matches!(r, ParamRole::ArmSpring(_))),
+            "arm_dampers" => Some(|r| matches!(r, ParamRole::ArmDamper(_))),
+            _ => None,
+        };
+        let sel: Vec<usize> = match (group, u.as_str()) {
+            (Some(in_group), _) => params.iter().enumerate().filter(|(_, p)| in_group(&p.role)).map(|(i, _)| i).collect(),
+            (None, name) => {
+                let i = params.iter().position(|p| p.name == name).ok_or_else(|| {
+                    Error::invalid(
+                        ctxm,
+                        format!("unknowns[{ui}]"),
+                        format!("`{name}` is neither a parameter name nor a group (springs, dampers, gear_springs, gear_dampers, arm_springs, arm_dampers)"),
+                    )
+                })?;
+                vec![i]
+            }
+        };
+        for i in sel {
+            if !unknowns.contains(&i) {
+                unknowns.push(i);
+            }
+        }
+    }
+    // keep the model's canonical order (as in `params`)
+    unknowns.sort_unstable();
+    Ok(unknowns)
+}
+
 impl ElasticModel {
     /// Loads the `[model]` table of a design file (other tables are ignored
     /// here), resolving the robot path relative to the file.
@@ -202,314 +550,29 @@ impl ElasticModel {
     }
 
     /// Builds the model from a spec; `base` resolves the robot path, `ctx` names the file in errors.
+    ///
+    /// Steps: load the rigid robot and add the payload; match one gearbox to
+    /// every actuated joint; place the elastic joints on their hosts; build
+    /// the extended chain; list the parameters and apply the nominal
+    /// overrides; select the unknowns.
     pub fn from_spec(spec: &ElasticSpec, base: &Path, ctx: &str) -> Result<ElasticModel> {
         let rpath = base.join(&spec.robot);
         let mut rigid = robot::load(&rpath)?;
         let ctxm = format!("{ctx} [model]");
-        if let Some(p) = &spec.payload {
-            let i = rigid
-                .links
-                .iter()
-                .position(|l| l.name == p.link)
-                .ok_or_else(|| Error::invalid(&ctxm, "payload.link", format!("no link `{}` in {}", p.link, rpath.display())))?;
-            finite_pos(&ctxm, "payload.mass", p.mass, true)?;
-            let c = p.com;
-            let ii = p.inertia;
-            if c.iter().chain(ii.iter()).any(|v| !v.is_finite()) {
-                return Err(Error::invalid(&ctxm, "payload", "com and inertia must be finite"));
-            }
-            let ic = Matrix3::new(ii[0], ii[1], ii[2], ii[1], ii[3], ii[4], ii[2], ii[4], ii[5]);
-            let add = Inertial::from_com(p.mass, Vector3::new(c[0], c[1], c[2]), ic, Matrix3::identity());
-            rigid.links[i].inertial = rigid.links[i].inertial.add(&add);
-        }
-        let na = rigid.dof();
-        // gearboxes
-        let mut gear: Vec<Option<&GearboxSpec>> = vec![None; na];
-        for (gi, g) in spec.gearbox.iter().enumerate() {
-            let j = rigid
-                .joints
-                .iter()
-                .position(|jj| jj.name == g.joint)
-                .ok_or_else(|| Error::invalid(&ctxm, format!("gearbox[{gi}].joint"), format!("no actuated joint `{}` in the robot", g.joint)))?;
-            if gear[j].is_some() {
-                return Err(Error::invalid(
-                    &ctxm,
-                    format!("gearbox[{gi}].joint"),
-                    format!("joint `{}` has two gearbox entries", g.joint),
-                ));
-            }
-            finite_pos(&ctxm, &format!("gearbox[{gi}].k"), g.k, false)?;
-            finite_pos(&ctxm, &format!("gearbox[{gi}].d"), g.d, true)?;
-            if let Some(ia) = g.ia {
-                finite_pos(&ctxm, &format!("gearbox[{gi}].ia"), ia, false)?;
-            }
-            gear[j] = Some(g);
-        }
+        add_payload(&mut rigid, spec.payload.as_ref(), &rpath, &ctxm)?;
         let names: Vec<String> = rigid.joints.iter().map(|j| j.name.clone()).collect();
-        let gear: Vec<&GearboxSpec> = gear
-            .into_iter()
-            .enumerate()
-            .map(|(j, g)| g.ok_or_else(|| Error::invalid(&ctxm, "gearbox", format!("missing a [[model.gearbox]] entry for joint `{}`", names[j]))))
-            .collect::<Result<_>>()?;
-        // elastic joints, grouped by host (None = base)
-        let mut hosts: Vec<Option<usize>> = Vec::new();
-        for (ei, e) in spec.elastic.iter().enumerate() {
-            let f = |s: &str| format!("elastic[{ei}].{s}");
-            if e.name.is_empty() || spec.elastic[..ei].iter().any(|o| o.name == e.name) || names.contains(&e.name) {
-                return Err(Error::invalid(
-                    &ctxm,
-                    f("name"),
-                    format!("`{}` must be a non-empty name unique among joints", e.name),
-                ));
-            }
-            let host = if e.after == "base" {
-                None
-            } else {
-                Some(
-                    names
-                        .iter()
-                        .position(|n| *n == e.after)
-                        .ok_or_else(|| Error::invalid(&ctxm, f("after"), format!("expected `base` or an actuated joint name, found `{}`", e.after)))?,
-                )
-            };
-            let a = Vector3::from(e.axis);
-            if !a.iter().all(|v| v.is_finite()) || a.norm() < 1e-9 {
-                return Err(Error::invalid(&ctxm, f("axis"), "expected a finite non-zero vector"));
-            }
-            if e.xyz.iter().chain(e.rpy.iter()).any(|v| !v.is_finite()) {
-                return Err(Error::invalid(&ctxm, f("xyz"), "expected finite numbers"));
-            }
-            finite_pos(&ctxm, &f("k"), e.k, false)?;
-            finite_pos(&ctxm, &f("d"), e.d, true)?;
-            hosts.push(host);
-        }
-        // build the extended chain
-        let mut joints: Vec<Joint> = Vec::new();
-        let mut links: Vec<Link> = Vec::new();
-        let mut act_index = vec![0usize; na];
-        let mut elastic_index = vec![0usize; spec.elastic.len()];
-        let mut tail: Vec<usize> = vec![0; na];
-        let push_elastic = |ei: usize, parent: Option<usize>, host_name: &str, joints: &mut Vec<Joint>, links: &mut Vec<Link>| {
-            let e = &spec.elastic[ei];
-            let pl = rpy_iso(e.xyz, e.rpy);
-            joints.push(Joint {
-                name: e.name.clone(),
-                kind: JointKind::Revolute,
-                parent,
-                placement: pl,
-                axis: Unit::new_normalize(Vector3::from(e.axis)),
-                post: pl.inverse(),
-                offset: 0.0,
-                limits: JointLimits::default(),
-            });
-            links.push(Link {
-                name: format!("{host_name}_{}", e.name),
-                inertial: Inertial::zero(),
-            });
-            joints.len() - 1
-        };
-        let mut base_tail: Option<usize> = None;
-        for ei in 0..spec.elastic.len() {
-            if hosts[ei].is_none() {
-                let k = push_elastic(ei, base_tail, "base", &mut joints, &mut links);
-                elastic_index[ei] = k;
-                base_tail = Some(k);
-            }
-        }
-        for j in 0..na {
-            let rj = &rigid.joints[j];
-            let parent = match rj.parent {
-                None => base_tail,
-                Some(p) => Some(tail[p]),
-            };
-            let mut jj = rj.clone();
-            jj.parent = parent;
-            joints.push(jj);
-            links.push(Link {
-                name: rigid.links[j].name.clone(),
-                inertial: Inertial::zero(),
-            });
-            act_index[j] = joints.len() - 1;
-            let mut t = act_index[j];
-            for ei in 0..spec.elastic.len() {
-                if hosts[ei] == Some(j) {
-                    let k = push_elastic(ei, Some(t), &rigid.links[j].name, &mut joints, &mut links);
-                    elastic_index[ei] = k;
-                    t = k;
-                }
-            }
-            tail[j] = t;
-            // the body (and its name, for frames) sits at the tail
-            if t != act_index[j] {
-                let nm = links[act_index[j]].name.clone();
-                links[act_index[j]].name = format!("{nm}_gear");
-                links[t].name = nm;
-            }
-            links[t].inertial = rigid.links[j].inertial;
-        }
-        let frames: Vec<Frame> = rigid
-            .frames
-            .iter()
-            .map(|f| Frame {
-                name: f.name.clone(),
-                link: f.link.map(|l| tail[l]),
-                placement: f.placement,
-            })
-            .collect();
-        let nx = joints.len();
-        let drives = vec![
-            Drive {
-                rotor_inertia: None,
-                gear_ratio: 1.0,
-                friction: Friction::None,
-            };
-            nx
-        ];
-        let ext = Robot::new(
-            format!("{} (elastic)", rigid.name),
-            joints,
-            links,
-            drives,
-            None,
-            frames,
-            rigid.gravity,
-            format!("extended from {}", rigid.source),
-        )?;
-        // parameters
-        let mut params = Vec::new();
-        for j in 0..na {
-            let g = gear[j];
-            params.push(ModelParam {
-                name: format!("k_{}", names[j]),
-                role: ParamRole::GearSpring(j),
-                nominal: g.k,
-                positive: true,
-            });
-            params.push(ModelParam {
-                name: format!("d_{}", names[j]),
-                role: ParamRole::GearDamper(j),
-                nominal: g.d,
-                positive: true,
-            });
-        }
-        for (ei, e) in spec.elastic.iter().enumerate() {
-            params.push(ModelParam {
-                name: format!("k_{}", e.name),
-                role: ParamRole::ArmSpring(ei),
-                nominal: e.k,
-                positive: true,
-            });
-            params.push(ModelParam {
-                name: format!("d_{}", e.name),
-                role: ParamRole::ArmDamper(ei),
-                nominal: e.d,
-                positive: true,
-            });
-        }
-        for j in 0..na {
-            let ia = match (gear[j].ia, rigid.drives[j].rotor_inertia) {
-                (Some(v), _) => v,
-                (None, Some(v)) if v > 0.0 => v,
-                _ => {
-                    return Err(Error::invalid(
-                        &ctxm,
-                        format!("gearbox[{}].ia", names[j]),
-                        "the motor side needs a positive rotor inertia: give `ia` in the robot file's [[drive]] or in the gearbox entry",
-                    ))
-                }
-            };
-            params.push(ModelParam {
-                name: format!("Ia{}", j + 1),
-                role: ParamRole::RotorInertia(j),
-                nominal: ia,
-                positive: true,
-            });
-            let fv = match rigid.drives[j].friction {
-                Friction::None => 0.0,
-                Friction::Symmetric { fv, .. } => fv,
-                Friction::Asymmetric { fv_pos, fv_neg, .. } => 0.5 * (fv_pos + fv_neg),
-            };
-            params.push(ModelParam {
-                name: format!("Fv{}", j + 1),
-                role: ParamRole::MotorViscous(j),
-                nominal: fv,
-                positive: fv > 0.0,
-            });
-        }
-        let nominal_ext = ext.nominal_params();
-        for j in 0..na {
-            let off = ext.link_param_offset(tail[j]);
-            for (k, kind) in ParamKind::INERTIAL.iter().enumerate() {
-                let v = nominal_ext[off + k];
-                let positive = matches!(kind, ParamKind::M | ParamKind::XX | ParamKind::YY | ParamKind::ZZ) && v > 0.0;
-                params.push(ModelParam {
-                    name: format!("{}{}", kind.label(), j + 1),
-                    role: ParamRole::Link(off + k),
-                    nominal: v,
-                    positive,
-                });
-            }
-        }
-        // nominal overrides
-        for (name, v) in &spec.nominal {
-            let p = params.iter_mut().find(|p| &p.name == name).ok_or_else(|| {
-                Error::invalid(
-                    &ctxm,
-                    format!("nominal.{name}"),
-                    "no parameter of that name (k_<joint>, d_<joint>, Ia<j>, Fv<j>, XX<j>..M<j>)",
-                )
-            })?;
-            if !v.is_finite() || (p.positive && *v <= 0.0) {
-                return Err(Error::invalid(
-                    &ctxm,
-                    format!("nominal.{name}"),
-                    format!("expected a finite{} value, found {v}", if p.positive { " positive" } else { "" }),
-                ));
-            }
-            p.nominal = *v;
-        }
-        // unknowns
-        let mut unknowns: Vec<usize> = Vec::new();
-        for (ui, u) in spec.unknowns.iter().enumerate() {
-            // a group name selects every parameter whose role it covers
-            let group: Option<fn(&ParamRole) -> bool> = match u.as_str() {
-                "springs" => Some(|r| matches!(r, ParamRole::GearSpring(_) | ParamRole::ArmSpring(_))),
-                "dampers" => Some(|r| matches!(r, ParamRole::GearDamper(_) | ParamRole::ArmDamper(_))),
-                "gear_springs" => Some(|r| matches!(r, ParamRole::GearSpring(_))),
-                "gear_dampers" => Some(|r| matches!(r, ParamRole::GearDamper(_))),
-                "arm_springs" => Some(|r| matches!(r, ParamRole::ArmSpring(_))),
-                "arm_dampers" => Some(|r| matches!(r, ParamRole::ArmDamper(_))),
-                _ => None,
-            };
-            let sel: Vec<usize> = match (group, u.as_str()) {
-                (Some(in_group), _) => params.iter().enumerate().filter(|(_, p)| in_group(&p.role)).map(|(i, _)| i).collect(),
-                (None, name) => {
-                    let i = params.iter().position(|p| p.name == name).ok_or_else(|| {
-                        Error::invalid(
-                            &ctxm,
-                            format!("unknowns[{ui}]"),
-                            format!(
-                                "`{name}` is neither a parameter name nor a group (springs, dampers, gear_springs, gear_dampers, arm_springs, arm_dampers)"
-                            ),
-                        )
-                    })?;
-                    vec![i]
-                }
-            };
-            for i in sel {
-                if !unknowns.contains(&i) {
-                    unknowns.push(i);
-                }
-            }
-        }
-        // keep the model's canonical order (as in `params`)
-        unknowns.sort_unstable();
+        let gear = gearbox_per_joint(&rigid, spec, &names, &ctxm)?;
+        let hosts = elastic_hosts(spec, &names, &ctxm)?;
+        let chain = extended_chain(&rigid, spec, &hosts)?;
+        let mut params = model_params(&rigid, &chain, spec, &gear, &names, &ctxm)?;
+        apply_nominal_overrides(&mut params, spec, &ctxm)?;
+        let unknowns = select_unknowns(&params, spec, &ctxm)?;
         let coupling = rigid.coupling_matrix();
         Ok(ElasticModel {
             rigid,
-            ext,
-            act_index,
-            elastic_index,
+            ext: chain.ext,
+            act_index: chain.act_index,
+            elastic_index: chain.elastic_index,
             elastic_names: spec.elastic.iter().map(|e| e.name.clone()).collect(),
             coupling,
             params,

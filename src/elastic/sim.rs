@@ -26,8 +26,8 @@
 //! Recorded: the controller output u and the measured motor positions y.
 
 use super::model::{ElasticModel, ParamRole};
+use crate::data::MotorRecord;
 use crate::error::{Error, Result};
-use crate::frf::estimate::Run;
 use crate::robot::{self, Robot, Workspace};
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
@@ -188,7 +188,7 @@ impl ClosedLoop {
 
     /// Simulates `periods` periods of the reference from rest at the static
     /// equilibrium, returning the sampled controller output and measured motor positions.
-    pub fn run(&self, r: &Reference, periods: usize, seed: u64) -> Result<Run> {
+    pub fn run(&self, r: &Reference, periods: usize, seed: u64) -> Result<MotorRecord> {
         let na = self.na;
         let nx = self.ext.dof();
         let np = r.speed.first().map(|v| v.len()).unwrap_or(0);
@@ -206,7 +206,7 @@ impl ClosedLoop {
         let mut integ = vec![0.0; na];
         let mut y_prev: Option<Vec<f64>> = None;
         let total = periods * np;
-        let mut out = Run {
+        let mut out = MotorRecord {
             u: Vec::with_capacity(total),
             y: Vec::with_capacity(total),
         };

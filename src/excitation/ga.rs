@@ -13,6 +13,7 @@
 //! evaluations are pure functions of the genes, run in parallel and collected
 //! in order, so the result does not depend on the thread count.
 
+use crate::rng::mix;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -111,14 +112,6 @@ pub struct GaResult {
     pub seconds: f64,
 }
 
-/// splitmix64 mixing of a seed with stream indices.
-pub fn mix(seed: u64, a: u64, b: u64) -> u64 {
-    let mut z = seed ^ a.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ b.wrapping_mul(0xD1B5_4A32_D192_ED03);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
 fn tournament<'a>(pop: &'a [Individual], rng: &mut ChaCha8Rng) -> &'a Individual {
     let a = &pop[rng.random_range(0..pop.len())];
     let b = &pop[rng.random_range(0..pop.len())];
@@ -183,6 +176,7 @@ fn poly_mutation(x: f64, lo: f64, hi: f64, eta: f64, rng: &mut ChaCha8Rng) -> f6
 /// workspace constraints satisfiable from the start).
 /// `eval(ws, x)` returns (objective, violation) and may repair x in place.
 /// `observe(gen, best)` is called after each generation (progress bars).
+#[allow(clippy::too_many_arguments)] // bounds, start points and the three callbacks; part B replaces this loop with a solver
 pub fn run<W, M, E, O>(s: &GaSettings, lower: &[f64], upper: &[f64], centre: &[f64], initial: &[Vec<f64>], make_ws: M, eval: E, mut observe: O) -> GaResult
 where
     M: Fn() -> W + Sync + Send,

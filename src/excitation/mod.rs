@@ -49,7 +49,7 @@ use crate::robot::Robot;
 use crate::trajectory::{period_grid, FourierLayout, FourierTrajectory};
 use constraints::{Constraints, JointLimitSpec, Margin};
 use design::{ExciteDesign, RefineAlgorithm};
-use objective::{Columns, Objective, Spectrum};
+use objective::{BaseColumns, Columns, Objective, Scoring, Spectrum};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -214,17 +214,20 @@ impl Problem {
         let layout = FourierLayout::new(q0.clone(), tr.harmonics, omega, tr.vary_q0, tr.at_rest)?;
         let times = period_grid(1.0 / tr.frequency, design.objective.sample_rate)?;
         let noise = design.objective.noise.clone().unwrap_or_else(|| vec![1.0; n]);
-        let nominal_cols = nominal_base.clone();
         let objective = Objective::new(
             robot.clone(),
             layout.clone(),
-            base.independent.clone(),
-            base.names.clone(),
-            &nominal_cols,
+            BaseColumns {
+                indices: base.independent.clone(),
+                names: base.names.clone(),
+                nominal: nominal_base.clone(),
+            },
             times,
-            design.objective.criterion,
-            design.objective.scaling,
-            &noise,
+            Scoring {
+                criterion: design.objective.criterion,
+                scaling: design.objective.scaling,
+                noise: noise.clone(),
+            },
         )?;
         let constraints = Constraints::new(&robot, &layout, &limits, &design.workspace, l.grid_rate, ctx)?;
         // box: each harmonic alone within the joint's limits

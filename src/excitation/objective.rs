@@ -179,23 +179,40 @@ pub struct Spectrum {
     pub criterion: f64,
 }
 
+/// The m columns of the stacked regressor C: which standard parameters, their
+/// names and nominal values.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BaseColumns {
+    /// Standard-parameter indices into the robot's parameter vector.
+    pub indices: Vec<usize>,
+    /// Labels of the columns (base-parameter names).
+    pub names: Vec<String>,
+    /// Nominal value of each column's parameter (for [`Scaling::Nominal`]).
+    pub nominal: Vec<f64>,
+}
+
+/// How C is scored: the criterion, the column scaling and the per-joint torque
+/// noise standard deviations σ_j (N·m or N; rows are weighted by 1/σ_j).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scoring {
+    /// Criterion.
+    pub criterion: Criterion,
+    /// Column scaling.
+    pub scaling: Scaling,
+    /// σ_j, one per joint.
+    pub noise: Vec<f64>,
+}
+
 impl Objective {
-    /// Builds the objective. `columns` are standard-parameter indices into
-    /// the robot's parameter vector, `names` their labels, `base_nominal` the
-    /// nominal value of each column's parameter (for [`Scaling::Nominal`]),
-    /// `noise` the per-joint torque noise standard deviations (N·m or N).
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        robot: Robot,
-        layout: FourierLayout,
-        columns: Vec<usize>,
-        column_names: Vec<String>,
-        base_nominal: &[f64],
-        times: Vec<f64>,
-        criterion: Criterion,
-        scaling: Scaling,
-        noise: &[f64],
-    ) -> Result<Self> {
+    /// Builds the objective for `robot`, the design-vector layout, the columns
+    /// of C, the sample times (s) over one period and the scoring.
+    pub fn new(robot: Robot, layout: FourierLayout, columns: BaseColumns, times: Vec<f64>, scoring: Scoring) -> Result<Self> {
+        let BaseColumns {
+            indices: columns,
+            names: column_names,
+            nominal: base_nominal,
+        } = columns;
+        let Scoring { criterion, scaling, noise } = scoring;
         let n = robot.dof();
         if layout.n != n {
             return Err(Error::dim("trajectory joints vs robot joints", n, layout.n));

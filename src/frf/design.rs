@@ -5,6 +5,7 @@
 
 use crate::elastic::{ElasticModel, ElasticSpec, Estimator, Output};
 use crate::error::{Error, Result};
+pub use crate::trajectory::multisine::{lines, MultisineSpec, Spectrum};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -34,54 +35,6 @@ pub struct Design {
     /// Parameter estimation.
     #[serde(default)]
     pub fit: FitSpec,
-}
-
-/// Shape of the multisine amplitude spectrum.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum Spectrum {
-    /// Equal amplitudes on every excited line (paper 001 §6).
-    #[default]
-    Flat,
-    /// A_k ∝ 1/f_k (more low-frequency speed, flatter acceleration).
-    Inverse,
-}
-
-/// Odd random-phase orthogonal multisine (paper 001 §4).
-#[derive(Debug, Clone, Deserialize, Serialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct MultisineSpec {
-    /// Controller sample rate (Hz).
-    pub rate: f64,
-    /// Period (s); rate·period must be an even integer N_P. Line spacing 1/period.
-    pub period: f64,
-    /// Excited band [f_min, f_max] (Hz): odd lines k/period inside.
-    pub band: [f64; 2],
-    /// RMS of each motor speed reference (rad/s, joint side): one value or one per motor.
-    pub amplitude: Vec<f64>,
-    /// Amplitude spectrum shape.
-    pub spectrum: Spectrum,
-    /// Blocks with independent random phases.
-    pub blocks: usize,
-    /// Measured periods per experiment (steady state).
-    pub periods: usize,
-    /// Periods discarded before measuring (transient).
-    pub transient: usize,
-}
-
-impl Default for MultisineSpec {
-    fn default() -> Self {
-        MultisineSpec {
-            rate: 1000.0,
-            period: 1.0,
-            band: [2.0, 100.0],
-            amplitude: vec![0.05],
-            spectrum: Spectrum::Flat,
-            blocks: 4,
-            periods: 2,
-            transient: 2,
-        }
-    }
 }
 
 /// How measurements are simulated.
@@ -240,20 +193,6 @@ impl Default for FitSpec {
     }
 }
 
-/// Multisine lines of a spec: (N_P, excited odd harmonics, even detection harmonics).
-pub fn lines(ms: &MultisineSpec) -> (usize, Vec<usize>, Vec<usize>) {
-    let np = (ms.rate * ms.period).round() as usize;
-    let f0 = 1.0 / ms.period;
-    let kmax = np / 2 - 1;
-    let inb = |k: usize| {
-        let f = k as f64 * f0;
-        f >= ms.band[0] - 1e-9 && f <= ms.band[1] + 1e-9
-    };
-    let odd = (1..=kmax).filter(|k| k % 2 == 1 && inb(*k)).collect();
-    let even = (1..=kmax).filter(|k| k % 2 == 0 && inb(*k)).collect();
-    (np, odd, even)
-}
-
 impl Design {
     /// Reads and validates a design file; returns it with the loaded model.
     pub fn load(path: &Path) -> Result<(Design, ElasticModel)> {
@@ -410,5 +349,54 @@ impl Design {
     /// The output folder: `out/<name>` unless given.
     pub fn out_dir(&self, out: Option<&Path>) -> PathBuf {
         out.map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("out").join(&self.name))
+    }
+}
+
+/// `[simulate]` as read by the other problems: only the relative noise.
+#[derive(Debug, Clone, Default, Deserialize)]
+pub struct SimulateNoise {
+    /// Relative standard deviation of each block FRF element.
+    pub noise_rel: Option<f64>,
+}
+
+/// `[fit]` as read by the other problems: only the estimator.
+#[derive(Debug, Clone, Default, Deserialize)]
+pub struct FitEstimator {
+    /// NLS or log-LS criterion.
+    pub estimator: Option<Estimator>,
+}
+
+/// `[frf]` as read by the other problems: only the output quantity.
+#[derive(Debug, Clone, Default, Deserialize)]
+pub struct FrfOutput {
+    /// Output of the estimate.
+    pub output: Option<Output>,
+}
+
+/// The tables of an elastic design file that the other problems reuse
+/// (position selection reads them from a design or a bare model file):
+/// `[multisine]` (the whole, checked spec), `[simulate].noise_rel`,
+/// `[fit].estimator` and `[frf].output`. Every table and key is optional;
+/// other tables and keys are left to [`Design`].
+#[derive(Debug, Clone, Default, Deserialize)]
+pub struct SharedSections {
+    /// Excitation, if the file has a `[multisine]` table.
+    #[serde(default)]
+    pub multisine: Option<MultisineSpec>,
+    /// Simulation noise.
+    #[serde(default)]
+    pub simulate: SimulateNoise,
+    /// Estimator.
+    #[serde(default)]
+    pub fit: FitEstimator,
+    /// FRF output.
+    #[serde(default)]
+    pub frf: FrfOutput,
+}
+
+impl SharedSections {
+    /// Reads the shared tables of a design or model file.
+    pub fn read(path: &Path) -> Result<SharedSections> {
+        crate::io::read_toml(path)
     }
 }

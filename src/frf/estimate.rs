@@ -6,6 +6,7 @@
 //!
 //! DFT convention: X(k) = (1/N_P) Σ_t x_t e^{−2πj k t/N_P}.
 
+use crate::data::MotorRecord;
 use crate::elastic::{Output, C64};
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;
@@ -183,15 +184,6 @@ pub fn zoh(omega: f64, ts: f64) -> C64 {
     C64::from_polar(s, -x)
 }
 
-/// One recorded experiment: samples of motor torques u and motor positions y.
-#[derive(Debug, Clone)]
-pub struct Run {
-    /// Motor torques u[t][i] (N·m).
-    pub u: Vec<Vec<f64>>,
-    /// Motor positions y[t][i] (rad).
-    pub y: Vec<Vec<f64>>,
-}
-
 /// Description of a set of runs (one position), as written by the simulator.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -232,7 +224,7 @@ fn dft_lines(x: &[f64], np: usize, lines: &[usize], planner: &mut rustfft::FftPl
 }
 
 /// FRF of one position from its runs `runs[block][experiment]` (n experiments each).
-pub fn estimate_position(m: &RunsManifest, q0: &[f64], runs: &[Vec<Run>], distortion_db: f64) -> Result<(FrfPosition, Vec<Vec<DMatrix<C64>>>)> {
+pub fn estimate_position(m: &RunsManifest, q0: &[f64], runs: &[Vec<MotorRecord>], distortion_db: f64) -> Result<(FrfPosition, Vec<Vec<DMatrix<C64>>>)> {
     let n = m.n;
     let np = m.samples;
     let need = (m.transient + m.periods) * np;
@@ -342,33 +334,6 @@ pub fn estimate_position(m: &RunsManifest, q0: &[f64], runs: &[Vec<Run>], distor
     ))
 }
 
-/// Reads one run CSV (`t, tau1..taun, qm1..qmn`).
-pub fn read_run(path: &Path, n: usize) -> Result<Run> {
-    let t = crate::io::Table::read(path)?;
-    let ui = t.numbered("tau", n)?;
-    let yi = t.numbered("qm", n)?;
-    Ok(Run {
-        u: t.rows.iter().map(|r| ui.iter().map(|&c| r[c]).collect()).collect(),
-        y: t.rows.iter().map(|r| yi.iter().map(|&c| r[c]).collect()).collect(),
-    })
-}
-
-/// Writes one run CSV.
-pub fn write_run(path: &Path, rate: f64, run: &Run) -> Result<()> {
-    let n = run.u.first().map(|v| v.len()).unwrap_or(0);
-    let mut header = vec!["t".to_string()];
-    header.extend((1..=n).map(|i| format!("tau{i}")));
-    header.extend((1..=n).map(|i| format!("qm{i}")));
-    let rows = run.u.iter().zip(&run.y).enumerate().map(|(t, (u, y))| {
-        let mut r = Vec::with_capacity(2 * n + 1);
-        r.push(t as f64 / rate);
-        r.extend_from_slice(u);
-        r.extend_from_slice(y);
-        r
-    });
-    crate::io::write_csv(path, &header, rows)
-}
-
 /// Estimates the FRF at every position of a runs manifest (`runs.json`).
 pub fn estimate_from_manifest(path: &Path) -> Result<FrfData> {
     let text = crate::io::read_to_string(path)?;
@@ -397,9 +362,9 @@ pub fn estimate_from_manifest(path: &Path) -> Result<FrfData> {
         if blocks.len() != m.blocks {
             return Err(Error::invalid(&ctx, format!("files[{pi}]"), format!("expected {} blocks", m.blocks)));
         }
-        let runs: Vec<Vec<Run>> = blocks
+        let runs: Vec<Vec<MotorRecord>> = blocks
             .iter()
-            .map(|exps| exps.iter().map(|f| read_run(&dir.join(f), m.n)).collect::<Result<Vec<_>>>())
+            .map(|exps| exps.iter().map(|f| MotorRecord::read(&dir.join(f), m.n)).collect::<Result<Vec<_>>>())
             .collect::<Result<_>>()?;
         let (pos, _) = estimate_position(&m, q0, &runs, m.distortion_db)?;
         positions.push(pos);

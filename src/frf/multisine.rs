@@ -9,7 +9,8 @@
 //! uniform on [0, 2π) and independent between blocks and motors. The even
 //! lines are left empty so nonlinear distortion shows there.
 
-use super::design::{lines, Design, Spectrum};
+use super::design::Design;
+use crate::trajectory::multisine::{lines, Spectrum};
 use rand::{RngExt, SeedableRng};
 use serde::Serialize;
 
@@ -32,14 +33,7 @@ pub struct Multisine {
     pub phases: Vec<Vec<Vec<f64>>>,
 }
 
-/// Derives the seed of independent unit `index` of stream `stream` from the design seed (SplitMix64).
-pub fn sub_seed(seed: u64, stream: u64, index: u64) -> u64 {
-    let mut z = seed ^ stream.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ index.wrapping_mul(0xD1B5_4A32_D192_ED03);
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
+pub use crate::rng::sub_seed;
 
 /// Stream identifiers for [`sub_seed`].
 pub mod streams {

@@ -5,8 +5,9 @@
 //! ([`crate::elastic::sim`]) estimated like measured data (time method).
 
 use super::design::{Design, SimMethod, SimulateSpec};
-use super::estimate::{estimate_position, write_run, CMat, FrfData, FrfPosition, Run, RunsManifest};
+use super::estimate::{estimate_position, CMat, FrfData, FrfPosition, RunsManifest};
 use super::multisine::{streams, sub_seed, Multisine};
+use crate::data::MotorRecord;
 use crate::elastic::{self, sim, ElasticModel, C64};
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;
@@ -134,7 +135,7 @@ pub fn simulate(d: &Design, model: &ElasticModel, runs_dir: &Path) -> Result<(Fr
                 let plant = sim::ClosedLoop::new(model, &t.full, q0, &settings)?;
                 let jobs: Vec<(usize, usize)> = (0..d.multisine.blocks).flat_map(|b| (0..n).map(move |e| (b, e))).collect();
                 use rayon::prelude::*;
-                let runs: Vec<Result<Run>> = jobs
+                let runs: Vec<Result<MotorRecord>> = jobs
                     .par_iter()
                     .map(|&(b, e)| {
                         if crate::io::stop::requested() {
@@ -146,16 +147,16 @@ pub fn simulate(d: &Design, model: &ElasticModel, runs_dir: &Path) -> Result<(Fr
                         r
                     })
                     .collect();
-                let runs: Vec<Run> = runs.into_iter().collect::<Result<_>>()?;
+                let runs: Vec<MotorRecord> = runs.into_iter().collect::<Result<_>>()?;
                 let mut files = Vec::new();
-                let mut blocks: Vec<Vec<Run>> = Vec::new();
+                let mut blocks: Vec<Vec<MotorRecord>> = Vec::new();
                 for b in 0..d.multisine.blocks {
                     let mut fb = Vec::new();
                     let mut rb = Vec::new();
                     for e in 0..n {
                         let name = format!("pos{}_block{}_exp{}.csv", pi + 1, b + 1, e + 1);
                         let run = &runs[b * n + e];
-                        write_run(&runs_dir.join(&name), ms.rate, run)?;
+                        run.write(&runs_dir.join(&name), ms.rate)?;
                         fb.push(name);
                         rb.push(run.clone());
                     }

@@ -1,5 +1,5 @@
 //! The dedicated experiments of paper 002 §3.2, one joint at a time with the
-//! others at rest (the references come from [`crate::sim::reference`]:
+//! others at rest (the references come from [`crate::trajectory::reference`]:
 //! `gravity_slopes` and `bang_bang`; `idexp simulate` writes them as
 //! `reference.csv` for a real robot too).
 //!

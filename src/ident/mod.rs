@@ -19,13 +19,12 @@ pub mod estimate;
 pub mod experiments;
 pub mod process;
 pub mod reduce;
-pub mod run;
 
+pub use crate::data::{Repetition, Run};
 pub use closed_loop::{MlOptions, ProjectionOptions};
 pub use estimate::{Dataset, Errors, LsFit, Weights};
 pub use process::{process, Filter, Processed};
 pub use reduce::{Essential, ReduceOptions, Reduction};
-pub use run::{Repetition, Run};
 
 use crate::error::{Error, Result};
 use crate::params::BaseParams;

@@ -9,9 +9,9 @@
 //! sample covariance of the filtered states and torques per time step (used by
 //! the maximum-likelihood estimator and reported as the position noise floor).
 
-use super::run::Run;
+use crate::data::Run;
 use crate::error::{Error, Result};
-use crate::sim::reference::differentiate;
+use crate::trajectory::differentiate;
 use crate::trajectory::FourierTrajectory;
 use serde::Serialize;
 
@@ -346,7 +346,7 @@ pub fn filtfilt(x: &[f64], cutoff: f64, fs: f64) -> Result<Vec<f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ident::run::{Repetition, Run};
+    use crate::data::{Repetition, Run};
 
     #[test]
     fn filtfilt_keeps_slow_sines_without_phase_and_removes_fast_ones() {

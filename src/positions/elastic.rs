@@ -254,8 +254,9 @@ pub struct ElasticSettings {
 }
 
 /// Reads the `[model]` of an elastic design (or model) file and resolves the
-/// settings not given (`None`) from its other tables: the excited odd lines of
-/// `[multisine]` ([`crate::frf::design::lines`]; the multisine defaults when the
+/// settings not given (`None`) from its other tables (typed by
+/// [`crate::frf::design::SharedSections`]): the excited odd lines of
+/// `[multisine]` ([`crate::trajectory::multisine::lines`]; the multisine defaults when the
 /// table is absent), `[simulate].noise_rel` (relative noise, else 0.02),
 /// `[fit].estimator` (else LLS) and `[frf].output` (else acceleration).
 pub fn load_elastic(
@@ -266,23 +267,16 @@ pub fn load_elastic(
     output: Option<Output>,
 ) -> Result<(ElasticModel, ElasticSettings)> {
     let model = ElasticModel::load(path)?;
-    let text = crate::io::read_to_string(path)?;
-    let table: toml::Table = crate::io::parse_toml(path, &text)?;
+    let shared = crate::frf::design::SharedSections::read(path)?;
     let ctx = path.display().to_string();
-    let sub = |name: &str| table.get(name).and_then(|v| v.as_table());
     let frequencies_hz = match frequencies_hz {
         Some(f) => f.to_vec(),
         None => {
-            let ms: crate::frf::design::MultisineSpec = match sub("multisine") {
-                Some(t) => toml::Value::Table(t.clone())
-                    .try_into()
-                    .map_err(|e: toml::de::Error| Error::parse(path, format!("[multisine]: {}", e.message())))?,
-                None => Default::default(),
-            };
+            let ms = shared.multisine.unwrap_or_default();
             if !(ms.rate.is_finite() && ms.rate > 0.0 && ms.period.is_finite() && ms.period > 0.0) {
                 return Err(Error::invalid(&ctx, "multisine", "expected a positive rate and period"));
             }
-            let (_, odd, _) = crate::frf::design::lines(&ms);
+            let (_, odd, _) = crate::trajectory::multisine::lines(&ms);
             odd.iter().map(|&k| k as f64 / ms.period).collect()
         }
     };
@@ -296,37 +290,16 @@ pub fn load_elastic(
     let noise = match noise {
         Some(n) => n,
         None => {
-            let rel = match sub("simulate").and_then(|t| t.get("noise_rel")) {
-                Some(v) => v
-                    .as_float()
-                    .or_else(|| v.as_integer().map(|i| i as f64))
-                    .filter(|r| r.is_finite() && *r > 0.0)
-                    .ok_or_else(|| Error::invalid(&ctx, "simulate.noise_rel", "expected a positive number"))?,
+            let rel = match shared.simulate.noise_rel {
+                Some(r) if r.is_finite() && r > 0.0 => r,
+                Some(_) => return Err(Error::invalid(&ctx, "simulate.noise_rel", "expected a positive number")),
                 None => 0.02,
             };
             NoiseModel::Relative { rel }
         }
     };
-    let estimator = match estimator {
-        Some(e) => e,
-        None => match sub("fit").and_then(|t| t.get("estimator")) {
-            Some(v) => v
-                .clone()
-                .try_into()
-                .map_err(|_| Error::invalid(&ctx, "fit.estimator", "expected nls, lls or lls_magnitude"))?,
-            None => Estimator::Lls,
-        },
-    };
-    let output = match output {
-        Some(o) => o,
-        None => match sub("frf").and_then(|t| t.get("output")) {
-            Some(v) => v
-                .clone()
-                .try_into()
-                .map_err(|_| Error::invalid(&ctx, "frf.output", "expected position, velocity or acceleration"))?,
-            None => Output::Acceleration,
-        },
-    };
+    let estimator = estimator.or(shared.fit.estimator).unwrap_or(Estimator::Lls);
+    let output = output.or(shared.frf.output).unwrap_or(Output::Acceleration);
     Ok((
         model,
         ElasticSettings {

@@ -136,6 +136,7 @@ pub fn efficiency(crit: Criterion, p: usize, v: f64, v_opt: f64) -> f64 {
 /// weights, `sens` their sensitivities (to choose exchange candidates),
 /// `value`/`bound` the relaxed value and certificate bound, `budget` the
 /// number of experiments M (or the budget B with `costs`).
+#[allow(clippy::too_many_arguments)] // the relaxed solution (w, sensitivities, value, bound) and the budget arrive together from the solver
 pub fn round_design(pb: &Problem, crit: Criterion, w: &[f64], sens: &[f64], value: f64, bound: f64, budget: f64, costs: Option<&[f64]>) -> Result<Rounded> {
     let n = pb.n();
     if w.len() != n || sens.len() != n {

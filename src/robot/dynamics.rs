@@ -37,7 +37,9 @@ pub struct Workspace {
     pub(crate) tau_dual: Vec<Dual64>,
     pub(crate) y_dual: Vec<Dual64>,
     pub(crate) y: Vec<f64>,
-    pub(crate) inertials: Vec<Inertial>,
+    /// Scratch for the kernels that take a parameter vector θ (the link
+    /// inertials of θ); the nominal kernels read `robot.links` instead.
+    theta_inertials: Vec<Inertial>,
     ic: Vec<Matrix6<f64>>,
 }
 
@@ -55,7 +57,7 @@ impl Workspace {
             tau_dual: vec![Dual64::from(0.0); n],
             y_dual: vec![Dual64::from(0.0); n * p],
             y: vec![0.0; n * p],
-            inertials: robot.links.iter().map(|l| l.inertial).collect(),
+            theta_inertials: robot.links.iter().map(|l| l.inertial).collect(),
             ic: vec![Matrix6::zeros(); n],
         }
     }
@@ -95,12 +97,26 @@ fn forward_pass<T: Real>(robot: &Robot, q: &[T], qd: &[T], qdd: &[T], gravity: b
     }
 }
 
+/// Link inertials of the rigid-body pass: the robot's nominal ones or those of
+/// a parameter vector θ.
+#[derive(Clone, Copy)]
+enum Inertials<'a> {
+    /// `robot.links[i].inertial`.
+    Nominal,
+    /// One per link, from θ.
+    Of(&'a [Inertial]),
+}
+
 /// Rigid-body link-side torques for inertials `inert` (generic), into `out`.
-fn rnea_rigid<T: Real>(robot: &Robot, inert: &[Inertial], q: &[T], qd: &[T], qdd: &[T], gravity: bool, kin: &mut Kin<T>, out: &mut [T]) {
+#[allow(clippy::too_many_arguments)] // kernel: robot, inertials, state (q, q̇, q̈), flag, buffers, output
+fn rnea_rigid<T: Real>(robot: &Robot, inert: Inertials<'_>, q: &[T], qd: &[T], qdd: &[T], gravity: bool, kin: &mut Kin<T>, out: &mut [T]) {
     forward_pass(robot, q, qd, qdd, gravity, kin);
     let n = robot.dof();
     for i in 0..n {
-        let ine = &inert[i];
+        let ine = match inert {
+            Inertials::Nominal => &robot.links[i].inertial,
+            Inertials::Of(v) => &v[i],
+        };
         let io: Matrix3<T> = ine.inertia.map(T::c);
         let h = lift3::<T>(&ine.first_moment);
         let m = T::c(ine.mass);
@@ -158,6 +174,7 @@ fn couple_inv_t<T: Real>(robot: &Robot, tau: &mut [T], scratch: &mut [T]) {
 
 /// Generic inverse dynamics (motor side) with arbitrary standard parameters
 /// `theta` (f64 constants) at a generic-scalar state.
+#[allow(clippy::too_many_arguments)] // kernel: robot, inertials, θ, state (q, q̇, q̈), terms, buffers, output
 pub(crate) fn inverse_dynamics_generic<T: Real>(
     robot: &Robot,
     inert: &mut [Inertial],
@@ -174,7 +191,7 @@ pub(crate) fn inverse_dynamics_generic<T: Real>(
         let o = robot.link_param_offset(i);
         *slot = Inertial::from_params(&theta[o..o + 10]);
     }
-    rnea_rigid(robot, inert, q, qd, qdd, terms.gravity, kin, out);
+    rnea_rigid(robot, Inertials::Of(inert), q, qd, qdd, terms.gravity, kin, out);
     let mut s1 = std::mem::take(&mut kin.s1);
     let mut s2 = std::mem::take(&mut kin.s2);
     couple_inv_t(robot, out, &mut s1);
@@ -229,18 +246,16 @@ fn check_state(robot: &Robot, q: &[f64], qd: &[f64], qdd: &[f64]) {
 pub fn inverse_dynamics(robot: &Robot, ws: &mut Workspace, theta: &[f64], q: &[f64], qd: &[f64], qdd: &[f64], tau: &mut [f64]) {
     check_state(robot, q, qd, qdd);
     assert_eq!(theta.len(), robot.n_params(), "parameter vector length");
-    let mut inert = std::mem::take(&mut ws.inertials);
+    let mut inert = std::mem::take(&mut ws.theta_inertials);
     inverse_dynamics_generic(robot, &mut inert, theta, q, qd, qdd, ALL, &mut ws.kin, tau);
-    ws.inertials = inert;
+    ws.theta_inertials = inert;
 }
 
 /// Inverse dynamics with the robot's nominal parameters (no parameter vector
 /// needed): rigid body + drives + friction, motor side.
 pub fn rnea(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64], qdd: &[f64], tau: &mut [f64]) {
     check_state(robot, q, qd, qdd);
-    let inert: Vec<Inertial> = std::mem::take(&mut ws.inertials);
-    rnea_rigid(robot, &inert, q, qd, qdd, true, &mut ws.kin, tau);
-    ws.inertials = inert;
+    rnea_rigid(robot, Inertials::Nominal, q, qd, qdd, true, &mut ws.kin, tau);
     let n = robot.dof();
     let mut s1 = std::mem::take(&mut ws.kin.s1);
     let mut s2 = std::mem::take(&mut ws.kin.s2);
@@ -435,6 +450,7 @@ pub fn regressor_rows(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64], 
 /// Derivatives of the regressor: `dq[k]`, `dqd[k]`, `dqdd[k]` receive
 /// ∂Y/∂q_k, ∂Y/∂q̇_k, ∂Y/∂q̈_k (each row-major n×p, in slices of length n·p),
 /// and `y` receives Y itself. Sign-function columns have zero derivative.
+#[allow(clippy::too_many_arguments)] // kernel: robot, workspace, state (q, q̇, q̈), outputs (Y, ∂Y/∂q, ∂Y/∂q̇, ∂Y/∂q̈)
 pub fn regressor_derivatives(
     robot: &Robot,
     ws: &mut Workspace,
@@ -477,7 +493,7 @@ pub fn id_derivatives(robot: &Robot, ws: &mut Workspace, theta: &[f64], q: &[f64
     let n = robot.dof();
     let mut dq = DMatrix::zeros(n, n);
     let mut dqd = DMatrix::zeros(n, n);
-    let mut inert = std::mem::take(&mut ws.inertials);
+    let mut inert = std::mem::take(&mut ws.theta_inertials);
     let mut tau = std::mem::take(&mut ws.tau_dual);
     for which in 0..2 {
         for k in 0..n {
@@ -493,7 +509,7 @@ pub fn id_derivatives(robot: &Robot, ws: &mut Workspace, theta: &[f64], q: &[f64
             }
         }
     }
-    ws.inertials = inert;
+    ws.theta_inertials = inert;
     ws.tau_dual = tau;
     (dq, dqd)
 }
@@ -591,9 +607,7 @@ pub fn gravity(robot: &Robot, ws: &mut Workspace, q: &[f64]) -> DVector<f64> {
     let n = robot.dof();
     let z = vec![0.0; n];
     let mut out = vec![0.0; n];
-    let inert = std::mem::take(&mut ws.inertials);
-    rnea_rigid(robot, &inert, q, &z, &z, true, &mut ws.kin, &mut out);
-    ws.inertials = inert;
+    rnea_rigid(robot, Inertials::Nominal, q, &z, &z, true, &mut ws.kin, &mut out);
     DVector::from_vec(out)
 }
 
@@ -602,9 +616,7 @@ pub fn bias_forces(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64]) -> 
     let n = robot.dof();
     let z = vec![0.0; n];
     let mut out = vec![0.0; n];
-    let inert = std::mem::take(&mut ws.inertials);
-    rnea_rigid(robot, &inert, q, qd, &z, true, &mut ws.kin, &mut out);
-    ws.inertials = inert;
+    rnea_rigid(robot, Inertials::Nominal, q, qd, &z, true, &mut ws.kin, &mut out);
     DVector::from_vec(out)
 }
 

@@ -4,7 +4,7 @@
 //! acceleration limits), a joint coupling matrix and named frames.
 //! The format is documented in the README ("Robot files").
 
-use super::model::{Drive, Frame, Friction, Inertial, Joint, JointKind, JointLimits, Link, Robot};
+use super::model::{Drive, Frame, Friction, Inertial, Joint, JointKind, JointLimits, Link, Robot, RobotParts};
 use super::urdf::{load_urdf, pose_to_iso};
 use crate::error::{Error, Result};
 use nalgebra::{DMatrix, Isometry3, Matrix3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
@@ -151,16 +151,16 @@ pub fn load(path: &Path) -> Result<Robot> {
     match ext.as_str() {
         "urdf" | "xml" => {
             let parts = load_urdf(path, None, None)?;
-            Robot::new(
-                parts.name,
-                parts.joints,
-                parts.links,
-                parts.drives,
-                None,
-                parts.frames,
-                Vector3::new(0.0, 0.0, -9.81),
-                format!("URDF {}", path.display()),
-            )
+            Robot::new(RobotParts {
+                name: parts.name,
+                joints: parts.joints,
+                links: parts.links,
+                drives: parts.drives,
+                coupling: None,
+                frames: parts.frames,
+                gravity: Vector3::new(0.0, 0.0, -9.81),
+                source: format!("URDF {}", path.display()),
+            })
         }
         "toml" => {
             let text = crate::io::read_to_string(path)?;
@@ -171,15 +171,52 @@ pub fn load(path: &Path) -> Result<Robot> {
 }
 
 /// Parses a TOML robot file; `path` locates a referenced URDF and names the file in messages.
+///
+/// Steps: the kinematic structure (URDF or DH rows), the default friction
+/// model, the `[[drive]]` entries, the coupling matrix, the `[[frame]]`
+/// entries and gravity; then [`Robot::new`] checks the whole.
 pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
     let f: RobotFile = crate::io::parse_toml(path, text)?;
     let ctx = path.display().to_string();
     let default_friction = f.friction.unwrap_or(FrictionName::Symmetric);
-    let (name, mut joints, links, mut drives, mut frames) = match (&f.urdf, &f.dh) {
-        (Some(_), Some(_)) => return Err(Error::invalid(&ctx, "urdf", "give either `urdf` or a `dh` table, not both")),
+    let (name, mut joints, links, mut drives, mut frames) = structure(path, &f, &ctx)?;
+    let n = joints.len();
+    apply_default_friction(&mut drives, default_friction);
+    let mut seen = vec![false; n];
+    for (k, ds) in f.drive.iter().enumerate() {
+        apply_drive(&ctx, k, ds, default_friction, &mut joints, &mut drives, &mut seen)?;
+    }
+    let coupling = coupling_matrix(&ctx, f.coupling.as_deref(), n)?;
+    add_frames(&ctx, &f.frame, &links, &mut frames)?;
+    let gravity = gravity_vector(&ctx, f.gravity)?;
+    let name = f.name.clone().unwrap_or(if name.is_empty() {
+        path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
+    } else {
+        name
+    });
+    let source = f.source.clone().unwrap_or_else(|| path.display().to_string());
+    Robot::new(RobotParts {
+        name,
+        joints,
+        links,
+        drives,
+        coupling,
+        frames,
+        gravity,
+        source,
+    })
+}
+
+/// Joints, links, drives and frames of the kinematic structure: from the URDF
+/// (`urdf`, optionally cut at `base_link`/`tip_link`) or from `dh` and the
+/// `[[joint]]` rows.
+#[allow(clippy::type_complexity)] // the loader's five parts, taken apart at once by the caller
+fn structure(path: &Path, f: &RobotFile, ctx: &str) -> Result<(String, Vec<Joint>, Vec<Link>, Vec<Drive>, Vec<Frame>)> {
+    Ok(match (&f.urdf, &f.dh) {
+        (Some(_), Some(_)) => return Err(Error::invalid(ctx, "urdf", "give either `urdf` or a `dh` table, not both")),
         (None, None) => {
             return Err(Error::invalid(
-                &ctx,
+                ctx,
                 "urdf",
                 "expected `urdf = \"file.urdf\"` or `dh = \"standard\"|\"modified\"` with [[joint]] rows",
             ))
@@ -187,7 +224,7 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
         (Some(u), None) => {
             if !f.joint.is_empty() {
                 return Err(Error::invalid(
-                    &ctx,
+                    ctx,
                     "joint",
                     "[[joint]] rows are for DH robots; a URDF robot takes its joints from the URDF",
                 ));
@@ -198,14 +235,17 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
         }
         (None, Some(conv)) => {
             if f.base_link.is_some() || f.tip_link.is_some() {
-                return Err(Error::invalid(&ctx, "base_link", "base_link/tip_link apply to URDF robots only"));
+                return Err(Error::invalid(ctx, "base_link", "base_link/tip_link apply to URDF robots only"));
             }
-            let (j, l) = dh_robot(&ctx, *conv, &f.joint)?;
+            let (j, l) = dh_robot(ctx, *conv, &f.joint)?;
             let n = j.len();
             (String::new(), j, l, vec![Drive::default(); n], Vec::new())
         }
-    };
-    let n = joints.len();
+    })
+}
+
+/// Sets every drive's friction to the file's default model (`friction`).
+fn apply_default_friction(drives: &mut [Drive], default_friction: FrictionName) {
     for d in drives.iter_mut() {
         d.friction = match default_friction {
             FrictionName::None => Friction::None,
@@ -219,132 +259,161 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
             },
         };
     }
-    let mut seen = vec![false; n];
-    for (k, ds) in f.drive.iter().enumerate() {
-        let field = |s: &str| format!("drive[{k}] (joint `{}`).{s}", ds.joint);
-        let j = joints.iter().position(|j| j.name == ds.joint).ok_or_else(|| {
-            Error::invalid(
-                &ctx,
-                format!("drive[{k}].joint"),
-                format!(
-                    "no actuated joint named `{}`; joints are: {}",
-                    ds.joint,
-                    joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>().join(", ")
-                ),
-            )
-        })?;
-        if seen[j] {
-            return Err(Error::invalid(
-                &ctx,
-                format!("drive[{k}].joint"),
-                format!("joint `{}` has two [[drive]] entries", ds.joint),
-            ));
+}
+
+/// Applies one `[[drive]]` entry (k-th) to its joint: rotor inertia, gear
+/// ratio, friction and joint limits; `seen` marks joints that had an entry.
+fn apply_drive(
+    ctx: &str,
+    k: usize,
+    ds: &DriveSpec,
+    default_friction: FrictionName,
+    joints: &mut [Joint],
+    drives: &mut [Drive],
+    seen: &mut [bool],
+) -> Result<()> {
+    let field = |s: &str| format!("drive[{k}] (joint `{}`).{s}", ds.joint);
+    let j = joints.iter().position(|j| j.name == ds.joint).ok_or_else(|| {
+        Error::invalid(
+            ctx,
+            format!("drive[{k}].joint"),
+            format!(
+                "no actuated joint named `{}`; joints are: {}",
+                ds.joint,
+                joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>().join(", ")
+            ),
+        )
+    })?;
+    if seen[j] {
+        return Err(Error::invalid(
+            ctx,
+            format!("drive[{k}].joint"),
+            format!("joint `{}` has two [[drive]] entries", ds.joint),
+        ));
+    }
+    seen[j] = true;
+    let d = &mut drives[j];
+    if let Some(ia) = ds.ia {
+        if !(ia.is_finite() && ia >= 0.0) {
+            return Err(Error::invalid(ctx, field("ia"), format!("expected a non-negative rotor inertia, found {ia}")));
         }
-        seen[j] = true;
-        let d = &mut drives[j];
-        if let Some(ia) = ds.ia {
-            if !(ia.is_finite() && ia >= 0.0) {
-                return Err(Error::invalid(&ctx, field("ia"), format!("expected a non-negative rotor inertia, found {ia}")));
-            }
-            d.rotor_inertia = Some(ia);
+        d.rotor_inertia = Some(ia);
+    }
+    if let Some(g) = ds.gear_ratio {
+        if !(g.is_finite() && g != 0.0) {
+            return Err(Error::invalid(ctx, field("gear_ratio"), format!("expected a non-zero finite ratio, found {g}")));
         }
-        if let Some(g) = ds.gear_ratio {
-            if !(g.is_finite() && g != 0.0) {
+        d.gear_ratio = g;
+    }
+    d.friction = drive_friction(ctx, k, ds, d.friction, default_friction)?;
+    apply_limits(ctx, k, ds, &mut joints[j].limits)
+}
+
+/// The friction model of a `[[drive]]` entry; `current` (from the URDF or the
+/// default) supplies symmetric coefficients not given.
+fn drive_friction(ctx: &str, k: usize, ds: &DriveSpec, current: Friction, default_friction: FrictionName) -> Result<Friction> {
+    let field = |s: &str| format!("drive[{k}] (joint `{}`).{s}", ds.joint);
+    let model = ds.friction.unwrap_or(default_friction);
+    let val = |v: Option<f64>, s: &str| -> Result<f64> { finite(ctx, &field(s), v.unwrap_or(0.0)) };
+    let offset = match ds.f0 {
+        Some(v) => Some(finite(ctx, &field("f0"), v)?),
+        None => None,
+    };
+    let asym_given = ds.fc_pos.is_some() || ds.fc_neg.is_some() || ds.fv_pos.is_some() || ds.fv_neg.is_some();
+    Ok(match model {
+        FrictionName::None => {
+            if ds.fc.is_some() || ds.fv.is_some() || asym_given || offset.is_some() {
                 return Err(Error::invalid(
-                    &ctx,
-                    field("gear_ratio"),
-                    format!("expected a non-zero finite ratio, found {g}"),
+                    ctx,
+                    field("friction"),
+                    "friction = \"none\" but friction coefficients are given",
                 ));
             }
-            d.gear_ratio = g;
+            Friction::None
         }
-        let model = ds.friction.unwrap_or(default_friction);
-        let val = |v: Option<f64>, s: &str| -> Result<f64> { finite(&ctx, &field(s), v.unwrap_or(0.0)) };
-        let offset = match ds.f0 {
-            Some(v) => Some(finite(&ctx, &field("f0"), v)?),
-            None => None,
-        };
-        let asym_given = ds.fc_pos.is_some() || ds.fc_neg.is_some() || ds.fv_pos.is_some() || ds.fv_neg.is_some();
-        d.friction = match model {
-            FrictionName::None => {
-                if ds.fc.is_some() || ds.fv.is_some() || asym_given || offset.is_some() {
-                    return Err(Error::invalid(
-                        &ctx,
-                        field("friction"),
-                        "friction = \"none\" but friction coefficients are given",
-                    ));
-                }
-                Friction::None
+        FrictionName::Symmetric => {
+            if asym_given {
+                return Err(Error::invalid(
+                    ctx,
+                    field("fc_pos"),
+                    "fc_pos/fc_neg/fv_pos/fv_neg need friction = \"asymmetric\"",
+                ));
             }
-            FrictionName::Symmetric => {
-                if asym_given {
-                    return Err(Error::invalid(
-                        &ctx,
-                        field("fc_pos"),
-                        "fc_pos/fc_neg/fv_pos/fv_neg need friction = \"asymmetric\"",
-                    ));
-                }
-                let (fc0, fv0) = match d.friction {
-                    Friction::Symmetric { fc, fv, .. } => (fc, fv),
-                    _ => (0.0, 0.0),
-                };
-                Friction::Symmetric {
-                    fc: val(ds.fc.or(Some(fc0)), "fc")?,
-                    fv: val(ds.fv.or(Some(fv0)), "fv")?,
-                    offset,
-                }
+            let (fc0, fv0) = match current {
+                Friction::Symmetric { fc, fv, .. } => (fc, fv),
+                _ => (0.0, 0.0),
+            };
+            Friction::Symmetric {
+                fc: val(ds.fc.or(Some(fc0)), "fc")?,
+                fv: val(ds.fv.or(Some(fv0)), "fv")?,
+                offset,
             }
-            FrictionName::Asymmetric => {
-                if ds.fc.is_some() || ds.fv.is_some() {
-                    return Err(Error::invalid(&ctx, field("fc"), "the asymmetric model takes fc_pos, fc_neg, fv_pos, fv_neg"));
-                }
-                Friction::Asymmetric {
-                    fc_pos: val(ds.fc_pos, "fc_pos")?,
-                    fc_neg: val(ds.fc_neg, "fc_neg")?,
-                    fv_pos: val(ds.fv_pos, "fv_pos")?,
-                    fv_neg: val(ds.fv_neg, "fv_neg")?,
-                    offset,
-                }
-            }
-        };
-        let lim = &mut joints[j].limits;
-        if let Some(v) = ds.lower {
-            lim.lower = finite(&ctx, &field("lower"), v)?;
         }
-        if let Some(v) = ds.upper {
-            lim.upper = finite(&ctx, &field("upper"), v)?;
-        }
-        for (s, src, dst) in [
-            ("velocity", ds.velocity, &mut lim.velocity),
-            ("acceleration", ds.acceleration, &mut lim.acceleration),
-            ("effort", ds.effort, &mut lim.effort),
-        ] {
-            if let Some(v) = src {
-                if v.is_nan() || v <= 0.0 {
-                    return Err(Error::invalid(&ctx, field(s), format!("expected a positive limit, found {v}")));
-                }
-                *dst = v;
+        FrictionName::Asymmetric => {
+            if ds.fc.is_some() || ds.fv.is_some() {
+                return Err(Error::invalid(ctx, field("fc"), "the asymmetric model takes fc_pos, fc_neg, fv_pos, fv_neg"));
             }
+            Friction::Asymmetric {
+                fc_pos: val(ds.fc_pos, "fc_pos")?,
+                fc_neg: val(ds.fc_neg, "fc_neg")?,
+                fv_pos: val(ds.fv_pos, "fv_pos")?,
+                fv_neg: val(ds.fv_neg, "fv_neg")?,
+                offset,
+            }
+        }
+    })
+}
+
+/// Joint limits of a `[[drive]]` entry (lower/upper finite; velocity,
+/// acceleration, effort positive).
+fn apply_limits(ctx: &str, k: usize, ds: &DriveSpec, lim: &mut JointLimits) -> Result<()> {
+    let field = |s: &str| format!("drive[{k}] (joint `{}`).{s}", ds.joint);
+    if let Some(v) = ds.lower {
+        lim.lower = finite(ctx, &field("lower"), v)?;
+    }
+    if let Some(v) = ds.upper {
+        lim.upper = finite(ctx, &field("upper"), v)?;
+    }
+    for (s, src, dst) in [
+        ("velocity", ds.velocity, &mut lim.velocity),
+        ("acceleration", ds.acceleration, &mut lim.acceleration),
+        ("effort", ds.effort, &mut lim.effort),
+    ] {
+        if let Some(v) = src {
+            if v.is_nan() || v <= 0.0 {
+                return Err(Error::invalid(ctx, field(s), format!("expected a positive limit, found {v}")));
+            }
+            *dst = v;
         }
     }
-    let coupling = match &f.coupling {
+    Ok(())
+}
+
+/// The coupling matrix C (n×n, finite), if given.
+fn coupling_matrix(ctx: &str, rows: Option<&[Vec<f64>]>, n: usize) -> Result<Option<DMatrix<f64>>> {
+    Ok(match rows {
         None => None,
         Some(rows) => {
             if rows.len() != n || rows.iter().any(|r| r.len() != n) {
                 return Err(Error::invalid(
-                    &ctx,
+                    ctx,
                     "coupling",
                     format!("expected {n} rows of {n} numbers (one per actuated joint)"),
                 ));
             }
             let m = DMatrix::from_fn(n, n, |i, j| rows[i][j]);
             if m.iter().any(|v| !v.is_finite()) {
-                return Err(Error::invalid(&ctx, "coupling", "expected finite numbers"));
+                return Err(Error::invalid(ctx, "coupling", "expected finite numbers"));
             }
             Some(m)
         }
-    };
-    for (k, fs) in f.frame.iter().enumerate() {
+    })
+}
+
+/// Appends the `[[frame]]` entries (relative to a link, or to a merged fixed
+/// URDF link through its frame).
+fn add_frames(ctx: &str, specs: &[FrameSpec], links: &[Link], frames: &mut Vec<Frame>) -> Result<()> {
+    for (k, fs) in specs.iter().enumerate() {
         let link = match &fs.link {
             None => None,
             Some(l) => Some(
@@ -352,7 +421,7 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
                     .iter()
                     .position(|x| &x.name == l)
                     .or_else(|| frames.iter().find(|fr| &fr.name == l).and_then(|fr| fr.link))
-                    .ok_or_else(|| Error::invalid(&ctx, format!("frame[{k}].link"), format!("no link named `{l}`")))?,
+                    .ok_or_else(|| Error::invalid(ctx, format!("frame[{k}].link"), format!("no link named `{l}`")))?,
             ),
         };
         // a frame relative to a merged (fixed) URDF link composes with that link's placement
@@ -373,22 +442,20 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
             placement: base * pose_to_iso(fs.xyz, fs.rpy),
         });
     }
-    let gravity = match f.gravity {
+    Ok(())
+}
+
+/// Gravity in the base frame (m/s²; default (0, 0, −9.81)).
+fn gravity_vector(ctx: &str, g: Option<[f64; 3]>) -> Result<Vector3<f64>> {
+    Ok(match g {
         Some(g) => {
             for (i, v) in g.iter().enumerate() {
-                finite(&ctx, &format!("gravity[{i}]"), *v)?;
+                finite(ctx, &format!("gravity[{i}]"), *v)?;
             }
             Vector3::from(g)
         }
         None => Vector3::new(0.0, 0.0, -9.81),
-    };
-    let name = f.name.clone().unwrap_or(if name.is_empty() {
-        path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
-    } else {
-        name
-    });
-    let source = f.source.clone().unwrap_or_else(|| path.display().to_string());
-    Robot::new(name, joints, links, drives, coupling, frames, gravity, source)
+    })
 }
 
 fn rot_x(a: f64) -> Isometry3<f64> {

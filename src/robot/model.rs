@@ -368,21 +368,208 @@ pub(crate) struct JointGeometry {
     pub post_identity: bool,
 }
 
+impl JointGeometry {
+    /// The cached placement and post-transform parts of a joint.
+    fn of(j: &Joint) -> JointGeometry {
+        JointGeometry {
+            pl_r: j.placement.rotation.to_rotation_matrix().into_inner(),
+            pl_p: j.placement.translation.vector,
+            po_r: j.post.rotation.to_rotation_matrix().into_inner(),
+            po_p: j.post.translation.vector,
+            post_identity: j.post == Isometry3::identity(),
+        }
+    }
+}
+
+/// Checks the topology (parents before children) and the limits of every joint.
+fn check_joints(name: &str, joints: &[Joint]) -> crate::Result<()> {
+    use crate::Error;
+    let ctx = || format!("robot `{name}`");
+    for (i, j) in joints.iter().enumerate() {
+        if let Some(p) = j.parent {
+            if p >= i {
+                return Err(Error::invalid(
+                    ctx(),
+                    format!("joints[{}].parent", j.name),
+                    "a joint's parent link must come before it",
+                ));
+            }
+        }
+        let l = &j.limits;
+        if l.lower.is_nan() || l.upper.is_nan() || l.lower > l.upper {
+            return Err(Error::invalid(
+                ctx(),
+                format!("joint `{}` limits", j.name),
+                format!("lower ({}) must be ≤ upper ({})", l.lower, l.upper),
+            ));
+        }
+        for (what, v) in [("velocity", l.velocity), ("acceleration", l.acceleration), ("effort", l.effort)] {
+            if v.is_nan() || v <= 0.0 {
+                return Err(Error::invalid(
+                    ctx(),
+                    format!("joint `{}` {what} limit", j.name),
+                    format!("expected a positive number, found {v}"),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks masses (finite, ≥ 0) and inertias (finite) of every link.
+fn check_links(name: &str, links: &[Link]) -> crate::Result<()> {
+    use crate::Error;
+    let ctx = || format!("robot `{name}`");
+    for l in links {
+        let m = l.inertial.mass;
+        if !m.is_finite() || m < 0.0 {
+            return Err(Error::invalid(
+                ctx(),
+                format!("link `{}` mass", l.name),
+                format!("expected a non-negative finite mass, found {m}"),
+            ));
+        }
+        if l.inertial.inertia.iter().chain(l.inertial.first_moment.iter()).any(|v| !v.is_finite()) {
+            return Err(Error::invalid(ctx(), format!("link `{}` inertia", l.name), "expected finite values"));
+        }
+    }
+    Ok(())
+}
+
+/// C⁻ᵀ of the coupling matrix C (n×n, invertible), if any.
+fn coupling_inverse_transpose(name: &str, coupling: Option<&DMatrix<f64>>, n: usize) -> crate::Result<Option<DMatrix<f64>>> {
+    use crate::Error;
+    let ctx = || format!("robot `{name}`");
+    Ok(match coupling {
+        None => None,
+        Some(c) => {
+            if c.nrows() != n || c.ncols() != n {
+                return Err(Error::invalid(
+                    ctx(),
+                    "coupling",
+                    format!("expected a {n}×{n} matrix, found {}×{}", c.nrows(), c.ncols()),
+                ));
+            }
+            let inv = c
+                .clone()
+                .try_inverse()
+                .ok_or_else(|| Error::invalid(ctx(), "coupling", "the coupling matrix is singular"))?;
+            Some(inv.transpose())
+        }
+    })
+}
+
+/// The standard-parameter layout: per joint the ten inertial parameters, then
+/// its drive's (Ia if modelled, then the friction coefficients); returns the
+/// parameters and the offset of each drive's first parameter.
+fn param_layout(drives: &[Drive]) -> (Vec<ParamInfo>, Vec<usize>) {
+    let n = drives.len();
+    let mut params = Vec::new();
+    let mut drive_offset = Vec::with_capacity(n);
+    for i in 0..n {
+        for k in ParamKind::INERTIAL {
+            params.push(ParamInfo {
+                name: format!("{}{}", k.label(), i + 1),
+                joint: i,
+                kind: k,
+            });
+        }
+        drive_offset.push(params.len());
+        let d = &drives[i];
+        let mut push = |k: ParamKind| {
+            params.push(ParamInfo {
+                name: format!("{}{}", k.label(), i + 1),
+                joint: i,
+                kind: k,
+            })
+        };
+        if d.rotor_inertia.is_some() {
+            push(ParamKind::Ia);
+        }
+        match d.friction {
+            Friction::None => {}
+            Friction::Symmetric { offset, .. } => {
+                push(ParamKind::Fc);
+                push(ParamKind::Fv);
+                if offset.is_some() {
+                    push(ParamKind::F0);
+                }
+            }
+            Friction::Asymmetric { offset, .. } => {
+                push(ParamKind::FcPos);
+                push(ParamKind::FcNeg);
+                push(ParamKind::FvPos);
+                push(ParamKind::FvNeg);
+                if offset.is_some() {
+                    push(ParamKind::F0);
+                }
+            }
+        }
+    }
+    (params, drive_offset)
+}
+
+/// Entries (row, column, value) of the non-zero elements of `m`.
+fn sparse(m: &DMatrix<f64>) -> Vec<(usize, usize, f64)> {
+    let mut v = Vec::new();
+    for r in 0..m.nrows() {
+        for c in 0..m.ncols() {
+            if m[(r, c)] != 0.0 {
+                v.push((r, c, m[(r, c)]));
+            }
+        }
+    }
+    v
+}
+
+/// Motion subspace of a joint in its child frame: (angular, linear) parts.
+fn motion_subspace(j: &Joint) -> (Vector3<f64>, Vector3<f64>) {
+    let r = j.post.rotation.to_rotation_matrix().into_inner().transpose();
+    let p = j.post.translation.vector;
+    let a = j.axis.into_inner();
+    match j.kind {
+        JointKind::Revolute => (r * a, r * a.cross(&p)),
+        JointKind::Prismatic => (Vector3::zeros(), r * a),
+    }
+}
+
+/// The pieces a robot is assembled from (what a loader produces).
+#[derive(Debug, Clone)]
+pub struct RobotParts {
+    /// Robot name.
+    pub name: String,
+    /// Actuated joints, parents before children.
+    pub joints: Vec<Joint>,
+    /// One link per joint (the body the joint moves).
+    pub links: Vec<Link>,
+    /// One drive per joint.
+    pub drives: Vec<Drive>,
+    /// Coupling matrix C (n×n, motor positions θ = C q), if any.
+    pub coupling: Option<DMatrix<f64>>,
+    /// Named frames (tool, sensors).
+    pub frames: Vec<Frame>,
+    /// Gravity vector in the base frame (m/s²).
+    pub gravity: Vector3<f64>,
+    /// Where the model came from (for reports).
+    pub source: String,
+}
+
 impl Robot {
     /// Assembles and checks a robot. Called by the loaders; validates the
     /// topology (parents before children), the coupling matrix (n×n,
     /// invertible), masses (≥ 0) and builds the parameter layout.
-    pub fn new(
-        name: String,
-        joints: Vec<Joint>,
-        links: Vec<Link>,
-        drives: Vec<Drive>,
-        coupling: Option<DMatrix<f64>>,
-        frames: Vec<Frame>,
-        gravity: Vector3<f64>,
-        source: String,
-    ) -> crate::Result<Robot> {
+    pub fn new(parts: RobotParts) -> crate::Result<Robot> {
         use crate::Error;
+        let RobotParts {
+            name,
+            joints,
+            links,
+            drives,
+            coupling,
+            frames,
+            gravity,
+            source,
+        } = parts;
         let n = joints.len();
         let ctx = || format!("robot `{name}`");
         if n == 0 {
@@ -395,141 +582,14 @@ impl Robot {
                 format!("expected {n} links and drives, found {} and {}", links.len(), drives.len()),
             ));
         }
-        for (i, j) in joints.iter().enumerate() {
-            if let Some(p) = j.parent {
-                if p >= i {
-                    return Err(Error::invalid(
-                        ctx(),
-                        format!("joints[{}].parent", j.name),
-                        "a joint's parent link must come before it",
-                    ));
-                }
-            }
-            let l = &j.limits;
-            if l.lower.is_nan() || l.upper.is_nan() || l.lower > l.upper {
-                return Err(Error::invalid(
-                    ctx(),
-                    format!("joint `{}` limits", j.name),
-                    format!("lower ({}) must be ≤ upper ({})", l.lower, l.upper),
-                ));
-            }
-            for (what, v) in [("velocity", l.velocity), ("acceleration", l.acceleration), ("effort", l.effort)] {
-                if v.is_nan() || v <= 0.0 {
-                    return Err(Error::invalid(
-                        ctx(),
-                        format!("joint `{}` {what} limit", j.name),
-                        format!("expected a positive number, found {v}"),
-                    ));
-                }
-            }
-        }
-        for l in &links {
-            let m = l.inertial.mass;
-            if !m.is_finite() || m < 0.0 {
-                return Err(Error::invalid(
-                    ctx(),
-                    format!("link `{}` mass", l.name),
-                    format!("expected a non-negative finite mass, found {m}"),
-                ));
-            }
-            if l.inertial.inertia.iter().chain(l.inertial.first_moment.iter()).any(|v| !v.is_finite()) {
-                return Err(Error::invalid(ctx(), format!("link `{}` inertia", l.name), "expected finite values"));
-            }
-        }
-        let coupling_inv_t = match &coupling {
-            None => None,
-            Some(c) => {
-                if c.nrows() != n || c.ncols() != n {
-                    return Err(Error::invalid(
-                        ctx(),
-                        "coupling",
-                        format!("expected a {n}×{n} matrix, found {}×{}", c.nrows(), c.ncols()),
-                    ));
-                }
-                let inv = c
-                    .clone()
-                    .try_inverse()
-                    .ok_or_else(|| Error::invalid(ctx(), "coupling", "the coupling matrix is singular"))?;
-                Some(inv.transpose())
-            }
-        };
-        let mut params = Vec::new();
-        let mut drive_offset = Vec::with_capacity(n);
-        for i in 0..n {
-            for k in ParamKind::INERTIAL {
-                params.push(ParamInfo {
-                    name: format!("{}{}", k.label(), i + 1),
-                    joint: i,
-                    kind: k,
-                });
-            }
-            drive_offset.push(params.len());
-            let d = &drives[i];
-            let mut push = |k: ParamKind| {
-                params.push(ParamInfo {
-                    name: format!("{}{}", k.label(), i + 1),
-                    joint: i,
-                    kind: k,
-                })
-            };
-            if d.rotor_inertia.is_some() {
-                push(ParamKind::Ia);
-            }
-            match d.friction {
-                Friction::None => {}
-                Friction::Symmetric { offset, .. } => {
-                    push(ParamKind::Fc);
-                    push(ParamKind::Fv);
-                    if offset.is_some() {
-                        push(ParamKind::F0);
-                    }
-                }
-                Friction::Asymmetric { offset, .. } => {
-                    push(ParamKind::FcPos);
-                    push(ParamKind::FcNeg);
-                    push(ParamKind::FvPos);
-                    push(ParamKind::FvNeg);
-                    if offset.is_some() {
-                        push(ParamKind::F0);
-                    }
-                }
-            }
-        }
-        let geo = joints
-            .iter()
-            .map(|j| JointGeometry {
-                pl_r: j.placement.rotation.to_rotation_matrix().into_inner(),
-                pl_p: j.placement.translation.vector,
-                po_r: j.post.rotation.to_rotation_matrix().into_inner(),
-                po_p: j.post.translation.vector,
-                post_identity: j.post == Isometry3::identity(),
-            })
-            .collect();
-        let sparse = |m: &DMatrix<f64>| {
-            let mut v = Vec::new();
-            for r in 0..m.nrows() {
-                for c in 0..m.ncols() {
-                    if m[(r, c)] != 0.0 {
-                        v.push((r, c, m[(r, c)]));
-                    }
-                }
-            }
-            v
-        };
+        check_joints(&name, &joints)?;
+        check_links(&name, &links)?;
+        let coupling_inv_t = coupling_inverse_transpose(&name, coupling.as_ref(), n)?;
+        let (params, drive_offset) = param_layout(&drives);
+        let geo = joints.iter().map(JointGeometry::of).collect();
         let c_sparse = coupling.as_ref().map(sparse).unwrap_or_default();
         let cinvt_sparse = coupling_inv_t.as_ref().map(sparse).unwrap_or_default();
-        let (s_ang, s_lin) = joints
-            .iter()
-            .map(|j| {
-                let r = j.post.rotation.to_rotation_matrix().into_inner().transpose();
-                let p = j.post.translation.vector;
-                let a = j.axis.into_inner();
-                match j.kind {
-                    JointKind::Revolute => (r * a, r * a.cross(&p)),
-                    JointKind::Prismatic => (Vector3::zeros(), r * a),
-                }
-            })
-            .unzip();
+        let (s_ang, s_lin) = joints.iter().map(motion_subspace).unzip();
         Ok(Robot {
             name,
             joints,

@@ -4,7 +4,7 @@
 //! with the friction model, measurement noise on torques and positions,
 //! encoder quantisation, an unmeasured torque disturbance at the plant input,
 //! and N repetitions. It writes runs in the format `idexp identify` reads
-//! (see [`crate::ident::run`]) and is the data source of the identification tests.
+//! (see [`crate::data::run`]) and is the data source of the identification tests.
 //!
 //! # The loop (per controller period Δt = 1/rate)
 //!
@@ -28,17 +28,17 @@
 //! draw comes from `ChaCha8Rng::seed_from_u64(seed ⊕ index)` per period or repetition.
 
 pub mod cli;
-pub mod reference;
 
+use crate::data::Repetition;
+pub use crate::data::Truth;
 use crate::error::{Error, Result};
-use crate::ident::run::Repetition;
 use crate::params::{BaseOptions, BaseParams};
 use crate::robot::{forward_dynamics, gravity, inverse_dynamics, mass_matrix, Inertial, ParamKind, Robot, Workspace};
+pub use crate::trajectory::{Reference, ReferenceSpec};
 use nalgebra::{Matrix3, Vector3};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
-pub use reference::{Reference, ReferenceSpec};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -486,14 +486,6 @@ fn resolve(base: &Path, p: &Path) -> PathBuf {
     }
 }
 
-fn unit_seed(seed: u64, index: u64) -> u64 {
-    // splitmix64 of (seed, index): independent streams per unit of work
-    let mut z = seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
 /// State of the closed loop carried from one controller period to the next.
 struct Loop {
     q: Vec<f64>,
@@ -613,14 +605,14 @@ impl SimSetup {
         if self.reference.periodic() {
             let steps = (self.reference.duration() * self.rate).round() as usize;
             let mut lp = self.new_loop();
-            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(unit_seed(self.seed, 0));
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(crate::rng::mix(self.seed, 0, 0));
             self.run_steps(&mut lp, 0, steps, 0.0, &mut rng, None)?; // lead-in period
             for i in 0..self.repetitions {
                 if crate::io::stop::requested() {
                     interrupted = true;
                     break;
                 }
-                let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(unit_seed(self.seed, (i + 1) as u64));
+                let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(crate::rng::mix(self.seed, (i + 1) as u64, 0));
                 let mut rep = new_rep();
                 let k0 = (i + 1) * steps;
                 self.run_steps(&mut lp, k0, steps, k0 as f64 * dt, &mut rng, Some(&mut rep))?;
@@ -635,7 +627,7 @@ impl SimSetup {
                     if crate::io::stop::requested() {
                         return None;
                     }
-                    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(unit_seed(self.seed, (i + 1) as u64));
+                    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(crate::rng::mix(self.seed, (i + 1) as u64, 0));
                     let mut lp = self.new_loop();
                     let mut rep = new_rep();
                     let r = self.run_steps(&mut lp, 0, steps, 0.0, &mut rng, Some(&mut rep)).map(|_| rep);
@@ -712,31 +704,6 @@ fn rk4(robot: &Robot, ws: &mut Workspace, q: &mut [f64], qd: &mut [f64], tau: &[
         qd[j] += h / 6.0 * (a1[j] + 2.0 * a2[j] + 2.0 * a3[j] + a4[j]);
     }
     Ok(())
-}
-
-/// The true parameters written next to a simulated run (`truth.json`).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Truth {
-    /// Robot name.
-    pub robot: String,
-    /// Standard parameter names.
-    pub names: Vec<String>,
-    /// True standard parameters.
-    pub theta: Vec<f64>,
-    /// Nominal standard parameters (robot file).
-    pub nominal: Vec<f64>,
-    /// Base parameter names (default base-parameter options).
-    pub base_names: Vec<String>,
-    /// True base parameters θ_b = K θ.
-    pub base: Vec<f64>,
-}
-
-impl Truth {
-    /// Reads a `truth.json`.
-    pub fn read(path: &Path) -> Result<Truth> {
-        let text = crate::io::read_to_string(path)?;
-        serde_json::from_str(&text).map_err(|e| Error::parse(path, format!("line {}, column {}: {e}", e.line(), e.column())))
-    }
 }
 
 impl SimResult {

@@ -14,6 +14,13 @@
 //! ending at rest, built into the parameterisation) and pulls gradients back.
 //! A sampled trajectory is an [`crate::io::States`] (`t, q, qd, qdd` CSV).
 
+pub mod differentiate;
+pub mod multisine;
+pub mod reference;
+
+pub use differentiate::differentiate;
+pub use reference::{Reference, ReferenceSpec};
+
 use crate::error::{Error, Result};
 use crate::io::States;
 use serde::{Deserialize, Serialize};

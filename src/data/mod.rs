@@ -1,0 +1,19 @@
+//! Run formats shared by the simulators and the estimators (layer 2: they use
+//! only `error`, `io` and `robot`, and are used by `sim`, `elastic`, `ident`
+//! and `frf`).
+//!
+//! - [`Run`] / [`Repetition`]: a measured (or simulated) rigid-body
+//!   identification run, N_r repetitions of one experiment on a common time
+//!   grid, one CSV per repetition (`t, q1..qn, tau1..taun[, r.., qd.., qdd..]`).
+//! - [`MotorRecord`]: one recorded FRF experiment, motor torques u and motor
+//!   positions y per sample (`t, tau1..taun, qm1..qmn`).
+//! - [`Truth`]: the true parameters written next to a simulated run
+//!   (`truth.json`).
+
+pub mod motor;
+pub mod run;
+pub mod truth;
+
+pub use motor::MotorRecord;
+pub use run::{expand, Repetition, Run};
+pub use truth::Truth;
