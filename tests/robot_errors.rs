@@ -144,6 +144,7 @@ fn states_csv_errors_name_file_row_and_column() {
     assert!(e.contains("short.csv") && e.contains("row 1") && e.contains("expected 3 values"), "{e}");
 }
 
+#[cfg(feature = "cli")]
 /// The CLI reports bad input with a non-zero exit and the message, never a panic.
 #[test]
 fn cli_reports_errors_without_panicking() {
