@@ -63,7 +63,10 @@ fn every_output_folder_has_the_one_status_schema() {
     let design = d.path().join("sim.toml");
     let text = std::fs::read_to_string(root("designs/sim_rpr_fourier.toml"))
         .unwrap()
-        .replace("../tests/data/ident/rpr_drives.toml", root("tests/data/ident/rpr_drives.toml").to_str().unwrap())
+        .replace(
+            "../tests/data/ident/rpr_drives.toml",
+            root("tests/data/ident/rpr_drives.toml").to_str().unwrap(),
+        )
         .replace("repetitions = 50", "repetitions = 2")
         .replace("frequency = 0.1", "frequency = 0.5");
     std::fs::write(&design, text).unwrap();
@@ -131,7 +134,15 @@ fn robot_out_is_a_folder_and_json_and_old_spellings_work() {
     let o = run(idexp().args(["robot", "torques", "designs/robots/ur5.toml", "--states", "tests/data/ur5_states.csv"]));
     assert_eq!(stdout(&o), csv);
     let o = run(idexp()
-        .args(["robot", "regressor", "designs/robots/ur5.toml", "--states", "tests/data/ur5_states.csv", "--base", "--out"])
+        .args([
+            "robot",
+            "regressor",
+            "designs/robots/ur5.toml",
+            "--states",
+            "tests/data/ur5_states.csv",
+            "--base",
+            "--out",
+        ])
         .arg(d.path()));
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(d.path().join("regressor.csv").is_file());

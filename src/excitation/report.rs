@@ -21,13 +21,13 @@ use super::constraints::Margin;
 use super::{ExciteResult, Problem, Status};
 use crate::error::{Error, Result};
 use crate::io::plot::{write_svg, Panel, Series};
+use crate::io::status::RunState;
 use crate::io::States;
 use crate::params::BaseParams;
 use crate::robot::{regressor_rows, Robot, Workspace};
 use nalgebra::DMatrix;
 use serde::Serialize;
 use std::fmt::Write as _;
-use crate::io::status::RunState;
 use std::path::Path;
 
 /// Relative rank tolerance on the singular values of the unit-column matrix.
@@ -365,9 +365,17 @@ pub fn excite_text(p: &Problem, r: &ExciteResult, ident: &Identifiability) -> St
     );
     let _ = writeln!(
         s,
-        "criterion: {:?} of the {:?}-scaled base regressor ({} columns, {} samples at {} Hz)",
-        d.objective.criterion,
-        d.objective.scaling,
+        "criterion: {} of the base regressor with {} ({} columns, {} samples at {} Hz)",
+        match d.objective.criterion {
+            super::Criterion::Cond => "condition number",
+            super::Criterion::LogDet => "−log det (D-optimality)",
+            super::Criterion::InvSigmaMin => "1/σ_min (E-optimality)",
+        },
+        match d.objective.scaling {
+            super::Scaling::UnitColumn => "unit-norm columns",
+            super::Scaling::Nominal => "columns scaled by the nominal parameters",
+            super::Scaling::None => "unscaled columns",
+        },
         p.objective.n_cols(),
         p.objective.times.len(),
         d.objective.sample_rate

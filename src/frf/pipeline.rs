@@ -13,14 +13,22 @@ use super::multistart::{merge_logs, read_log, sorted_lines, MultistartRun, Shard
 use super::report::{self, Report};
 use crate::elastic::{ElasticModel, Estimator};
 use crate::error::{Error, Result};
-use serde::{Deserialize, Serialize};
 use crate::io::status::{fingerprint_of, RunState};
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 use std::time::SystemTime;
 
 /// Writes the folder's `status.json` ([`crate::io::status`]).
-fn write_status(dir: &Path, command: &str, state: RunState, detail: String, started: SystemTime, fingerprint: String, summary: serde_json::Value) -> Result<()> {
+fn write_status(
+    dir: &Path,
+    command: &str,
+    state: RunState,
+    detail: String,
+    started: SystemTime,
+    fingerprint: String,
+    summary: serde_json::Value,
+) -> Result<()> {
     crate::io::status::write_status(dir, command, state, detail, Some(started), fingerprint, summary)
 }
 
@@ -396,7 +404,15 @@ fn finish(s: &FitSetup, dir: &Path, records: &[StartRecord], command: &str, star
     }
     crate::io::write_json(&dir.join("design.json"), &s.design)?;
     let summary = serde_json::json!({ "starts": records.len(), "estimator": s.info.estimator, "weights": s.info.weights });
-    write_status(dir, command, RunState::Complete, format!("{} starts", records.len()), started, s.info.hash.clone(), summary)?;
+    write_status(
+        dir,
+        command,
+        RunState::Complete,
+        format!("{} starts", records.len()),
+        started,
+        s.info.hash.clone(),
+        summary,
+    )?;
     Ok(r)
 }
 

@@ -15,9 +15,9 @@ use super::design::PositionsRun;
 use super::relax::Status;
 use crate::error::Result;
 use crate::io::plot::{write_svg, Panel, Series};
+use crate::io::status::RunState;
 use crate::robot::{frame_pose, Workspace};
 use serde::Serialize;
-use crate::io::status::RunState;
 use std::path::Path;
 use std::time::SystemTime;
 

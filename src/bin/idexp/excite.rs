@@ -2,8 +2,8 @@
 
 use crate::Outcome;
 use anyhow::bail;
-use idexp::excitation::report::{assess, read_states, violation_lines, write_outputs};
 use idexp::excitation::design::ExciteDesign;
+use idexp::excitation::report::{assess, read_states, violation_lines, write_outputs};
 use idexp::excitation::{run, Criterion, Problem, Status};
 use idexp::optim::Control;
 use idexp::params::{BaseOptions, BaseParams};

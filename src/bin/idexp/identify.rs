@@ -284,7 +284,15 @@ fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run, started: SystemT
     };
     idexp::io::write_json(&out.join("options.json"), a)?;
     let detail = format!("{} experiment, joint {joint}", if exp == Experiment::Gravity { "gravity" } else { "friction" });
-    write_status(&out, "identify", RunState::Complete, detail, Some(started), fingerprint_of(a)?, serde_json::json!({ "experiment": exp, "joint": joint }))?;
+    write_status(
+        &out,
+        "identify",
+        RunState::Complete,
+        detail,
+        Some(started),
+        fingerprint_of(a)?,
+        serde_json::json!({ "experiment": exp, "joint": joint }),
+    )?;
     if a.json {
         crate::print_json(&json)?;
     } else {
