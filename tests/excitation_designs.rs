@@ -6,6 +6,7 @@
 
 use idexp::excitation::design::ExciteDesign;
 use idexp::excitation::{run, ExciteResult, Problem, Status};
+#[cfg(feature = "cli")]
 use idexp::trajectory::FourierTrajectory;
 use std::path::{Path, PathBuf};
 #[cfg(feature = "cli")]

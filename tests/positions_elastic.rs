@@ -10,8 +10,11 @@ mod common;
 use idexp::elastic::{self, ElasticModel, Estimator, NoiseModel, Output, C64};
 use idexp::positions::design::InformationSpec;
 use idexp::positions::elastic::{load_elastic, ElasticScale, ElasticSource};
-use idexp::positions::{run_design, InformationSource, PositionsDesign, Status};
+#[cfg(feature = "cli")]
+use idexp::positions::Status;
+use idexp::positions::{run_design, InformationSource, PositionsDesign};
 use nalgebra::DMatrix;
+#[cfg(feature = "cli")]
 use std::path::Path;
 #[cfg(feature = "cli")]
 use std::process::Command;
