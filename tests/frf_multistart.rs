@@ -142,7 +142,8 @@ fn thread_count_resume_and_shards_give_the_same_file() {
     let (_, mdir) = pipeline::merge(&shard_files, None).unwrap();
     assert_eq!(read(&mdir.join("starts.jsonl")), ref_log, "merged shards");
     assert_eq!(read(&mdir.join("fit.json")), ref_fit);
-    assert!(mdir.join("costs.svg").exists() && mdir.join("bode_pos1.svg").exists() && mdir.join("phase_pos2.svg").exists());
+    let figures = mdir.join("costs.svg").exists() && mdir.join("bode_pos1.svg").exists() && mdir.join("phase_pos2.svg").exists();
+    assert_eq!(figures, cfg!(feature = "plots"), "figures are written with (and only with) the `plots` feature");
 
     // a log from another design is refused
     let other = small_design(&dir.path().join("other"));
