@@ -160,7 +160,7 @@ fn cli_reports_errors_without_panicking() {
         ])
         .output()
         .unwrap();
-    assert!(!out.status.success());
+    assert_eq!(out.status.code(), Some(1), "an error in the input exits with 1");
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("nan.csv") && err.contains("qdd2") && !err.contains("panicked"), "{err}");
 }
