@@ -2,13 +2,19 @@
 //! beside the simulated FRF data) and at θ_init, and the relative theoretical
 //! standard deviations (eq. 5) at the truth. Run after `idexp frf`:
 //! `cargo run --release --example frf_check -- designs/elastic_industrial6.toml out`
-use idexp::frf::cli::setup;
+use idexp::frf::pipeline::{setup, FitOptions};
 use std::path::PathBuf;
 
 fn main() -> Result<(), idexp::Error> {
     let design = PathBuf::from(std::env::args().nth(1).unwrap_or_else(|| "designs/elastic_industrial6.toml".into()));
     let out = std::env::args().nth(2).map(PathBuf::from);
-    let s = setup(&design, None, None, None, None, out.as_deref())?;
+    let s = setup(
+        &design,
+        &FitOptions {
+            out: out.clone(),
+            ..FitOptions::default()
+        },
+    )?;
     let Some(t) = s.truth.clone() else {
         println!("no truth.json beside the FRF data: the data are not simulated");
         return Ok(());

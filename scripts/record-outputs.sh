@@ -11,7 +11,7 @@ cd "$(dirname "$0")/.."
 mkdir -p "$OUT"
 export IDEXP_NO_PROGRESS=1
 log="$OUT/commands.log"; : > "$log"
-run() { # name, args...
+run() { # name, args... (the exit code goes to the log: 0 ok, 1 input, 2 usage, 3 not usable, 130 interrupted)
   local name=$1; shift
   echo "== $name: idexp $*" >> "$log"
   "$BIN" "$@" > "$OUT/$name.stdout" 2> "$OUT/$name.stderr"; echo "exit $?" >> "$log"
@@ -20,7 +20,7 @@ O=$OUT/out
 run robot_info robot info designs/robots/puma560.toml
 run robot_info_json robot info designs/robots/puma560.toml --json
 run robot_torques robot torques designs/robots/ur5.toml --states tests/data/ur5_states.csv
-run robot_regressor robot regressor designs/robots/ur5.toml --states tests/data/ur5_states.csv --base --out "$O/Yb.csv"
+run robot_regressor robot regressor designs/robots/ur5.toml --states tests/data/ur5_states.csv --base --out "$O/robot_regressor"
 for d in excite_ur5 excite_industrial6_full excite_industrial6_restrained excite_panda_table; do
   run "$d" excite designs/$d.toml --out "$O/$d"
 done

@@ -15,6 +15,10 @@
 //! W θ = W_b (θ_b + β θ_d): the base parameters are θ_base = K θ with
 //! K = [I β] (in the original column positions), and the base regressor is
 //! Y_base = Y[:, kept].
+//!
+//! [`info`]: the robot summary and the torque/regressor tables of `idexp robot`.
+
+pub mod info;
 
 use crate::error::{Error, Result};
 use crate::robot::{regressor_rows, ParamKind, Robot, Workspace};

@@ -2,6 +2,7 @@
 //! fit; a fit killed with SIGKILL and started again gives the same files as an
 //! uninterrupted run; shards merged with `idexp merge` give the same files;
 //! bad arguments give errors.
+#![cfg(feature = "cli")]
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

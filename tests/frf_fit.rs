@@ -5,7 +5,7 @@
 //! noise realisations.
 
 use idexp::elastic::Estimator;
-use idexp::frf::cli::{self, FitOptions};
+use idexp::frf::pipeline::{self, FitOptions};
 use idexp::frf::{design::WeightKind, fit, simulate, Design};
 use std::path::{Path, PathBuf};
 
@@ -30,7 +30,7 @@ fn write_design(dir: &Path, npos: usize, fmax: f64, edit: &dyn Fn(String) -> Str
 }
 
 fn frf_data(p: &Path, out: &Path) -> idexp::frf::FrfData {
-    cli::frf(p, Some(out)).unwrap().0
+    pipeline::frf(p, Some(out)).unwrap().0
 }
 
 #[test]
@@ -77,7 +77,7 @@ fn lls_recovers_the_springs_within_their_theoretical_uncertainty() {
         s.replace("starts = 100", "starts = 6").replace("spread = 1.0", "spread = 0.3")
     });
     frf_data(&p, dir.path());
-    let r = cli::fit(
+    let r = pipeline::fit(
         &p,
         &FitOptions {
             out: Some(dir.path().to_path_buf()),

@@ -3,7 +3,7 @@
 //! as an uninterrupted run; shards merged equal a single run; logs of another
 //! design are refused.
 
-use idexp::frf::cli::{self, FitOptions};
+use idexp::frf::pipeline::{self, FitOptions};
 use idexp::frf::Shard;
 use std::path::{Path, PathBuf};
 
@@ -27,7 +27,7 @@ fn small_design(dir: &Path) -> PathBuf {
     std::fs::create_dir_all(dir).unwrap();
     let p = dir.join("small.toml");
     std::fs::write(&p, s).unwrap();
-    cli::frf(&p, Some(dir)).unwrap();
+    pipeline::frf(&p, Some(dir)).unwrap();
     p
 }
 
@@ -39,11 +39,11 @@ fn opts(out: &Path) -> FitOptions {
     }
 }
 
-/// `cli::fit` of design `p` on the FRF file `data` into `out`, on a rayon pool of `threads` threads.
-fn fit_on_threads(threads: usize, p: &Path, data: &Path, out: &Path) -> cli::FitRun {
+/// `pipeline::fit` of design `p` on the FRF file `data` into `out`, on a rayon pool of `threads` threads.
+fn fit_on_threads(threads: usize, p: &Path, data: &Path, out: &Path) -> pipeline::FitRun {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
     pool.install(|| {
-        cli::fit(
+        pipeline::fit(
             p,
             &FitOptions {
                 data: Some(data.to_path_buf()),
@@ -85,7 +85,7 @@ fn thread_count_resume_and_shards_give_the_same_file() {
     std::fs::create_dir_all(c.join(&fitdir)).unwrap();
     let partial = format!("{}\n{}\n{}", lines[4], lines[1], &lines[2][..lines[2].len() / 2]);
     std::fs::write(c.join(&fitdir).join("starts.jsonl"), partial).unwrap();
-    let rc = cli::fit(
+    let rc = pipeline::fit(
         &p,
         &FitOptions {
             data: Some(data.clone()),
@@ -99,7 +99,7 @@ fn thread_count_resume_and_shards_give_the_same_file() {
 
     // a run with fewer starts is continued by one with more
     let g = dir.path().join("g");
-    let rg = cli::fit(
+    let rg = pipeline::fit(
         &p,
         &FitOptions {
             data: Some(data.clone()),
@@ -109,7 +109,7 @@ fn thread_count_resume_and_shards_give_the_same_file() {
     )
     .unwrap();
     assert_eq!(rg.records.len(), 3);
-    let rg = cli::fit(
+    let rg = pipeline::fit(
         &p,
         &FitOptions {
             data: Some(data.clone()),
@@ -123,7 +123,7 @@ fn thread_count_resume_and_shards_give_the_same_file() {
     let s = dir.path().join("s");
     let mut shard_files = Vec::new();
     for i in 0..3 {
-        let r = cli::fit(
+        let r = pipeline::fit(
             &p,
             &FitOptions {
                 data: Some(data.clone()),
@@ -137,18 +137,19 @@ fn thread_count_resume_and_shards_give_the_same_file() {
         shard_files.push(r.log);
     }
     // merging an incomplete set is refused, naming the missing starts
-    let e = cli::merge(&shard_files[..2], None).unwrap_err().to_string();
+    let e = pipeline::merge(&shard_files[..2], None).unwrap_err().to_string();
     assert!(e.contains("missing"), "{e}");
-    let (_, mdir) = cli::merge(&shard_files, None).unwrap();
+    let (_, mdir) = pipeline::merge(&shard_files, None).unwrap();
     assert_eq!(read(&mdir.join("starts.jsonl")), ref_log, "merged shards");
     assert_eq!(read(&mdir.join("fit.json")), ref_fit);
-    assert!(mdir.join("costs.svg").exists() && mdir.join("bode_pos1.svg").exists() && mdir.join("phase_pos2.svg").exists());
+    let figures = mdir.join("costs.svg").exists() && mdir.join("bode_pos1.svg").exists() && mdir.join("phase_pos2.svg").exists();
+    assert_eq!(figures, cfg!(feature = "plots"), "figures are written with (and only with) the `plots` feature");
 
     // a log from another design is refused
     let other = small_design(&dir.path().join("other"));
     let txt = read(&other).replace("seed = 2026", "seed = 7");
     std::fs::write(&other, txt).unwrap();
-    let e = cli::fit(
+    let e = pipeline::fit(
         &other,
         &FitOptions {
             data: Some(data.clone()),

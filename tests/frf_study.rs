@@ -4,7 +4,7 @@
 //! `cargo test --release --test frf_study -- --ignored --nocapture`.
 
 use idexp::elastic::Estimator;
-use idexp::frf::cli::{self, FitOptions};
+use idexp::frf::pipeline::{self, FitOptions};
 use std::path::Path;
 
 #[test]
@@ -12,11 +12,11 @@ use std::path::Path;
 fn hundred_starts_three_estimators() {
     let dir = tempfile::tempdir().unwrap();
     let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/elastic_industrial6.toml");
-    cli::frf(&d, Some(dir.path())).unwrap();
+    pipeline::frf(&d, Some(dir.path())).unwrap();
     let mut shares = Vec::new();
     for est in [Estimator::Lls, Estimator::LlsMagnitude, Estimator::Nls] {
         let t0 = std::time::Instant::now();
-        let r = cli::fit(
+        let r = pipeline::fit(
             &d,
             &FitOptions {
                 estimator: Some(est),

@@ -93,6 +93,7 @@ fn repetitions_round_trip_and_folders_are_read_in_order() {
     assert_eq!(run.reps[1], rep);
 }
 
+#[cfg(feature = "cli")]
 #[test]
 fn cli_simulate_then_identify_writes_every_output() {
     let d = tempfile::tempdir().unwrap();

@@ -5,8 +5,10 @@ mod common;
 use idexp::positions::{efficient_rounding, round_design, solve_relaxed, Criterion, Problem, SolverOptions};
 use nalgebra::DMatrix;
 use rand::{RngExt, SeedableRng};
+#[cfg(feature = "cli")]
 use std::process::Command;
 
+#[cfg(feature = "cli")]
 fn run_cli(design: &str, out: &std::path::Path) -> serde_json::Value {
     let st = Command::new(env!("CARGO_BIN_EXE_idexp"))
         .args(["positions", design, "--out"])
@@ -31,6 +33,7 @@ fn run_cli(design: &str, out: &std::path::Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap()
 }
 
+#[cfg(feature = "cli")]
 #[test]
 fn shipped_file_designs_run() {
     let dir = tempfile::tempdir().unwrap();
@@ -50,6 +53,7 @@ fn shipped_file_designs_run() {
     }
 }
 
+#[cfg(feature = "cli")]
 #[test]
 fn rigid_design_runs_end_to_end() {
     let dir = tempfile::tempdir().unwrap();
@@ -73,6 +77,7 @@ fn rigid_design_runs_end_to_end() {
     assert!(rows.iter().all(|r| r["q"].as_array().unwrap().len() == 6 && r["position"].is_array()));
 }
 
+#[cfg(feature = "cli")]
 /// cargo test --release --test positions_cli -- --ignored
 #[test]
 #[ignore]

@@ -10,9 +10,13 @@ mod common;
 use idexp::elastic::{self, ElasticModel, Estimator, NoiseModel, Output, C64};
 use idexp::positions::design::InformationSpec;
 use idexp::positions::elastic::{load_elastic, ElasticScale, ElasticSource};
-use idexp::positions::{run_design, InformationSource, PositionsDesign, Status};
+#[cfg(feature = "cli")]
+use idexp::positions::Status;
+use idexp::positions::{run_design, InformationSource, PositionsDesign};
 use nalgebra::DMatrix;
+#[cfg(feature = "cli")]
 use std::path::Path;
+#[cfg(feature = "cli")]
 use std::process::Command;
 
 const ELASTIC: &str = "designs/elastic_industrial6.toml";
@@ -135,6 +139,7 @@ fn defaults_come_from_the_elastic_design_file() {
     assert_eq!(set2.output, Output::Velocity);
 }
 
+#[cfg(feature = "cli")]
 fn run_cli(design: &str, out: &Path, threads: usize) -> serde_json::Value {
     let st = Command::new(env!("CARGO_BIN_EXE_idexp"))
         .args(["positions", design, "--out"])
@@ -161,6 +166,7 @@ fn run_cli(design: &str, out: &Path, threads: usize) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap()
 }
 
+#[cfg(feature = "cli")]
 #[test]
 fn small_elastic_design_is_certified_d_optimal_with_small_support() {
     let path = common::root("designs/positions_elastic6_small.toml");
@@ -248,6 +254,7 @@ fn small_elastic_design_is_certified_d_optimal_with_small_support() {
     }
 }
 
+#[cfg(feature = "cli")]
 /// The shipped design: a few thousand candidates, 26 unknowns.
 /// `cargo test --release --test positions_elastic -- --ignored`
 #[test]

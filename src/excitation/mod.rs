@@ -34,7 +34,6 @@
 //! Results depend only on the design (and its seed), not on the thread count,
 //! unless a wall-clock `time_limit` cuts the search short.
 
-pub mod cli;
 pub mod constraints;
 pub mod design;
 pub mod ga;
@@ -404,7 +403,7 @@ pub fn run(p: &Problem, progress: bool) -> Result<ExciteResult> {
     let pb = if progress {
         crate::io::progress_bar(d.ga.generations as u64, "excite GA")
     } else {
-        indicatif::ProgressBar::hidden()
+        crate::io::ProgressBar::hidden()
     };
     // shrink centre: the rest trajectory at q0 (harmonics zero)
     let centre = p.layout.vars(&crate::trajectory::FourierTrajectory::at_rest(
@@ -468,7 +467,7 @@ pub fn run(p: &Problem, progress: bool) -> Result<ExciteResult> {
             s.set_message(format!("{first} {:?} start(s), analytic gradients", d.refine.algorithm));
             s
         } else {
-            indicatif::ProgressBar::hidden()
+            crate::io::ProgressBar::hidden()
         };
         // one start at a time, best first: the gradient's per-sample work is
         // what runs in parallel (no nested pools competing for the threads)

@@ -21,6 +21,7 @@ use super::constraints::Margin;
 use super::{ExciteResult, Problem, Status};
 use crate::error::{Error, Result};
 use crate::io::plot::{write_svg, Panel, Series};
+use crate::io::status::RunState;
 use crate::io::States;
 use crate::params::BaseParams;
 use crate::robot::{regressor_rows, Robot, Workspace};
@@ -310,14 +311,21 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Identi
     crate::io::write_json(&dir.join("coefficients.json"), &coeff)?;
     r.trajectory.sample(d.trajectory.controller_rate)?.write(&dir.join("trajectory.csv"))?;
     crate::io::write_json(&dir.join("design.json"), d)?;
-    let status = serde_json::json!({
-        "status": r.status,
+    let summary = serde_json::json!({
+        "design_status": r.status,
         "stopped_by": r.stopped_by,
         "violated": r.violated.iter().map(|m| format!("{}: {} {} beyond the limit", m.name, fmt_num(-m.margin), m.unit)).collect::<Vec<_>>(),
         "cond": r.spectrum.cond,
         "seconds": r.seconds,
     });
-    crate::io::write_json(&dir.join("status.json"), &status)?;
+    let interrupted = r.stopped_by.as_deref().is_some_and(|b| b.contains("interrupted"));
+    let (state, detail) = match (r.status, interrupted) {
+        (super::Status::Infeasible, _) => (RunState::Infeasible, format!("infeasible: {} constraint(s) violated", r.violated.len())),
+        (super::Status::Feasible, true) => (RunState::Interrupted, "interrupted; the best feasible design so far".to_string()),
+        (super::Status::Feasible, false) => (RunState::Complete, format!("feasible, condition number {:.4}", r.spectrum.cond)),
+    };
+    let started = std::time::SystemTime::now().checked_sub(std::time::Duration::from_secs_f64(r.seconds.max(0.0)));
+    crate::io::status::write_status(dir, "excite", state, detail, started, crate::io::status::fingerprint_of(d)?, summary)?;
     let robot_path = d.robot.display().to_string();
     crate::io::write_json(
         &dir.join("report.json"),
@@ -357,9 +365,17 @@ pub fn excite_text(p: &Problem, r: &ExciteResult, ident: &Identifiability) -> St
     );
     let _ = writeln!(
         s,
-        "criterion: {:?} of the {:?}-scaled base regressor ({} columns, {} samples at {} Hz)",
-        d.objective.criterion,
-        d.objective.scaling,
+        "criterion: {} of the base regressor with {} ({} columns, {} samples at {} Hz)",
+        match d.objective.criterion {
+            super::Criterion::Cond => "condition number",
+            super::Criterion::LogDet => "−log det (D-optimality)",
+            super::Criterion::InvSigmaMin => "1/σ_min (E-optimality)",
+        },
+        match d.objective.scaling {
+            super::Scaling::UnitColumn => "unit-norm columns",
+            super::Scaling::Nominal => "columns scaled by the nominal parameters",
+            super::Scaling::None => "unscaled columns",
+        },
         p.objective.n_cols(),
         p.objective.times.len(),
         d.objective.sample_rate

@@ -7,15 +7,15 @@
 //! shards and merge ([`multistart`]), and the report ([`report`]).
 //!
 //! The commands `idexp multisine`, `idexp frf`, `idexp fit`, `idexp merge`
-//! are thin wrappers over [`cli::multisine`], [`cli::frf`], [`cli::fit`],
-//! [`cli::merge`].
+//! are thin wrappers over [`pipeline::multisine`], [`pipeline::frf`],
+//! [`pipeline::fit`], [`pipeline::merge`].
 
-pub mod cli;
 pub mod design;
 pub mod estimate;
 pub mod fit;
 pub mod multisine;
 pub mod multistart;
+pub mod pipeline;
 pub mod report;
 pub mod simulate;
 

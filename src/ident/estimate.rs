@@ -121,8 +121,8 @@ impl Dataset {
     }
 }
 
-/// Weights of the WLS estimator.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default, clap::ValueEnum)]
+/// Weights of the WLS estimator (`--weights`: `sample`, `joint`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Weights {
     /// Per joint and time step, the inverse sample variances (paper 000 eq. 7–9).
@@ -130,6 +130,35 @@ pub enum Weights {
     Sample,
     /// Per joint, the inverse of the joint's mean sample variance (robust for small N_r).
     Joint,
+}
+
+impl Weights {
+    /// The name on the command line and in files (`sample`, `joint`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Weights::Sample => "sample",
+            Weights::Joint => "joint",
+        }
+    }
+}
+
+/// The name of [`Weights::name`].
+impl std::fmt::Display for Weights {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Parses [`Weights::name`]; the error lists the allowed values.
+impl std::str::FromStr for Weights {
+    type Err = crate::Error;
+    fn from_str(s: &str) -> crate::Result<Weights> {
+        match s {
+            "sample" => Ok(Weights::Sample),
+            "joint" => Ok(Weights::Joint),
+            _ => Err(crate::Error::invalid("--weights", "weights", format!("expected sample or joint, found `{s}`"))),
+        }
+    }
 }
 
 /// A least-squares fit.

@@ -13,10 +13,10 @@
 //! model reduction ([`reduce`], Algorithm 1). The dedicated gravity and
 //! friction experiments of paper 002 §3.2 are in [`experiments`].
 
-pub mod cli;
 pub mod closed_loop;
 pub mod estimate;
 pub mod experiments;
+pub mod output;
 pub mod process;
 pub mod reduce;
 
@@ -32,8 +32,8 @@ use crate::robot::Robot;
 use crate::trajectory::FourierTrajectory;
 use serde::Serialize;
 
-/// Estimator.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default, clap::ValueEnum)]
+/// Estimator (`--method`: `ols`, `wls`, `projection`, `ml`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Method {
     /// Ordinary least squares.
@@ -45,6 +45,49 @@ pub enum Method {
     Projection,
     /// Maximum likelihood with noisy positions and torques (paper 002 eq. 13–16).
     Ml,
+}
+
+impl Method {
+    /// Every method, in the order of the command line's help.
+    pub const ALL: [Method; 4] = [Method::Ols, Method::Wls, Method::Projection, Method::Ml];
+
+    /// The name on the command line and in files (`ols`, `wls`, `projection`, `ml`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Ols => "ols",
+            Method::Wls => "wls",
+            Method::Projection => "projection",
+            Method::Ml => "ml",
+        }
+    }
+
+    /// Human words for reports ("weighted least squares", ...).
+    pub fn words(self) -> &'static str {
+        match self {
+            Method::Ols => "ordinary least squares",
+            Method::Wls => "weighted least squares",
+            Method::Projection => "projection method",
+            Method::Ml => "maximum likelihood",
+        }
+    }
+}
+
+/// The name of [`Method::name`].
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Parses [`Method::name`]; the error lists the allowed values.
+impl std::str::FromStr for Method {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Method> {
+        Method::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| Error::invalid("--method", "method", format!("expected ols, wls, projection or ml, found `{s}`")))
+    }
 }
 
 /// How positions are filtered.
@@ -413,7 +456,7 @@ impl Estimate {
     pub fn text(&self) -> String {
         use std::fmt::Write;
         let mut s = String::new();
-        let _ = writeln!(s, "identification: method {:?}, status {}", self.method, self.status);
+        let _ = writeln!(s, "identification: method {}, status {}", self.method.words(), self.status);
         let _ = writeln!(
             s,
             "data: {} repetitions averaged, {} samples per joint, filter {}",

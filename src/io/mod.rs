@@ -7,6 +7,7 @@
 
 pub mod plot;
 pub mod states;
+pub mod status;
 pub mod table;
 
 use crate::error::{Error, Result};
@@ -113,8 +114,49 @@ pub mod stop {
     }
 }
 
+/// The progress bar type of [`progress_bar`]: indicatif's with the `cli`
+/// feature, else [`HiddenProgress`] (draws nothing).
+#[cfg(feature = "cli")]
+pub type ProgressBar = indicatif::ProgressBar;
+/// The progress bar type of [`progress_bar`]: indicatif's with the `cli`
+/// feature, else [`HiddenProgress`] (draws nothing).
+#[cfg(not(feature = "cli"))]
+pub type ProgressBar = HiddenProgress;
+
+/// A progress bar that draws nothing: what the library's long loops report to
+/// when built without the `cli` feature (no indicatif). Same methods as the
+/// subset of indicatif's `ProgressBar` the loops use.
+#[cfg(not(feature = "cli"))]
+#[derive(Debug, Clone, Copy, Default)]
+pub struct HiddenProgress;
+
+#[cfg(not(feature = "cli"))]
+impl HiddenProgress {
+    /// A bar that is never drawn.
+    pub fn hidden() -> Self {
+        HiddenProgress
+    }
+    /// Advances by `_n` steps (nothing drawn).
+    pub fn inc(&self, _n: u64) {}
+    /// Grows the length by `_n` steps (nothing drawn).
+    pub fn inc_length(&self, _n: u64) {}
+    /// Sets the position (nothing drawn).
+    pub fn set_position(&self, _pos: u64) {}
+    /// Sets the message (nothing drawn).
+    pub fn set_message(&self, _msg: impl Into<std::borrow::Cow<'static, str>>) {}
+    /// Ends the bar (nothing drawn).
+    pub fn finish_and_clear(&self) {}
+}
+
+/// A progress bar for long work, hidden without the `cli` feature.
+#[cfg(not(feature = "cli"))]
+pub fn progress_bar(_len: u64, _what: &str) -> ProgressBar {
+    HiddenProgress
+}
+
 /// A progress bar for long work, hidden when stderr is not a terminal or when
 /// `IDEXP_NO_PROGRESS` is set.
+#[cfg(feature = "cli")]
 pub fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
     use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
     let pb = ProgressBar::new(len);

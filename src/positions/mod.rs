@@ -20,14 +20,15 @@
 //! * [`information`]: information sources (rigid local excitation, JSON file).
 //! * [`elastic`]: the elastic gray-box model's FRF information (paper 001 eq. 5).
 //! * [`candidates`]: grids, random samples, CSV files, workspace filtering.
-//! * [`design`]: the design file and [`design::run_design`]; [`cli`]: `idexp positions`.
+//! * [`design`]: the design file and [`design::run_design`]; [`output`]: the
+//!   output folder of `idexp positions` (plan, reports, figures).
 pub mod candidates;
-pub mod cli;
 pub mod conic;
 pub mod design;
 pub mod elastic;
 pub mod firstorder;
 pub mod information;
+pub mod output;
 pub mod problem;
 pub mod relax;
 pub mod rounding;

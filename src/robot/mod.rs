@@ -7,7 +7,6 @@
 //! (`regressor(&robot, &mut ws, q, qd, qdd, &mut out)`).
 
 pub mod cartesian;
-pub mod cli;
 pub mod dynamics;
 pub mod file;
 pub mod kinematics;

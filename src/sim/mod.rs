@@ -27,8 +27,6 @@
 //! dedicated experiments) start each repetition at rest at r(0). Every random
 //! draw comes from `ChaCha8Rng::seed_from_u64(seed ⊕ index)` per period or repetition.
 
-pub mod cli;
-
 use crate::data::Repetition;
 pub use crate::data::Truth;
 use crate::error::{Error, Result};
@@ -737,7 +735,14 @@ impl SimResult {
         }
         crate::io::write_json(&dir.join("truth.json"), &self.truth()?)?;
         crate::io::write_json(&dir.join("design.json"), design)?;
-        crate::io::write_json(&dir.join("status.json"), &self.status)?;
+        let state = if self.status.status == "interrupted" {
+            crate::io::status::RunState::Interrupted
+        } else {
+            crate::io::status::RunState::Complete
+        };
+        let detail = format!("{} repetitions ({})", self.status.repetitions, self.status.status);
+        let summary = crate::io::status::summary_of(&self.status)?;
+        crate::io::status::write_status(dir, "simulate", state, detail, None, crate::io::status::fingerprint_of(design)?, summary)?;
         Ok(())
     }
 }

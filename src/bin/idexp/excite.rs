@@ -1,9 +1,12 @@
 //! `idexp excite <design.toml>` and `idexp assess <robot> <trajectory.csv>`.
 
-use super::report::{assess, read_states, write_outputs};
-use super::{run, Problem, Status};
-use crate::error::{Error, Result};
-use crate::params::{BaseOptions, BaseParams};
+use crate::Outcome;
+use anyhow::bail;
+use idexp::excitation::design::ExciteDesign;
+use idexp::excitation::report::{assess, read_states, violation_lines, write_outputs};
+use idexp::excitation::{run, Criterion, Problem, Status};
+use idexp::optim::Control;
+use idexp::params::{BaseOptions, BaseParams};
 use std::path::PathBuf;
 
 /// `idexp excite`: design an excitation trajectory.
@@ -20,6 +23,9 @@ pub struct ExciteArgs {
     /// Override the design's wall-clock budget (s).
     #[arg(long)]
     pub time_limit: Option<f64>,
+    /// Print report.json's contents instead of the one-line summary.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `idexp assess`: identifiability of a given trajectory.
@@ -46,17 +52,29 @@ pub struct AssessArgs {
     pub json: bool,
 }
 
+/// The criterion in words.
+fn criterion_words(c: Criterion) -> &'static str {
+    match c {
+        Criterion::Cond => "condition number",
+        Criterion::LogDet => "−log det (D-optimality)",
+        Criterion::InvSigmaMin => "1/σ_min (E-optimality)",
+    }
+}
+
 /// Runs `idexp excite`.
-pub fn run_excite(a: &ExciteArgs) -> Result<()> {
-    let mut d = super::design::ExciteDesign::load(&a.design)?;
+pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
+    let mut d = ExciteDesign::load(&a.design)?;
     if let Some(s) = a.seed {
         d.seed = s;
     }
     if let Some(t) = a.time_limit {
+        if !(t.is_finite() && t > 0.0) {
+            bail!("--time-limit: expected a positive number of seconds, got {t}");
+        }
         d.time_limit = Some(t);
     }
     let ctx = a.design.display().to_string();
-    let robot = crate::robot::load(&d.robot)?;
+    let robot = idexp::robot::load(&d.robot)?;
     let p = Problem::new(d, robot, &ctx)?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&p.design.name));
     eprintln!(
@@ -70,42 +88,52 @@ pub fn run_excite(a: &ExciteArgs) -> Result<()> {
     );
     let r = run(&p, true)?;
     let _ = write_outputs(&p, &r, &out)?;
-    println!(
-        "{}: cond {:.4}, criterion {:.6} ({:?}), {:.1} s; outputs in {}",
-        match r.status {
-            Status::Feasible => "feasible",
-            Status::Infeasible => "INFEASIBLE",
-        },
-        r.spectrum.cond,
-        r.criterion,
-        p.design.objective.criterion,
-        r.seconds,
-        out.display()
-    );
-    for line in super::report::violation_lines(&r.violated) {
-        println!("  violated: {line}");
+    if a.json {
+        print!("{}", idexp::io::read_to_string(&out.join("report.json"))?);
+    } else {
+        println!(
+            "{}: condition number {:.4}, criterion {:.6} ({}), {:.1} s; outputs in {}",
+            match r.status {
+                Status::Feasible => "feasible",
+                Status::Infeasible => "INFEASIBLE",
+            },
+            r.spectrum.cond,
+            r.criterion,
+            criterion_words(p.design.objective.criterion),
+            r.seconds,
+            out.display()
+        );
+        for line in violation_lines(&r.violated) {
+            println!("  violated: {line}");
+        }
+        if let Some(b) = &r.stopped_by {
+            println!("  stopped early: {b}");
+        }
     }
-    if let Some(b) = &r.stopped_by {
-        println!("  stopped early: {b}");
-    }
-    Ok(())
+    let interrupted = r.stopped_by.as_deref().is_some_and(|b| b.contains("interrupted")) || crate::interrupted(ctl);
+    Ok(match r.status {
+        Status::Infeasible => Outcome::Unusable(format!("the design is INFEASIBLE ({} constraint(s) violated)", r.violated.len())),
+        Status::Feasible if interrupted => Outcome::Interrupted,
+        Status::Feasible => Outcome::Done,
+    })
 }
 
 /// Runs `idexp assess`.
-pub fn run_assess(a: &AssessArgs) -> Result<()> {
-    let robot = crate::robot::load(&a.robot)?;
+pub fn run_assess(a: &AssessArgs, _ctl: &Control) -> anyhow::Result<Outcome> {
+    let robot = idexp::robot::load(&a.robot)?;
     let n = robot.dof();
     let noise = match a.noise.len() {
         1 => vec![a.noise[0]; n],
         k if k == n => a.noise.clone(),
-        k => return Err(Error::invalid("idexp assess", "--noise", format!("expected 1 or {n} values, got {k}"))),
+        k => bail!("idexp assess: --noise: expected 1 or {n} values, got {k}"),
     };
     if let Some(j) = noise.iter().position(|v| !(v.is_finite() && *v > 0.0)) {
-        return Err(Error::invalid("idexp assess", "--noise", format!("value {} must be positive", j + 1)));
+        bail!("idexp assess: --noise: value {} must be positive", j + 1);
     }
     if a.every == 0 {
-        return Err(Error::invalid("idexp assess", "--every", "expected k ≥ 1"));
+        bail!("idexp assess: --every: expected k ≥ 1");
     }
+    let started = std::time::SystemTime::now();
     let states = read_states(&a.trajectory, n, a.every)?;
     let base = BaseParams::compute(
         &robot,
@@ -127,14 +155,21 @@ pub fn run_assess(a: &AssessArgs) -> Result<()> {
             "inertial": a.inertial,
             "status": if id.unexcited.is_empty() { "every base parameter excited" } else { "some base parameters not excited" },
         });
-        crate::io::write_json(&dir.join("inputs.json"), &inputs)?;
+        idexp::io::write_json(&dir.join("inputs.json"), &inputs)?;
+        let detail = if id.unexcited.is_empty() {
+            "every base parameter excited"
+        } else {
+            "some base parameters not excited"
+        };
+        let fp = idexp::io::status::fingerprint_of(&inputs)?;
+        let summary = serde_json::json!({ "unexcited": id.unexcited.len() });
+        idexp::io::status::write_status(dir, "assess", idexp::io::status::RunState::Complete, detail, Some(started), fp, summary)?;
     }
     if a.json {
-        let s = serde_json::to_string_pretty(&id).map_err(|e| Error::Numerical(e.to_string()))?;
-        println!("{s}");
+        crate::print_json(&id)?;
     } else {
         println!("{title}\n");
         print!("{}", id.text());
     }
-    Ok(())
+    Ok(Outcome::Done)
 }

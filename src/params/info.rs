@@ -1,115 +1,14 @@
-//! `idexp robot info|torques|regressor`: inspect a robot and evaluate its
-//! dynamics on a states CSV.
+//! What `idexp robot info|torques|regressor` reports: the robot summary with
+//! its base parameters ([`RobotInfo`]), and the inverse-dynamics torque and
+//! regressor tables of a states CSV ([`torques_table`], [`regressor_table`]).
+//! It sits at the params layer because the summary and the base regressor use
+//! [`BaseParams`].
 
-use super::{load, regressor_rows, rnea, JointKind, Robot, Workspace};
 use crate::error::Result;
 use crate::io::States;
 use crate::params::{BaseOptions, BaseParams};
+use crate::robot::{regressor_rows, rnea, JointKind, Robot, Workspace};
 use serde::Serialize;
-use std::path::{Path, PathBuf};
-
-/// `idexp robot ...`
-#[derive(clap::Args, Debug)]
-pub struct RobotArgs {
-    /// What to do with the robot.
-    #[command(subcommand)]
-    pub cmd: RobotCmd,
-}
-
-/// Robot subcommands.
-#[derive(clap::Subcommand, Debug)]
-pub enum RobotCmd {
-    /// Joints, limits, drives, standard and base parameters (with their groupings).
-    Info {
-        /// Robot file (.toml robot file or .urdf).
-        robot: PathBuf,
-        /// Machine-readable JSON instead of text.
-        #[arg(long)]
-        json: bool,
-        /// Rank tolerance of the base-parameter computation (relative residual).
-        #[arg(long, default_value_t = 1e-6)]
-        tol: f64,
-        /// Number of random states stacked for the base parameters.
-        #[arg(long, default_value_t = 200)]
-        samples: usize,
-    },
-    /// Inverse-dynamics torques (rigid body + drives + friction) for each row of a states CSV.
-    Torques {
-        /// Robot file.
-        robot: PathBuf,
-        /// States CSV with columns q1..qn, qd1..qdn, qdd1..qddn (other columns ignored).
-        #[arg(long)]
-        states: PathBuf,
-        /// Output CSV (default: standard output).
-        #[arg(long)]
-        out: Option<PathBuf>,
-    },
-    /// Regressor rows (n per state) in standard or base parameters.
-    Regressor {
-        /// Robot file.
-        robot: PathBuf,
-        /// States CSV with columns q1..qn, qd1..qdn, qdd1..qddn.
-        #[arg(long)]
-        states: PathBuf,
-        /// Base-parameter regressor instead of the standard one.
-        #[arg(long)]
-        base: bool,
-        /// Output CSV (default: standard output).
-        #[arg(long)]
-        out: Option<PathBuf>,
-    },
-}
-
-/// Runs a robot subcommand.
-pub fn run(args: &RobotArgs) -> Result<()> {
-    match &args.cmd {
-        RobotCmd::Info { robot, json, tol, samples } => {
-            let r = load(robot)?;
-            let info = RobotInfo::new(&r, *tol, *samples)?;
-            if *json {
-                let s = serde_json::to_string_pretty(&info).map_err(|e| crate::Error::Numerical(e.to_string()))?;
-                println!("{s}");
-            } else {
-                print!("{}", info.text());
-            }
-            Ok(())
-        }
-        RobotCmd::Torques { robot, states, out } => {
-            let r = load(robot)?;
-            let s = States::read(states, r.dof())?;
-            let (header, rows) = torques_table(&r, &s);
-            emit(out.as_deref(), &header, &rows)
-        }
-        RobotCmd::Regressor { robot, states, base, out } => {
-            let r = load(robot)?;
-            let s = States::read(states, r.dof())?;
-            let bp = if *base {
-                Some(BaseParams::compute(&r, &BaseOptions::default())?)
-            } else {
-                None
-            };
-            let (header, rows) = regressor_table(&r, &s, bp.as_ref());
-            emit(out.as_deref(), &header, &rows)
-        }
-    }
-}
-
-fn emit(out: Option<&Path>, header: &[String], rows: &[Vec<f64>]) -> Result<()> {
-    match out {
-        Some(p) => crate::io::write_csv(p, header, rows),
-        None => {
-            use std::io::Write;
-            let mut s = String::new();
-            s.push_str(&header.join(","));
-            s.push('\n');
-            for r in rows {
-                s.push_str(&r.iter().map(|v| crate::io::format_f64(*v)).collect::<Vec<_>>().join(","));
-                s.push('\n');
-            }
-            std::io::stdout().write_all(s.as_bytes()).map_err(|e| crate::Error::io("<stdout>", e))
-        }
-    }
-}
 
 /// Torques for every state: header (`t` if present, `tau1..taun`) and rows.
 pub fn torques_table(r: &Robot, s: &States) -> (Vec<String>, Vec<Vec<f64>>) {
@@ -217,7 +116,7 @@ pub struct JointInfo {
     /// Effort limit.
     pub effort: Option<f64>,
     /// Drive data.
-    pub drive: super::Drive,
+    pub drive: crate::robot::Drive,
 }
 
 fn fin(v: f64) -> Option<f64> {
@@ -281,11 +180,11 @@ impl RobotInfo {
         for (i, j) in self.joints.iter().enumerate() {
             let d = &j.drive;
             let fr = match d.friction {
-                super::Friction::None => "no friction".to_string(),
-                super::Friction::Symmetric { fc, fv, offset } => {
+                crate::robot::Friction::None => "no friction".to_string(),
+                crate::robot::Friction::Symmetric { fc, fv, offset } => {
                     format!("Fc={fc} Fv={fv}{}", offset.map(|o| format!(" F0={o}")).unwrap_or_default())
                 }
-                super::Friction::Asymmetric {
+                crate::robot::Friction::Asymmetric {
                     fc_pos,
                     fc_neg,
                     fv_pos,

@@ -1,6 +1,9 @@
-//! `idexp multisine`, `idexp frf`, `idexp fit`, `idexp merge`: the command
-//! line arguments and the library functions behind them (each usable on its
-//! own: [`multisine`], [`frf`], [`fit`], [`merge`]).
+//! The elastic study pipelines behind `idexp multisine`, `idexp frf`,
+//! `idexp fit` and `idexp merge`, each usable on its own: [`multisine`]
+//! (reference files), [`frf`] (FRF estimates from runs or a simulated design),
+//! [`fit`] (multistart gray-box fit, resumable and shardable) and [`merge`]
+//! (shard logs into the single-run result). Each writes its output folder,
+//! including the common `status.json` ([`crate::io::status`]).
 
 use super::design::{Design, WeightKind};
 use super::estimate::{estimate_from_manifest, FrfData};
@@ -10,77 +13,23 @@ use super::multistart::{merge_logs, read_log, sorted_lines, MultistartRun, Shard
 use super::report::{self, Report};
 use crate::elastic::{ElasticModel, Estimator};
 use crate::error::{Error, Result};
-use clap::Args;
+use crate::io::status::{fingerprint_of, RunState};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use std::str::FromStr;
+use std::time::SystemTime;
 
-/// `idexp multisine <design>`.
-#[derive(Args, Debug)]
-pub struct MultisineArgs {
-    /// Design file (TOML).
-    pub design: PathBuf,
-    /// Output folder (default out/<name>).
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-}
-
-/// `idexp frf <design | runs.json>`.
-#[derive(Args, Debug)]
-pub struct FrfArgs {
-    /// A design file with a [simulate] section, or a runs manifest `runs.json`.
-    pub input: PathBuf,
-    /// Output folder (default out/<name> for a design, the manifest's folder for runs).
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-}
-
-/// `idexp fit <design>`.
-#[derive(Args, Debug)]
-pub struct FitArgs {
-    /// Design file (TOML).
-    pub design: PathBuf,
-    /// FRF data (default out/<name>/frf/frf.json, written by `idexp frf`).
-    #[arg(long)]
-    pub data: Option<PathBuf>,
-    /// Estimator override: lls, lls_magnitude or nls.
-    #[arg(long)]
-    pub estimator: Option<String>,
-    /// Weights override: user or optimal.
-    #[arg(long)]
-    pub weights: Option<String>,
-    /// Number of starts override.
-    #[arg(long)]
-    pub starts: Option<usize>,
-    /// Run only starts l with l mod N = i (0-based `i/N`), for batch jobs.
-    #[arg(long)]
-    pub shard: Option<String>,
-    /// Output folder (default out/<name>).
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-}
-
-/// `idexp merge <shard files...>`.
-#[derive(Args, Debug)]
-pub struct MergeArgs {
-    /// Shard logs `starts.shard-<i>-of-<N>.jsonl` (with the `run.json` of their run beside them).
-    #[arg(required = true)]
-    pub shards: Vec<PathBuf>,
-    /// Output folder (default: the folder of the first shard).
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-}
-
-/// Status file written in every output folder.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-pub struct RunStatus {
-    /// `complete`, `interrupted` or `shard complete`.
-    pub status: String,
-    /// Free-form detail.
-    pub detail: String,
-}
-
-fn write_status(dir: &Path, status: &str, detail: String) -> Result<()> {
-    crate::io::write_json(&dir.join("status.json"), &RunStatus { status: status.into(), detail })
+/// Writes the folder's `status.json` ([`crate::io::status`]).
+fn write_status(
+    dir: &Path,
+    command: &str,
+    state: RunState,
+    detail: String,
+    started: SystemTime,
+    fingerprint: String,
+    summary: serde_json::Value,
+) -> Result<()> {
+    crate::io::status::write_status(dir, command, state, detail, Some(started), fingerprint, summary)
 }
 
 /// Summary of a multisine design (`multisine.json`).
@@ -106,6 +55,7 @@ pub struct MultisineSummary {
 /// and experiment (`ref_block<b>_exp<e>.csv`: t, r1..rn (rad/s), p1..pn (rad))
 /// and `multisine.json` with the crest factors, into `<out>/multisine`.
 pub fn multisine(design: &Path, out: Option<&Path>) -> Result<(MultisineSummary, PathBuf)> {
+    let started = SystemTime::now();
     let (d, model) = Design::load(design)?;
     let n = model.n_motors();
     let dir = d.out_dir(out).join("multisine");
@@ -146,8 +96,12 @@ pub fn multisine(design: &Path, out: Option<&Path>) -> Result<(MultisineSummary,
     crate::io::write_json(&dir.join("design.json"), &d)?;
     write_status(
         &dir,
-        "complete",
+        "multisine",
+        RunState::Complete,
         format!("{} blocks × {} experiments, {} lines", d.multisine.blocks, n, s.freqs_hz.len()),
+        started,
+        fingerprint_of(&d)?,
+        serde_json::json!({ "max_crest_factor": s.max_crest_factor, "lines": s.freqs_hz.len() }),
     )?;
     Ok((s, dir))
 }
@@ -180,8 +134,9 @@ fn frf_svg(path: &Path, data: &FrfData) -> Result<()> {
 /// experiments. Writes `frf.json` (+ `truth.json` for simulated data, runs in
 /// `runs/` for the time method), `frf.svg`, `design.json`, `status.json`.
 pub fn frf(input: &Path, out: Option<&Path>) -> Result<(FrfData, PathBuf)> {
+    let started = SystemTime::now();
     let is_json = input.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    let (data, dir) = if is_json {
+    let (data, dir, hash) = if is_json {
         let data = estimate_from_manifest(input)?;
         let dir = out
             .map(Path::to_path_buf)
@@ -192,14 +147,15 @@ pub fn frf(input: &Path, out: Option<&Path>) -> Result<(FrfData, PathBuf)> {
             &dir.join("input_runs.json"),
             &serde_json::json!({ "manifest": abs(input), "contents": manifest }),
         )?;
-        (data, dir)
+        let hash = fingerprint_of(&manifest)?;
+        (data, dir, hash)
     } else {
         let (d, model) = Design::load(input)?;
         let dir = d.out_dir(out).join("frf");
         let (data, truth) = super::simulate::simulate(&d, &model, &dir.join("runs"))?;
         crate::io::write_json(&dir.join("truth.json"), &truth)?;
         crate::io::write_json(&dir.join("design.json"), &d)?;
-        (data, dir)
+        (data, dir, fingerprint_of(&d)?)
     };
     crate::io::write_json(&dir.join("frf.json"), &data)?;
     frf_svg(&dir.join("frf.svg"), &data)?;
@@ -210,16 +166,14 @@ pub fn frf(input: &Path, out: Option<&Path>) -> Result<(FrfData, PathBuf)> {
         .filter(|(_, p)| p.distortion.as_ref().is_some_and(|d| d.flagged))
         .map(|(i, _)| i + 1)
         .collect();
-    write_status(
-        &dir,
-        "complete",
-        format!(
-            "{} positions × {} lines; nonlinear distortion flagged at positions {:?}",
-            data.positions.len(),
-            data.freqs_hz.len(),
-            flagged
-        ),
-    )?;
+    let detail = format!(
+        "{} positions × {} lines; nonlinear distortion flagged at positions {:?}",
+        data.positions.len(),
+        data.freqs_hz.len(),
+        flagged
+    );
+    let summary = serde_json::json!({ "positions": data.positions.len(), "lines": data.freqs_hz.len(), "distortion_flagged": flagged });
+    write_status(&dir, "frf", RunState::Complete, detail, started, hash, summary)?;
     Ok((data, dir))
 }
 
@@ -237,6 +191,9 @@ pub struct RunInfo {
     pub weights: WeightKind,
     /// Starts.
     pub starts: usize,
+    /// Seed override of the run (`--seed`; absent: the design's seed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
     /// Fingerprint of design and data.
     pub hash: String,
 }
@@ -254,6 +211,8 @@ pub struct FitOptions {
     pub starts: Option<usize>,
     /// Shard.
     pub shard: Option<Shard>,
+    /// Seed override (the design's `seed`: the perturbed starts θ·10^φ).
+    pub seed: Option<u64>,
     /// Output folder root.
     pub out: Option<PathBuf>,
 }
@@ -273,24 +232,49 @@ pub struct FitRun {
     pub interrupted: bool,
 }
 
-fn parse_estimator(s: &str) -> Result<Estimator> {
-    match s {
-        "lls" => Ok(Estimator::Lls),
-        "lls_magnitude" => Ok(Estimator::LlsMagnitude),
-        "nls" => Ok(Estimator::Nls),
-        _ => Err(Error::invalid(
-            "--estimator",
-            "estimator",
-            format!("expected lls, lls_magnitude or nls, found `{s}`"),
-        )),
+/// `lls`, `lls_magnitude` or `nls` (the names of [`Estimator::name`]).
+impl FromStr for Estimator {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Estimator> {
+        match s {
+            "lls" => Ok(Estimator::Lls),
+            "lls_magnitude" => Ok(Estimator::LlsMagnitude),
+            "nls" => Ok(Estimator::Nls),
+            _ => Err(Error::invalid(
+                "--method",
+                "estimator",
+                format!("expected lls, lls_magnitude or nls, found `{s}`"),
+            )),
+        }
     }
 }
 
-fn parse_weights(s: &str) -> Result<WeightKind> {
-    match s {
-        "user" => Ok(WeightKind::User),
-        "optimal" => Ok(WeightKind::Optimal),
-        _ => Err(Error::invalid("--weights", "weights", format!("expected user or optimal, found `{s}`"))),
+/// The name of [`Estimator::name`] (`lls`, `lls_magnitude`, `nls`).
+impl std::fmt::Display for Estimator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// `user` or `optimal`.
+impl FromStr for WeightKind {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<WeightKind> {
+        match s {
+            "user" => Ok(WeightKind::User),
+            "optimal" => Ok(WeightKind::Optimal),
+            _ => Err(Error::invalid("--weights", "weights", format!("expected user or optimal, found `{s}`"))),
+        }
+    }
+}
+
+/// `user` or `optimal`.
+impl std::fmt::Display for WeightKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            WeightKind::User => "user",
+            WeightKind::Optimal => "optimal",
+        })
     }
 }
 
@@ -317,22 +301,22 @@ pub struct FitSetup {
 }
 
 /// Loads a design and its FRF data into fit problems.
-pub fn setup(
-    design: &Path,
-    data: Option<&Path>,
-    estimator: Option<Estimator>,
-    weights_kind: Option<WeightKind>,
-    starts: Option<usize>,
-    out: Option<&Path>,
-) -> Result<FitSetup> {
+///
+/// The overrides of `o` (data, estimator, weights, starts, seed, output
+/// folder) apply; its shard is not used here.
+pub fn setup(design: &Path, o: &FitOptions) -> Result<FitSetup> {
+    let (data, out) = (o.data.as_deref(), o.out.as_deref());
     let (mut d, model) = Design::load(design)?;
-    if let Some(e) = estimator {
+    if let Some(e) = o.estimator {
         d.fit.estimator = e;
     }
-    if let Some(w) = weights_kind {
+    if let Some(w) = o.weights {
         d.fit.weights = w;
     }
-    if let Some(s) = starts {
+    if let Some(seed) = o.seed {
+        d.seed = seed;
+    }
+    if let Some(s) = o.starts {
         if s == 0 {
             return Err(Error::invalid("--starts", "starts", "expected at least 1"));
         }
@@ -387,6 +371,7 @@ pub fn setup(
         estimator: d.fit.estimator,
         weights: d.fit.weights,
         starts: d.fit.starts,
+        seed: o.seed,
         hash,
     };
     Ok(FitSetup {
@@ -407,7 +392,7 @@ pub fn fit_dir(d: &Design, out: Option<&Path>) -> PathBuf {
 }
 
 /// Writes the sorted log and the report of a complete set of records.
-fn finish(s: &FitSetup, dir: &Path, records: &[StartRecord]) -> Result<Report> {
+fn finish(s: &FitSetup, dir: &Path, records: &[StartRecord], command: &str, started: SystemTime) -> Result<Report> {
     crate::io::write_atomic(&dir.join("starts.jsonl"), sorted_lines(records)?.as_bytes())?;
     let w = if s.info.weights == WeightKind::User { "user" } else { "optimal" };
     let r = report::build(&s.problem, records, s.design.fit.starts, s.design.fit.reasonable, w, s.truth.as_deref());
@@ -418,13 +403,23 @@ fn finish(s: &FitSetup, dir: &Path, records: &[StartRecord]) -> Result<Report> {
         report::bode_svgs(dir, &s.common, &s.data, &b.theta)?;
     }
     crate::io::write_json(&dir.join("design.json"), &s.design)?;
-    write_status(dir, "complete", format!("{} starts", records.len()))?;
+    let summary = serde_json::json!({ "starts": records.len(), "estimator": s.info.estimator, "weights": s.info.weights });
+    write_status(
+        dir,
+        command,
+        RunState::Complete,
+        format!("{} starts", records.len()),
+        started,
+        s.info.hash.clone(),
+        summary,
+    )?;
     Ok(r)
 }
 
 /// Runs (or resumes) a multistart fit; with a shard only that shard's starts.
 pub fn fit(design: &Path, o: &FitOptions) -> Result<FitRun> {
-    let s = setup(design, o.data.as_deref(), o.estimator, o.weights, o.starts, o.out.as_deref())?;
+    let started = SystemTime::now();
+    let s = setup(design, o)?;
     let dir = fit_dir(&s.design, o.out.as_deref());
     let n = s.design.fit.starts;
     let (indices, log) = match o.shard {
@@ -443,15 +438,17 @@ pub fn fit(design: &Path, o: &FitOptions) -> Result<FitRun> {
     let (records, stopped) = ms.run(&indices, &log)?;
     let complete = records.len() == indices.len();
     let report = if complete && o.shard.is_none() {
-        Some(finish(&s, &dir, &records)?)
+        Some(finish(&s, &dir, &records, "fit", started)?)
     } else {
         if complete {
             crate::io::write_atomic(&log, sorted_lines(&records)?.as_bytes())?;
         }
-        let what = if complete { "shard complete" } else { "interrupted" };
+        let what = if complete { RunState::ShardComplete } else { RunState::Interrupted };
         if o.shard.is_none() || !complete {
+            let summary = serde_json::json!({ "starts": records.len(), "of": indices.len(), "log": log });
             write_status(
                 &dir,
+                "fit",
                 what,
                 format!(
                     "{} of {} starts in {}; run the same command again to resume",
@@ -459,6 +456,9 @@ pub fn fit(design: &Path, o: &FitOptions) -> Result<FitRun> {
                     indices.len(),
                     log.display()
                 ),
+                started,
+                s.info.hash.clone(),
+                summary,
             )?;
         }
         None
@@ -475,6 +475,7 @@ pub fn fit(design: &Path, o: &FitOptions) -> Result<FitRun> {
 /// Merges shard logs into exactly what a single run writes (sorted
 /// `starts.jsonl`, report, plots), using the `run.json` beside the first shard.
 pub fn merge(shards: &[PathBuf], out: Option<&Path>) -> Result<(Report, PathBuf)> {
+    let started = SystemTime::now();
     let first = shards
         .first()
         .ok_or_else(|| Error::invalid("merge", "shards", "give at least one shard file"))?;
@@ -507,11 +508,14 @@ pub fn merge(shards: &[PathBuf], out: Option<&Path>) -> Result<(Report, PathBuf)
     }
     let s = setup(
         &info.design,
-        Some(&info.data),
-        Some(info.estimator),
-        Some(info.weights),
-        Some(info.starts),
-        None,
+        &FitOptions {
+            data: Some(info.data.clone()),
+            estimator: Some(info.estimator),
+            weights: Some(info.weights),
+            starts: Some(info.starts),
+            seed: info.seed,
+            ..FitOptions::default()
+        },
     )?;
     if s.info.hash != info.hash {
         return Err(Error::invalid(
@@ -522,91 +526,8 @@ pub fn merge(shards: &[PathBuf], out: Option<&Path>) -> Result<(Report, PathBuf)
     }
     let dir = out.map(Path::to_path_buf).unwrap_or(src);
     crate::io::write_json(&dir.join("run.json"), &s.info)?;
-    let r = finish(&s, &dir, &records)?;
+    let r = finish(&s, &dir, &records, "merge", started)?;
     Ok((r, dir))
-}
-
-/// CLI: `idexp multisine`.
-pub fn run_multisine(a: &MultisineArgs) -> Result<()> {
-    let (s, dir) = multisine(&a.design, a.out.as_deref())?;
-    println!(
-        "{} lines from {:.3} to {:.3} Hz, {} samples per period at {} Hz; crest factor max {:.2}\nwritten to {}",
-        s.freqs_hz.len(),
-        s.freqs_hz.first().copied().unwrap_or(0.0),
-        s.freqs_hz.last().copied().unwrap_or(0.0),
-        s.samples,
-        s.rate,
-        s.max_crest_factor,
-        dir.display()
-    );
-    Ok(())
-}
-
-/// CLI: `idexp frf`.
-pub fn run_frf(a: &FrfArgs) -> Result<()> {
-    let (d, dir) = frf(&a.input, a.out.as_deref())?;
-    println!(
-        "FRF at {} positions × {} lines ({:?} output) written to {}",
-        d.positions.len(),
-        d.freqs_hz.len(),
-        d.output,
-        dir.join("frf.json").display()
-    );
-    for (i, p) in d.positions.iter().enumerate() {
-        if let Some(x) = &p.distortion {
-            let evn = x
-                .even_vs_noise_db
-                .as_ref()
-                .map(|v| format!("{:.1}", v.iter().copied().fold(f64::NEG_INFINITY, f64::max)))
-                .unwrap_or("-".into());
-            println!(
-                "  position {}: even lines {:.1} dB below the odd ones, {} dB above noise{}",
-                i + 1,
-                -x.even_vs_odd_db.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-                evn,
-                if x.flagged { "  → NONLINEAR DISTORTION" } else { "" }
-            );
-        }
-    }
-    Ok(())
-}
-
-/// CLI: `idexp fit`.
-pub fn run_fit(a: &FitArgs) -> Result<()> {
-    let o = FitOptions {
-        data: a.data.clone(),
-        estimator: a.estimator.as_deref().map(parse_estimator).transpose()?,
-        weights: a.weights.as_deref().map(parse_weights).transpose()?,
-        starts: a.starts,
-        shard: a.shard.as_deref().map(Shard::parse).transpose()?,
-        out: a.out.clone(),
-    };
-    let r = fit(&a.design, &o)?;
-    match &r.report {
-        Some(rep) => {
-            print!("{}", rep.text());
-            println!("written to {}", r.dir.display());
-        }
-        None => println!(
-            "{} starts in {}{}",
-            r.records.len(),
-            r.log.display(),
-            if r.interrupted {
-                " (interrupted: run the same command again to resume)"
-            } else {
-                " (shard complete: merge the shards with `idexp merge`)"
-            }
-        ),
-    }
-    Ok(())
-}
-
-/// CLI: `idexp merge`.
-pub fn run_merge(a: &MergeArgs) -> Result<()> {
-    let (r, dir) = merge(&a.shards, a.out.as_deref())?;
-    print!("{}", r.text());
-    println!("written to {}", dir.display());
-    Ok(())
 }
 
 /// Records of a finished log (for tests and scripts).

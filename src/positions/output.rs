@@ -1,5 +1,5 @@
-//! `idexp positions designs/<file>.toml [--out DIR]`: optimal measurement
-//! positions. Writes into the output folder
+//! The output folder of a positions run (`idexp positions`): [`write_outputs`]
+//! writes
 //!
 //! * `plan.csv`: one row per candidate of the plan (m_i > 0) or of the relaxed
 //!   support: `candidate` (1-based), `q1..qn` (when known), `m`, `weight`,
@@ -11,35 +11,15 @@
 //! * `weights.svg` (weights and sensitivities over the candidates) and
 //!   `poses.svg` (the chosen poses: two joint coordinates and the frame origin).
 
-use super::design::{run_design, PositionsDesign, PositionsRun};
+use super::design::PositionsRun;
 use super::relax::Status;
 use crate::error::Result;
 use crate::io::plot::{write_svg, Panel, Series};
+use crate::io::status::RunState;
 use crate::robot::{frame_pose, Workspace};
 use serde::Serialize;
-use std::path::{Path, PathBuf};
-
-/// `idexp positions ...`
-#[derive(clap::Args, Debug)]
-pub struct PositionsArgs {
-    /// Design file (TOML).
-    pub design: PathBuf,
-    /// Output folder (default: out/<design name>).
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-}
-
-/// Runs `idexp positions`.
-pub fn run(args: &PositionsArgs) -> Result<()> {
-    let design = PositionsDesign::read(&args.design)?;
-    let dir = args.design.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."));
-    let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&design.name));
-    let run = run_design(&design, &dir)?;
-    write_outputs(&run, &out)?;
-    print!("{}", report_text(&run));
-    println!("outputs: {}", out.display());
-    Ok(())
-}
+use std::path::Path;
+use std::time::SystemTime;
 
 #[derive(Serialize)]
 struct PlanRow {
@@ -104,8 +84,18 @@ fn plan_indices(run: &PositionsRun) -> Vec<usize> {
         .collect()
 }
 
-/// Writes every output of a run into `out`.
-pub fn write_outputs(run: &PositionsRun, out: &Path) -> Result<()> {
+/// The human words for a relaxed-design status.
+pub fn status_words(s: Status) -> &'static str {
+    match s {
+        Status::Optimal => "optimal (certified)",
+        Status::NotCertified => "design found, certificate not reached",
+        Status::Interrupted => "interrupted (best design so far)",
+    }
+}
+
+/// Writes every output of a run into `out`; `started`: when the run began
+/// (for `status.json`, `None` if unknown).
+pub fn write_outputs(run: &PositionsRun, out: &Path, started: Option<SystemTime>) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| crate::Error::io(out, e))?;
     let rel = &run.relaxed;
     let idx = plan_indices(run);
@@ -196,9 +186,18 @@ pub fn write_outputs(run: &PositionsRun, out: &Path) -> Result<()> {
     crate::io::write_json(&out.join("report.json"), &rep)?;
     crate::io::write_atomic(&out.join("report.txt"), report_text(run).as_bytes())?;
     crate::io::write_json(&out.join("design.json"), &run.design)?;
-    crate::io::write_json(
-        &out.join("status.json"),
-        &serde_json::json!({ "status": rel.status, "certified": rel.certificate.holds, "efficiency_bound": rel.certificate.efficiency_bound }),
+    let state = match rel.status {
+        Status::Optimal | Status::NotCertified => RunState::Complete,
+        Status::Interrupted => RunState::Interrupted,
+    };
+    crate::io::status::write_status(
+        out,
+        "positions",
+        state,
+        status_words(rel.status),
+        started,
+        crate::io::status::fingerprint_of(&run.design)?,
+        serde_json::json!({ "relaxed_status": rel.status, "certified": rel.certificate.holds, "efficiency_bound": rel.certificate.efficiency_bound }),
     )?;
     // plots
     let xs: Vec<f64> = (1..=rel.weights.len()).map(|i| i as f64).collect();
@@ -295,7 +294,7 @@ pub fn report_text(run: &PositionsRun) -> String {
         rel.criterion.value_label(),
         rel.value
     );
-    let _ = writeln!(s, "status: {:?}", rel.status);
+    let _ = writeln!(s, "status: {}", status_words(rel.status));
     let _ = writeln!(
         s,
         "certificate (all {} candidates): max sensitivity {:.9} at candidate {} vs optimum level {:.9} (prior term {:.3e})",

@@ -1,13 +1,18 @@
 //! `idexp identify`: identification from measured (or simulated) runs, and the
 //! dedicated gravity and friction experiments (`--experiment`).
 
-use super::experiments::{friction_experiment, gravity_experiment, FrictionFit, GravityFit, GravityTerm};
-use super::{identify, run_trajectory, Essential, Filter, FilterChoice, IdentOptions, Method, ReduceOptions, Run, Weights};
-use crate::error::{Error, Result};
-use crate::params::{BaseOptions, BaseParams};
-use crate::trajectory::FourierTrajectory;
+use crate::Outcome;
+use anyhow::{anyhow, bail, Context};
+use idexp::ident::experiments::{friction_experiment, gravity_experiment, FrictionFit, GravityFit, GravityTerm};
+use idexp::ident::output::{write_friction, write_gravity};
+use idexp::ident::{identify, run_trajectory, Essential, Filter, FilterChoice, IdentOptions, Method, ReduceOptions, Run, Weights};
+use idexp::io::status::{fingerprint_of, write_status, RunState};
+use idexp::optim::Control;
+use idexp::params::{BaseOptions, BaseParams};
+use idexp::trajectory::FourierTrajectory;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
+use std::time::SystemTime;
 
 /// Position filter choice on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
@@ -44,11 +49,11 @@ pub struct IdentifyArgs {
     /// Validation run (folder or files).
     #[arg(long, num_args = 1..)]
     pub validate: Vec<PathBuf>,
-    /// Estimator.
-    #[arg(long, value_enum, default_value_t = Method::Wls)]
+    /// Estimator: ols, wls, projection or ml.
+    #[arg(long, default_value_t = Method::Wls)]
     pub method: Method,
-    /// WLS weights: per sample (paper 000 eq. 7–9) or per joint.
-    #[arg(long, value_enum, default_value_t = Weights::Sample)]
+    /// Weights of the least-squares residuals: sample (per sample, paper 000 eq. 7–9) or joint (per joint).
+    #[arg(long, default_value_t = Weights::Sample)]
     pub weights: Weights,
     /// Position filter.
     #[arg(long, value_enum, default_value_t = FilterKind::Auto)]
@@ -71,9 +76,9 @@ pub struct IdentifyArgs {
     /// Sensitivity-based model reduction (paper 000 Algorithm 1).
     #[arg(long)]
     pub reduce: bool,
-    /// Reduction tolerance e_tol on the relative growth of e*_j.
-    #[arg(long, default_value_t = 0.05)]
-    pub tol: f64,
+    /// Reduction tolerance e_tol on the relative growth of e*_j (with --reduce).
+    #[arg(long, alias = "tol", default_value_t = 0.05)]
+    pub reduce_tol: f64,
     /// Essential parameters: auto (friction if every joint moves), none, friction, or a comma-separated list of base names.
     #[arg(long, default_value = "auto")]
     pub essential: String,
@@ -104,6 +109,10 @@ pub struct IdentifyArgs {
     /// Output folder (default: out/identify_<run folder name>).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Print estimate.json's contents (or the experiment's fit) instead of the text report.
+    #[arg(long)]
+    #[serde(skip)]
+    pub json: bool,
 }
 
 fn default_out(run: &[PathBuf], suffix: &str) -> PathBuf {
@@ -121,7 +130,7 @@ fn default_out(run: &[PathBuf], suffix: &str) -> PathBuf {
     PathBuf::from("out").join(format!("identify_{stem}{suffix}"))
 }
 
-fn filter_choice(a: &IdentifyArgs, traj: Option<&FourierTrajectory>) -> Result<FilterChoice> {
+fn filter_choice(a: &IdentifyArgs, traj: Option<&FourierTrajectory>) -> anyhow::Result<FilterChoice> {
     Ok(match a.filter {
         FilterKind::Auto if traj.is_none() => FilterChoice::Given(Filter::LowPass { cutoff: a.cutoff }),
         FilterKind::Auto => FilterChoice::Auto,
@@ -130,47 +139,49 @@ fn filter_choice(a: &IdentifyArgs, traj: Option<&FourierTrajectory>) -> Result<F
                 omega: t.omega,
                 n_h: t.n_harmonics(),
             }),
-            None => {
-                return Err(Error::invalid(
-                    "identify",
-                    "--filter fourier",
-                    "needs the run's Fourier trajectory: pass --trajectory coefficients.json or put trajectory.json in the run folder",
-                ))
-            }
+            None => bail!(
+                "identify: --filter fourier needs the run's Fourier trajectory: pass --trajectory coefficients.json or put trajectory.json in the run folder"
+            ),
         },
         FilterKind::Lowpass => FilterChoice::Given(Filter::LowPass { cutoff: a.cutoff }),
         FilterKind::None => FilterChoice::Given(Filter::None),
     })
 }
 
-fn parse_lags(s: &str) -> Result<(usize, usize)> {
+fn parse_lags(s: &str) -> anyhow::Result<(usize, usize)> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-    let bad = || Error::invalid("identify", "--fir-lags", format!("expected two non-negative integers \"M1,M2\", got {s:?}"));
+    let bad = || anyhow!("identify: --fir-lags: expected two non-negative integers \"M1,M2\", got {s:?}");
     if parts.len() != 2 {
         return Err(bad());
     }
     Ok((parts[0].parse().map_err(|_| bad())?, parts[1].parse().map_err(|_| bad())?))
 }
 
-#[derive(Serialize)]
-struct Status<'a> {
-    status: &'a str,
-    what: &'a str,
+/// How an estimate's status word ends the run: `ok` and the ML solver's
+/// success words (`Success`, `FtolReached`, ...) are usable; `rank_deficient`
+/// and the solver's failure words (`Failure`, `RoundoffLimited`, ...) are not.
+fn estimate_state(status: &str) -> RunState {
+    match status {
+        "rank_deficient" | "Failure" | "InvalidArgs" | "OutOfMemory" | "RoundoffLimited" => RunState::Failed,
+        "ForcedStop" => RunState::Interrupted,
+        _ => RunState::Complete,
+    }
 }
 
 /// Runs `idexp identify`.
-pub fn run(a: &IdentifyArgs) -> Result<()> {
-    let robot = crate::robot::load(&a.robot)?;
+pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
+    let started = SystemTime::now();
+    let robot = idexp::robot::load(&a.robot)?;
     let run = Run::read(&a.run, robot.dof())?;
     let traj = match &a.trajectory {
         Some(p) => Some(FourierTrajectory::load(p)?),
         None => run_trajectory(&run)?,
     };
     if let Some(exp) = a.experiment {
-        return run_experiment(a, exp, &run);
+        return run_experiment(a, exp, &run, started);
     }
-    if !(a.tol > 0.0 && a.tol.is_finite()) {
-        return Err(Error::invalid("identify", "--tol", format!("expected a positive tolerance, got {}", a.tol)));
+    if !(a.reduce_tol > 0.0 && a.reduce_tol.is_finite()) {
+        bail!("identify: --reduce-tol: expected a positive tolerance, got {}", a.reduce_tol);
     }
     let essential = match a.essential.as_str() {
         "auto" => Essential::Auto,
@@ -187,7 +198,7 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
         slow_ratio: a.slow_ratio,
         min_speed: a.min_speed.unwrap_or(0.01),
         reduce: a.reduce.then(|| ReduceOptions {
-            tol: a.tol,
+            tol: a.reduce_tol,
             essential,
             weights: a.weights,
             ..Default::default()
@@ -210,69 +221,47 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
     let base = BaseParams::compute(&robot, &BaseOptions::default())?;
     let mut id = identify(&robot, &base, &run, traj.as_ref(), vrun.as_ref().map(|v| (v, vtraj.as_ref())), &opts)?;
     if let Some(t) = &a.truth {
-        let truth = crate::sim::Truth::read(t)?;
+        let truth = idexp::sim::Truth::read(t)?;
         id.estimate.compare_truth(&truth.base_names, &truth.base)?;
     }
     let out = a.out.clone().unwrap_or_else(|| default_out(&a.run, ""));
     id.write(&out)?;
-    crate::io::write_json(&out.join("options.json"), &serde_json::json!({ "arguments": a, "options": opts }))?;
-    crate::io::write_json(
-        &out.join("status.json"),
-        &Status {
-            status: if crate::io::stop::requested() { "interrupted" } else { "complete" },
-            what: &id.estimate.status,
-        },
-    )?;
-    print!("{}", id.estimate.text());
-    println!("\nwritten to {}", out.display());
-    Ok(())
+    let options = serde_json::json!({ "arguments": a, "options": opts });
+    idexp::io::write_json(&out.join("options.json"), &options)?;
+    let st = &id.estimate.status;
+    let state = if crate::interrupted(ctl) { RunState::Interrupted } else { estimate_state(st) };
+    let detail = format!("{}: {}", id.estimate.method.words(), st);
+    let summary = serde_json::json!({ "method": id.estimate.method, "estimate_status": st });
+    write_status(&out, "identify", state, detail, Some(started), fingerprint_of(&options)?, summary)?;
+    if a.json {
+        crate::print_json(&id.estimate)?;
+    } else {
+        print!("{}", id.estimate.text());
+        println!("\nwritten to {}", out.display());
+    }
+    Ok(match state {
+        RunState::Interrupted => Outcome::Interrupted,
+        RunState::Failed => Outcome::Unusable(format!("the {} estimate ended with status `{st}`", id.estimate.method.words())),
+        _ => Outcome::Done,
+    })
 }
 
-fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run) -> Result<()> {
-    use crate::io::plot::{write_svg, Panel, Series};
+fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run, started: SystemTime) -> anyhow::Result<Outcome> {
     let joint = a
         .joint
-        .ok_or_else(|| Error::invalid("identify --experiment", "--joint", "name the joint (1-based) of the dedicated experiment"))?;
-    let pr = super::process(run, &Filter::LowPass { cutoff: a.cutoff })?;
-    let j = joint.saturating_sub(1);
+        .context("identify --experiment: --joint: name the joint (1-based) of the dedicated experiment")?;
+    let pr = idexp::ident::process(run, &Filter::LowPass { cutoff: a.cutoff })?;
     let out = a.out.clone().unwrap_or_else(|| default_out(&a.run, &format!("_{exp:?}").to_lowercase()));
-    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
-    let text = match exp {
+    let (text, json) = match exp {
         Experiment::Gravity => {
             let g = gravity_experiment(&pr, joint)?;
-            crate::io::write_json(&out.join("gravity.json"), &g)?;
-            let q: Vec<f64> = pr.q.iter().map(|v| v[j]).collect();
-            let tau: Vec<f64> = pr.tau.iter().map(|v| v[j]).collect();
-            let fit: Vec<f64> = q.iter().map(|&x| g.torque(x)).collect();
-            write_svg(
-                &out.join("gravity.svg"),
-                &format!("gravity experiment, joint {joint}"),
-                &[Panel {
-                    title: "measured torque and fitted gravity k sin(q + q_off)".into(),
-                    x_label: "q (rad)".into(),
-                    y_label: "torque (N·m)".into(),
-                    series: vec![Series::points("measured", q.clone(), tau), Series::line("gravity fit", q, fit)],
-                    ..Default::default()
-                }],
-                1,
-            )?;
-            format!(
-                "gravity experiment, joint {joint}: k = {:.6} N·m, q_off = {:.6} rad ({:.3}°), c+ = {:.6}, c- = {:.6} N·m at {:.4} rad/s, {} samples, rms {:.4e} N·m\n",
-                g.k,
-                g.q_off,
-                g.q_off.to_degrees(),
-                g.offset_pos,
-                g.offset_neg,
-                g.speed,
-                g.samples,
-                g.rms
-            )
+            (write_gravity(&out, joint, &pr, &g)?, serde_json::to_value(&g)?)
         }
         Experiment::Friction => {
             let grav: Option<GravityFit> = match &a.gravity_fit {
                 Some(p) => {
-                    let text = crate::io::read_to_string(p)?;
-                    Some(serde_json::from_str(&text).map_err(|e| Error::parse(p, e.to_string()))?)
+                    let text = idexp::io::read_to_string(p)?;
+                    Some(serde_json::from_str(&text).map_err(|e| idexp::Error::parse(p, e.to_string()))?)
                 }
                 None => None,
             };
@@ -281,56 +270,34 @@ fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run) -> Result<()> {
                 (None, true) => GravityTerm::Zero,
                 (None, false) => GravityTerm::Fit,
             };
-            let f: FrictionFit = friction_experiment(&pr, joint, term, a.min_speed.unwrap_or(0.05))?;
-            crate::io::write_json(&out.join("friction.json"), &f)?;
-            let v: Vec<f64> = pr.qd.iter().map(|s| s[j]).collect();
-            let tf: Vec<f64> = (0..pr.len())
-                .map(|p| pr.tau[p][j] - f.inertia * pr.qdd[p][j] - f.gravity_k * (pr.q[p][j] + f.gravity_q_off).sin())
-                .collect();
-            let mut vs: Vec<f64> = v.iter().copied().filter(|x| x.abs() > a.min_speed.unwrap_or(0.05)).collect();
-            vs.sort_by(f64::total_cmp);
-            let model: Vec<f64> = vs
-                .iter()
-                .map(|&x| if x > 0.0 { f.fc_pos + f.fv_pos * x } else { f.fc_neg + f.fv_neg * x })
-                .collect();
-            write_svg(
-                &out.join("friction.svg"),
-                &format!("friction experiment, joint {joint}"),
-                &[Panel {
-                    title: "τ − J q̈ − τ_g against q̇, and the fitted friction (eq. 2)".into(),
-                    x_label: "q̇ (rad/s)".into(),
-                    y_label: "torque (N·m)".into(),
-                    series: vec![Series::points("measured", v, tf), Series::line("fit", vs, model)],
-                    ..Default::default()
-                }],
-                1,
-            )?;
-            format!(
-                "friction experiment, joint {joint}: J = {:.6} kg·m², Fc+ = {:.6}, Fv+ = {:.6}, Fc- = {:.6}, Fv- = {:.6} (std {:?}), gravity k = {:.6}, q_off = {:.6} ({}), {} samples, rms {:.4e} N·m\n",
-                f.inertia,
-                f.fc_pos,
-                f.fv_pos,
-                f.fc_neg,
-                f.fv_neg,
-                f.std.iter().map(|s| format!("{s:.2e}")).collect::<Vec<_>>(),
-                f.gravity_k,
-                f.gravity_q_off,
-                if f.gravity_given { "from the gravity experiment" } else if a.no_gravity { "none" } else { "fitted alongside" },
-                f.samples,
-                f.rms
-            )
+            let min_speed = a.min_speed.unwrap_or(0.05);
+            let f: FrictionFit = friction_experiment(&pr, joint, term, min_speed)?;
+            let source = if f.gravity_given {
+                "from the gravity experiment"
+            } else if a.no_gravity {
+                "none"
+            } else {
+                "fitted alongside"
+            };
+            (write_friction(&out, joint, &pr, &f, min_speed, source)?, serde_json::to_value(&f)?)
         }
     };
-    crate::io::write_atomic(&out.join("report.txt"), text.as_bytes())?;
-    crate::io::write_json(&out.join("options.json"), a)?;
-    crate::io::write_json(
-        &out.join("status.json"),
-        &Status {
-            status: "complete",
-            what: "ok",
-        },
+    idexp::io::write_json(&out.join("options.json"), a)?;
+    let detail = format!("{} experiment, joint {joint}", if exp == Experiment::Gravity { "gravity" } else { "friction" });
+    write_status(
+        &out,
+        "identify",
+        RunState::Complete,
+        detail,
+        Some(started),
+        fingerprint_of(a)?,
+        serde_json::json!({ "experiment": exp, "joint": joint }),
     )?;
-    print!("{text}");
-    println!("written to {}", out.display());
-    Ok(())
+    if a.json {
+        crate::print_json(&json)?;
+    } else {
+        print!("{text}");
+        println!("written to {}", out.display());
+    }
+    Ok(Outcome::Done)
 }

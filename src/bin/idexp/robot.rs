@@ -1,0 +1,126 @@
+//! `idexp robot info|torques|regressor`: inspect a robot and evaluate its
+//! dynamics on a states CSV (the tables are [`idexp::params::info`]'s).
+
+use crate::Outcome;
+use anyhow::Context;
+use idexp::io::States;
+use idexp::optim::Control;
+use idexp::params::info::{regressor_table, torques_table, RobotInfo};
+use idexp::params::{BaseOptions, BaseParams};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// `idexp robot ...`
+#[derive(clap::Args, Debug)]
+pub struct RobotArgs {
+    /// What to do with the robot.
+    #[command(subcommand)]
+    pub cmd: RobotCmd,
+}
+
+/// Robot subcommands.
+#[derive(clap::Subcommand, Debug)]
+pub enum RobotCmd {
+    /// Joints, limits, drives, standard and base parameters (with their groupings).
+    Info {
+        /// Robot file (.toml robot file or .urdf).
+        robot: PathBuf,
+        /// Machine-readable JSON instead of text.
+        #[arg(long)]
+        json: bool,
+        /// Rank tolerance of the base-parameter computation (relative residual).
+        #[arg(long, alias = "tol", default_value_t = 1e-6)]
+        rank_tol: f64,
+        /// Number of random states stacked for the base parameters.
+        #[arg(long, default_value_t = 200)]
+        samples: usize,
+    },
+    /// Inverse-dynamics torques (rigid body + drives + friction) for each row of a states CSV.
+    Torques {
+        /// Robot file.
+        robot: PathBuf,
+        /// States CSV with columns q1..qn, qd1..qdn, qdd1..qddn (other columns ignored).
+        #[arg(long)]
+        states: PathBuf,
+        /// Output folder: writes `torques.csv` there (default: the CSV on standard output).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Regressor rows (n per state) in standard or base parameters.
+    Regressor {
+        /// Robot file.
+        robot: PathBuf,
+        /// States CSV with columns q1..qn, qd1..qdn, qdd1..qddn.
+        #[arg(long)]
+        states: PathBuf,
+        /// Base-parameter regressor instead of the standard one.
+        #[arg(long)]
+        base: bool,
+        /// Output folder: writes `regressor.csv` there (default: the CSV on standard output).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+}
+
+/// Runs a robot subcommand (nothing long-running: the control is unused).
+pub fn run(args: &RobotArgs, _ctl: &Control) -> anyhow::Result<Outcome> {
+    match &args.cmd {
+        RobotCmd::Info {
+            robot,
+            json,
+            rank_tol,
+            samples,
+        } => {
+            if !(rank_tol.is_finite() && *rank_tol > 0.0) {
+                anyhow::bail!("--rank-tol: expected a positive tolerance, got {rank_tol}");
+            }
+            let r = idexp::robot::load(robot)?;
+            let info = RobotInfo::new(&r, *rank_tol, *samples)?;
+            if *json {
+                crate::print_json(&info)?;
+            } else {
+                print!("{}", info.text());
+            }
+        }
+        RobotCmd::Torques { robot, states, out } => {
+            let r = idexp::robot::load(robot)?;
+            let s = States::read(states, r.dof())?;
+            let (header, rows) = torques_table(&r, &s);
+            emit(out.as_deref(), "torques.csv", &header, &rows)?;
+        }
+        RobotCmd::Regressor { robot, states, base, out } => {
+            let r = idexp::robot::load(robot)?;
+            let s = States::read(states, r.dof())?;
+            let bp = if *base {
+                Some(BaseParams::compute(&r, &BaseOptions::default())?)
+            } else {
+                None
+            };
+            let (header, rows) = regressor_table(&r, &s, bp.as_ref());
+            emit(out.as_deref(), "regressor.csv", &header, &rows)?;
+        }
+    }
+    Ok(Outcome::Done)
+}
+
+/// Writes the table to `<out>/<file>` (and says where), or to standard output.
+fn emit(out: Option<&Path>, file: &str, header: &[String], rows: &[Vec<f64>]) -> anyhow::Result<()> {
+    match out {
+        Some(dir) => {
+            let path = dir.join(file);
+            idexp::io::write_csv(&path, header, rows)?;
+            println!("written to {}", path.display());
+        }
+        None => {
+            let mut s = String::new();
+            s.push_str(&header.join(","));
+            s.push('\n');
+            for r in rows {
+                s.push_str(&r.iter().map(|v| idexp::io::format_f64(*v)).collect::<Vec<_>>().join(","));
+                s.push('\n');
+            }
+            std::io::stdout().write_all(s.as_bytes()).context("writing to standard output")?;
+        }
+    }
+    Ok(())
+}
