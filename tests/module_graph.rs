@@ -34,9 +34,6 @@
 //! `src/sim/mod.rs:34: sim (layer 3) imports ident (layer 4)` and the two
 //! cycles sim↔ident and elastic↔frf.
 //!
-//! Files named `cli.rs` are exempt while the command-line code still lives
-//! in the library (it is moved to `src/bin/idexp/`); the lead removes the
-//! exemption after the merge.
 use std::collections::{BTreeMap, BTreeSet};
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -224,10 +221,6 @@ fn no_module_imports_a_higher_layer() {
     let mut edges: BTreeMap<(String, String), String> = BTreeMap::new();
     let mut seen_modules = BTreeSet::new();
     for file in &files {
-        // exemption until the command-line code leaves the library (see docs)
-        if file.file_name().is_some_and(|n| n == "cli.rs") {
-            continue;
-        }
         let Some(module) = owning_module(&src, file) else {
             continue;
         };
