@@ -2,6 +2,8 @@
 //! the outputs. Errors are reported with their context and a non-zero exit.
 
 use clap::{Parser, Subcommand};
+use idexp::optim::{Control, Observer, StopFlag};
+use std::sync::{Arc, Mutex};
 
 /// Design and evaluate identification experiments for industrial robots.
 #[derive(Parser, Debug)]
@@ -64,24 +66,83 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global()?;
     }
     // First Ctrl-C: ask long jobs to stop and write what they have; second: exit now.
-    let _ = ctrlc::set_handler(|| {
-        if idexp::io::stop::requested() {
+    let stop = StopFlag::new();
+    let handler_stop = stop.clone();
+    let _ = ctrlc::set_handler(move || {
+        if handler_stop.requested() {
             std::process::exit(130);
         }
         eprintln!("\nstopping: finishing the current step and writing results (Ctrl-C again to abort)");
-        idexp::io::stop::request();
+        handler_stop.request();
     });
+    let ctl = Control::new().with_stop(stop).with_observer(Arc::new(IndicatifObserver::default()));
+    let ctl = &ctl;
     match &cli.cmd {
         Cmd::Robot(a) => idexp::robot::cli::run(a)?,
-        Cmd::Simulate(a) => idexp::sim::cli::run(a)?,
-        Cmd::Identify(a) => idexp::ident::cli::run(a)?,
+        Cmd::Simulate(a) => idexp::sim::cli::run(a, ctl)?,
+        Cmd::Identify(a) => idexp::ident::cli::run(a, ctl)?,
         Cmd::Multisine(a) => idexp::frf::cli::run_multisine(a)?,
-        Cmd::Frf(a) => idexp::frf::cli::run_frf(a)?,
-        Cmd::Fit(a) => idexp::frf::cli::run_fit(a)?,
+        Cmd::Frf(a) => idexp::frf::cli::run_frf(a, ctl)?,
+        Cmd::Fit(a) => idexp::frf::cli::run_fit(a, ctl)?,
         Cmd::Merge(a) => idexp::frf::cli::run_merge(a)?,
-        Cmd::Positions(a) => idexp::positions::cli::run(a)?,
-        Cmd::Excite(a) => idexp::excitation::cli::run_excite(a)?,
+        Cmd::Positions(a) => idexp::positions::cli::run(a, ctl)?,
+        Cmd::Excite(a) => idexp::excitation::cli::run_excite(a, ctl)?,
         Cmd::Assess(a) => idexp::excitation::cli::run_assess(a)?,
     }
     Ok(())
+}
+
+/// Progress bars on stderr for the run-control observer (temporary home
+/// until the front end moves to `src/bin/idexp/`): one bar per phase,
+/// hidden when `IDEXP_NO_PROGRESS` is set.
+#[derive(Default)]
+struct IndicatifObserver {
+    bar: Mutex<Option<indicatif::ProgressBar>>,
+}
+
+impl Observer for IndicatifObserver {
+    fn phase(&self, name: &str, total: Option<u64>) {
+        use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+        let pb = ProgressBar::new(total.unwrap_or(0));
+        if std::env::var_os("IDEXP_NO_PROGRESS").is_some() {
+            pb.set_draw_target(ProgressDrawTarget::hidden());
+        }
+        if let Ok(style) = ProgressStyle::with_template("{prefix} [{elapsed_precise}] {bar:30} {pos}/{len} {msg}") {
+            pb.set_style(style);
+        }
+        pb.set_prefix(name.to_string());
+        if let Ok(mut b) = self.bar.lock() {
+            if let Some(old) = b.replace(pb) {
+                old.finish_and_clear();
+            }
+        }
+    }
+    fn progress(&self, done: u64, msg: &str) {
+        if let Ok(b) = self.bar.lock() {
+            if let Some(pb) = b.as_ref() {
+                if pb.length().is_some_and(|l| done > l) {
+                    pb.set_length(done);
+                }
+                pb.set_position(done);
+                if !msg.is_empty() {
+                    pb.set_message(msg.to_string());
+                }
+            }
+        }
+    }
+    fn phase_done(&self) {
+        if let Ok(mut b) = self.bar.lock() {
+            if let Some(pb) = b.take() {
+                pb.finish_and_clear();
+            }
+        }
+    }
+    fn note(&self, msg: &str) {
+        if let Ok(b) = self.bar.lock() {
+            match b.as_ref() {
+                Some(pb) => pb.set_message(msg.to_string()),
+                None => eprintln!("{msg}"),
+            }
+        }
+    }
 }

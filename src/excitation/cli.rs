@@ -47,7 +47,8 @@ pub struct AssessArgs {
 }
 
 /// Runs `idexp excite`.
-pub fn run_excite(a: &ExciteArgs) -> Result<()> {
+/// `idexp excite`, stopped by `ctl`.
+pub fn run_excite(a: &ExciteArgs, ctl: &crate::optim::Control) -> Result<()> {
     let mut d = super::design::ExciteDesign::load(&a.design)?;
     if let Some(s) = a.seed {
         d.seed = s;
@@ -68,7 +69,7 @@ pub fn run_excite(a: &ExciteArgs) -> Result<()> {
         p.constraints.len(),
         p.objective.n_cols()
     );
-    let r = run(&p, true)?;
+    let r = run(&p, ctl)?;
     let _ = write_outputs(&p, &r, &out)?;
     println!(
         "{}: cond {:.4}, criterion {:.6} ({:?}), {:.1} s; outputs in {}",

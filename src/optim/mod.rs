@@ -13,5 +13,6 @@
 //! independently, in one process, on any threads.
 
 mod control;
+pub mod ga;
 
 pub use control::{Control, Observer, Silent, StopFlag, Termination};
