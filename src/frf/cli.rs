@@ -179,7 +179,7 @@ fn frf_svg(path: &Path, data: &FrfData) -> Result<()> {
 /// FRF estimation: from a runs manifest (`*.json`) or by simulating a design's
 /// experiments. Writes `frf.json` (+ `truth.json` for simulated data, runs in
 /// `runs/` for the time method), `frf.svg`, `design.json`, `status.json`.
-pub fn frf(input: &Path, out: Option<&Path>) -> Result<(FrfData, PathBuf)> {
+pub fn frf(input: &Path, out: Option<&Path>, ctl: &crate::optim::Control) -> Result<(FrfData, PathBuf)> {
     let is_json = input.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
     let (data, dir) = if is_json {
         let data = estimate_from_manifest(input)?;
@@ -196,7 +196,7 @@ pub fn frf(input: &Path, out: Option<&Path>) -> Result<(FrfData, PathBuf)> {
     } else {
         let (d, model) = Design::load(input)?;
         let dir = d.out_dir(out).join("frf");
-        let (data, truth) = super::simulate::simulate(&d, &model, &dir.join("runs"))?;
+        let (data, truth) = super::simulate::simulate(&d, &model, &dir.join("runs"), ctl)?;
         crate::io::write_json(&dir.join("truth.json"), &truth)?;
         crate::io::write_json(&dir.join("design.json"), &d)?;
         (data, dir)
@@ -423,7 +423,7 @@ fn finish(s: &FitSetup, dir: &Path, records: &[StartRecord]) -> Result<Report> {
 }
 
 /// Runs (or resumes) a multistart fit; with a shard only that shard's starts.
-pub fn fit(design: &Path, o: &FitOptions) -> Result<FitRun> {
+pub fn fit(design: &Path, o: &FitOptions, ctl: &crate::optim::Control) -> Result<FitRun> {
     let s = setup(design, o.data.as_deref(), o.estimator, o.weights, o.starts, o.out.as_deref())?;
     let dir = fit_dir(&s.design, o.out.as_deref());
     let n = s.design.fit.starts;
@@ -440,7 +440,7 @@ pub fn fit(design: &Path, o: &FitOptions) -> Result<FitRun> {
         seed: s.design.seed,
         hash: s.info.hash.clone(),
     };
-    let (records, stopped) = ms.run(&indices, &log)?;
+    let (records, stopped) = ms.run(&indices, &log, ctl)?;
     let complete = records.len() == indices.len();
     let report = if complete && o.shard.is_none() {
         Some(finish(&s, &dir, &records)?)
@@ -543,8 +543,8 @@ pub fn run_multisine(a: &MultisineArgs) -> Result<()> {
 }
 
 /// CLI: `idexp frf`.
-pub fn run_frf(a: &FrfArgs) -> Result<()> {
-    let (d, dir) = frf(&a.input, a.out.as_deref())?;
+pub fn run_frf(a: &FrfArgs, ctl: &crate::optim::Control) -> Result<()> {
+    let (d, dir) = frf(&a.input, a.out.as_deref(), ctl)?;
     println!(
         "FRF at {} positions × {} lines ({:?} output) written to {}",
         d.positions.len(),
@@ -572,7 +572,7 @@ pub fn run_frf(a: &FrfArgs) -> Result<()> {
 }
 
 /// CLI: `idexp fit`.
-pub fn run_fit(a: &FitArgs) -> Result<()> {
+pub fn run_fit(a: &FitArgs, ctl: &crate::optim::Control) -> Result<()> {
     let o = FitOptions {
         data: a.data.clone(),
         estimator: a.estimator.as_deref().map(parse_estimator).transpose()?,
@@ -581,7 +581,7 @@ pub fn run_fit(a: &FitArgs) -> Result<()> {
         shard: a.shard.as_deref().map(Shard::parse).transpose()?,
         out: a.out.clone(),
     };
-    let r = fit(&a.design, &o)?;
+    let r = fit(&a.design, &o, ctl)?;
     match &r.report {
         Some(rep) => {
             print!("{}", rep.text());

@@ -30,6 +30,7 @@ use super::design::{Design, FitSpec, UserWeights, WeightKind};
 use super::estimate::FrfData;
 use crate::elastic::{ElasticModel, Estimator, FrfKernel, OperatingPoint, Output, C64};
 use crate::error::{Error, Result};
+use crate::optim::Control;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
@@ -403,7 +404,7 @@ impl FitProblem {
     }
 
     /// Levenberg–Marquardt from `theta0`. Never errors: a failed start is a status.
-    pub fn solve(&self, theta0: &[f64], spec: &FitSpec) -> FitOutcome {
+    pub fn solve(&self, theta0: &[f64], spec: &FitSpec, ctl: &Control) -> FitOutcome {
         let np = self.n_params();
         let mut z = self.to_z(theta0);
         let mut evals = 0usize;
@@ -425,7 +426,7 @@ impl FitProblem {
         let mut iters = 0usize;
         let mut status = FitStatus::MaxIterations;
         while iters < spec.max_iter {
-            if crate::io::stop::requested() {
+            if ctl.interrupted() {
                 status = FitStatus::Interrupted;
                 break;
             }

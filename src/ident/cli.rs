@@ -158,8 +158,8 @@ struct Status<'a> {
     what: &'a str,
 }
 
-/// Runs `idexp identify`.
-pub fn run(a: &IdentifyArgs) -> Result<()> {
+/// Runs `idexp identify`, stopped by `ctl`.
+pub fn run(a: &IdentifyArgs, ctl: &crate::optim::Control) -> Result<()> {
     let robot = crate::robot::load(&a.robot)?;
     let run = Run::read(&a.run, robot.dof())?;
     let traj = match &a.trajectory {
@@ -208,7 +208,7 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
         _ => None,
     };
     let base = BaseParams::compute(&robot, &BaseOptions::default())?;
-    let mut id = identify(&robot, &base, &run, traj.as_ref(), vrun.as_ref().map(|v| (v, vtraj.as_ref())), &opts)?;
+    let mut id = identify(&robot, &base, &run, traj.as_ref(), vrun.as_ref().map(|v| (v, vtraj.as_ref())), &opts, ctl)?;
     if let Some(t) = &a.truth {
         let truth = crate::sim::Truth::read(t)?;
         id.estimate.compare_truth(&truth.base_names, &truth.base)?;
@@ -219,7 +219,7 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
     crate::io::write_json(
         &out.join("status.json"),
         &Status {
-            status: if crate::io::stop::requested() { "interrupted" } else { "complete" },
+            status: if ctl.interrupted() { "interrupted" } else { "complete" },
             what: &id.estimate.status,
         },
     )?;

@@ -34,6 +34,7 @@
 
 use super::estimate::{cond, cond_normalized, Dataset, LsFit, Weights};
 use super::{Processed, Run};
+use crate::optim::Control;
 use crate::error::{Error, Result};
 use crate::params::BaseParams;
 use crate::robot::{regressor_derivatives, Robot, Workspace};
@@ -418,7 +419,7 @@ impl MlData {
 /// Maximum-likelihood estimate (paper 002 eq. 13–16) of the base parameters in
 /// `cols` (indices into `base`), started from `start` (e.g. WLS) with scales `scale`
 /// (e.g. the WLS standard deviations).
-pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, cols: &[usize], start: &[f64], scale: &[f64], opts: &MlOptions) -> Result<(LsFit, MlInfo)> {
+pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, cols: &[usize], start: &[f64], scale: &[f64], opts: &MlOptions, ctl: &Control) -> Result<(LsFit, MlInfo)> {
     let cov = pr.joint_cov.as_ref().ok_or_else(|| {
         Error::invalid(
             "maximum likelihood",
@@ -490,7 +491,8 @@ pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, cols: &[usize], star
     let evals = std::sync::atomic::AtomicUsize::new(0);
     let obj = |z: &[f64], grad: Option<&mut [f64]>, _: &mut ()| -> f64 {
         evals.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        if crate::io::stop::requested() {
+        ctl.count(1);
+        if ctl.should_stop() {
             if let Some(g) = grad {
                 g.iter_mut().for_each(|v| *v = 0.0);
             }

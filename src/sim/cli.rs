@@ -14,13 +14,13 @@ pub struct SimulateArgs {
     pub out: Option<PathBuf>,
 }
 
-/// Runs `idexp simulate`.
-pub fn run(a: &SimulateArgs) -> Result<()> {
+/// Runs `idexp simulate`, stopped by `ctl`.
+pub fn run(a: &SimulateArgs, ctl: &crate::optim::Control) -> Result<()> {
     let d = SimDesign::read(&a.design)?;
     let base = a.design.parent().map(|p| p.to_path_buf()).unwrap_or_default();
     let ctx = a.design.display().to_string();
     let setup = SimSetup::from_design(&d, &base, &ctx)?;
-    let res = setup.run()?;
+    let res = setup.run(ctl)?;
     let name = d.name.clone().unwrap_or_else(|| {
         a.design
             .file_stem()
