@@ -117,7 +117,7 @@ fn rounded_plan_is_no_better_than_relaxed_and_exchange_helps() {
     let p = 5;
     let h: Vec<DMatrix<f64>> = (0..40).map(|_| DMatrix::from_fn(p, 1, |_, _| g.random_range(-1.0..1.0))).collect();
     let pb = Problem::from_factors(p, &h, None).unwrap();
-    let r = solve_relaxed(&pb, Criterion::D, &SolverOptions::default()).unwrap();
+    let r = solve_relaxed(&pb, Criterion::D, &SolverOptions::default(), &idexp::optim::Control::new()).unwrap();
     for total in [5usize, 7, 12, 30] {
         let rd = round_design(
             &pb,
@@ -127,7 +127,7 @@ fn rounded_plan_is_no_better_than_relaxed_and_exchange_helps() {
             r.value,
             r.certificate.efficiency_bound,
             total as f64,
-            None,
+            None, &idexp::optim::Control::new(),
         )
         .unwrap();
         assert_eq!(rd.total, total);
@@ -170,7 +170,7 @@ fn budget_with_costs_is_respected() {
     let h: Vec<DMatrix<f64>> = (0..30).map(|_| DMatrix::from_fn(p, 2, |_, _| g.random_range(-1.0..1.0))).collect();
     let costs: Vec<f64> = (0..30).map(|_| g.random_range(0.5..3.0)).collect();
     let pb = Problem::from_factors(p, &h, None).unwrap().divided_by(&costs);
-    let r = solve_relaxed(&pb, Criterion::D, &SolverOptions::default()).unwrap();
+    let r = solve_relaxed(&pb, Criterion::D, &SolverOptions::default(), &idexp::optim::Control::new()).unwrap();
     assert!(r.certificate.holds);
     let rd = round_design(
         &pb,
@@ -180,7 +180,7 @@ fn budget_with_costs_is_respected() {
         r.value,
         r.certificate.efficiency_bound,
         20.0,
-        Some(&costs),
+        Some(&costs), &idexp::optim::Control::new(),
     )
     .unwrap();
     let spent: f64 = rd.m.iter().zip(&costs).map(|(m, c)| *m as f64 * c).sum();

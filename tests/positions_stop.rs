@@ -11,13 +11,13 @@ fn stop_request_returns_the_best_design_so_far() {
     let h: Vec<DMatrix<f64>> = (0..300).map(|_| DMatrix::from_fn(10, 2, |_, _| g.random_range(-1.0..1.0))).collect();
     let pb = Problem::from_factors(10, &h, None).unwrap();
     idexp::io::stop::request();
-    let r = solve_relaxed(&pb, Criterion::D, &SolverOptions::default());
+    let r = solve_relaxed(&pb, Criterion::D, &SolverOptions::default(), &idexp::optim::Control::new());
     idexp::io::stop::reset();
     let r = r.unwrap();
     assert_eq!(r.status, Status::Interrupted);
     assert!((r.weights.iter().sum::<f64>() - 1.0).abs() < 1e-12);
     assert!(r.certificate.efficiency_bound > 0.0 && r.certificate.efficiency_bound <= 1.0);
     // without the request the same problem certifies
-    let r = solve_relaxed(&pb, Criterion::D, &SolverOptions::default()).unwrap();
+    let r = solve_relaxed(&pb, Criterion::D, &SolverOptions::default(), &idexp::optim::Control::new()).unwrap();
     assert_eq!(r.status, Status::Optimal);
 }

@@ -93,37 +93,3 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(path: &Path, text: &str) -> Re
         Error::parse(path, format!("{loc}{}", e.message()))
     })
 }
-
-/// Global stop flag, set by Ctrl-C in the CLI; long-running loops poll it and
-/// finish with what they have.
-pub mod stop {
-    use std::sync::atomic::{AtomicBool, Ordering};
-    static STOP: AtomicBool = AtomicBool::new(false);
-    /// True once the user asked to stop.
-    pub fn requested() -> bool {
-        STOP.load(Ordering::Relaxed)
-    }
-    /// Ask every long-running loop to stop (called from the Ctrl-C handler).
-    pub fn request() {
-        STOP.store(true, Ordering::Relaxed)
-    }
-    /// Clears the flag (for tests and for library users running several jobs).
-    pub fn reset() {
-        STOP.store(false, Ordering::Relaxed)
-    }
-}
-
-/// A progress bar for long work, hidden when stderr is not a terminal or when
-/// `IDEXP_NO_PROGRESS` is set.
-pub fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
-    use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-    let pb = ProgressBar::new(len);
-    if std::env::var_os("IDEXP_NO_PROGRESS").is_some() {
-        pb.set_draw_target(ProgressDrawTarget::hidden());
-    }
-    if let Ok(style) = ProgressStyle::with_template("{prefix} [{elapsed_precise}] {bar:30} {pos}/{len} {msg}") {
-        pb.set_style(style);
-    }
-    pb.set_prefix(what.to_string());
-    pb
-}

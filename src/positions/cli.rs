@@ -30,11 +30,11 @@ pub struct PositionsArgs {
 }
 
 /// Runs `idexp positions`.
-pub fn run(args: &PositionsArgs) -> Result<()> {
+pub fn run(args: &PositionsArgs, ctl: &crate::optim::Control) -> Result<()> {
     let design = PositionsDesign::read(&args.design)?;
     let dir = args.design.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."));
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&design.name));
-    let run = run_design(&design, &dir)?;
+    let run = run_design(&design, &dir, ctl)?;
     write_outputs(&run, &out)?;
     print!("{}", report_text(&run));
     println!("outputs: {}", out.display());

@@ -37,6 +37,7 @@
 //! with tr Z = 1, certifies: λ_min(M(w')) ≤ tr(Z F_0) + max_i tr(Z F_i) for
 //! every design w'.
 
+use crate::optim::Control;
 use super::problem::Problem;
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SupportedConeT};
@@ -204,7 +205,7 @@ fn solve(
     b: Vec<f64>,
     cones: Vec<SupportedConeT<f64>>,
     set: &ConicSettings,
-    n_w: usize,
+    n_w: usize, ctl: &Control,
 ) -> (Option<DefaultSolver<f64>>, ConicResult) {
     let m = a.rows;
     let a = a.csc(n_var);
@@ -235,6 +236,11 @@ fn solve(
         Ok(s) => s,
         Err(e) => return (None, fail(format!("SetupError: {e}"))),
     };
+    // Clarabel asks at every interior-point iteration whether to stop: the
+    // run control answers, so a stop request ends even a long SDP at once
+    // (status `CallbackTerminated`)
+    let cb = ctl.clone();
+    solver.set_termination_callback(move |_info: &clarabel::solver::DefaultInfo<f64>| cb.interrupted());
     solver.solve();
     let sol = &solver.solution;
     let status = format!("{:?}", sol.status);
@@ -260,15 +266,15 @@ fn solve(
 }
 
 /// D-optimal design on `pb` with the chosen formulation.
-pub fn solve_d(pb: &Problem, form: Formulation, set: &ConicSettings) -> ConicResult {
+pub fn solve_d(pb: &Problem, form: Formulation, set: &ConicSettings, ctl: &Control) -> ConicResult {
     match form {
-        Formulation::Socp => solve_d_socp(pb, set),
-        Formulation::Sdp => solve_d_sdp(pb, set),
+        Formulation::Socp => solve_d_socp(pb, set, ctl),
+        Formulation::Sdp => solve_d_sdp(pb, set, ctl),
     }
 }
 
 /// D-optimal design, second-order-cone form (see the module docs).
-pub fn solve_d_socp(pb: &Problem, set: &ConicSettings) -> ConicResult {
+pub fn solve_d_socp(pb: &Problem, set: &ConicSettings, ctl: &Control) -> ConicResult {
     let (p, k) = (pb.p(), pb.n());
     // blocks: index 0..k candidates, k = prior (weight 1) if present
     let mut factors: Vec<nalgebra::DMatrixView<'_, f64>> = (0..k).map(|i| pb.factor(i)).collect();
@@ -365,11 +371,11 @@ pub fn solve_d_socp(pb: &Problem, set: &ConicSettings) -> ConicResult {
         b.extend_from_slice(&[0.0, 1.0, 0.0]);
         cones.push(SupportedConeT::ExponentialConeT());
     }
-    solve(n_var, q, a, b, cones, set, k).1
+    solve(n_var, q, a, b, cones, set, k, ctl).1
 }
 
 /// D-optimal design, lifted semidefinite form (see the module docs).
-pub fn solve_d_sdp(pb: &Problem, set: &ConicSettings) -> ConicResult {
+pub fn solve_d_sdp(pb: &Problem, set: &ConicSettings, ctl: &Control) -> ConicResult {
     let (p, k) = (pb.p(), pb.n());
     let n2 = 2 * p;
     let w0 = 0;
@@ -409,11 +415,11 @@ pub fn solve_d_sdp(pb: &Problem, set: &ConicSettings) -> ConicResult {
         b.extend_from_slice(&[0.0, 1.0, 0.0]);
         cones.push(SupportedConeT::ExponentialConeT());
     }
-    solve(n_var, q, a, b, cones, set, k).1
+    solve(n_var, q, a, b, cones, set, k, ctl).1
 }
 
 /// A-optimal design: min tr(Kᵀ M(w)⁻¹ K) (K p×p, e.g. the identity).
-pub fn solve_a(pb: &Problem, kmat: &DMatrix<f64>, set: &ConicSettings) -> ConicResult {
+pub fn solve_a(pb: &Problem, kmat: &DMatrix<f64>, set: &ConicSettings, ctl: &Control) -> ConicResult {
     let (p, k) = (pb.p(), pb.n());
     let mut factors: Vec<nalgebra::DMatrixView<'_, f64>> = (0..k).map(|i| pb.factor(i)).collect();
     if let Some(h0) = pb.prior_factor() {
@@ -481,11 +487,11 @@ pub fn solve_a(pb: &Problem, kmat: &DMatrix<f64>, set: &ConicSettings) -> ConicR
         }
         cones.push(SupportedConeT::SecondOrderConeT(l * p + 2));
     }
-    solve(n_var, q, a, b, cones, set, k).1
+    solve(n_var, q, a, b, cones, set, k, ctl).1
 }
 
 /// E-optimal design: max t s.t. M(w) − tI ⪰ 0. Returns the PSD dual matrix in `dual`.
-pub fn solve_e(pb: &Problem, set: &ConicSettings) -> ConicResult {
+pub fn solve_e(pb: &Problem, set: &ConicSettings, ctl: &Control) -> ConicResult {
     let (p, k) = (pb.p(), pb.n());
     let w0 = 0;
     let t = k;
@@ -505,7 +511,7 @@ pub fn solve_e(pb: &Problem, set: &ConicSettings) -> ConicResult {
     }
     b.extend_from_slice(&bb);
     cones.push(SupportedConeT::PSDTriangleConeT(p));
-    let (solver, mut res) = solve(n_var, q, a, b, cones, set, k);
+    let (solver, mut res) = solve(n_var, q, a, b, cones, set, k, ctl);
     if let Some(s) = solver {
         let z = &s.solution.z;
         // the dual rows of the PSD block follow the 1 + k rows before it

@@ -34,6 +34,7 @@
 //!
 //! The certificate holds when the efficiency bound is ≥ 1 − `tol`.
 
+use crate::optim::Control;
 use super::conic::{self, ConicSettings, Formulation};
 use super::firstorder::{self, d_prune_threshold};
 use super::problem::{evaluate_e_with, psd_unit_trace, Criterion, Evaluation, Problem};
@@ -316,7 +317,7 @@ fn top_k(vals: &[f64], k: usize) -> Vec<usize> {
 
 /// Solves the relaxed allocation problem max/min Φ(M(w)) over the simplex and
 /// certifies the answer on the full candidate set (see the module docs).
-pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Result<Relaxed> {
+pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions, ctl: &Control) -> Result<Relaxed> {
     let t_start = Instant::now();
     let (p, n) = (pb.p(), pb.n());
     let mut log = SolveLog {
@@ -345,7 +346,7 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
         Criterion::D => {
             let t = chol_inverse_factor(&pbs.information(&uniform))
                 .ok_or_else(|| Error::Numerical("the uniform design's information is not positive definite after scaling".into()))?;
-            let ws0 = firstorder::d_warm_start(&pbs.transformed(&t), opts.prune, opts.first_order_eps * p as f64, opts.first_order_iters)?;
+            let ws0 = firstorder::d_warm_start(&pbs.transformed(&t), opts.prune, opts.first_order_eps * p as f64, opts.first_order_iters, ctl)?;
             let (live, mut w, iters, eps) = (ws0.pool, ws0.w, ws0.iterations, ws0.eps);
             log.first_order_iterations = iters;
             log.first_order_eps = eps;
@@ -364,7 +365,7 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
         }
         Criterion::A | Criterion::E => {
             let mut w = uniform.clone();
-            let lg = firstorder::multiplicative_a(&pbs, &mut w, opts.first_order_iters.min(50))?;
+            let lg = firstorder::multiplicative_a(&pbs, &mut w, opts.first_order_iters.min(50), ctl)?;
             log.first_order_iterations = lg.iterations;
             log.first_order_eps = lg.eps;
             let ev = pbs.evaluate(crit, &w)?;
@@ -389,7 +390,7 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
     let mut best_z: Option<DMatrix<f64>> = None;
     let mut status = Status::NotCertified;
     for _round in 0..opts.max_rounds {
-        if crate::io::stop::requested() {
+        if ctl.interrupted() {
             status = Status::Interrupted;
             break;
         }
@@ -405,18 +406,18 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
         // objective-level scaling: O(1) criterion values at the warm start
         // (Clarabel's absolute tolerances then mean relative accuracy)
         let res = match (crit, &t) {
-            (Criterion::D, Some(t)) => conic::solve_d(&sub.transformed(t).truncated(opts.factor_tol), opts.formulation, &opts.conic(crit)),
-            (Criterion::D, None) => conic::solve_d(&sub, opts.formulation, &opts.conic(crit)),
+            (Criterion::D, Some(t)) => conic::solve_d(&sub.transformed(t).truncated(opts.factor_tol), opts.formulation, &opts.conic(crit), ctl),
+            (Criterion::D, None) => conic::solve_d(&sub, opts.formulation, &opts.conic(crit), ctl),
             (Criterion::A, Some(t)) => {
                 // tr(M⁻¹) = tr(Tᵀ M̃⁻¹ T); K = T/‖T‖_F makes the warm-start objective ≈ 1
                 let k = t / t.norm().max(f64::MIN_POSITIVE);
-                conic::solve_a(&sub.transformed(t).truncated(opts.factor_tol), &k, &opts.conic(crit))
+                conic::solve_a(&sub.transformed(t).truncated(opts.factor_tol), &k, &opts.conic(crit), ctl)
             }
-            (Criterion::A, None) => conic::solve_a(&sub, &DMatrix::identity(p, p), &opts.conic(crit)),
+            (Criterion::A, None) => conic::solve_a(&sub, &DMatrix::identity(p, p), &opts.conic(crit), ctl),
             (Criterion::E, _) => {
                 let lmin = sub.information(&wmix).symmetric_eigen().eigenvalues.min();
                 let sc = if lmin > 0.0 && lmin.is_finite() { 1.0 / lmin } else { 1.0 };
-                conic::solve_e(&sub.scaled(sc), &opts.conic(crit))
+                conic::solve_e(&sub.scaled(sc), &opts.conic(crit), ctl)
             }
         };
         log.clarabel_time += res.solve_time;
@@ -503,7 +504,7 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
             Criterion::D => 0.1 * opts.tol * p as f64,
             _ => 0.1 * opts.tol * sub.evaluate(crit, &ws_w).map(|e| e.value).unwrap_or(0.0),
         };
-        let lg = firstorder::fw_away(&sub, crit, &mut ws_w, 5000, target)?;
+        let lg = firstorder::fw_away(&sub, crit, &mut ws_w, 5000, target, ctl)?;
         log.polish_iterations = lg.iterations;
         let mut w2 = vec![0.0; n];
         for (k, &i) in set.iter().enumerate() {
@@ -519,7 +520,7 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
             }
         }
     }
-    if crate::io::stop::requested() && status != Status::Optimal {
+    if ctl.interrupted() && status != Status::Optimal {
         status = Status::Interrupted;
     }
     log.total_time = t_start.elapsed().as_secs_f64();
