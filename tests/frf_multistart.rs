@@ -49,7 +49,7 @@ fn fit_on_threads(threads: usize, p: &Path, data: &Path, out: &Path) -> cli::Fit
                 data: Some(data.to_path_buf()),
                 ..opts(out)
             },
-        &idexp::optim::Control::new(),
+            &idexp::optim::Control::new(),
         )
     })
     .unwrap()
@@ -134,7 +134,7 @@ fn thread_count_resume_and_shards_give_the_same_file() {
                 shard: Some(Shard { index: i, count: 3 }),
                 ..opts(&s)
             },
-        &idexp::optim::Control::new(),
+            &idexp::optim::Control::new(),
         )
         .unwrap();
         assert!(r.report.is_none());

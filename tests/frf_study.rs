@@ -23,7 +23,7 @@ fn hundred_starts_three_estimators() {
                 out: Some(dir.path().to_path_buf()),
                 ..Default::default()
             },
-        &idexp::optim::Control::new(),
+            &idexp::optim::Control::new(),
         )
         .unwrap();
         let rep = r.report.unwrap();

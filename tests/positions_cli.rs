@@ -127,7 +127,8 @@ fn rounded_plan_is_no_better_than_relaxed_and_exchange_helps() {
             r.value,
             r.certificate.efficiency_bound,
             total as f64,
-            None, &idexp::optim::Control::new(),
+            None,
+            &idexp::optim::Control::new(),
         )
         .unwrap();
         assert_eq!(rd.total, total);
@@ -180,7 +181,8 @@ fn budget_with_costs_is_respected() {
         r.value,
         r.certificate.efficiency_bound,
         20.0,
-        Some(&costs), &idexp::optim::Control::new(),
+        Some(&costs),
+        &idexp::optim::Control::new(),
     )
     .unwrap();
     let spent: f64 = rd.m.iter().zip(&costs).map(|(m, c)| *m as f64 * c).sum();

@@ -184,7 +184,8 @@ fn socp_and_sdp_formulations_agree() {
             formulation: Formulation::Sdp,
             prune: false,
             ..Default::default()
-        }, &idexp::optim::Control::new(),
+        },
+        &idexp::optim::Control::new(),
     )
     .unwrap();
     assert_eq!(a.status, Status::Optimal);

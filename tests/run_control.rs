@@ -40,7 +40,9 @@ fn a_stop_from_another_thread_interrupts_a_simulation() {
     let designs = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("designs");
     let text = std::fs::read_to_string(designs.join("sim_rpr_fourier.toml")).unwrap();
     assert!(text.contains("rate = 1000.0") && text.contains("repetitions = 50 "));
-    let text = text.replace("rate = 1000.0", "rate = 20000.0").replace("repetitions = 50 ", "repetitions = 200 ");
+    let text = text
+        .replace("rate = 1000.0", "rate = 20000.0")
+        .replace("repetitions = 50 ", "repetitions = 200 ");
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("sim.toml");
     std::fs::write(&p, text).unwrap();

@@ -45,13 +45,13 @@ pub mod refine;
 pub mod report;
 
 use crate::error::{Error, Result};
+use crate::optim::{Control, Termination};
 use crate::params::{BaseOptions, BaseParams};
 use crate::robot::Robot;
 use crate::trajectory::{period_grid, FourierLayout, FourierTrajectory};
 use constraints::{Constraints, JointLimitSpec, Margin};
 use design::{ExciteDesign, RefineAlgorithm};
 use objective::{Columns, Objective, Spectrum};
-use crate::optim::{Control, Termination};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -470,7 +470,10 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
     if d.refine.algorithm != RefineAlgorithm::None && gares.stop != ga::GaStop::Interrupted {
         let first = d.refine.starts.min(starts.len());
         obs.phase("excite refine", Some(first as u64));
-        obs.note(&format!("{first} {} start(s), analytic gradients", format!("{:?}", d.refine.algorithm).to_lowercase()));
+        obs.note(&format!(
+            "{first} {} start(s), analytic gradients",
+            format!("{:?}", d.refine.algorithm).to_lowercase()
+        ));
         // one start at a time, best first: the gradient's per-sample work is
         // what runs in parallel (no nested pools competing for the threads)
         for s in &starts[..first] {

@@ -10,8 +10,8 @@
 
 use super::constraints::Constraints;
 use super::design::{RefineAlgorithm, RefineSpec};
-use crate::optim::Control;
 use super::objective::{Criterion, Objective};
+use crate::optim::Control;
 use serde::Serialize;
 use std::cell::RefCell;
 use std::time::Instant;

@@ -34,8 +34,8 @@
 
 use super::estimate::{cond, cond_normalized, Dataset, LsFit, Weights};
 use super::{Processed, Run};
-use crate::optim::Control;
 use crate::error::{Error, Result};
+use crate::optim::Control;
 use crate::params::BaseParams;
 use crate::robot::{regressor_derivatives, Robot, Workspace};
 use nalgebra::{DMatrix, DVector};
@@ -419,7 +419,16 @@ impl MlData {
 /// Maximum-likelihood estimate (paper 002 eq. 13–16) of the base parameters in
 /// `cols` (indices into `base`), started from `start` (e.g. WLS) with scales `scale`
 /// (e.g. the WLS standard deviations).
-pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, cols: &[usize], start: &[f64], scale: &[f64], opts: &MlOptions, ctl: &Control) -> Result<(LsFit, MlInfo)> {
+pub fn ml(
+    robot: &Robot,
+    base: &BaseParams,
+    pr: &Processed,
+    cols: &[usize],
+    start: &[f64],
+    scale: &[f64],
+    opts: &MlOptions,
+    ctl: &Control,
+) -> Result<(LsFit, MlInfo)> {
     let cov = pr.joint_cov.as_ref().ok_or_else(|| {
         Error::invalid(
             "maximum likelihood",

@@ -22,9 +22,9 @@
 
 use super::estimate::{cond_normalized, errors, wls, Dataset, Errors, LsFit, Weights};
 use crate::error::Result;
+use crate::optim::Control;
 use crate::params::BaseParams;
 use crate::robot::Robot;
-use crate::optim::Control;
 use serde::Serialize;
 
 /// Which parameters may not be removed.

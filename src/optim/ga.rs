@@ -356,7 +356,13 @@ impl<'a> Ga<'a> {
         let mut genes: Vec<Vec<f64>> = self.initial.iter().take(np).cloned().collect();
         while genes.len() < np {
             let mut x: Vec<f64> = (0..nv)
-                .map(|i| if upper[i] > lower[i] { rng.random_range(lower[i]..upper[i]) } else { lower[i] })
+                .map(|i| {
+                    if upper[i] > lower[i] {
+                        rng.random_range(lower[i]..upper[i])
+                    } else {
+                        lower[i]
+                    }
+                })
                 .collect();
             if genes.len() % 2 == 1 {
                 let u: f64 = rng.random_range(0.0..1.0);
@@ -481,7 +487,16 @@ pub fn termination_of(reason: Option<&TerminationReason>) -> Termination {
 
 /// Runs the GA on `problem` (see the module docs) with argmin's executor.
 /// The observer of `ctl` sees the phase `"GA"` with `spec.generations` steps.
-pub fn run<P: GaProblem>(spec: &GaSpec, seed: u64, lower: &[f64], upper: &[f64], centre: &[f64], initial: &[Vec<f64>], problem: P, ctl: &Control) -> Result<GaResult> {
+pub fn run<P: GaProblem>(
+    spec: &GaSpec,
+    seed: u64,
+    lower: &[f64],
+    upper: &[f64],
+    centre: &[f64],
+    initial: &[Vec<f64>],
+    problem: P,
+    ctl: &Control,
+) -> Result<GaResult> {
     let t0 = Instant::now();
     let ga = Ga::new(spec, seed, lower, upper, centre, initial, ctl);
     let res = Executor::new(problem, ga)
@@ -524,12 +539,18 @@ mod tests {
         }
     }
 
-    fn quad() -> FnProblem<impl Fn() + Sync, impl Fn(&mut (), &mut Vec<f64>) -> (f64, f64) + Sync> {
-        // min (x0−1)² + (x1+0.5)² s.t. x0 + x1 ≥ 1  → optimum (1.25, −0.25)
-        FnProblem {
-            make_ws: || (),
-            eval: |_: &mut (), x: &mut Vec<f64>| ((x[0] - 1.0).powi(2) + (x[1] + 0.5).powi(2), (1.0 - x[0] - x[1]).max(0.0)),
+    /// min (x0−1)² + (x1+0.5)² s.t. x0 + x1 ≥ 1  → optimum (1.25, −0.25)
+    struct Quad;
+    impl GaProblem for Quad {
+        type Workspace = ();
+        fn workspace(&self) {}
+        fn evaluate(&self, _: &mut (), x: &mut Vec<f64>) -> (f64, f64) {
+            ((x[0] - 1.0).powi(2) + (x[1] + 0.5).powi(2), (1.0 - x[0] - x[1]).max(0.0))
         }
+    }
+
+    fn quad() -> Quad {
+        Quad
     }
 
     #[test]

@@ -37,8 +37,8 @@
 //! with tr Z = 1, certifies: λ_min(M(w')) ≤ tr(Z F_0) + max_i tr(Z F_i) for
 //! every design w'.
 
-use crate::optim::Control;
 use super::problem::Problem;
+use crate::optim::Control;
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SupportedConeT};
 use nalgebra::DMatrix;
@@ -205,7 +205,8 @@ fn solve(
     b: Vec<f64>,
     cones: Vec<SupportedConeT<f64>>,
     set: &ConicSettings,
-    n_w: usize, ctl: &Control,
+    n_w: usize,
+    ctl: &Control,
 ) -> (Option<DefaultSolver<f64>>, ConicResult) {
     let m = a.rows;
     let a = a.csc(n_var);

@@ -40,7 +40,6 @@
 //! joint values, costs and the prior come from the JSON file, and
 //! `[candidates]` must be absent.
 
-use crate::optim::Control;
 use super::candidates::CandidateSpec;
 use super::elastic::{ElasticScale, ElasticSource};
 use super::information::{InformationFile, InformationSource, RigidSource};
@@ -49,6 +48,7 @@ use super::relax::{solve_relaxed, Relaxed, SolverOptions};
 use super::rounding::{round_design, Rounded};
 use crate::elastic::{Estimator, NoiseModel, Output};
 use crate::error::{Error, Result};
+use crate::optim::Control;
 use crate::robot::{self, Robot, Workspace};
 use nalgebra::DMatrix;
 use rayon::prelude::*;
@@ -497,7 +497,8 @@ pub fn run_design(design: &PositionsDesign, dir: &Path, ctl: &Control) -> Result
         relaxed.value,
         relaxed.certificate.efficiency_bound,
         budget,
-        costs.as_deref(), ctl,
+        costs.as_deref(),
+        ctl,
     )?;
     Ok(PositionsRun {
         design: resolved,

@@ -27,9 +27,9 @@
 //! frequencies) and with a prior, at the price of being a little weaker
 //! (τ ≈ 1 − √(2ε(1 − 1/p)) instead of 1 − √(ε(1 − 1/p)) for small ε).
 
-use crate::optim::Control;
 use super::problem::{Criterion, Problem};
 use crate::error::Result;
+use crate::optim::Control;
 use nalgebra::DMatrix;
 
 /// The smaller root τ ∈ (0, 1] of ln τ + (p−1) ln((S − τ)/(p−1)) = 0, S ≥ p.

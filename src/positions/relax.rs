@@ -34,11 +34,11 @@
 //!
 //! The certificate holds when the efficiency bound is ≥ 1 − `tol`.
 
-use crate::optim::Control;
 use super::conic::{self, ConicSettings, Formulation};
 use super::firstorder::{self, d_prune_threshold};
 use super::problem::{evaluate_e_with, psd_unit_trace, Criterion, Evaluation, Problem};
 use crate::error::{Error, Result};
+use crate::optim::Control;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;

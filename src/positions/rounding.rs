@@ -19,9 +19,9 @@
 //! the relaxed optimum is reported on the normalised scale (÷ M, resp. ÷ B):
 //! D: exp((log det M_r − log det M*)/p), A: tr M*⁻¹ / tr M_r⁻¹, E: λ_min(M_r)/λ_min(M*).
 
-use crate::optim::Control;
 use super::problem::{Criterion, Problem};
 use crate::error::{Error, Result};
+use crate::optim::Control;
 use nalgebra::DMatrix;
 use serde::Serialize;
 
@@ -137,7 +137,17 @@ pub fn efficiency(crit: Criterion, p: usize, v: f64, v_opt: f64) -> f64 {
 /// weights, `sens` their sensitivities (to choose exchange candidates),
 /// `value`/`bound` the relaxed value and certificate bound, `budget` the
 /// number of experiments M (or the budget B with `costs`).
-pub fn round_design(pb: &Problem, crit: Criterion, w: &[f64], sens: &[f64], value: f64, bound: f64, budget: f64, costs: Option<&[f64]>, ctl: &Control) -> Result<Rounded> {
+pub fn round_design(
+    pb: &Problem,
+    crit: Criterion,
+    w: &[f64],
+    sens: &[f64],
+    value: f64,
+    bound: f64,
+    budget: f64,
+    costs: Option<&[f64]>,
+    ctl: &Control,
+) -> Result<Rounded> {
     let n = pb.n();
     if w.len() != n || sens.len() != n {
         return Err(Error::dim("weights of the relaxed design", n, w.len()));

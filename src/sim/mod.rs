@@ -30,9 +30,9 @@
 pub mod cli;
 pub mod reference;
 
-use crate::optim::Control;
 use crate::error::{Error, Result};
 use crate::ident::run::Repetition;
+use crate::optim::Control;
 use crate::params::{BaseOptions, BaseParams};
 use crate::robot::{forward_dynamics, gravity, inverse_dynamics, mass_matrix, Inertial, ParamKind, Robot, Workspace};
 use nalgebra::{Matrix3, Vector3};
@@ -548,7 +548,16 @@ impl SimSetup {
     /// recording every `decimate`-th sample with time `t - t_rec0`.
     /// Runs `steps` controller periods; `Ok(false)` when `ctl` asked to stop
     /// (polled every [`POLL_STEPS`] periods).
-    fn run_steps(&self, lp: &mut Loop, k0: usize, steps: usize, t_rec0: f64, rng: &mut rand_chacha::ChaCha8Rng, record: Option<&mut Repetition>, ctl: &Control) -> Result<bool> {
+    fn run_steps(
+        &self,
+        lp: &mut Loop,
+        k0: usize,
+        steps: usize,
+        t_rec0: f64,
+        rng: &mut rand_chacha::ChaCha8Rng,
+        record: Option<&mut Repetition>,
+        ctl: &Control,
+    ) -> Result<bool> {
         let n = self.truth.dof();
         let dt = 1.0 / self.rate;
         let mut ws_t = Workspace::new(&self.truth);
