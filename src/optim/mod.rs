@@ -14,5 +14,6 @@
 
 mod control;
 pub mod ga;
+pub mod lm;
 
 pub use control::{Control, Observer, Silent, StopFlag, Termination};
