@@ -71,21 +71,90 @@ fn a_stop_from_another_thread_interrupts_a_simulation() {
 /// exactly two complete repetitions come back, marked interrupted.
 #[test]
 fn a_simulation_stopped_after_two_repetitions_returns_them() {
-    struct StopAfter(idexp::optim::StopFlag, u64);
-    impl idexp::optim::Observer for StopAfter {
-        fn progress(&self, done: u64, _: &str) {
-            if done >= self.1 {
-                self.0.request();
-            }
-        }
-    }
     let designs = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("designs");
     let d = idexp::sim::SimDesign::read(&designs.join("sim_rpr_fourier.toml")).unwrap();
     let setup = idexp::sim::SimSetup::from_design(&d, &designs, "sim").unwrap();
-    let ctl = Control::new();
-    let ctl = ctl.clone().with_observer(std::sync::Arc::new(StopAfter(ctl.stop_flag().clone(), 2)));
-    let res = setup.run(&ctl).unwrap();
+    let res = setup.run(&stopping_after(2)).unwrap();
     assert_eq!(res.status.status, idexp::sim::RunStatus::Interrupted);
     assert_eq!(res.status.repetitions, 2);
     assert_eq!(res.reps.len(), 2);
+}
+
+/// An observer that requests a stop once a phase reports `after` steps done.
+struct StopAfter(idexp::optim::StopFlag, u64);
+impl idexp::optim::Observer for StopAfter {
+    fn progress(&self, done: u64, _: &str) {
+        if done >= self.1 {
+            self.0.request();
+        }
+    }
+}
+
+fn stopping_after(n: u64) -> Control {
+    let ctl = Control::new();
+    let flag = ctl.stop_flag().clone();
+    ctl.with_observer(std::sync::Arc::new(StopAfter(flag, n)))
+}
+
+/// Clarabel's termination callback asks the control at every interior-point
+/// iteration: a stopped control ends the SDP at once with a valid design.
+#[test]
+fn a_stopped_control_ends_a_clarabel_sdp_at_once() {
+    use idexp::positions::conic::{solve_d_sdp, ConicSettings, ConicStatus};
+    let pb = problem();
+    let free = solve_d_sdp(&pb, &ConicSettings::default(), &Control::new());
+    assert!(free.ok && free.iterations > 1, "{:?}", free.status);
+    let ctl = Control::new();
+    ctl.stop_flag().request();
+    let r = solve_d_sdp(&pb, &ConicSettings::default(), &ctl);
+    assert_eq!(r.status, ConicStatus::Solver(clarabel::solver::SolverStatus::CallbackTerminated));
+    assert_eq!(r.status.termination(), idexp::optim::Termination::Interrupted);
+    assert_eq!(r.status.to_string(), "CallbackTerminated");
+    assert!(r.iterations < free.iterations);
+    assert!((r.w.iter().sum::<f64>() - 1.0).abs() < 1e-12 && r.w.iter().all(|v| *v >= 0.0));
+}
+
+/// The excitation GA stopped after its third generation: the result is the
+/// verified best individual so far, marked interrupted, with no refinement.
+#[test]
+fn an_excitation_stopped_during_the_ga_returns_its_best_so_far() {
+    let designs = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("designs");
+    let p = idexp::excitation::Problem::from_file(&designs.join("excite_ur5.toml")).unwrap();
+    assert!(p.design.ga.generations > 3);
+    let r = idexp::excitation::run(&p, &stopping_after(3)).unwrap();
+    assert_eq!(r.ga.stop, idexp::excitation::ga::GaStop::Interrupted);
+    assert_eq!(r.ga.generations, 3);
+    assert!(r.refinements.is_empty());
+    let s = serde_json::to_value(&r.stopped_by).unwrap();
+    assert_eq!(s, serde_json::json!("interrupted (Ctrl-C)"));
+    assert!(r.criterion.is_finite());
+}
+
+/// A multistart-style LM fit: a stopped control returns the start point, marked interrupted.
+#[test]
+fn a_levenberg_marquardt_fit_stops_on_request() {
+    use idexp::optim::lm::{run, LmProblem, LmStatus, LmTolerances};
+    use nalgebra::DVector;
+    struct Line;
+    impl LmProblem for Line {
+        fn dim(&self) -> usize {
+            1
+        }
+        fn normal_equations(&self, z: &[f64]) -> idexp::error::Result<(f64, DVector<f64>, DMatrix<f64>)> {
+            Ok(((z[0] - 3.0).powi(2), DVector::from_element(1, z[0] - 3.0), DMatrix::from_element(1, 1, 1.0)))
+        }
+        fn cost(&self, z: &[f64]) -> f64 {
+            (z[0] - 3.0).powi(2)
+        }
+        fn clamp(&self, _: usize, zi: f64) -> f64 {
+            zi
+        }
+    }
+    let tol = LmTolerances { ftol: 1e-12, xtol: 1e-12 };
+    let ok = run(Line, vec![0.0], 100, tol, &Control::new()).unwrap();
+    assert!((ok.z[0] - 3.0).abs() < 1e-9, "{ok:?}");
+    let ctl = Control::new();
+    ctl.stop_flag().request();
+    let r = run(Line, vec![0.0], 100, tol, &ctl).unwrap();
+    assert_eq!((r.status, r.z, r.iterations), (LmStatus::Interrupted, vec![0.0], 0));
 }

@@ -20,9 +20,9 @@ use std::time::Instant;
 /// constraints are imposed as c + 2·tol ≤ 0, so accepted points have c < 0.
 const TOL: f64 = 1e-9;
 
-/// What one nlopt stage ended with (nlopt's own result words, e.g.
+/// What one nlopt stage ended with (serialised as nlopt's own word, e.g.
 /// `FtolReached`, `MaxEvalReached`, `Failure`).
-pub type NloptWord = String;
+pub use crate::optim::nlopt::NloptStatus as NloptWord;
 
 /// How a refinement ended: the nlopt result of the smooth stage (if any) and
 /// of the main stage, and whether the run-control asked to stop. Serialised
@@ -43,7 +43,7 @@ impl std::fmt::Display for RefineStatus {
         if let Some(s) = &self.smooth {
             write!(f, "{s} (smooth stage), ")?;
         }
-        f.write_str(&self.main)?;
+        f.write_str(self.main.as_str())?;
         if self.interrupted {
             f.write_str(" (interrupted)")?;
         }
@@ -99,7 +99,7 @@ struct Bounds<'a> {
 }
 
 /// (last iterate, best feasible point and its value, nlopt status, evaluations).
-type StageResult = (Vec<f64>, Option<(Vec<f64>, f64)>, String, u64);
+type StageResult = (Vec<f64>, Option<(Vec<f64>, f64)>, NloptWord, u64);
 
 /// One nlopt run from x0: returns (last iterate, best feasible point met with
 /// its stage objective, nlopt status, evaluations). `soft`: minimise the
@@ -202,10 +202,7 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
         let _ = opt.add_inequality_mconstraint(m, c_cb, cons.workspace(), &tol);
     }
     let mut x = x0.to_vec();
-    let status = match opt.optimize(&mut x) {
-        Ok((st, _)) => format!("{st:?}"),
-        Err((st, _)) => format!("{st:?}"),
-    };
+    let status = NloptWord::of(&opt.optimize(&mut x));
     drop(opt);
     let t = tracker.into_inner();
     (x, t.best, status, t.evals)

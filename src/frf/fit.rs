@@ -427,7 +427,10 @@ impl FitProblem {
     /// Never errors: a failed start is a status. `ctl` stops it between two
     /// iterations (status `interrupted`).
     pub fn solve(&self, theta0: &[f64], spec: &FitSpec, ctl: &Control) -> FitOutcome {
-        let tol = LmTolerances { ftol: spec.ftol, xtol: spec.xtol };
+        let tol = LmTolerances {
+            ftol: spec.ftol,
+            xtol: spec.xtol,
+        };
         let fail = |evals| FitOutcome {
             theta: theta0.to_vec(),
             cost: f64::INFINITY,

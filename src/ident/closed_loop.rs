@@ -35,6 +35,7 @@
 use super::estimate::{cond, cond_normalized, Dataset, LsFit, Weights};
 use super::{Processed, Run};
 use crate::error::{Error, Result};
+use crate::optim::nlopt::NloptStatus;
 use crate::optim::Control;
 use crate::params::BaseParams;
 use crate::robot::{regressor_derivatives, Robot, Workspace};
@@ -292,8 +293,8 @@ impl Default for MlOptions {
 /// Outcome of the ML optimisation.
 #[derive(Debug, Clone, Serialize)]
 pub struct MlInfo {
-    /// Solver status (nlopt).
-    pub status: String,
+    /// Solver status (nlopt's word).
+    pub status: NloptStatus,
     /// Cost at the WLS start.
     pub cost_start: f64,
     /// Cost at the end.
@@ -528,10 +529,7 @@ pub fn ml(
     let _ = opt.set_ftol_rel(opts.ftol_rel);
     let _ = opt.set_xtol_rel(1e-10);
     let mut z = vec![0.0; k];
-    let status = match opt.optimize(&mut z) {
-        Ok((s, _)) => format!("{s:?}"),
-        Err((f, _)) => format!("{f:?}"),
-    };
+    let status = NloptStatus::of(&opt.optimize(&mut z));
     drop(opt);
     let mut theta = to_theta(&z);
     let mut cost_end = data.cost_grad(&theta, None);

@@ -325,7 +325,7 @@ pub fn identify(
         })
         .collect();
     let status = if let Some(m) = &ml {
-        m.status.clone()
+        m.status.to_string()
     } else if fit.rank < cols.len() {
         "rank_deficient".to_string()
     } else {

@@ -275,7 +275,10 @@ mod tests {
     #[test]
     fn finds_the_minimum_of_rosenbrock() {
         let o = run(Rosen, vec![-1.2, 1.0], 200, TOL, &Control::new()).unwrap();
-        assert!(matches!(o.status, LmStatus::ConvergedFtol | LmStatus::ConvergedXtol | LmStatus::ConvergedGtol), "{o:?}");
+        assert!(
+            matches!(o.status, LmStatus::ConvergedFtol | LmStatus::ConvergedXtol | LmStatus::ConvergedGtol),
+            "{o:?}"
+        );
         assert!((o.z[0] - 1.0).abs() < 1e-6 && (o.z[1] - 1.0).abs() < 1e-6, "{o:?}");
         let o2 = run(Rosen, vec![-1.2, 1.0], 3, TOL, &Control::new()).unwrap();
         assert_eq!((o2.status, o2.iterations), (LmStatus::MaxIterations, 3));

@@ -15,5 +15,6 @@
 mod control;
 pub mod ga;
 pub mod lm;
+pub mod nlopt;
 
 pub use control::{Control, Observer, Silent, StopFlag, Termination};

@@ -38,7 +38,7 @@
 //! every design w'.
 
 use super::problem::Problem;
-use crate::optim::Control;
+use crate::optim::{Control, Termination};
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SupportedConeT};
 use nalgebra::DMatrix;
@@ -79,13 +79,57 @@ impl Default for ConicSettings {
     }
 }
 
+/// How a conic solve ended: Clarabel's status, or why the solver could not
+/// be set up. Serialised as before: Clarabel's word (`Solved`,
+/// `CallbackTerminated`, ...), `SettingsError: ...`, `SetupError: ...`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ConicStatus {
+    /// Clarabel ran; its status (`CallbackTerminated` when the run control stopped it).
+    Solver(clarabel::solver::SolverStatus),
+    /// The settings were rejected.
+    Settings(String),
+    /// The problem data were rejected.
+    Setup(String),
+}
+
+impl ConicStatus {
+    /// The run-control word: solved → converged, a callback stop →
+    /// interrupted, Clarabel's own limits → iterations/time, else failed.
+    pub fn termination(&self) -> Termination {
+        use clarabel::solver::SolverStatus as S;
+        match self {
+            ConicStatus::Solver(S::Solved | S::AlmostSolved) => Termination::Converged,
+            ConicStatus::Solver(S::CallbackTerminated) => Termination::Interrupted,
+            ConicStatus::Solver(S::MaxIterations) => Termination::MaxIterations,
+            ConicStatus::Solver(S::MaxTime) => Termination::TimeLimit,
+            s => Termination::Failed(s.to_string()),
+        }
+    }
+}
+
+impl std::fmt::Display for ConicStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ConicStatus::Solver(s) => write!(f, "{s:?}"),
+            ConicStatus::Settings(e) => write!(f, "SettingsError: {e}"),
+            ConicStatus::Setup(e) => write!(f, "SetupError: {e}"),
+        }
+    }
+}
+
+impl serde::Serialize for ConicStatus {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
 /// What Clarabel returned.
 #[derive(Debug, Clone)]
 pub struct ConicResult {
     /// Weights on the sub-problem's candidates (cleaned: ≥ 0, unit sum).
     pub w: Vec<f64>,
     /// Clarabel's status (`Solved`, `AlmostSolved`, `MaxIterations`, ...).
-    pub status: String,
+    pub status: ConicStatus,
     /// True for Solved / AlmostSolved.
     pub ok: bool,
     /// Interior-point iterations.
@@ -214,13 +258,14 @@ fn solve(
     let settings = DefaultSettingsBuilder::default()
         .verbose(set.verbose)
         .max_iter(set.max_iter)
-        .time_limit(set.time_limit)
+        // the earlier of the design's limit and the control's deadline
+        .time_limit(ctl.remaining().map_or(set.time_limit, |r| set.time_limit.min(r.as_secs_f64())))
         .tol_gap_abs(set.tol)
         .tol_gap_rel(set.tol)
         .tol_feas(set.tol.max(1e-12))
         .tol_ktratio(1e-8)
         .build();
-    let fail = |status: String| ConicResult {
+    let fail = |status: ConicStatus| ConicResult {
         w: vec![1.0 / n_w as f64; n_w],
         status,
         ok: false,
@@ -231,11 +276,11 @@ fn solve(
     };
     let settings = match settings {
         Ok(s) => s,
-        Err(e) => return (None, fail(format!("SettingsError: {e}"))),
+        Err(e) => return (None, fail(ConicStatus::Settings(e.to_string()))),
     };
     let mut solver = match DefaultSolver::new(&p_mat, &q, &a, &b, &cones, settings) {
         Ok(s) => s,
-        Err(e) => return (None, fail(format!("SetupError: {e}"))),
+        Err(e) => return (None, fail(ConicStatus::Setup(e.to_string()))),
     };
     // Clarabel asks at every interior-point iteration whether to stop: the
     // run control answers, so a stop request ends even a long SDP at once
@@ -244,7 +289,7 @@ fn solve(
     solver.set_termination_callback(move |_info: &clarabel::solver::DefaultInfo<f64>| cb.interrupted());
     solver.solve();
     let sol = &solver.solution;
-    let status = format!("{:?}", sol.status);
+    let status = ConicStatus::Solver(sol.status);
     let ok = matches!(
         sol.status,
         clarabel::solver::SolverStatus::Solved | clarabel::solver::SolverStatus::AlmostSolved

@@ -236,7 +236,7 @@ pub struct Round {
     /// Candidates in the working set.
     pub working_set: usize,
     /// Clarabel status.
-    pub clarabel_status: String,
+    pub clarabel_status: super::conic::ConicStatus,
     /// Interior-point iterations.
     pub iterations: u32,
     /// Clarabel solve time (s).
