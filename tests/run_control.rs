@@ -100,13 +100,13 @@ fn stopping_after(n: u64) -> Control {
 /// iteration: a stopped control ends the SDP at once with a valid design.
 #[test]
 fn a_stopped_control_ends_a_clarabel_sdp_at_once() {
-    use idexp::positions::conic::{solve_d_sdp, ConicSettings, ConicStatus};
+    use idexp::positions::conic::{solve_d_sdp, ConicStatus};
     let pb = problem();
-    let free = solve_d_sdp(&pb, &ConicSettings::default(), &Control::new());
+    let free = solve_d_sdp(&pb, &SolverOptions::default(), &Control::new());
     assert!(free.ok && free.iterations > 1, "{:?}", free.status);
     let ctl = Control::new();
     ctl.stop_flag().request();
-    let r = solve_d_sdp(&pb, &ConicSettings::default(), &ctl);
+    let r = solve_d_sdp(&pb, &SolverOptions::default(), &ctl);
     assert_eq!(r.status, ConicStatus::Solver(clarabel::solver::SolverStatus::CallbackTerminated));
     assert_eq!(r.status.termination(), idexp::optim::Termination::Interrupted);
     assert_eq!(r.status.to_string(), "CallbackTerminated");

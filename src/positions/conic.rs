@@ -38,6 +38,7 @@
 //! every design w'.
 
 use super::problem::Problem;
+use super::relax::SolverOptions;
 use crate::optim::{Control, Termination};
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SupportedConeT};
@@ -53,30 +54,6 @@ pub enum Formulation {
     Socp,
     /// The lifted 2p×2p log-det semidefinite cone plus exponential cones.
     Sdp,
-}
-
-/// Clarabel settings that matter here.
-#[derive(Debug, Clone, Copy)]
-pub struct ConicSettings {
-    /// Relative and absolute gap tolerance.
-    pub tol: f64,
-    /// Iteration limit.
-    pub max_iter: u32,
-    /// Time limit in seconds (∞: none).
-    pub time_limit: f64,
-    /// Print Clarabel's log.
-    pub verbose: bool,
-}
-
-impl Default for ConicSettings {
-    fn default() -> Self {
-        ConicSettings {
-            tol: 1e-10,
-            max_iter: 200,
-            time_limit: f64::INFINITY,
-            verbose: false,
-        }
-    }
 }
 
 /// How a conic solve ended: Clarabel's status, or why the solver could not
@@ -248,21 +225,23 @@ fn solve(
     a: Triplets,
     b: Vec<f64>,
     cones: Vec<SupportedConeT<f64>>,
-    set: &ConicSettings,
+    set: &SolverOptions,
+    tol: f64,
     n_w: usize,
     ctl: &Control,
 ) -> (Option<DefaultSolver<f64>>, ConicResult) {
     let m = a.rows;
     let a = a.csc(n_var);
     let p_mat = CscMatrix::<f64>::zeros((n_var, n_var));
+    let limit = set.time_limit.unwrap_or(f64::INFINITY);
     let settings = DefaultSettingsBuilder::default()
         .verbose(set.verbose)
         .max_iter(set.max_iter)
         // the earlier of the design's limit and the control's deadline
-        .time_limit(ctl.remaining().map_or(set.time_limit, |r| set.time_limit.min(r.as_secs_f64())))
-        .tol_gap_abs(set.tol)
-        .tol_gap_rel(set.tol)
-        .tol_feas(set.tol.max(1e-12))
+        .time_limit(ctl.remaining().map_or(limit, |r| limit.min(r.as_secs_f64())))
+        .tol_gap_abs(tol)
+        .tol_gap_rel(tol)
+        .tol_feas(tol.max(1e-12))
         .tol_ktratio(1e-8)
         .build();
     let fail = |status: ConicStatus| ConicResult {
@@ -312,15 +291,15 @@ fn solve(
 }
 
 /// D-optimal design on `pb` with the chosen formulation.
-pub fn solve_d(pb: &Problem, form: Formulation, set: &ConicSettings, ctl: &Control) -> ConicResult {
-    match form {
+pub fn solve_d(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicResult {
+    match set.formulation {
         Formulation::Socp => solve_d_socp(pb, set, ctl),
         Formulation::Sdp => solve_d_sdp(pb, set, ctl),
     }
 }
 
 /// D-optimal design, second-order-cone form (see the module docs).
-pub fn solve_d_socp(pb: &Problem, set: &ConicSettings, ctl: &Control) -> ConicResult {
+pub fn solve_d_socp(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicResult {
     let (p, k) = (pb.p(), pb.n());
     // blocks: index 0..k candidates, k = prior (weight 1) if present
     let mut factors: Vec<nalgebra::DMatrixView<'_, f64>> = (0..k).map(|i| pb.factor(i)).collect();
@@ -417,11 +396,11 @@ pub fn solve_d_socp(pb: &Problem, set: &ConicSettings, ctl: &Control) -> ConicRe
         b.extend_from_slice(&[0.0, 1.0, 0.0]);
         cones.push(SupportedConeT::ExponentialConeT());
     }
-    solve(n_var, q, a, b, cones, set, k, ctl).1
+    solve(n_var, q, a, b, cones, set, set.clarabel_tol, k, ctl).1
 }
 
 /// D-optimal design, lifted semidefinite form (see the module docs).
-pub fn solve_d_sdp(pb: &Problem, set: &ConicSettings, ctl: &Control) -> ConicResult {
+pub fn solve_d_sdp(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicResult {
     let (p, k) = (pb.p(), pb.n());
     let n2 = 2 * p;
     let w0 = 0;
@@ -461,11 +440,11 @@ pub fn solve_d_sdp(pb: &Problem, set: &ConicSettings, ctl: &Control) -> ConicRes
         b.extend_from_slice(&[0.0, 1.0, 0.0]);
         cones.push(SupportedConeT::ExponentialConeT());
     }
-    solve(n_var, q, a, b, cones, set, k, ctl).1
+    solve(n_var, q, a, b, cones, set, set.clarabel_tol, k, ctl).1
 }
 
 /// A-optimal design: min tr(Kᵀ M(w)⁻¹ K) (K p×p, e.g. the identity).
-pub fn solve_a(pb: &Problem, kmat: &DMatrix<f64>, set: &ConicSettings, ctl: &Control) -> ConicResult {
+pub fn solve_a(pb: &Problem, kmat: &DMatrix<f64>, set: &SolverOptions, ctl: &Control) -> ConicResult {
     let (p, k) = (pb.p(), pb.n());
     let mut factors: Vec<nalgebra::DMatrixView<'_, f64>> = (0..k).map(|i| pb.factor(i)).collect();
     if let Some(h0) = pb.prior_factor() {
@@ -533,11 +512,11 @@ pub fn solve_a(pb: &Problem, kmat: &DMatrix<f64>, set: &ConicSettings, ctl: &Con
         }
         cones.push(SupportedConeT::SecondOrderConeT(l * p + 2));
     }
-    solve(n_var, q, a, b, cones, set, k, ctl).1
+    solve(n_var, q, a, b, cones, set, 1e-2 * set.clarabel_tol, k, ctl).1
 }
 
 /// E-optimal design: max t s.t. M(w) − tI ⪰ 0. Returns the PSD dual matrix in `dual`.
-pub fn solve_e(pb: &Problem, set: &ConicSettings, ctl: &Control) -> ConicResult {
+pub fn solve_e(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicResult {
     let (p, k) = (pb.p(), pb.n());
     let w0 = 0;
     let t = k;
@@ -557,7 +536,7 @@ pub fn solve_e(pb: &Problem, set: &ConicSettings, ctl: &Control) -> ConicResult 
     }
     b.extend_from_slice(&bb);
     cones.push(SupportedConeT::PSDTriangleConeT(p));
-    let (solver, mut res) = solve(n_var, q, a, b, cones, set, k, ctl);
+    let (solver, mut res) = solve(n_var, q, a, b, cones, set, 1e-2 * set.clarabel_tol, k, ctl);
     if let Some(s) = solver {
         let z = &s.solution.z;
         // the dual rows of the PSD block follow the 1 + k rows before it

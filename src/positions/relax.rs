@@ -34,7 +34,7 @@
 //!
 //! The certificate holds when the efficiency bound is ≥ 1 − `tol`.
 
-use super::conic::{self, ConicSettings, Formulation};
+use super::conic::{self, Formulation};
 use super::firstorder::{self, d_prune_threshold};
 use super::problem::{evaluate_e_with, psd_unit_trace, Criterion, Evaluation, Problem};
 use crate::error::{Error, Result};
@@ -120,14 +120,6 @@ impl SolverOptions {
             }
         }
         Ok(())
-    }
-    fn conic(&self, crit: Criterion) -> ConicSettings {
-        ConicSettings {
-            tol: if crit == Criterion::D { self.clarabel_tol } else { 1e-2 * self.clarabel_tol },
-            max_iter: self.max_iter,
-            time_limit: self.time_limit.unwrap_or(f64::INFINITY),
-            verbose: self.verbose,
-        }
     }
 }
 
@@ -452,18 +444,18 @@ fn initial_working_set(pbs: &Problem, crit: Criterion, opts: &SolverOptions, ctl
 fn conic_round(sub: &Problem, crit: Criterion, t: Option<&DMatrix<f64>>, wmix: &[f64], opts: &SolverOptions, ctl: &Control) -> conic::ConicResult {
     let p = sub.p();
     match (crit, t) {
-        (Criterion::D, Some(t)) => conic::solve_d(&sub.transformed(t).truncated(opts.factor_tol), opts.formulation, &opts.conic(crit), ctl),
-        (Criterion::D, None) => conic::solve_d(sub, opts.formulation, &opts.conic(crit), ctl),
+        (Criterion::D, Some(t)) => conic::solve_d(&sub.transformed(t).truncated(opts.factor_tol), opts, ctl),
+        (Criterion::D, None) => conic::solve_d(sub, opts, ctl),
         (Criterion::A, Some(t)) => {
             // tr(M⁻¹) = tr(Tᵀ M̃⁻¹ T); K = T/‖T‖_F makes the warm-start objective ≈ 1
             let k = t / t.norm().max(f64::MIN_POSITIVE);
-            conic::solve_a(&sub.transformed(t).truncated(opts.factor_tol), &k, &opts.conic(crit), ctl)
+            conic::solve_a(&sub.transformed(t).truncated(opts.factor_tol), &k, opts, ctl)
         }
-        (Criterion::A, None) => conic::solve_a(sub, &DMatrix::identity(p, p), &opts.conic(crit), ctl),
+        (Criterion::A, None) => conic::solve_a(sub, &DMatrix::identity(p, p), opts, ctl),
         (Criterion::E, _) => {
             let lmin = sub.information(wmix).symmetric_eigen().eigenvalues.min();
             let sc = if lmin > 0.0 && lmin.is_finite() { 1.0 / lmin } else { 1.0 };
-            conic::solve_e(&sub.scaled(sc), &opts.conic(crit), ctl)
+            conic::solve_e(&sub.scaled(sc), opts, ctl)
         }
     }
 }
