@@ -29,7 +29,7 @@ fn design_run() {
         return;
     }
     let p = problem();
-    let r = run(&p, false).expect("bench design run");
+    let r = run(&p, &idexp::optim::Control::new()).expect("bench design run");
     println!(
         "excite_ur5_bench: {:?}, cond {:.4} in {:.2} s wall on {} threads (GA {} generations / {} evaluations in {:.2} s; chosen {})",
         r.status, r.spectrum.cond, r.seconds, r.threads, r.ga.generations, r.ga.evaluations, r.ga.seconds, r.chosen

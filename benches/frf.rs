@@ -12,7 +12,7 @@ use std::path::Path;
 fn bench(c: &mut Criterion) {
     let (d, m) = Design::load(Path::new("designs/elastic_industrial6.toml")).expect("design");
     let tmp = tempfile::tempdir().expect("tempdir");
-    let (data, truth) = simulate::simulate(&d, &m, tmp.path()).expect("simulate");
+    let (data, truth) = simulate::simulate(&d, &m, tmp.path(), &idexp::optim::Control::new()).expect("simulate");
     let theta: Vec<f64> = truth.theta.iter().map(|t| t * 1.05).collect();
     let w = fit::weights(&d, &data, Estimator::Lls, WeightKind::User).expect("weights");
     let prob = fit::FitProblem::new(&m, &data, Estimator::Lls, w).expect("problem");

@@ -47,7 +47,9 @@ fn bench_sim(c: &mut Criterion) {
         let d: SimDesign = idexp::io::parse_toml(Path::new("bench.toml"), &text).unwrap();
         let setup = SimSetup::from_design(&d, &root(""), "bench").unwrap();
         // a 1 s period: 1000 lead-in + 1000 recorded controller periods
-        c.bench_function(&format!("sim/2000 controller periods {name}"), |b| b.iter(|| setup.run().unwrap()));
+        c.bench_function(&format!("sim/2000 controller periods {name}"), |b| {
+            b.iter(|| setup.run(&idexp::optim::Control::new()).unwrap())
+        });
     }
 }
 

@@ -33,10 +33,10 @@ fn bench(c: &mut Criterion) {
     for n in [1000usize, 20000] {
         let pb = instance(n, 26);
         let opts = SolverOptions::default();
-        let r = solve_relaxed(&pb, Crit::D, &opts).expect("solve");
+        let r = solve_relaxed(&pb, Crit::D, &opts, &idexp::optim::Control::new()).expect("solve");
         assert_eq!(r.status, Status::Optimal, "benchmark instance must certify");
         g.bench_function(format!("{n}_candidates"), |b| {
-            b.iter(|| black_box(solve_relaxed(&pb, Crit::D, &opts).expect("solve")))
+            b.iter(|| black_box(solve_relaxed(&pb, Crit::D, &opts, &idexp::optim::Control::new()).expect("solve")))
         });
     }
     g.finish();

@@ -32,7 +32,7 @@ seed = 3
     )?;
     design.validate("rehearsal.toml")?;
     let setup = SimSetup::from_design(&design, Path::new("."), "rehearsal.toml")?;
-    let sim = setup.run()?;
+    let sim = setup.run(&idexp::optim::Control::new())?;
     let run = Run::new(vec![], sim.reps.clone())?;
     let robot = &setup.nominal; // identification uses the model structure, not the truth
     let base = BaseParams::compute(robot, &BaseOptions::default())?;
@@ -40,7 +40,7 @@ seed = 3
         harmonics: Some(20),
         ..Default::default()
     };
-    let mut id = identify(robot, &base, &run, setup.reference.fourier(), None, &opts)?;
+    let mut id = identify(robot, &base, &run, setup.reference.fourier(), None, &opts, &idexp::optim::Control::new())?;
     let truth = sim.truth()?;
     id.estimate.compare_truth(&truth.base_names, &truth.base)?;
     print!("{}", id.estimate.text());

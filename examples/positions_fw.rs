@@ -17,7 +17,7 @@ fn main() -> idexp::Result<()> {
     let pb = Problem::from_factors(p, &factors, None)?;
     let mut w = vec![1.0 / n as f64; n];
     for k in 0..20 {
-        let lg = firstorder::fw_away_d(&pb, &mut w, 100, 1e-9)?;
+        let lg = firstorder::fw_away_d(&pb, &mut w, 100, 1e-9, &idexp::optim::Control::new())?;
         let supp = w.iter().filter(|&&v| v > 0.0).count();
         println!("{} eps {:.3e} support {supp}", (k + 1) * 100, lg.eps);
     }

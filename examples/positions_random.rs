@@ -36,7 +36,7 @@ fn main() -> idexp::Result<()> {
         opts.first_order_eps = e;
     }
     let t = std::time::Instant::now();
-    let r = solve_relaxed(&pb, crit, &opts)?;
+    let r = solve_relaxed(&pb, crit, &opts, &idexp::optim::Control::new())?;
     let support = r.weights.iter().filter(|&&w| w > 1e-6).count();
     println!(
         "n={n} p={p} {crit:?}: value {:.10} status {:?} eff>={:.9} max s {:.8} ref {:.8} support {support} pruned {} fo_iters {} eps {:.2e} rounds {:?} fo {:.3}s clarabel {:.3}s total {:.3}s (wall {:.3}s)",

@@ -27,7 +27,7 @@ fn design(dir: &Path, edit: &dyn Fn(String) -> String) -> (Design, ElasticModel)
 fn time_domain_frf_equals_linearised_frf() {
     let dir = tempfile::tempdir().unwrap();
     let (d, m) = design(dir.path(), &|s| s.replace("[simulate]", "[simulate]\nposition_noise = 0.0"));
-    let (data, truth) = simulate::simulate(&d, &m, &dir.path().join("runs")).unwrap();
+    let (data, truth) = simulate::simulate(&d, &m, &dir.path().join("runs"), &idexp::optim::Control::new()).unwrap();
     assert!(dir.path().join("runs/runs.json").exists());
     let omegas: Vec<f64> = data.freqs_hz.iter().map(|f| std::f64::consts::TAU * f).collect();
     let g = simulate::true_frf(&m, &truth.full, &d.positions[0], &omegas, d.frf.output).unwrap();
@@ -62,7 +62,7 @@ fn coulomb_friction_raises_the_even_lines() {
                 .replace("blocks = 2", "blocks = 1")
                 .replace("periods = 2\n", "periods = 3\n")
         });
-        let (data, _) = simulate::simulate(&d, &m, &dir.path().join("runs")).unwrap();
+        let (data, _) = simulate::simulate(&d, &m, &dir.path().join("runs"), &idexp::optim::Control::new()).unwrap();
         data.positions[0].distortion.clone().unwrap()
     };
     let lin = level(false);

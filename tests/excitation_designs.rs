@@ -60,8 +60,8 @@ max_evals = 25
 #[test]
 fn the_same_seed_gives_the_same_design_on_one_and_two_threads() {
     let p = problem_from(SMALL_UR5, "small.toml");
-    let r1 = in_pool(1, || run(&p, false).unwrap());
-    let r2 = in_pool(2, || run(&p, false).unwrap());
+    let r1 = in_pool(1, || run(&p, &idexp::optim::Control::new()).unwrap());
+    let r2 = in_pool(2, || run(&p, &idexp::optim::Control::new()).unwrap());
     assert_eq!(r1.threads, 1);
     assert_eq!(r2.threads, 2);
     assert_eq!(r1.x, r2.x);
@@ -73,7 +73,7 @@ fn the_same_seed_gives_the_same_design_on_one_and_two_threads() {
     // a different seed gives a different design
     let mut p3 = p.clone();
     p3.design.seed = 12;
-    let r3 = run(&p3, false).unwrap();
+    let r3 = run(&p3, &idexp::optim::Control::new()).unwrap();
     assert_ne!(r3.x, r1.x);
 }
 
@@ -96,8 +96,8 @@ fn restrained_workspace_is_feasible_with_a_higher_condition_number_than_the_full
     };
     let full = shipped("excite_industrial6_full", small);
     let restrained = shipped("excite_industrial6_restrained", small);
-    let rf = run(&full, false).unwrap();
-    let rr = run(&restrained, false).unwrap();
+    let rf = run(&full, &idexp::optim::Control::new()).unwrap();
+    let rr = run(&restrained, &idexp::optim::Control::new()).unwrap();
     assert_feasible_on_the_check_grid(&rf);
     assert_feasible_on_the_check_grid(&rr);
     // the Cartesian margins are part of what was checked
@@ -117,7 +117,7 @@ fn infeasible_settings_name_the_constraint_and_the_amount() {
     let text = format!("{SMALL_UR5}\n[[workspace]]\nframe = \"tool0\"\nshape = {{ type = \"box\", min = [-0.3, -0.3, 0.3], max = [0.3, 0.3, 0.8] }}\n")
         .replace("q0 = [0.0, -0.5, 0.5, 0.0, 0.0, 0.0]", "q0 = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]");
     let p = problem_from(&text, "infeasible.toml");
-    let r = run(&p, false).unwrap();
+    let r = run(&p, &idexp::optim::Control::new()).unwrap();
     assert_eq!(r.status, Status::Infeasible);
     assert!(!r.violated.is_empty());
     let worst = &r.violated[0];
@@ -133,7 +133,7 @@ fn infeasible_settings_name_the_constraint_and_the_amount() {
     // an unreachable joint range: q0 outside the allowed positions
     let text = SMALL_UR5.replace("q0 = [0.0, -0.5, 0.5, 0.0, 0.0, 0.0]", "q0 = [0.0, -0.5, 2.9, 0.0, 0.0, 0.0]");
     let p = problem_from(&text, "q0_out.toml");
-    let r = run(&p, false).unwrap();
+    let r = run(&p, &idexp::optim::Control::new()).unwrap();
     assert_eq!(r.status, Status::Infeasible);
     assert!(r.violated.iter().any(|m| m.name.starts_with("q3 ") && m.margin < -0.3), "{:?}", r.violated);
 }
@@ -224,7 +224,7 @@ fn study_full_budgets_restrained_vs_full_and_panda() {
     let mut conds = Vec::new();
     for name in ["excite_industrial6_full", "excite_industrial6_restrained", "excite_panda_table"] {
         let p = shipped(name, |_| {});
-        let r = run(&p, false).unwrap();
+        let r = run(&p, &idexp::optim::Control::new()).unwrap();
         println!("{name}: {:?}, cond {:.4}, {:.1} s, chosen {}", r.status, r.spectrum.cond, r.seconds, r.chosen);
         assert_feasible_on_the_check_grid(&r);
         conds.push(r.spectrum.cond);
@@ -242,7 +242,7 @@ fn study_ur5_bench_ten_seconds_and_one_minute() {
             d.time_limit = Some(t);
             d.refine.starts = if t > 30.0 { 48 } else { d.refine.starts };
         });
-        let r = run(&p, false).unwrap();
+        let r = run(&p, &idexp::optim::Control::new()).unwrap();
         println!(
             "budget {t} s: cond {:.4} after {:.1} s ({:?}, chosen {})",
             r.spectrum.cond, r.seconds, r.status, r.chosen

@@ -200,7 +200,7 @@ fn frf_files_round_trip_and_bad_files_are_errors() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("d.toml");
     std::fs::write(&p, shipped_text().replace("band = [2.0, 150.0]", "band = [2.0, 20.0]")).unwrap();
-    let (data, out) = idexp::frf::pipeline::frf(&p, Some(dir.path())).unwrap();
+    let (data, out) = idexp::frf::pipeline::frf(&p, Some(dir.path()), &idexp::optim::Control::new()).unwrap();
     let back = idexp::frf::FrfData::read(&out.join("frf.json")).unwrap();
     assert_eq!(back, data);
     for f in ["design.json", "status.json", "truth.json"] {
@@ -233,6 +233,6 @@ fn frf_files_round_trip_and_bad_files_are_errors() {
     };
     let mp = dir.path().join("runs.json");
     idexp::io::write_json(&mp, &m).unwrap();
-    let e = idexp::frf::pipeline::frf(&mp, None).unwrap_err().to_string();
+    let e = idexp::frf::pipeline::frf(&mp, None, &idexp::optim::Control::new()).unwrap_err().to_string();
     assert!(e.contains("missing.csv"), "{e}");
 }

@@ -30,7 +30,7 @@ fn write_design(dir: &Path, npos: usize, fmax: f64, edit: &dyn Fn(String) -> Str
 }
 
 fn frf_data(p: &Path, out: &Path) -> idexp::frf::FrfData {
-    pipeline::frf(p, Some(out)).unwrap().0
+    pipeline::frf(p, Some(out), &idexp::optim::Control::new()).unwrap().0
 }
 
 #[test]
@@ -83,6 +83,7 @@ fn lls_recovers_the_springs_within_their_theoretical_uncertainty() {
             out: Some(dir.path().to_path_buf()),
             ..Default::default()
         },
+        &idexp::optim::Control::new(),
     )
     .unwrap();
     let rep = r.report.unwrap();
@@ -113,7 +114,7 @@ fn eq5_covariance_matches_the_scatter_over_noise_realisations() {
         let t = simulate::truth(&m, d.simulate.as_ref().unwrap(), d.seed).unwrap();
         let w = fit::weights(&d, &data, Estimator::Lls, WeightKind::User).unwrap();
         let prob = fit::FitProblem::new(&m, &data, Estimator::Lls, w).unwrap();
-        let o = prob.solve(&t.theta, &d.fit);
+        let o = prob.solve(&t.theta, &d.fit, &idexp::optim::Control::new());
         assert!(o.status.converged(), "{:?}", o.status);
         if std_th.is_empty() {
             let c = prob.covariance(&o.theta).unwrap();

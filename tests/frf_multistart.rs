@@ -27,7 +27,7 @@ fn small_design(dir: &Path) -> PathBuf {
     std::fs::create_dir_all(dir).unwrap();
     let p = dir.join("small.toml");
     std::fs::write(&p, s).unwrap();
-    pipeline::frf(&p, Some(dir)).unwrap();
+    pipeline::frf(&p, Some(dir), &idexp::optim::Control::new()).unwrap();
     p
 }
 
@@ -49,6 +49,7 @@ fn fit_on_threads(threads: usize, p: &Path, data: &Path, out: &Path) -> pipeline
                 data: Some(data.to_path_buf()),
                 ..opts(out)
             },
+            &idexp::optim::Control::new(),
         )
     })
     .unwrap()
@@ -91,6 +92,7 @@ fn thread_count_resume_and_shards_give_the_same_file() {
             data: Some(data.clone()),
             ..opts(&c)
         },
+        &idexp::optim::Control::new(),
     )
     .unwrap();
     assert_eq!(rc.records.len(), 6);
@@ -106,6 +108,7 @@ fn thread_count_resume_and_shards_give_the_same_file() {
             starts: Some(3),
             ..opts(&g)
         },
+        &idexp::optim::Control::new(),
     )
     .unwrap();
     assert_eq!(rg.records.len(), 3);
@@ -115,6 +118,7 @@ fn thread_count_resume_and_shards_give_the_same_file() {
             data: Some(data.clone()),
             ..opts(&g)
         },
+        &idexp::optim::Control::new(),
     )
     .unwrap();
     assert_eq!(read(&rg.dir.join("starts.jsonl")), ref_log, "3 starts, then 6");
@@ -130,6 +134,7 @@ fn thread_count_resume_and_shards_give_the_same_file() {
                 shard: Some(Shard { index: i, count: 3 }),
                 ..opts(&s)
             },
+            &idexp::optim::Control::new(),
         )
         .unwrap();
         assert!(r.report.is_none());
@@ -155,6 +160,7 @@ fn thread_count_resume_and_shards_give_the_same_file() {
             data: Some(data.clone()),
             ..opts(&c)
         },
+        &idexp::optim::Control::new(),
     )
     .unwrap_err()
     .to_string();

@@ -12,7 +12,7 @@ use std::path::Path;
 fn hundred_starts_three_estimators() {
     let dir = tempfile::tempdir().unwrap();
     let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/elastic_industrial6.toml");
-    pipeline::frf(&d, Some(dir.path())).unwrap();
+    pipeline::frf(&d, Some(dir.path()), &idexp::optim::Control::new()).unwrap();
     let mut shares = Vec::new();
     for est in [Estimator::Lls, Estimator::LlsMagnitude, Estimator::Nls] {
         let t0 = std::time::Instant::now();
@@ -23,6 +23,7 @@ fn hundred_starts_three_estimators() {
                 out: Some(dir.path().to_path_buf()),
                 ..Default::default()
             },
+            &idexp::optim::Control::new(),
         )
         .unwrap();
         let rep = r.report.unwrap();

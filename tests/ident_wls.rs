@@ -132,7 +132,7 @@ fn one_repetition_and_missing_inputs() {
         reduce: Some(Default::default()),
         ..Default::default()
     };
-    assert!(idexp::ident::identify(robot, &base, &run_of(&res), None, None, &opts).is_err());
+    assert!(idexp::ident::identify(robot, &base, &run_of(&res), None, None, &opts, &idexp::optim::Control::new()).is_err());
 }
 
 /// The error message of `identify` with `method` on the run of `data`, with the
@@ -152,6 +152,7 @@ fn identify_error(
         reference.setup.reference.fourier(),
         None,
         &IdentOptions { method, ..Default::default() },
+        &idexp::optim::Control::new(),
     )
     .unwrap_err()
     .to_string()

@@ -122,19 +122,9 @@ fn rounded_plan_is_no_better_than_relaxed_and_exchange_helps() {
     let p = 5;
     let h: Vec<DMatrix<f64>> = (0..40).map(|_| DMatrix::from_fn(p, 1, |_, _| g.random_range(-1.0..1.0))).collect();
     let pb = Problem::from_factors(p, &h, None).unwrap();
-    let r = solve_relaxed(&pb, Criterion::D, &SolverOptions::default()).unwrap();
+    let r = solve_relaxed(&pb, Criterion::D, &SolverOptions::default(), &idexp::optim::Control::new()).unwrap();
     for total in [5usize, 7, 12, 30] {
-        let rd = round_design(
-            &pb,
-            Criterion::D,
-            &r.weights,
-            &r.sensitivities,
-            r.value,
-            r.certificate.efficiency_bound,
-            total as f64,
-            None,
-        )
-        .unwrap();
+        let rd = round_design(&pb, Criterion::D, &r, total as f64, None, &idexp::optim::Control::new()).unwrap();
         assert_eq!(rd.total, total);
         assert!(rd.efficiency <= 1.0 + 1e-7, "integer plans cannot beat the relaxed optimum: {}", rd.efficiency);
         assert!(rd.efficiency + 1e-12 >= rd.efficiency_apportionment);
@@ -175,19 +165,9 @@ fn budget_with_costs_is_respected() {
     let h: Vec<DMatrix<f64>> = (0..30).map(|_| DMatrix::from_fn(p, 2, |_, _| g.random_range(-1.0..1.0))).collect();
     let costs: Vec<f64> = (0..30).map(|_| g.random_range(0.5..3.0)).collect();
     let pb = Problem::from_factors(p, &h, None).unwrap().divided_by(&costs);
-    let r = solve_relaxed(&pb, Criterion::D, &SolverOptions::default()).unwrap();
+    let r = solve_relaxed(&pb, Criterion::D, &SolverOptions::default(), &idexp::optim::Control::new()).unwrap();
     assert!(r.certificate.holds);
-    let rd = round_design(
-        &pb,
-        Criterion::D,
-        &r.weights,
-        &r.sensitivities,
-        r.value,
-        r.certificate.efficiency_bound,
-        20.0,
-        Some(&costs),
-    )
-    .unwrap();
+    let rd = round_design(&pb, Criterion::D, &r, 20.0, Some(&costs), &idexp::optim::Control::new()).unwrap();
     let spent: f64 = rd.m.iter().zip(&costs).map(|(m, c)| *m as f64 * c).sum();
     assert!(spent <= 20.0 + 1e-9 && (spent - rd.cost).abs() < 1e-9);
     assert!(rd.efficiency <= 1.0 + 1e-7 && rd.efficiency > 0.5, "{}", rd.efficiency);

@@ -171,7 +171,7 @@ fn run_cli(design: &str, out: &Path, threads: usize) -> serde_json::Value {
 fn small_elastic_design_is_certified_d_optimal_with_small_support() {
     let path = common::root("designs/positions_elastic6_small.toml");
     let design = PositionsDesign::read(&path).unwrap();
-    let run = run_design(&design, path.parent().unwrap()).unwrap();
+    let run = run_design(&design, path.parent().unwrap(), &idexp::optim::Control::new()).unwrap();
     let n = run.q.len();
     assert!((100..=300).contains(&n), "{n} candidates");
     assert_eq!(run.names.len(), 26);
@@ -218,7 +218,7 @@ fn small_elastic_design_is_certified_d_optimal_with_small_support() {
     if let InformationSpec::Elastic { scale, .. } = &mut phys.information {
         *scale = ElasticScale::Physical;
     }
-    let run_p = run_design(&phys, path.parent().unwrap()).unwrap();
+    let run_p = run_design(&phys, path.parent().unwrap(), &idexp::optim::Control::new()).unwrap();
     assert_eq!(run_p.relaxed.status, Status::Optimal);
     let dw = run
         .relaxed
@@ -262,7 +262,7 @@ fn small_elastic_design_is_certified_d_optimal_with_small_support() {
 fn shipped_elastic_design_few_thousand_candidates() {
     let path = common::root("designs/positions_elastic6.toml");
     let design = PositionsDesign::read(&path).unwrap();
-    let run = run_design(&design, path.parent().unwrap()).unwrap();
+    let run = run_design(&design, path.parent().unwrap(), &idexp::optim::Control::new()).unwrap();
     assert!(run.q.len() >= 2000, "{} candidates", run.q.len());
     assert_eq!(run.names.len(), 26);
     assert_eq!(run.relaxed.status, Status::Optimal);
@@ -286,7 +286,7 @@ fn error_of(text: &str) -> String {
     std::fs::write(&p, text).unwrap();
     match PositionsDesign::read(&p) {
         Err(e) => e.to_string(),
-        Ok(d) => match run_design(&d, dir.path()) {
+        Ok(d) => match run_design(&d, dir.path(), &idexp::optim::Control::new()) {
             Err(e) => e.to_string(),
             Ok(_) => panic!("accepted: {text}"),
         },
@@ -301,7 +301,7 @@ fn bad_elastic_specs_name_the_field() {
     std::fs::write(&p, design_text("frequencies_hz = [5.0, 9.0]")).unwrap();
     let d = PositionsDesign::read(&p).unwrap();
     assert!(matches!(d.information, InformationSpec::Elastic { .. }));
-    let run = run_design(&d, dir.path()).unwrap();
+    let run = run_design(&d, dir.path(), &idexp::optim::Control::new()).unwrap();
     assert_eq!(run.q.len(), 4);
     for (info, want) in [
         ("frequencies_hz = []", "information.frequencies_hz"),

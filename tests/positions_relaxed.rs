@@ -119,7 +119,7 @@ fn check_d(n: usize, p: usize, rank: usize, seed: u64, with_prior: bool) {
         g[0].clone() * 0.2
     });
     let pb = Problem::from_factors(p, &h, f0.as_ref()).unwrap();
-    let r = solve_relaxed(&pb, Criterion::D, &SolverOptions::default()).unwrap();
+    let r = solve_relaxed(&pb, Criterion::D, &SolverOptions::default(), &idexp::optim::Control::new()).unwrap();
     assert_eq!(r.status, Status::Optimal, "n={n} p={p}: {:?}", r.certificate);
     // the value reported is log det M(w) of the reported weights
     let w = &r.weights;
@@ -176,7 +176,7 @@ fn d_optimal_5000_candidates() {
 fn socp_and_sdp_formulations_agree() {
     let (h, _) = instance(60, 8, 2, 1.0, 8);
     let pb = Problem::from_factors(8, &h, None).unwrap();
-    let a = solve_relaxed(&pb, Criterion::D, &SolverOptions::default()).unwrap();
+    let a = solve_relaxed(&pb, Criterion::D, &SolverOptions::default(), &idexp::optim::Control::new()).unwrap();
     let b = solve_relaxed(
         &pb,
         Criterion::D,
@@ -185,6 +185,7 @@ fn socp_and_sdp_formulations_agree() {
             prune: false,
             ..Default::default()
         },
+        &idexp::optim::Control::new(),
     )
     .unwrap();
     assert_eq!(a.status, Status::Optimal);
@@ -197,7 +198,7 @@ fn a_optimal_matches_reference() {
     for (n, p, rank, seed) in [(50, 8, 2, 11), (300, 12, 3, 12)] {
         let (h, f) = instance(n, p, rank, 1.0, seed);
         let pb = Problem::from_factors(p, &h, None).unwrap();
-        let r = solve_relaxed(&pb, Criterion::A, &SolverOptions::default()).unwrap();
+        let r = solve_relaxed(&pb, Criterion::A, &SolverOptions::default(), &idexp::optim::Control::new()).unwrap();
         assert_eq!(r.status, Status::Optimal, "{:?}", r.certificate);
         let (vref, _) = reference(&f, None, true, 1e-10, 200_000);
         assert!((r.value - vref).abs() <= 1e-6 * vref, "A: idexp {} vs reference {vref}", r.value);
@@ -211,7 +212,7 @@ fn e_optimal_weak_duality_certificate() {
     for (n, p, rank, seed) in [(50, 6, 2, 21), (400, 10, 3, 22)] {
         let (h, f) = instance(n, p, rank, 0.5, seed);
         let pb = Problem::from_factors(p, &h, None).unwrap();
-        let r = solve_relaxed(&pb, Criterion::E, &SolverOptions::default()).unwrap();
+        let r = solve_relaxed(&pb, Criterion::E, &SolverOptions::default(), &idexp::optim::Control::new()).unwrap();
         let z = r.dual.clone().expect("E returns its dual matrix");
         let ez = z.clone().symmetric_eigen();
         assert!(
@@ -233,8 +234,8 @@ fn weights_invariant_to_parameter_scaling_for_d() {
     let pb = Problem::from_factors(8, &h, None).unwrap();
     let t = DMatrix::from_diagonal(&nalgebra::DVector::from_fn(8, |i, _| 10f64.powi(i as i32 - 4)));
     let pb2 = pb.transformed(&t);
-    let a = solve_relaxed(&pb, Criterion::D, &SolverOptions::default()).unwrap();
-    let b = solve_relaxed(&pb2, Criterion::D, &SolverOptions::default()).unwrap();
+    let a = solve_relaxed(&pb, Criterion::D, &SolverOptions::default(), &idexp::optim::Control::new()).unwrap();
+    let b = solve_relaxed(&pb2, Criterion::D, &SolverOptions::default(), &idexp::optim::Control::new()).unwrap();
     let logdet_t = 2.0 * (0..8).map(|i| t[(i, i)].ln()).sum::<f64>();
     assert!((b.value - a.value - logdet_t).abs() < 1e-6 * a.value.abs().max(1.0));
     assert_eq!(a.status, Status::Optimal);
@@ -248,7 +249,7 @@ fn unidentifiable_candidate_set_is_an_error() {
         .map(|i| DMatrix::from_fn(5, 1, |r, _| if r < 3 { (i + r) as f64 + 1.0 } else { 0.0 }))
         .collect();
     let pb = Problem::from_factors(5, &h, None).unwrap();
-    let e = solve_relaxed(&pb, Criterion::D, &SolverOptions::default()).unwrap_err();
+    let e = solve_relaxed(&pb, Criterion::D, &SolverOptions::default(), &idexp::optim::Control::new()).unwrap_err();
     assert!(e.to_string().contains("not identifiable"), "{e}");
 }
 

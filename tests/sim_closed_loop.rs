@@ -78,8 +78,16 @@ q_home = [0.0, 0.25, 0.0]
 "#,
     );
     let setup = SimSetup::from_design(&d, &root(""), "t").unwrap();
-    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| setup.run().unwrap());
-    let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap().install(|| setup.run().unwrap());
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| setup.run(&idexp::optim::Control::new()).unwrap());
+    let two = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap()
+        .install(|| setup.run(&idexp::optim::Control::new()).unwrap());
     assert_eq!(one.reps, two.reps);
     assert_ne!(one.reps[0], one.reps[1], "repetitions draw different noise");
     let again = simulate(&fourier_design("[noise]\ntorque = 0.1"));

@@ -189,42 +189,8 @@ impl Default for LimitsSpec {
     }
 }
 
-/// `[ga]`: real-coded genetic algorithm.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct GaSpec {
-    /// Population size.
-    pub population: usize,
-    /// Number of generations.
-    pub generations: usize,
-    /// Individuals copied unchanged into the next generation.
-    pub elite: usize,
-    /// Crossover probability (SBX).
-    pub crossover: f64,
-    /// SBX distribution index.
-    pub eta_crossover: f64,
-    /// Per-gene mutation probability (0: 1/n_vars).
-    pub mutation: f64,
-    /// Polynomial-mutation distribution index.
-    pub eta_mutation: f64,
-    /// Fraction of `time_limit` the GA may use.
-    pub time_fraction: f64,
-}
-
-impl Default for GaSpec {
-    fn default() -> Self {
-        GaSpec {
-            population: 40,
-            generations: 30,
-            elite: 2,
-            crossover: 0.9,
-            eta_crossover: 10.0,
-            mutation: 0.0,
-            eta_mutation: 20.0,
-            time_fraction: 0.3,
-        }
-    }
-}
+/// `[ga]`: real-coded genetic algorithm (one struct with the solver: [`crate::optim::ga::GaSpec`]).
+pub use crate::optim::ga::GaSpec;
 
 /// Gradient refinement algorithm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -365,25 +331,7 @@ impl ExciteDesign {
         for (i, w) in self.workspace.iter().enumerate() {
             w.shape.validate(ctx, &format!("workspace[{i}].shape"))?;
         }
-        let g = &self.ga;
-        if g.population < 4 || g.population > 100_000 {
-            return bad("ga.population", format!("expected 4..=100000, got {}", g.population));
-        }
-        if g.elite >= g.population {
-            return bad(
-                "ga.elite",
-                format!("expected fewer elites than the population ({}), got {}", g.population, g.elite),
-            );
-        }
-        if !(0.0..=1.0).contains(&g.crossover) || !(0.0..=1.0).contains(&g.mutation) {
-            return bad("ga.crossover", "crossover and mutation are probabilities in [0, 1]".into());
-        }
-        if !(g.eta_crossover > 0.0 && g.eta_mutation > 0.0) {
-            return bad("ga.eta_crossover", "distribution indices must be positive".into());
-        }
-        if !(g.time_fraction > 0.0 && g.time_fraction <= 1.0) {
-            return bad("ga.time_fraction", format!("expected a fraction in (0, 1], got {}", g.time_fraction));
-        }
+        self.ga.validate(ctx)?;
         let r = &self.refine;
         if r.algorithm != RefineAlgorithm::None && (r.starts == 0 || r.max_evals == 0) {
             return bad(

@@ -36,13 +36,15 @@
 
 pub mod constraints;
 pub mod design;
-pub mod ga;
+/// The GA lives in the optimisation seam ([`crate::optim::ga`]); re-exported here.
+pub use crate::optim::ga;
 pub mod grid;
 pub mod objective;
 pub mod refine;
 pub mod report;
 
 use crate::error::{Error, Result};
+use crate::optim::{Control, Termination};
 use crate::params::{BaseOptions, BaseParams};
 use crate::robot::Robot;
 use crate::trajectory::{period_grid, FourierLayout, FourierTrajectory};
@@ -91,13 +93,50 @@ pub enum Status {
     Infeasible,
 }
 
+/// What cut a design run short. Serialised as the sentence the reports
+/// carry (`"time limit (during the GA)"`, `"interrupted (Ctrl-C)"`, ...).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct StoppedBy {
+    /// Why the GA stopped early (`None`: it ran all its generations).
+    pub ga: Option<Termination>,
+    /// Why the refinement stopped early (`None`: not cut short).
+    pub refine: Option<Termination>,
+}
+
+fn stop_words(t: &Termination) -> &'static str {
+    match t {
+        Termination::Interrupted => "interrupted (Ctrl-C)",
+        Termination::MaxEvaluations => "evaluation budget",
+        _ => "time limit",
+    }
+}
+
+impl std::fmt::Display for StoppedBy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match (&self.ga, &self.refine) {
+            (_, Some(Termination::Interrupted)) => f.write_str("interrupted (Ctrl-C) during refinement"),
+            (Some(Termination::Interrupted), _) => f.write_str("interrupted (Ctrl-C)"),
+            (Some(g), Some(r)) => write!(f, "{} (during the GA) and {} (during refinement)", stop_words(g), stop_words(r)),
+            (Some(g), None) => write!(f, "{} (during the GA)", stop_words(g)),
+            (None, Some(r)) => write!(f, "{} (during refinement)", stop_words(r)),
+            (None, None) => f.write_str("not stopped"),
+        }
+    }
+}
+
+impl Serialize for StoppedBy {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
 /// Result of [`run`].
 #[derive(Debug, Clone, Serialize)]
 pub struct ExciteResult {
     /// Feasible or not (on the verification grid).
     pub status: Status,
     /// Whether the run was cut short (time limit, Ctrl-C) and by what.
-    pub stopped_by: Option<String>,
+    pub stopped_by: Option<StoppedBy>,
     /// The designed trajectory.
     pub trajectory: FourierTrajectory,
     /// Its design vector.
@@ -151,7 +190,7 @@ pub struct RefineSummary {
     /// Scaled violation at the end.
     pub violation: f64,
     /// nlopt status.
-    pub status: String,
+    pub status: refine::RefineStatus,
     /// Objective evaluations.
     pub evaluations: u64,
     /// Wall time (s).
@@ -382,60 +421,52 @@ fn finalise(p: &Problem, x: &[f64]) -> Result<Finalised> {
 }
 
 /// Runs the design: GA, refinement, verification (see the module docs).
-/// `progress`: show a progress bar on stderr.
-pub fn run(p: &Problem, progress: bool) -> Result<ExciteResult> {
+///
+/// `ctl` stops the run (stop request, deadline, evaluation budget); the
+/// design's own `time_limit` is applied on top of it: the GA gets the
+/// fraction `ga.time_fraction`, the refinement the rest up to 97 % (3 % are
+/// left for the verification). Progress goes to `ctl.observer()` in two
+/// phases, `"excite GA"` and `"excite refine"`.
+pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
     let t0 = Instant::now();
     let d = &p.design;
     // 3 % of the budget is left for the verification on the check grid
-    let deadline_all = d.time_limit.map(|t| t0 + std::time::Duration::from_secs_f64(0.97 * t));
-    let deadline_ga = d.time_limit.map(|t| t0 + std::time::Duration::from_secs_f64(t * d.ga.time_fraction));
-    let settings = ga::GaSettings {
-        population: d.ga.population,
-        generations: d.ga.generations,
-        elite: d.ga.elite,
-        crossover: d.ga.crossover,
-        eta_crossover: d.ga.eta_crossover,
-        mutation: d.ga.mutation,
-        eta_mutation: d.ga.eta_mutation,
-        seed: d.seed,
-        deadline: deadline_ga,
-    };
-    let pb = if progress {
-        crate::io::progress_bar(d.ga.generations as u64, "excite GA")
-    } else {
-        crate::io::ProgressBar::hidden()
-    };
+    let ctl_all = ctl.sub(d.time_limit.map(|t| 0.97 * t));
+    let ctl_ga = ctl_all.sub(d.time_limit.map(|t| t * d.ga.time_fraction));
+    let obs = ctl.observer();
     // shrink centre: the rest trajectory at q0 (harmonics zero)
     let centre = p.layout.vars(&crate::trajectory::FourierTrajectory::at_rest(
         p.layout.q0.clone(),
         p.layout.n_h,
         p.layout.omega,
     ));
-    let gares = ga::run(
-        &settings,
-        &p.lower,
-        &p.upper,
-        &centre,
-        &[],
-        || (p.objective.workspace(), p.constraints.workspace(), Vec::new()),
-        |w: &mut (objective::ObjectiveWorkspace, constraints::ConstraintWorkspace, Vec<f64>), x: &mut Vec<f64>| {
+    obs.phase("excite GA", Some(d.ga.generations as u64));
+    let problem = ga::FnProblem {
+        make_ws: || (p.objective.workspace(), p.constraints.workspace(), Vec::new()),
+        eval: |w: &mut (objective::ObjectiveWorkspace, constraints::ConstraintWorkspace, Vec<f64>), x: &mut Vec<f64>| {
             let (ow, cw, c) = w;
             p.evaluate(x, ow, cw, c)
         },
-        |g, best| {
-            pb.set_position(g as u64);
-            pb.set_message(if best.feasible() {
-                format!("best {:.4} (feasible)", best.f)
-            } else {
-                format!("violation {:.3e} (none feasible yet)", best.violation)
-            });
+    };
+    let gares = ga::run(
+        &d.ga,
+        d.seed,
+        &ga::SearchSpace {
+            lower: &p.lower,
+            upper: &p.upper,
+            centre: &centre,
+            initial: &[],
         },
-    );
-    pb.finish_and_clear();
+        problem,
+        &ctl_ga,
+    )?;
+    obs.phase_done();
     let mut stopped_by = match gares.stop {
-        ga::GaStop::TimeLimit => Some("time limit (during the GA)".to_string()),
-        ga::GaStop::Interrupted => Some("interrupted (Ctrl-C)".to_string()),
         ga::GaStop::Generations => None,
+        s => Some(StoppedBy {
+            ga: Some(s.termination()),
+            refine: None,
+        }),
     };
     // distinct individuals, best first: the first `starts` are refined; with a
     // time limit, further ones are refined in batches while time remains
@@ -450,55 +481,34 @@ pub fn run(p: &Problem, progress: bool) -> Result<ExciteResult> {
     }
     let mut refinements: Vec<refine::RefineOutcome> = Vec::new();
     if d.refine.algorithm != RefineAlgorithm::None && gares.stop != ga::GaStop::Interrupted {
-        let rs = refine::RefineSettings {
-            algorithm: d.refine.algorithm,
-            max_evals: d.refine.max_evals,
-            xtol_rel: d.refine.xtol_rel,
-            ftol_rel: d.refine.ftol_rel,
-            lower: p.lower.clone(),
-            upper: p.upper.clone(),
-            deadline: deadline_all,
-            smooth: if d.refine.smooth > 0.0 { Some(d.refine.smooth) } else { None },
-            tol: 1e-9,
-        };
         let first = d.refine.starts.min(starts.len());
-        let spin = if progress {
-            let s = crate::io::progress_bar(first as u64, "excite refine");
-            s.set_message(format!("{first} {:?} start(s), analytic gradients", d.refine.algorithm));
-            s
-        } else {
-            crate::io::ProgressBar::hidden()
-        };
+        obs.phase("excite refine", Some(first as u64));
+        obs.note(&format!(
+            "{first} {} start(s), analytic gradients",
+            format!("{:?}", d.refine.algorithm).to_lowercase()
+        ));
         // one start at a time, best first: the gradient's per-sample work is
         // what runs in parallel (no nested pools competing for the threads)
-        let one = |s: &ga::Individual| -> refine::RefineOutcome {
-            let r = refine::refine(&p.objective, &p.constraints, &s.x, &rs);
-            spin.inc(1);
-            r
-        };
         for s in &starts[..first] {
-            if crate::io::stop::requested() || deadline_all.is_some_and(|dl| Instant::now() >= dl) {
+            if ctl_all.should_stop() {
                 break;
             }
-            refinements.push(one(s));
+            refinements.push(refine::refine(&p.objective, &p.constraints, &s.x, &d.refine, &p.lower, &p.upper, &ctl_all));
+            obs.progress(refinements.len() as u64, "");
         }
-        if let Some(dl) = deadline_all {
+        if ctl_all.deadline().is_some() {
             for s in &starts[first..] {
-                if Instant::now() >= dl || crate::io::stop::requested() {
+                if ctl_all.should_stop() {
                     break;
                 }
-                spin.inc_length(1);
-                refinements.push(one(s));
+                refinements.push(refine::refine(&p.objective, &p.constraints, &s.x, &d.refine, &p.lower, &p.upper, &ctl_all));
+                obs.progress(refinements.len() as u64, "");
             }
         }
-        spin.finish_and_clear();
-        if crate::io::stop::requested() {
-            stopped_by = Some("interrupted (Ctrl-C) during refinement".into());
-        } else if deadline_all.is_some_and(|dl| Instant::now() >= dl) {
-            stopped_by = Some(match stopped_by {
-                Some(s) => format!("{s} and time limit (during refinement)"),
-                None => "time limit (during refinement)".into(),
-            });
+        obs.phase_done();
+        if let Some(t) = ctl_all.check() {
+            let ga = stopped_by.take().and_then(|s| s.ga);
+            stopped_by = Some(StoppedBy { ga, refine: Some(t) });
         }
     }
     // verify every candidate on the check grid (shrinking it towards the rest

@@ -9,34 +9,52 @@
 //! gradient so the solver ends at once.
 
 use super::constraints::Constraints;
-use super::design::RefineAlgorithm;
+use super::design::{RefineAlgorithm, RefineSpec};
 use super::objective::{Criterion, Objective};
+use crate::optim::Control;
 use serde::Serialize;
 use std::cell::RefCell;
 use std::time::Instant;
 
-/// Settings of one refinement.
-#[derive(Debug, Clone)]
-pub struct RefineSettings {
-    /// Algorithm (not `None`).
-    pub algorithm: RefineAlgorithm,
-    /// Evaluation budget.
-    pub max_evals: u32,
-    /// Relative x tolerance.
-    pub xtol_rel: f64,
-    /// Relative objective tolerance.
-    pub ftol_rel: f64,
-    /// Lower bounds of x.
-    pub lower: Vec<f64>,
-    /// Upper bounds of x.
-    pub upper: Vec<f64>,
-    /// Stop by this instant.
-    pub deadline: Option<Instant>,
-    /// Exponent p of the smooth first stage for the condition number (None: one stage on ln κ).
-    pub smooth: Option<f64>,
-    /// Feasibility tolerance of nlopt on the scaled constraints; the
-    /// constraints are imposed as c + 2·tol ≤ 0, so accepted points have c < 0.
-    pub tol: f64,
+/// Feasibility tolerance of nlopt on the scaled constraints; the
+/// constraints are imposed as c + 2·tol ≤ 0, so accepted points have c < 0.
+const TOL: f64 = 1e-9;
+
+/// What one nlopt stage ended with (serialised as nlopt's own word, e.g.
+/// `FtolReached`, `MaxEvalReached`, `Failure`).
+pub use crate::optim::nlopt::NloptStatus as NloptWord;
+
+/// How a refinement ended: the nlopt result of the smooth stage (if any) and
+/// of the main stage, and whether the run-control asked to stop. Serialised
+/// as one string, as in the reports so far: `"XtolReached (smooth stage),
+/// FtolReached (interrupted)"`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RefineStatus {
+    /// Result of the smooth first stage.
+    pub smooth: Option<NloptWord>,
+    /// Result of the main stage.
+    pub main: NloptWord,
+    /// The control stopped the run (Ctrl-C).
+    pub interrupted: bool,
+}
+
+impl std::fmt::Display for RefineStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if let Some(s) = &self.smooth {
+            write!(f, "{s} (smooth stage), ")?;
+        }
+        f.write_str(self.main.as_str())?;
+        if self.interrupted {
+            f.write_str(" (interrupted)")?;
+        }
+        Ok(())
+    }
+}
+
+impl Serialize for RefineStatus {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
 }
 
 /// Outcome of one refinement.
@@ -51,7 +69,7 @@ pub struct RefineOutcome {
     /// Criterion at the start.
     pub start_f: f64,
     /// nlopt status.
-    pub status: String,
+    pub status: RefineStatus,
     /// Objective evaluations.
     pub evaluations: u64,
     /// Wall time (s).
@@ -72,13 +90,22 @@ fn internal(criterion: Criterion, j: f64) -> f64 {
     }
 }
 
+/// The settings of a refinement as the stages see them.
+struct Bounds<'a> {
+    spec: &'a RefineSpec,
+    lower: &'a [f64],
+    upper: &'a [f64],
+    ctl: &'a Control,
+}
+
 /// (last iterate, best feasible point and its value, nlopt status, evaluations).
-type StageResult = (Vec<f64>, Option<(Vec<f64>, f64)>, String, u64);
+type StageResult = (Vec<f64>, Option<(Vec<f64>, f64)>, NloptWord, u64);
 
 /// One nlopt run from x0: returns (last iterate, best feasible point met with
 /// its stage objective, nlopt status, evaluations). `soft`: minimise the
 /// smooth surrogate [`Objective::soft_log_cond_grad`] with that exponent.
-fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSettings, soft: Option<f64>, max_evals: u32) -> StageResult {
+fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Option<f64>, max_evals: u32) -> StageResult {
+    let (s, ctl) = (b.spec, b.ctl);
     let nv = x0.len();
     let m = cons.len();
     let tracker = RefCell::new(Tracker {
@@ -88,7 +115,7 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSettings, so
         evals: 0,
     });
     let crit = obj.criterion;
-    let stop_now = || crate::io::stop::requested() || s.deadline.is_some_and(|d| Instant::now() >= d);
+    let stop_now = || ctl.should_stop();
     let f_cb = |x: &[f64], grad: Option<&mut [f64]>, w: &mut super::objective::ObjectiveWorkspace| -> f64 {
         let (j, internal_j) = match (grad, soft) {
             (Some(g), Some(p)) => {
@@ -121,6 +148,7 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSettings, so
         };
         let mut t = tracker.borrow_mut();
         t.evals += 1;
+        ctl.count(1);
         t.last_x.clear();
         t.last_x.extend_from_slice(x);
         t.last_f = j;
@@ -143,8 +171,8 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSettings, so
         nlopt::Target::Minimize,
         obj.workspace(),
     );
-    let _ = opt.set_lower_bounds(&s.lower);
-    let _ = opt.set_upper_bounds(&s.upper);
+    let _ = opt.set_lower_bounds(b.lower);
+    let _ = opt.set_upper_bounds(b.upper);
     let _ = opt.set_maxeval(max_evals.max(1));
     if s.xtol_rel > 0.0 {
         let _ = opt.set_xtol_rel(s.xtol_rel);
@@ -152,16 +180,16 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSettings, so
     if s.ftol_rel > 0.0 {
         let _ = opt.set_ftol_rel(s.ftol_rel);
     }
-    if let Some(d) = s.deadline {
-        let left = d.saturating_duration_since(Instant::now()).as_secs_f64();
+    if let Some(d) = ctl.remaining() {
+        let left = d.as_secs_f64();
         let _ = opt.set_maxtime(left.max(1e-3));
     }
     if m > 0 {
         let c_cb = |res: &mut [f64], x: &[f64], grad: Option<&mut [f64]>, cw: &mut super::constraints::ConstraintWorkspace| {
             cons.eval(x, cw, res, grad);
             // shifted by 2·tol so that a point accepted within nlopt's tolerance is strictly feasible
-            res.iter_mut().for_each(|v| *v += 2.0 * s.tol);
-            let feasible = res.iter().all(|v| *v <= s.tol);
+            res.iter_mut().for_each(|v| *v += 2.0 * TOL);
+            let feasible = res.iter().all(|v| *v <= TOL);
             let mut t = tracker.borrow_mut();
             if feasible && t.last_x.as_slice() == x && t.last_f.is_finite() {
                 let f = t.last_f;
@@ -170,14 +198,11 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSettings, so
                 }
             }
         };
-        let tol = vec![s.tol; m];
+        let tol = vec![TOL; m];
         let _ = opt.add_inequality_mconstraint(m, c_cb, cons.workspace(), &tol);
     }
     let mut x = x0.to_vec();
-    let status = match opt.optimize(&mut x) {
-        Ok((st, _)) => format!("{st:?}"),
-        Err((st, _)) => format!("{st:?}"),
-    };
+    let status = NloptWord::of(&opt.optimize(&mut x));
     drop(opt);
     let t = tracker.into_inner();
     (x, t.best, status, t.evals)
@@ -187,29 +212,37 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSettings, so
 /// `smooth = Some(p)`, a first stage (60 % of the evaluations) minimises the
 /// smooth surrogate L_p of 2 ln κ, and a second stage polishes ln κ itself
 /// from the best feasible point of the first.
-pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], s: &RefineSettings) -> RefineOutcome {
+///
+/// `spec` gives the algorithm, the evaluation budget and the tolerances,
+/// [lower, upper] the box; `ctl` stops it (deadline → nlopt's `maxtime`;
+/// a stop request, the deadline or the evaluation budget make the callbacks
+/// return a zero gradient, so nlopt ends at its next step; every objective
+/// evaluation is counted on `ctl`).
+pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], spec: &RefineSpec, lower: &[f64], upper: &[f64], ctl: &Control) -> RefineOutcome {
+    let b = Bounds { spec, lower, upper, ctl };
+    let s = spec;
+    let smooth = if s.smooth > 0.0 { Some(s.smooth) } else { None };
     let t0 = Instant::now();
     let m = cons.len();
     let mut ow = obj.workspace();
     let start_f = obj.value(x0, &mut ow);
     let mut evals = 0;
     let mut x_start = x0.to_vec();
-    let mut status_soft = String::new();
-    if let (Some(p), Criterion::Cond) = (s.smooth, obj.criterion) {
+    let mut status_soft = None;
+    if let (Some(p), Criterion::Cond) = (smooth, obj.criterion) {
         let budget = (s.max_evals as f64 * 0.6) as u32;
-        let (last, best, st, ev) = stage(obj, cons, x0, s, Some(p), budget);
+        let (last, best, st, ev) = stage(obj, cons, x0, &b, Some(p), budget);
         evals += ev;
-        status_soft = format!("{st} (smooth stage), ");
+        status_soft = Some(st);
         x_start = best.map(|b| b.0).unwrap_or(last);
     }
     let left = s.max_evals.saturating_sub(evals as u32).max(1);
-    let (x, best, status, ev) = stage(obj, cons, &x_start, s, None, left);
+    let (x, best, status, ev) = stage(obj, cons, &x_start, &b, None, left);
     evals += ev;
-    let status = format!("{status_soft}{status}");
-    let status = if crate::io::stop::requested() {
-        format!("{status} (interrupted)")
-    } else {
-        status
+    let status = RefineStatus {
+        smooth: status_soft,
+        main: status,
+        interrupted: ctl.interrupted(),
     };
     // final candidate: the best feasible point met, else the last iterate
     let mut cw = cons.workspace();

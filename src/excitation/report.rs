@@ -23,6 +23,7 @@ use crate::error::{Error, Result};
 use crate::io::plot::{write_svg, Panel, Series};
 use crate::io::status::RunState;
 use crate::io::States;
+use crate::optim::Termination;
 use crate::params::BaseParams;
 use crate::robot::{regressor_rows, Robot, Workspace};
 use nalgebra::DMatrix;
@@ -318,7 +319,10 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Identi
         "cond": r.spectrum.cond,
         "seconds": r.seconds,
     });
-    let interrupted = r.stopped_by.as_deref().is_some_and(|b| b.contains("interrupted"));
+    let interrupted = r
+        .stopped_by
+        .as_ref()
+        .is_some_and(|b| b.ga == Some(Termination::Interrupted) || b.refine == Some(Termination::Interrupted));
     let (state, detail) = match (r.status, interrupted) {
         (super::Status::Infeasible, _) => (RunState::Infeasible, format!("infeasible: {} constraint(s) violated", r.violated.len())),
         (super::Status::Feasible, true) => (RunState::Interrupted, "interrupted; the best feasible design so far".to_string()),

@@ -30,6 +30,8 @@ use super::design::{Design, FitSpec, UserWeights, WeightKind};
 use super::estimate::FrfData;
 use crate::elastic::{ElasticModel, Estimator, FrfKernel, OperatingPoint, Output, C64};
 use crate::error::{Error, Result};
+use crate::optim::lm::{self, LmProblem, LmStatus, LmTolerances};
+use crate::optim::Control;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
@@ -95,6 +97,24 @@ pub struct FitProblem {
     /// Log-space flags.
     pub positive: Vec<bool>,
     kernel: FrfKernel,
+}
+
+/// A [`FitProblem`] seen by the Levenberg–Marquardt solver, in z.
+struct InZ<'a>(&'a FitProblem);
+
+impl LmProblem for InZ<'_> {
+    fn dim(&self) -> usize {
+        self.0.n_params()
+    }
+    fn normal_equations(&self, z: &[f64]) -> Result<(f64, DVector<f64>, DMatrix<f64>)> {
+        self.0.normal_equations(&self.0.to_theta(z), true)
+    }
+    fn cost(&self, z: &[f64]) -> f64 {
+        self.0.cost(&self.0.to_theta(z)).unwrap_or(f64::INFINITY)
+    }
+    fn clamp(&self, i: usize, zi: f64) -> f64 {
+        self.0.clamp(i, zi)
+    }
 }
 
 /// How a fit ended.
@@ -402,11 +422,15 @@ impl FitProblem {
         Ok((v, grad, h))
     }
 
-    /// Levenberg–Marquardt from `theta0`. Never errors: a failed start is a status.
-    pub fn solve(&self, theta0: &[f64], spec: &FitSpec) -> FitOutcome {
-        let np = self.n_params();
-        let mut z = self.to_z(theta0);
-        let mut evals = 0usize;
+    /// Levenberg–Marquardt from `theta0` ([`crate::optim::lm`], run by
+    /// argmin's executor, in the log/linear coordinates z of [`Self::to_z`]).
+    /// Never errors: a failed start is a status. `ctl` stops it between two
+    /// iterations (status `interrupted`).
+    pub fn solve(&self, theta0: &[f64], spec: &FitSpec, ctl: &Control) -> FitOutcome {
+        let tol = LmTolerances {
+            ftol: spec.ftol,
+            xtol: spec.xtol,
+        };
         let fail = |evals| FitOutcome {
             theta: theta0.to_vec(),
             cost: f64::INFINITY,
@@ -414,107 +438,25 @@ impl FitProblem {
             iterations: 0,
             evaluations: evals,
         };
-        let mut theta = self.to_theta(&z);
-        let (mut v, mut g, mut h) = match self.normal_equations(&theta, true) {
-            Ok(x) => x,
-            Err(_) => return fail(1),
+        let o = match lm::run(InZ(self), self.to_z(theta0), spec.max_iter, tol, ctl) {
+            Ok(o) => o,
+            Err(_) => return fail(0),
         };
-        evals += 1;
-        let mut lambda = 1e-3;
-        let mut nu = 2.0;
-        let mut iters = 0usize;
-        let mut status = FitStatus::MaxIterations;
-        while iters < spec.max_iter {
-            if crate::io::stop::requested() {
-                status = FitStatus::Interrupted;
-                break;
-            }
-            iters += 1;
-            let gmax = g.amax();
-            if gmax <= 1e-14 * v.max(f64::MIN_POSITIVE) {
-                status = FitStatus::ConvergedGtol;
-                break;
-            }
-            let dmax = (0..np).map(|i| h[(i, i)]).fold(0.0, f64::max);
-            let mut accepted = false;
-            while !accepted {
-                let mut a = h.clone();
-                for i in 0..np {
-                    a[(i, i)] += lambda * h[(i, i)].max(1e-12 * dmax).max(f64::MIN_POSITIVE);
-                }
-                let step = match a.cholesky() {
-                    Some(c) => c.solve(&(-&g)),
-                    None => {
-                        lambda *= nu;
-                        nu *= 2.0;
-                        if lambda > 1e16 {
-                            break;
-                        }
-                        continue;
-                    }
-                };
-                let pred = -(2.0 * g.dot(&step) + (step.transpose() * &h * &step)[(0, 0)]);
-                let zn: Vec<f64> = z.iter().zip(step.iter()).enumerate().map(|(i, (a, b))| self.clamp(i, a + b)).collect();
-                let step = DVector::from_fn(np, |i, _| zn[i] - z[i]);
-                let tn = self.to_theta(&zn);
-                evals += 1;
-                let vn = self.cost(&tn).unwrap_or(f64::INFINITY);
-                let rho = if pred > 0.0 { (v - vn) / pred } else { -1.0 };
-                if vn < v && rho > 0.0 {
-                    let rel = (v - vn) / v.max(f64::MIN_POSITIVE);
-                    let snorm = step.amax();
-                    z = zn;
-                    theta = tn;
-                    lambda *= (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3));
-                    nu = 2.0;
-                    accepted = true;
-                    match self.normal_equations(&theta, true) {
-                        Ok((a, b, c)) => {
-                            v = a;
-                            g = b;
-                            h = c;
-                            evals += 1;
-                        }
-                        Err(_) => {
-                            status = FitStatus::Stalled;
-                            return FitOutcome {
-                                theta,
-                                cost: vn,
-                                status,
-                                iterations: iters,
-                                evaluations: evals,
-                            };
-                        }
-                    }
-                    // a tiny decrease only means convergence for a (near) Gauss–Newton step,
-                    // not for a short step forced by a large damping λ
-                    if rel < spec.ftol && lambda < 1.0 {
-                        status = FitStatus::ConvergedFtol;
-                    } else if snorm < spec.xtol {
-                        status = FitStatus::ConvergedXtol;
-                    }
-                } else {
-                    lambda *= nu;
-                    nu *= 2.0;
-                    if lambda > 1e16 {
-                        break;
-                    }
-                }
-            }
-            if !accepted {
-                status = FitStatus::Stalled;
-                break;
-            }
-            if status != FitStatus::MaxIterations {
-                break;
-            }
-        }
+        let status = match o.status {
+            LmStatus::ConvergedFtol => FitStatus::ConvergedFtol,
+            LmStatus::ConvergedXtol => FitStatus::ConvergedXtol,
+            LmStatus::ConvergedGtol => FitStatus::ConvergedGtol,
+            LmStatus::MaxIterations => FitStatus::MaxIterations,
+            LmStatus::Stalled => FitStatus::Stalled,
+            LmStatus::Interrupted => FitStatus::Interrupted,
+            LmStatus::Failed => return fail(o.evaluations),
+        };
         FitOutcome {
-            theta,
-            cost: v,
+            theta: self.to_theta(&o.z),
+            cost: o.cost,
             status,
-            iterations: iters,
-            evaluations: evals,
+            iterations: o.iterations,
+            evaluations: o.evaluations,
         }
     }
 

@@ -14,6 +14,7 @@
 use super::fit::{FitProblem, FitStatus};
 use super::multisine::{streams, sub_seed};
 use crate::error::{Error, Result};
+use crate::optim::Control;
 use rand::{RngExt, SeedableRng};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
@@ -156,10 +157,10 @@ pub struct MultistartRun<'a> {
 }
 
 impl MultistartRun<'_> {
-    /// One start.
-    pub fn start(&self, index: usize) -> StartRecord {
+    /// One start (Levenberg–Marquardt from start point `index`), stopped by `ctl`.
+    pub fn start(&self, index: usize, ctl: &Control) -> StartRecord {
         let theta0 = start_point(&self.problem.theta_nom, self.spec.spread, self.seed, index);
-        let o = self.problem.solve(&theta0, self.spec);
+        let o = self.problem.solve(&theta0, self.spec, ctl);
         let ok = o.cost.is_finite();
         let common = if ok {
             self.common.cost(&o.theta).ok().filter(|c| c.is_finite())
@@ -182,7 +183,13 @@ impl MultistartRun<'_> {
     /// Runs the starts `indices` not yet in the log at `log` (resuming),
     /// appending each as it finishes; returns the records of `indices` found
     /// or computed and whether the user stopped the run.
-    pub fn run(&self, indices: &[usize], log: &Path) -> Result<(Vec<StartRecord>, bool)> {
+    ///
+    /// The starts run in parallel on rayon's pool, so this loop is not an
+    /// argmin `Executor` (one executor runs one solver sequentially); each
+    /// start is one Levenberg–Marquardt run and `ctl` is polled before each
+    /// start and at every LM iteration. Progress: phase `"multistart"`, one
+    /// step per start (finished ones of a resumed log included).
+    pub fn run(&self, indices: &[usize], log: &Path, ctl: &Control) -> Result<(Vec<StartRecord>, bool)> {
         use rayon::prelude::*;
         let (mut have, valid) = read_log(log)?;
         if let Some(r) = have.iter().find(|r| r.hash != self.hash) {
@@ -210,15 +217,17 @@ impl MultistartRun<'_> {
         let pending: Vec<usize> = indices.iter().copied().filter(|i| !done.contains(i)).collect();
         let file = std::fs::OpenOptions::new().create(true).append(true).open(log).map_err(|e| Error::io(log, e))?;
         let file = std::sync::Mutex::new(file);
-        let pb = crate::io::progress_bar(indices.len() as u64, "multistart");
-        pb.set_position(done.len() as u64);
+        let obs = ctl.observer();
+        obs.phase("multistart", Some(indices.len() as u64));
+        let n_done = std::sync::atomic::AtomicU64::new(done.len() as u64);
+        obs.progress(done.len() as u64, "");
         let results: Vec<Result<Option<StartRecord>>> = pending
             .par_iter()
             .map(|&l| {
-                if crate::io::stop::requested() {
+                if ctl.interrupted() {
                     return Ok(None);
                 }
-                let rec = self.start(l);
+                let rec = self.start(l, ctl);
                 if rec.status == FitStatus::Interrupted {
                     return Ok(None);
                 }
@@ -229,11 +238,11 @@ impl MultistartRun<'_> {
                     f.write_all(line.as_bytes()).map_err(|e| Error::io(log, e))?;
                     f.flush().map_err(|e| Error::io(log, e))?;
                 }
-                pb.inc(1);
+                obs.progress(n_done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1, "");
                 Ok(Some(rec))
             })
             .collect();
-        pb.finish_and_clear();
+        obs.phase_done();
         let mut stopped = false;
         for r in results {
             match r? {

@@ -133,7 +133,7 @@ fn frf_svg(path: &Path, data: &FrfData) -> Result<()> {
 /// FRF estimation: from a runs manifest (`*.json`) or by simulating a design's
 /// experiments. Writes `frf.json` (+ `truth.json` for simulated data, runs in
 /// `runs/` for the time method), `frf.svg`, `design.json`, `status.json`.
-pub fn frf(input: &Path, out: Option<&Path>) -> Result<(FrfData, PathBuf)> {
+pub fn frf(input: &Path, out: Option<&Path>, ctl: &crate::optim::Control) -> Result<(FrfData, PathBuf)> {
     let started = SystemTime::now();
     let is_json = input.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
     let (data, dir, hash) = if is_json {
@@ -152,7 +152,7 @@ pub fn frf(input: &Path, out: Option<&Path>) -> Result<(FrfData, PathBuf)> {
     } else {
         let (d, model) = Design::load(input)?;
         let dir = d.out_dir(out).join("frf");
-        let (data, truth) = super::simulate::simulate(&d, &model, &dir.join("runs"))?;
+        let (data, truth) = super::simulate::simulate(&d, &model, &dir.join("runs"), ctl)?;
         crate::io::write_json(&dir.join("truth.json"), &truth)?;
         crate::io::write_json(&dir.join("design.json"), &d)?;
         (data, dir, fingerprint_of(&d)?)
@@ -417,7 +417,7 @@ fn finish(s: &FitSetup, dir: &Path, records: &[StartRecord], command: &str, star
 }
 
 /// Runs (or resumes) a multistart fit; with a shard only that shard's starts.
-pub fn fit(design: &Path, o: &FitOptions) -> Result<FitRun> {
+pub fn fit(design: &Path, o: &FitOptions, ctl: &crate::optim::Control) -> Result<FitRun> {
     let started = SystemTime::now();
     let s = setup(design, o)?;
     let dir = fit_dir(&s.design, o.out.as_deref());
@@ -435,7 +435,7 @@ pub fn fit(design: &Path, o: &FitOptions) -> Result<FitRun> {
         seed: s.design.seed,
         hash: s.info.hash.clone(),
     };
-    let (records, stopped) = ms.run(&indices, &log)?;
+    let (records, stopped) = ms.run(&indices, &log, ctl)?;
     let complete = records.len() == indices.len();
     let report = if complete && o.shard.is_none() {
         Some(finish(&s, &dir, &records, "fit", started)?)

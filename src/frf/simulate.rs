@@ -10,6 +10,7 @@ use super::multisine::{streams, sub_seed, Multisine};
 use crate::data::MotorRecord;
 use crate::elastic::{self, sim, ElasticModel, C64};
 use crate::error::{Error, Result};
+use crate::optim::Control;
 use nalgebra::DMatrix;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
@@ -66,7 +67,7 @@ pub fn true_frf(model: &ElasticModel, full: &[f64], q0: &[f64], omegas: &[f64], 
 
 /// Simulated FRF data of a design. Time method: runs are written to
 /// `runs_dir` (`runs.json` + CSV per experiment) and estimated from there.
-pub fn simulate(d: &Design, model: &ElasticModel, runs_dir: &Path) -> Result<(FrfData, Truth)> {
+pub fn simulate(d: &Design, model: &ElasticModel, runs_dir: &Path, ctl: &Control) -> Result<(FrfData, Truth)> {
     let s = d.simulate.as_ref().ok_or_else(|| {
         Error::invalid(
             &d.name,
@@ -82,8 +83,12 @@ pub fn simulate(d: &Design, model: &ElasticModel, runs_dir: &Path) -> Result<(Fr
     let mut positions = Vec::new();
     match s.method {
         SimMethod::Frequency => {
-            let pb = crate::io::progress_bar(d.positions.len() as u64, "simulate FRF");
+            let obs = ctl.observer();
+            obs.phase("simulate FRF", Some(d.positions.len() as u64));
             for (pi, q0) in d.positions.iter().enumerate() {
+                if ctl.interrupted() {
+                    return Err(Error::Interrupted);
+                }
                 let g = true_frf(model, &t.full, q0, &omegas, d.frf.output)?;
                 let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(sub_seed(d.seed, streams::NOISE, pi as u64));
                 let gb: Vec<Vec<DMatrix<C64>>> = (0..d.multisine.blocks)
@@ -101,9 +106,9 @@ pub fn simulate(d: &Design, model: &ElasticModel, runs_dir: &Path) -> Result<(Fr
                     var: var.iter().map(|v| (0..n * n).map(|r| v[(r / n, r % n)]).collect()).collect(),
                     distortion: None,
                 });
-                pb.inc(1);
+                obs.progress(pi as u64 + 1, "");
             }
-            pb.finish_and_clear();
+            obs.phase_done();
         }
         SimMethod::Time => {
             let mut manifest = RunsManifest {
@@ -122,7 +127,9 @@ pub fn simulate(d: &Design, model: &ElasticModel, runs_dir: &Path) -> Result<(Fr
                 files: Vec::new(),
             };
             let total = d.positions.len() * d.multisine.blocks * n;
-            let pb = crate::io::progress_bar(total as u64, "simulate runs");
+            let obs = ctl.observer();
+            obs.phase("simulate runs", Some(total as u64));
+            let n_done = std::sync::atomic::AtomicU64::new(0);
             for (pi, q0) in d.positions.iter().enumerate() {
                 let settings = sim::SimSettings {
                     rate: ms.rate,
@@ -138,12 +145,12 @@ pub fn simulate(d: &Design, model: &ElasticModel, runs_dir: &Path) -> Result<(Fr
                 let runs: Vec<Result<MotorRecord>> = jobs
                     .par_iter()
                     .map(|&(b, e)| {
-                        if crate::io::stop::requested() {
+                        if ctl.interrupted() {
                             return Err(Error::Interrupted);
                         }
                         let seed = sub_seed(d.seed, streams::NOISE, (pi * 100_000 + b * 1000 + e) as u64);
                         let r = plant.run(&ms.speed_and_position(b, e), d.multisine.transient + d.multisine.periods, seed);
-                        pb.inc(1);
+                        obs.progress(n_done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1, "");
                         r
                     })
                     .collect();
@@ -167,7 +174,7 @@ pub fn simulate(d: &Design, model: &ElasticModel, runs_dir: &Path) -> Result<(Fr
                 let (pos, _) = estimate_position(&manifest, q0, &blocks, d.frf.distortion_db)?;
                 positions.push(pos);
             }
-            pb.finish_and_clear();
+            obs.phase_done();
             crate::io::write_json(&runs_dir.join("runs.json"), &manifest)?;
         }
     }

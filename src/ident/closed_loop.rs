@@ -35,6 +35,8 @@
 use super::estimate::{cond, cond_normalized, Dataset, LsFit, Weights};
 use super::{Processed, Run};
 use crate::error::{Error, Result};
+use crate::optim::nlopt::NloptStatus;
+use crate::optim::Control;
 use crate::params::BaseParams;
 use crate::robot::{regressor_derivatives, Robot, Workspace};
 use nalgebra::{DMatrix, DVector};
@@ -291,8 +293,8 @@ impl Default for MlOptions {
 /// Outcome of the ML optimisation.
 #[derive(Debug, Clone, Serialize)]
 pub struct MlInfo {
-    /// Solver status (nlopt).
-    pub status: String,
+    /// Solver status (nlopt's word).
+    pub status: NloptStatus,
     /// Cost at the WLS start.
     pub cost_start: f64,
     /// Cost at the end.
@@ -415,10 +417,23 @@ impl MlData {
     }
 }
 
+/// Where maximum likelihood starts: the estimated base-parameter columns
+/// (indices into the base set), their start values and scales.
+#[derive(Debug, Clone, Copy)]
+pub struct MlStart<'a> {
+    /// Indices of the estimated base parameters.
+    pub cols: &'a [usize],
+    /// Start values (e.g. the WLS estimate), one per column.
+    pub theta: &'a [f64],
+    /// Scales (e.g. the WLS standard deviations), one per column.
+    pub scale: &'a [f64],
+}
+
 /// Maximum-likelihood estimate (paper 002 eq. 13–16) of the base parameters in
 /// `cols` (indices into `base`), started from `start` (e.g. WLS) with scales `scale`
 /// (e.g. the WLS standard deviations).
-pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, cols: &[usize], start: &[f64], scale: &[f64], opts: &MlOptions) -> Result<(LsFit, MlInfo)> {
+pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, from: MlStart, opts: &MlOptions, ctl: &Control) -> Result<(LsFit, MlInfo)> {
+    let MlStart { cols, theta: start, scale } = from;
     let cov = pr.joint_cov.as_ref().ok_or_else(|| {
         Error::invalid(
             "maximum likelihood",
@@ -490,7 +505,8 @@ pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, cols: &[usize], star
     let evals = std::sync::atomic::AtomicUsize::new(0);
     let obj = |z: &[f64], grad: Option<&mut [f64]>, _: &mut ()| -> f64 {
         evals.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        if crate::io::stop::requested() {
+        ctl.count(1);
+        if ctl.should_stop() {
             if let Some(g) = grad {
                 g.iter_mut().for_each(|v| *v = 0.0);
             }
@@ -517,10 +533,7 @@ pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, cols: &[usize], star
     let _ = opt.set_ftol_rel(opts.ftol_rel);
     let _ = opt.set_xtol_rel(1e-10);
     let mut z = vec![0.0; k];
-    let status = match opt.optimize(&mut z) {
-        Ok((s, _)) => format!("{s:?}"),
-        Err((f, _)) => format!("{f:?}"),
-    };
+    let status = NloptStatus::of(&opt.optimize(&mut z));
     drop(opt);
     let mut theta = to_theta(&z);
     let mut cost_end = data.cost_grad(&theta, None);

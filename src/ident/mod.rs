@@ -267,7 +267,9 @@ pub fn run_trajectory(run: &Run) -> Result<Option<FourierTrajectory>> {
 }
 
 /// Identifies the base parameters of `robot` from `run` (validated on
-/// `validation`, each with its Fourier trajectory if known).
+/// `validation`, each with its Fourier trajectory if known). `ctl` stops the
+/// model reduction and the maximum-likelihood stage (they return what they
+/// have, marked as interrupted).
 pub fn identify(
     robot: &Robot,
     base: &BaseParams,
@@ -275,6 +277,7 @@ pub fn identify(
     trajectory: Option<&FourierTrajectory>,
     validation: Option<(&Run, Option<&FourierTrajectory>)>,
     opts: &IdentOptions,
+    ctl: &crate::optim::Control,
 ) -> Result<Identification> {
     if run.n_joints() != robot.dof() {
         return Err(Error::dim("joints in the run", robot.dof(), run.n_joints()));
@@ -314,7 +317,7 @@ pub fn identify(
         Method::Wls => match &opts.reduce {
             None => ((0..base.n_base()).collect(), estimate::wls(&full, opts.weights)?),
             Some(ro) => {
-                let red = reduce::reduce(robot, base, &full, &moving, ro)?;
+                let red = reduce::reduce(robot, base, &full, &moving, ro, ctl)?;
                 let out = (red.kept.clone(), red.reduced.clone());
                 reduction = Some(red);
                 out
@@ -328,7 +331,18 @@ pub fn identify(
         Method::Ml => {
             let start = estimate::wls(&full, opts.weights)?;
             let cols: Vec<usize> = (0..base.n_base()).collect();
-            let (f, info) = closed_loop::ml(robot, base, &pr, &cols, &start.theta, &start.std, &opts.ml)?;
+            let (f, info) = closed_loop::ml(
+                robot,
+                base,
+                &pr,
+                closed_loop::MlStart {
+                    cols: &cols,
+                    theta: &start.theta,
+                    scale: &start.std,
+                },
+                &opts.ml,
+                ctl,
+            )?;
             ml = Some(info);
             (cols, f)
         }
@@ -364,7 +378,7 @@ pub fn identify(
         })
         .collect();
     let status = if let Some(m) = &ml {
-        m.status.clone()
+        m.status.to_string()
     } else if fit.rank < cols.len() {
         "rank_deficient".to_string()
     } else {

@@ -22,6 +22,7 @@
 
 use super::estimate::{cond_normalized, errors, wls, Dataset, Errors, LsFit, Weights};
 use crate::error::Result;
+use crate::optim::Control;
 use crate::params::BaseParams;
 use crate::robot::Robot;
 use serde::Serialize;
@@ -140,7 +141,7 @@ fn growth(e: &Errors, e0: &Errors) -> f64 {
 
 /// Runs Algorithm 1 on a dataset whose columns are the base parameters of `base`.
 /// `moving[j]` tells whether joint j moves (for [`Essential::Auto`]).
-pub fn reduce(robot: &Robot, base: &BaseParams, ds: &Dataset, moving: &[bool], opts: &ReduceOptions) -> Result<Reduction> {
+pub fn reduce(robot: &Robot, base: &BaseParams, ds: &Dataset, moving: &[bool], opts: &ReduceOptions, ctl: &Control) -> Result<Reduction> {
     let sens = sensitivities(ds);
     let nb = ds.c.ncols();
     // 1. rank check, most sensitive columns first
@@ -209,7 +210,7 @@ pub fn reduce(robot: &Robot, base: &BaseParams, ds: &Dataset, moving: &[bool], o
     let mut tested: Vec<usize> = Vec::new();
     let mut k = 0;
     loop {
-        if crate::io::stop::requested() {
+        if ctl.should_stop() {
             break;
         }
         let cand = kept

@@ -11,7 +11,38 @@
 //!
 //! There is no process-wide state: two tasks with two controls run
 //! independently, in one process, on any threads.
+//!
+//! ## Which loops are argmin solvers, and why the others are not
+//!
+//! argmin's `Solver`/`Executor` is the project's model for an iterative
+//! method: the GA ([`ga`]) and Levenberg–Marquardt ([`lm`]) are argmin
+//! solvers run by argmin's `Executor`; their `terminate` asks the
+//! [`Control`], argmin's `TerminationReason` maps to [`Termination`] (or to
+//! the method's own status enum), and [`ga::ArgminProgress`] is an argmin
+//! observer that forwards iterations to the control's [`Observer`].
+//! argmin's seam does not fit these, which use [`Control`] directly:
+//!
+//! - **nlopt** (excitation refinement, the ML L-BFGS of closed-loop
+//!   identification; [`nlopt`]): `nlopt_optimize` runs its whole loop in C
+//!   and returns once, so there is no `next_iter` to hand to an executor; the
+//!   objective/constraint callbacks poll the control and end the run. The ML
+//!   stage is nlopt's L-BFGS with box bounds (a trust region), not a plain
+//!   unconstrained L-BFGS, so argmin's `LBFGS` would change its iterates.
+//! - **Clarabel** (the conic phase of position design): the interior-point
+//!   loop is inside Clarabel; its termination callback returns true when the
+//!   control says stop (status `CallbackTerminated`), and the control's
+//!   deadline tightens Clarabel's own time limit.
+//! - **Multistart** and **simulation**: many independent runs on rayon's
+//!   pool (multistart: one LM executor per start) or one time-stepping loop,
+//!   neither an iteration of one optimiser; they poll the control between
+//!   starts / every few controller periods.
+//! - **First-order design methods and model reduction**: short deterministic
+//!   loops whose every step is one closed-form update; they poll the control
+//!   at every iteration.
 
 mod control;
+pub mod ga;
+pub mod lm;
+pub mod nlopt;
 
 pub use control::{Control, Observer, Silent, StopFlag, Termination};

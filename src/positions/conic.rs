@@ -38,6 +38,8 @@
 //! every design w'.
 
 use super::problem::Problem;
+use super::relax::SolverOptions;
+use crate::optim::{Control, Termination};
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SupportedConeT};
 use nalgebra::DMatrix;
@@ -54,27 +56,47 @@ pub enum Formulation {
     Sdp,
 }
 
-/// Clarabel settings that matter here.
-#[derive(Debug, Clone, Copy)]
-pub struct ConicSettings {
-    /// Relative and absolute gap tolerance.
-    pub tol: f64,
-    /// Iteration limit.
-    pub max_iter: u32,
-    /// Time limit in seconds (∞: none).
-    pub time_limit: f64,
-    /// Print Clarabel's log.
-    pub verbose: bool,
+/// How a conic solve ended: Clarabel's status, or why the solver could not
+/// be set up. Serialised as before: Clarabel's word (`Solved`,
+/// `CallbackTerminated`, ...), `SettingsError: ...`, `SetupError: ...`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ConicStatus {
+    /// Clarabel ran; its status (`CallbackTerminated` when the run control stopped it).
+    Solver(clarabel::solver::SolverStatus),
+    /// The settings were rejected.
+    Settings(String),
+    /// The problem data were rejected.
+    Setup(String),
 }
 
-impl Default for ConicSettings {
-    fn default() -> Self {
-        ConicSettings {
-            tol: 1e-10,
-            max_iter: 200,
-            time_limit: f64::INFINITY,
-            verbose: false,
+impl ConicStatus {
+    /// The run-control word: solved → converged, a callback stop →
+    /// interrupted, Clarabel's own limits → iterations/time, else failed.
+    pub fn termination(&self) -> Termination {
+        use clarabel::solver::SolverStatus as S;
+        match self {
+            ConicStatus::Solver(S::Solved | S::AlmostSolved) => Termination::Converged,
+            ConicStatus::Solver(S::CallbackTerminated) => Termination::Interrupted,
+            ConicStatus::Solver(S::MaxIterations) => Termination::MaxIterations,
+            ConicStatus::Solver(S::MaxTime) => Termination::TimeLimit,
+            s => Termination::Failed(s.to_string()),
         }
+    }
+}
+
+impl std::fmt::Display for ConicStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ConicStatus::Solver(s) => write!(f, "{s:?}"),
+            ConicStatus::Settings(e) => write!(f, "SettingsError: {e}"),
+            ConicStatus::Setup(e) => write!(f, "SetupError: {e}"),
+        }
+    }
+}
+
+impl serde::Serialize for ConicStatus {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.collect_str(self)
     }
 }
 
@@ -84,7 +106,7 @@ pub struct ConicResult {
     /// Weights on the sub-problem's candidates (cleaned: ≥ 0, unit sum).
     pub w: Vec<f64>,
     /// Clarabel's status (`Solved`, `AlmostSolved`, `MaxIterations`, ...).
-    pub status: String,
+    pub status: ConicStatus,
     /// True for Solved / AlmostSolved.
     pub ok: bool,
     /// Interior-point iterations.
@@ -197,28 +219,35 @@ fn push_weighted_information(a: &mut Triplets, bb: &mut [f64], r: usize, pb: &Pr
     }
 }
 
-fn solve(
+/// A conic program min qᵀx s.t. b − Ax ∈ cones, as assembled by the
+/// formulations below.
+struct Program {
     n_var: usize,
     q: Vec<f64>,
     a: Triplets,
     b: Vec<f64>,
     cones: Vec<SupportedConeT<f64>>,
-    set: &ConicSettings,
-    n_w: usize,
-) -> (Option<DefaultSolver<f64>>, ConicResult) {
+}
+
+/// Solves `prog` with Clarabel at tolerance `tol`; the first `n_w` variables
+/// are the weights.
+fn solve(prog: Program, set: &SolverOptions, tol: f64, n_w: usize, ctl: &Control) -> (Option<DefaultSolver<f64>>, ConicResult) {
+    let Program { n_var, q, a, b, cones } = prog;
     let m = a.rows;
     let a = a.csc(n_var);
     let p_mat = CscMatrix::<f64>::zeros((n_var, n_var));
+    let limit = set.time_limit.unwrap_or(f64::INFINITY);
     let settings = DefaultSettingsBuilder::default()
         .verbose(set.verbose)
         .max_iter(set.max_iter)
-        .time_limit(set.time_limit)
-        .tol_gap_abs(set.tol)
-        .tol_gap_rel(set.tol)
-        .tol_feas(set.tol.max(1e-12))
+        // the earlier of the design's limit and the control's deadline
+        .time_limit(ctl.remaining().map_or(limit, |r| limit.min(r.as_secs_f64())))
+        .tol_gap_abs(tol)
+        .tol_gap_rel(tol)
+        .tol_feas(tol.max(1e-12))
         .tol_ktratio(1e-8)
         .build();
-    let fail = |status: String| ConicResult {
+    let fail = |status: ConicStatus| ConicResult {
         w: vec![1.0 / n_w as f64; n_w],
         status,
         ok: false,
@@ -229,15 +258,20 @@ fn solve(
     };
     let settings = match settings {
         Ok(s) => s,
-        Err(e) => return (None, fail(format!("SettingsError: {e}"))),
+        Err(e) => return (None, fail(ConicStatus::Settings(e.to_string()))),
     };
     let mut solver = match DefaultSolver::new(&p_mat, &q, &a, &b, &cones, settings) {
         Ok(s) => s,
-        Err(e) => return (None, fail(format!("SetupError: {e}"))),
+        Err(e) => return (None, fail(ConicStatus::Setup(e.to_string()))),
     };
+    // Clarabel asks at every interior-point iteration whether to stop: the
+    // run control answers, so a stop request ends even a long SDP at once
+    // (status `CallbackTerminated`)
+    let cb = ctl.clone();
+    solver.set_termination_callback(move |_info: &clarabel::solver::DefaultInfo<f64>| cb.interrupted());
     solver.solve();
     let sol = &solver.solution;
-    let status = format!("{:?}", sol.status);
+    let status = ConicStatus::Solver(sol.status);
     let ok = matches!(
         sol.status,
         clarabel::solver::SolverStatus::Solved | clarabel::solver::SolverStatus::AlmostSolved
@@ -260,15 +294,15 @@ fn solve(
 }
 
 /// D-optimal design on `pb` with the chosen formulation.
-pub fn solve_d(pb: &Problem, form: Formulation, set: &ConicSettings) -> ConicResult {
-    match form {
-        Formulation::Socp => solve_d_socp(pb, set),
-        Formulation::Sdp => solve_d_sdp(pb, set),
+pub fn solve_d(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicResult {
+    match set.formulation {
+        Formulation::Socp => solve_d_socp(pb, set, ctl),
+        Formulation::Sdp => solve_d_sdp(pb, set, ctl),
     }
 }
 
 /// D-optimal design, second-order-cone form (see the module docs).
-pub fn solve_d_socp(pb: &Problem, set: &ConicSettings) -> ConicResult {
+pub fn solve_d_socp(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicResult {
     let (p, k) = (pb.p(), pb.n());
     // blocks: index 0..k candidates, k = prior (weight 1) if present
     let mut factors: Vec<nalgebra::DMatrixView<'_, f64>> = (0..k).map(|i| pb.factor(i)).collect();
@@ -365,11 +399,11 @@ pub fn solve_d_socp(pb: &Problem, set: &ConicSettings) -> ConicResult {
         b.extend_from_slice(&[0.0, 1.0, 0.0]);
         cones.push(SupportedConeT::ExponentialConeT());
     }
-    solve(n_var, q, a, b, cones, set, k).1
+    solve(Program { n_var, q, a, b, cones }, set, set.clarabel_tol, k, ctl).1
 }
 
 /// D-optimal design, lifted semidefinite form (see the module docs).
-pub fn solve_d_sdp(pb: &Problem, set: &ConicSettings) -> ConicResult {
+pub fn solve_d_sdp(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicResult {
     let (p, k) = (pb.p(), pb.n());
     let n2 = 2 * p;
     let w0 = 0;
@@ -409,11 +443,11 @@ pub fn solve_d_sdp(pb: &Problem, set: &ConicSettings) -> ConicResult {
         b.extend_from_slice(&[0.0, 1.0, 0.0]);
         cones.push(SupportedConeT::ExponentialConeT());
     }
-    solve(n_var, q, a, b, cones, set, k).1
+    solve(Program { n_var, q, a, b, cones }, set, set.clarabel_tol, k, ctl).1
 }
 
 /// A-optimal design: min tr(Kᵀ M(w)⁻¹ K) (K p×p, e.g. the identity).
-pub fn solve_a(pb: &Problem, kmat: &DMatrix<f64>, set: &ConicSettings) -> ConicResult {
+pub fn solve_a(pb: &Problem, kmat: &DMatrix<f64>, set: &SolverOptions, ctl: &Control) -> ConicResult {
     let (p, k) = (pb.p(), pb.n());
     let mut factors: Vec<nalgebra::DMatrixView<'_, f64>> = (0..k).map(|i| pb.factor(i)).collect();
     if let Some(h0) = pb.prior_factor() {
@@ -481,11 +515,11 @@ pub fn solve_a(pb: &Problem, kmat: &DMatrix<f64>, set: &ConicSettings) -> ConicR
         }
         cones.push(SupportedConeT::SecondOrderConeT(l * p + 2));
     }
-    solve(n_var, q, a, b, cones, set, k).1
+    solve(Program { n_var, q, a, b, cones }, set, 1e-2 * set.clarabel_tol, k, ctl).1
 }
 
 /// E-optimal design: max t s.t. M(w) − tI ⪰ 0. Returns the PSD dual matrix in `dual`.
-pub fn solve_e(pb: &Problem, set: &ConicSettings) -> ConicResult {
+pub fn solve_e(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicResult {
     let (p, k) = (pb.p(), pb.n());
     let w0 = 0;
     let t = k;
@@ -505,7 +539,7 @@ pub fn solve_e(pb: &Problem, set: &ConicSettings) -> ConicResult {
     }
     b.extend_from_slice(&bb);
     cones.push(SupportedConeT::PSDTriangleConeT(p));
-    let (solver, mut res) = solve(n_var, q, a, b, cones, set, k);
+    let (solver, mut res) = solve(Program { n_var, q, a, b, cones }, set, 1e-2 * set.clarabel_tol, k, ctl);
     if let Some(s) = solver {
         let z = &s.solution.z;
         // the dual rows of the PSD block follow the 1 + k rows before it

@@ -48,6 +48,7 @@ use super::relax::{solve_relaxed, Relaxed, SolverOptions};
 use super::rounding::{round_design, Rounded};
 use crate::elastic::{Estimator, NoiseModel, Output};
 use crate::error::{Error, Result};
+use crate::optim::Control;
 use crate::robot::{self, Robot, Workspace};
 use nalgebra::DMatrix;
 use rayon::prelude::*;
@@ -337,7 +338,7 @@ fn read_prior(path: &Path, p: usize) -> Result<DMatrix<f64>> {
 
 /// Runs a design: candidates, information, relaxed design, rounding.
 /// `dir` is the folder of the design file (relative paths start there).
-pub fn run_design(design: &PositionsDesign, dir: &Path) -> Result<PositionsRun> {
+pub fn run_design(design: &PositionsDesign, dir: &Path, ctl: &Control) -> Result<PositionsRun> {
     let ctx = design.name.clone();
     design.validate(&ctx)?;
     let mut robot = match &design.robot {
@@ -390,19 +391,21 @@ pub fn run_design(design: &PositionsDesign, dir: &Path) -> Result<PositionsRun> 
             let omegas: Vec<f64> = set.frequencies_hz.iter().map(|f| 2.0 * std::f64::consts::PI * f).collect();
             robot = Some(model.rigid.clone());
             let src = ElasticSource::new(model, omegas, set.noise, set.estimator, set.output, *scale)?;
-            let pb = crate::io::progress_bar(c.q.len() as u64, "information");
+            let obs = ctl.observer();
+            obs.phase("information", Some(c.q.len() as u64));
+            let n_done = std::sync::atomic::AtomicU64::new(0);
             let factors: Vec<Result<DMatrix<f64>>> =
                 c.q.par_iter()
                     .map_init(Vec::new, |buf, q| {
-                        if crate::io::stop::requested() {
+                        if ctl.interrupted() {
                             return Err(Error::Interrupted);
                         }
                         let h = src.factor_with(q, buf);
-                        pb.inc(1);
+                        obs.progress(n_done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1, "");
                         h
                     })
                     .collect();
-            pb.finish_and_clear();
+            obs.phase_done();
             let factors = factors.into_iter().collect::<Result<Vec<_>>>()?;
             let prior = match &design.prior {
                 Some(pp) => {
@@ -441,19 +444,21 @@ pub fn run_design(design: &PositionsDesign, dir: &Path) -> Result<PositionsRun> 
                 .ok_or_else(|| Error::invalid(&ctx, "candidates", "source = \"rigid\" needs a [candidates] section"))?;
             let c = spec.generate(&r, &amp, design.seed, dir, &ctx)?;
             let src = RigidSource::new(r, &c.q, *parameters == RigidParameters::Inertial, amp, *period, *samples, sig)?;
-            let pb = crate::io::progress_bar(c.q.len() as u64, "information");
+            let obs = ctl.observer();
+            obs.phase("information", Some(c.q.len() as u64));
+            let n_done = std::sync::atomic::AtomicU64::new(0);
             let factors: Vec<Result<DMatrix<f64>>> =
                 c.q.par_iter()
                     .map_init(
                         || Workspace::new(&src.robot),
                         |ws, q| {
                             let h = src.factor_with(ws, q);
-                            pb.inc(1);
+                            obs.progress(n_done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1, "");
                             h
                         },
                     )
                     .collect();
-            pb.finish_and_clear();
+            obs.phase_done();
             let factors = factors.into_iter().collect::<Result<Vec<_>>>()?;
             let prior = match &design.prior {
                 Some(pp) => Some(read_prior(&dir.join(pp), src.n_params())?),
@@ -470,7 +475,7 @@ pub fn run_design(design: &PositionsDesign, dir: &Path) -> Result<PositionsRun> 
         }
     };
     let information_time = t_info.elapsed().as_secs_f64();
-    if crate::io::stop::requested() {
+    if ctl.interrupted() {
         return Err(Error::Interrupted);
     }
     let p = names.len();
@@ -483,17 +488,8 @@ pub fn run_design(design: &PositionsDesign, dir: &Path) -> Result<PositionsRun> 
         None => base,
     };
     let ranks: Vec<usize> = (0..pb.n()).map(|i| pb.rank(i)).collect();
-    let relaxed = solve_relaxed(&pb, design.criterion, &design.solver)?;
-    let rounded = round_design(
-        &pb,
-        design.criterion,
-        &relaxed.weights,
-        &relaxed.sensitivities,
-        relaxed.value,
-        relaxed.certificate.efficiency_bound,
-        budget,
-        costs.as_deref(),
-    )?;
+    let relaxed = solve_relaxed(&pb, design.criterion, &design.solver, ctl)?;
+    let rounded = round_design(&pb, design.criterion, &relaxed, budget, costs.as_deref(), ctl)?;
     Ok(PositionsRun {
         design: resolved,
         robot,
@@ -510,7 +506,7 @@ pub fn run_design(design: &PositionsDesign, dir: &Path) -> Result<PositionsRun> 
 }
 
 /// Convenience for library users: solve a relaxed design for matrices F_i.
-pub fn design_from_matrices(mats: &[DMatrix<f64>], prior: Option<&DMatrix<f64>>, crit: Criterion, opts: &SolverOptions) -> Result<Relaxed> {
+pub fn design_from_matrices(mats: &[DMatrix<f64>], prior: Option<&DMatrix<f64>>, crit: Criterion, opts: &SolverOptions, ctl: &Control) -> Result<Relaxed> {
     let pb = Problem::from_matrices(mats, prior)?;
-    solve_relaxed(&pb, crit, opts)
+    solve_relaxed(&pb, crit, opts, ctl)
 }

@@ -29,6 +29,7 @@
 
 use super::problem::{Criterion, Problem};
 use crate::error::Result;
+use crate::optim::Control;
 use nalgebra::DMatrix;
 
 /// The smaller root τ ∈ (0, 1] of ln τ + (p−1) ln((S − τ)/(p−1)) = 0, S ≥ p.
@@ -77,7 +78,7 @@ pub struct FirstOrderLog {
 /// Runs `iters` multiplicative-algorithm steps for D on `pb` from `w`
 /// (in place; w must be positive on the candidates that may get weight).
 /// Stops early when ε ≤ `eps_target` or the user asked to stop.
-pub fn multiplicative_d(pb: &Problem, w: &mut [f64], iters: usize, eps_target: f64) -> Result<FirstOrderLog> {
+pub fn multiplicative_d(pb: &Problem, w: &mut [f64], iters: usize, eps_target: f64, ctl: &Control) -> Result<FirstOrderLog> {
     let p = pb.p() as f64;
     let mut log = FirstOrderLog::default();
     for it in 0..iters {
@@ -85,7 +86,7 @@ pub fn multiplicative_d(pb: &Problem, w: &mut [f64], iters: usize, eps_target: f
         let delta = p - ev.prior_term;
         log.eps = ev.max_sens().1 - delta;
         log.iterations = it;
-        if log.eps <= eps_target || crate::io::stop::requested() {
+        if log.eps <= eps_target || ctl.interrupted() {
             return Ok(log);
         }
         for (wi, di) in w.iter_mut().zip(&ev.sens) {
@@ -98,13 +99,13 @@ pub fn multiplicative_d(pb: &Problem, w: &mut [f64], iters: usize, eps_target: f
 }
 
 /// Multiplicative algorithm for A: w_i ← w_i (a_i / Σ_j w_j a_j)^{1/2}, renormalised.
-pub fn multiplicative_a(pb: &Problem, w: &mut [f64], iters: usize) -> Result<FirstOrderLog> {
+pub fn multiplicative_a(pb: &Problem, w: &mut [f64], iters: usize, ctl: &Control) -> Result<FirstOrderLog> {
     let mut log = FirstOrderLog::default();
     for it in 0..iters {
         let ev = pb.evaluate(Criterion::A, w)?;
         log.eps = ev.max_sens().1 - ev.mean;
         log.iterations = it;
-        if crate::io::stop::requested() {
+        if ctl.interrupted() {
             return Ok(log);
         }
         for (wi, ai) in w.iter_mut().zip(&ev.sens) {
@@ -165,14 +166,14 @@ fn line_search(mu: &[f64], c: Option<&[f64]>, amax: f64) -> f64 {
 
 /// Frank–Wolfe with away steps for D on `pb` from `w` (in place), until
 /// ε = max d − δ ≤ `eps_target`, `max_iter` steps or a stop request.
-pub fn fw_away_d(pb: &Problem, w: &mut [f64], max_iter: usize, eps_target: f64) -> Result<FirstOrderLog> {
-    fw_away(pb, Criterion::D, w, max_iter, eps_target)
+pub fn fw_away_d(pb: &Problem, w: &mut [f64], max_iter: usize, eps_target: f64, ctl: &Control) -> Result<FirstOrderLog> {
+    fw_away(pb, Criterion::D, w, max_iter, eps_target, ctl)
 }
 
 /// Frank–Wolfe with away steps and exact line search for D or A (E has no
 /// smooth gradient: it falls back to A). ε = max_i s_i − Σ w_i s_i is the
 /// Frank–Wolfe gap (an upper bound on the criterion's distance to the optimum).
-pub fn fw_away(pb: &Problem, crit: Criterion, w: &mut [f64], max_iter: usize, eps_target: f64) -> Result<FirstOrderLog> {
+pub fn fw_away(pb: &Problem, crit: Criterion, w: &mut [f64], max_iter: usize, eps_target: f64, ctl: &Control) -> Result<FirstOrderLog> {
     let crit = if crit == Criterion::E { Criterion::A } else { crit };
     let p = pb.p();
     let mut log = FirstOrderLog::default();
@@ -182,7 +183,7 @@ pub fn fw_away(pb: &Problem, crit: Criterion, w: &mut [f64], max_iter: usize, ep
         let mean = ev.mean;
         log.eps = smax - mean;
         log.iterations = it;
-        if log.eps <= eps_target || crate::io::stop::requested() {
+        if log.eps <= eps_target || ctl.interrupted() {
             return Ok(log);
         }
         let (k, smin) = w
@@ -275,7 +276,7 @@ fn scatter(n: usize, idx: &[usize], v: &[f64]) -> Vec<f64> {
 /// d_i), one pass over all live candidates per outer round — with the pruning
 /// bound applied at every pass (with `prune`). Stops when ε ≤ `eps_target`,
 /// after `max_iter` iterations, or on a stop request.
-pub fn d_warm_start(pb: &Problem, prune: bool, eps_target: f64, max_iter: usize) -> Result<WarmStart> {
+pub fn d_warm_start(pb: &Problem, prune: bool, eps_target: f64, max_iter: usize, ctl: &Control) -> Result<WarmStart> {
     let p = pb.p();
     let pf = p as f64;
     let mut pool: Vec<usize> = (0..pb.n()).collect();
@@ -307,7 +308,7 @@ pub fn d_warm_start(pb: &Problem, prune: bool, eps_target: f64, max_iter: usize)
                 continue;
             }
         }
-        if eps <= eps_target || iters >= max_iter || crate::io::stop::requested() {
+        if eps <= eps_target || iters >= max_iter || ctl.interrupted() {
             break;
         }
         let n = pool.len();
@@ -333,7 +334,7 @@ pub fn d_warm_start(pb: &Problem, prune: bool, eps_target: f64, max_iter: usize)
         let mut wi: Vec<f64> = set.iter().map(|&i| if w[i] > 1e-3 * wmax { w[i] } else { 0.0 }).collect();
         normalise(&mut wi);
         let budget = (max_iter - iters).min(60);
-        let lg = fw_away_d(&inner, &mut wi, budget, (0.25 * eps).max(0.5 * eps_target))?;
+        let lg = fw_away_d(&inner, &mut wi, budget, (0.25 * eps).max(0.5 * eps_target), ctl)?;
         iters += lg.iterations.max(1);
         w = scatter(n, &set, &wi);
     }

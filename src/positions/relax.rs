@@ -34,10 +34,11 @@
 //!
 //! The certificate holds when the efficiency bound is ≥ 1 − `tol`.
 
-use super::conic::{self, ConicSettings, Formulation};
+use super::conic::{self, Formulation};
 use super::firstorder::{self, d_prune_threshold};
 use super::problem::{evaluate_e_with, psd_unit_trace, Criterion, Evaluation, Problem};
 use crate::error::{Error, Result};
+use crate::optim::Control;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -119,14 +120,6 @@ impl SolverOptions {
             }
         }
         Ok(())
-    }
-    fn conic(&self, crit: Criterion) -> ConicSettings {
-        ConicSettings {
-            tol: if crit == Criterion::D { self.clarabel_tol } else { 1e-2 * self.clarabel_tol },
-            max_iter: self.max_iter,
-            time_limit: self.time_limit.unwrap_or(f64::INFINITY),
-            verbose: self.verbose,
-        }
     }
 }
 
@@ -235,7 +228,7 @@ pub struct Round {
     /// Candidates in the working set.
     pub working_set: usize,
     /// Clarabel status.
-    pub clarabel_status: String,
+    pub clarabel_status: super::conic::ConicStatus,
     /// Interior-point iterations.
     pub iterations: u32,
     /// Clarabel solve time (s).
@@ -316,7 +309,7 @@ fn top_k(vals: &[f64], k: usize) -> Vec<usize> {
 
 /// Solves the relaxed allocation problem max/min Φ(M(w)) over the simplex and
 /// certifies the answer on the full candidate set (see the module docs).
-pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Result<Relaxed> {
+pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions, ctl: &Control) -> Result<Relaxed> {
     let t_start = Instant::now();
     let (p, n) = (pb.p(), pb.n());
     let mut log = SolveLog {
@@ -324,6 +317,70 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
         parameters: p,
         ..Default::default()
     };
+    let pbs = scaled_problem(pb)?;
+    let t_fo = Instant::now();
+    // --- first order and initial working set
+    let (ws, w_ws) = initial_working_set(&pbs, crit, opts, ctl, &mut log)?;
+    log.first_order_time = t_fo.elapsed().as_secs_f64();
+    log.pruned_to = ws.len();
+    // --- Clarabel rounds
+    let phase = Phase {
+        pb,
+        pbs: &pbs,
+        crit,
+        opts,
+        ctl,
+    };
+    let (best, best_z, mut status, ws, w_ws) = clarabel_rounds(&phase, ws, w_ws, &mut log)?;
+    let (mut w, mut cert, mut ev) = match best {
+        Some(b) => b,
+        None => {
+            // stopped before any conic solve: the first-order design, certified
+            let mut w_full = vec![0.0; n];
+            for (k, &i) in ws.iter().enumerate() {
+                w_full[i] = w_ws.get(k).copied().unwrap_or(0.0);
+            }
+            firstorder::normalise(&mut w_full);
+            if w_full.iter().sum::<f64>() <= 0.0 {
+                return Err(Error::Interrupted);
+            }
+            let (c, e) = certify(pb, crit, &w_full, None, opts.tol)?;
+            status = Status::Interrupted;
+            (w_full, c, e)
+        }
+    };
+    // polish (D, A): Frank–Wolfe steps on the support neighbourhood if the
+    // interior-point answer is not accurate enough for the certificate
+    if crit != Criterion::E && !cert.holds && status != Status::Interrupted {
+        if let Some((w2, c2, e2)) = polish(&phase, &w, &cert, &ev, &mut log)? {
+            w = w2;
+            cert = c2;
+            ev = e2;
+            if cert.holds {
+                status = Status::Optimal;
+            }
+        }
+    }
+    if ctl.interrupted() && status != Status::Optimal {
+        status = Status::Interrupted;
+    }
+    log.total_time = t_start.elapsed().as_secs_f64();
+    Ok(Relaxed {
+        criterion: crit,
+        value: cert.value,
+        weights: w,
+        sensitivities: ev.sens.clone(),
+        certificate: cert,
+        status,
+        log,
+        dual: if crit == Criterion::E { best_z } else { None },
+    })
+}
+
+/// The problem scaled so that the uniform design's information has trace p;
+/// errors when the candidates cannot identify the parameters.
+fn scaled_problem(pb: &Problem) -> Result<Problem> {
+    let (p, n) = (pb.p(), pb.n());
     let uniform = vec![1.0 / n as f64; n];
     let mu = pb.information(&uniform);
     let tr = mu.trace();
@@ -337,15 +394,19 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
             p
         )));
     }
-    let s = p as f64 / tr;
-    let pbs = pb.scaled(s);
-    let t_fo = Instant::now();
-    // --- first order and initial working set
-    let (mut ws, mut w_ws): (Vec<usize>, Vec<f64>) = match crit {
+    Ok(pb.scaled(p as f64 / tr))
+}
+
+/// First-order warm start on the scaled problem `pbs` and the first working
+/// set (candidate indices, their warm-start weights).
+fn initial_working_set(pbs: &Problem, crit: Criterion, opts: &SolverOptions, ctl: &Control, log: &mut SolveLog) -> Result<(Vec<usize>, Vec<f64>)> {
+    let (p, n) = (pbs.p(), pbs.n());
+    let uniform = vec![1.0 / n as f64; n];
+    Ok(match crit {
         Criterion::D => {
             let t = chol_inverse_factor(&pbs.information(&uniform))
                 .ok_or_else(|| Error::Numerical("the uniform design's information is not positive definite after scaling".into()))?;
-            let ws0 = firstorder::d_warm_start(&pbs.transformed(&t), opts.prune, opts.first_order_eps * p as f64, opts.first_order_iters)?;
+            let ws0 = firstorder::d_warm_start(&pbs.transformed(&t), opts.prune, opts.first_order_eps * p as f64, opts.first_order_iters, ctl)?;
             let (live, mut w, iters, eps) = (ws0.pool, ws0.w, ws0.iterations, ws0.eps);
             log.first_order_iterations = iters;
             log.first_order_eps = eps;
@@ -364,7 +425,7 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
         }
         Criterion::A | Criterion::E => {
             let mut w = uniform.clone();
-            let lg = firstorder::multiplicative_a(&pbs, &mut w, opts.first_order_iters.min(50))?;
+            let lg = firstorder::multiplicative_a(pbs, &mut w, opts.first_order_iters.min(50), ctl)?;
             log.first_order_iterations = lg.iterations;
             log.first_order_eps = lg.eps;
             let ev = pbs.evaluate(crit, &w)?;
@@ -381,15 +442,56 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
             let ww: Vec<f64> = set.iter().map(|&i| w[i]).collect();
             (set, ww)
         }
-    };
-    log.first_order_time = t_fo.elapsed().as_secs_f64();
-    log.pruned_to = ws.len();
-    // --- Clarabel rounds
+    })
+}
+
+/// One Clarabel solve on the working-set problem `sub` (congruence-scaled by
+/// `t` when the warm start's information factors, objective-scaled so that
+/// the warm-start criterion is O(1)).
+fn conic_round(sub: &Problem, crit: Criterion, t: Option<&DMatrix<f64>>, wmix: &[f64], opts: &SolverOptions, ctl: &Control) -> conic::ConicResult {
+    let p = sub.p();
+    match (crit, t) {
+        (Criterion::D, Some(t)) => conic::solve_d(&sub.transformed(t).truncated(opts.factor_tol), opts, ctl),
+        (Criterion::D, None) => conic::solve_d(sub, opts, ctl),
+        (Criterion::A, Some(t)) => {
+            // tr(M⁻¹) = tr(Tᵀ M̃⁻¹ T); K = T/‖T‖_F makes the warm-start objective ≈ 1
+            let k = t / t.norm().max(f64::MIN_POSITIVE);
+            conic::solve_a(&sub.transformed(t).truncated(opts.factor_tol), &k, opts, ctl)
+        }
+        (Criterion::A, None) => conic::solve_a(sub, &DMatrix::identity(p, p), opts, ctl),
+        (Criterion::E, _) => {
+            let lmin = sub.information(wmix).symmetric_eigen().eigenvalues.min();
+            let sc = if lmin > 0.0 && lmin.is_finite() { 1.0 / lmin } else { 1.0 };
+            conic::solve_e(&sub.scaled(sc), opts, ctl)
+        }
+    }
+}
+
+/// The best design of the Clarabel rounds (weights, certificate, evaluation),
+/// its PSD dual, the status, and the last working set with its weights.
+/// What every phase of [`solve_relaxed`] works on: the problem, its scaled
+/// copy, the criterion, the solver options and the run control.
+#[derive(Clone, Copy)]
+struct Phase<'a> {
+    pb: &'a Problem,
+    pbs: &'a Problem,
+    crit: Criterion,
+    opts: &'a SolverOptions,
+    ctl: &'a Control,
+}
+
+type Rounds = (Option<(Vec<f64>, Certificate, Evaluation)>, Option<DMatrix<f64>>, Status, Vec<usize>, Vec<f64>);
+
+/// Working-set rounds: solve on the working set, certify on all candidates,
+/// add the violators, until the certificate holds or `opts.max_rounds`.
+fn clarabel_rounds(cx: &Phase, mut ws: Vec<usize>, mut w_ws: Vec<f64>, log: &mut SolveLog) -> Result<Rounds> {
+    let Phase { pb, pbs, crit, opts, ctl } = *cx;
+    let (p, n) = (pb.p(), pb.n());
     let mut best: Option<(Vec<f64>, Certificate, Evaluation)> = None;
     let mut best_z: Option<DMatrix<f64>> = None;
     let mut status = Status::NotCertified;
     for _round in 0..opts.max_rounds {
-        if crate::io::stop::requested() {
+        if ctl.interrupted() {
             status = Status::Interrupted;
             break;
         }
@@ -404,21 +506,7 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
         let t = chol_inverse_factor(&sub.information(&wmix));
         // objective-level scaling: O(1) criterion values at the warm start
         // (Clarabel's absolute tolerances then mean relative accuracy)
-        let res = match (crit, &t) {
-            (Criterion::D, Some(t)) => conic::solve_d(&sub.transformed(t).truncated(opts.factor_tol), opts.formulation, &opts.conic(crit)),
-            (Criterion::D, None) => conic::solve_d(&sub, opts.formulation, &opts.conic(crit)),
-            (Criterion::A, Some(t)) => {
-                // tr(M⁻¹) = tr(Tᵀ M̃⁻¹ T); K = T/‖T‖_F makes the warm-start objective ≈ 1
-                let k = t / t.norm().max(f64::MIN_POSITIVE);
-                conic::solve_a(&sub.transformed(t).truncated(opts.factor_tol), &k, &opts.conic(crit))
-            }
-            (Criterion::A, None) => conic::solve_a(&sub, &DMatrix::identity(p, p), &opts.conic(crit)),
-            (Criterion::E, _) => {
-                let lmin = sub.information(&wmix).symmetric_eigen().eigenvalues.min();
-                let sc = if lmin > 0.0 && lmin.is_finite() { 1.0 / lmin } else { 1.0 };
-                conic::solve_e(&sub.scaled(sc), &opts.conic(crit))
-            }
-        };
+        let res = conic_round(&sub, crit, t.as_ref(), &wmix, opts, ctl);
         log.clarabel_time += res.solve_time;
         let mut w_full = vec![0.0; n];
         let use_w = if res.ok { &res.w } else { &w_sub0 };
@@ -459,78 +547,50 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions) -> Res
         }
         round.added = viol.len();
         log.rounds.push(round);
-        w_ws = ws.iter().map(|&i| w_full[i]).collect();
-        ws.extend(viol);
-        w_ws.resize(ws.len(), 0.0);
-        let mut order: Vec<usize> = (0..ws.len()).collect();
-        order.sort_by_key(|&k| ws[k]);
-        ws = order.iter().map(|&k| ws[k]).collect();
-        w_ws = order.iter().map(|&k| w_ws[k]).collect();
+        (ws, w_ws) = grow_working_set(&ws, &w_full, viol);
     }
-    let (mut w, mut cert, mut ev) = match best {
-        Some(b) => b,
-        None => {
-            // stopped before any conic solve: the first-order design, certified
-            let mut w_full = vec![0.0; n];
-            for (k, &i) in ws.iter().enumerate() {
-                w_full[i] = w_ws.get(k).copied().unwrap_or(0.0);
-            }
-            firstorder::normalise(&mut w_full);
-            if w_full.iter().sum::<f64>() <= 0.0 {
-                return Err(Error::Interrupted);
-            }
-            let (c, e) = certify(pb, crit, &w_full, None, opts.tol)?;
-            status = Status::Interrupted;
-            (w_full, c, e)
-        }
+    Ok((best, best_z, status, ws, w_ws))
+}
+
+/// The working set `ws` with the violators `viol` added (sorted by
+/// candidate index), and its weights from `w_full` (0 for the new ones).
+fn grow_working_set(ws: &[usize], w_full: &[f64], viol: Vec<usize>) -> (Vec<usize>, Vec<f64>) {
+    let mut w_ws: Vec<f64> = ws.iter().map(|&i| w_full[i]).collect();
+    let mut ws = ws.to_vec();
+    ws.extend(viol);
+    w_ws.resize(ws.len(), 0.0);
+    let mut order: Vec<usize> = (0..ws.len()).collect();
+    order.sort_by_key(|&k| ws[k]);
+    (order.iter().map(|&k| ws[k]).collect(), order.iter().map(|&k| w_ws[k]).collect())
+}
+
+/// Frank–Wolfe polish of `w` on the support neighbourhood; the polished
+/// design with its certificate when it certifies better.
+fn polish(cx: &Phase, w: &[f64], cert: &Certificate, ev: &Evaluation, log: &mut SolveLog) -> Result<Option<(Vec<f64>, Certificate, Evaluation)>> {
+    let Phase { pb, pbs, crit, opts, ctl } = *cx;
+    let (p, n) = (pb.p(), pb.n());
+    let set: Vec<usize> = if crit == Criterion::D {
+        let thr = d_prune_threshold(p, cert.max_sensitivity, cert.prior_term);
+        (0..n).filter(|&i| ev.sens[i] >= thr || w[i] > 0.0).collect()
+    } else {
+        let mut s: Vec<usize> = (0..n).filter(|&i| w[i] > 0.0).collect();
+        s.extend(top_k(&ev.sens, (2 * p).min(n)));
+        s.sort_unstable();
+        s.dedup();
+        s
     };
-    // polish (D, A): Frank–Wolfe steps on the support neighbourhood if the
-    // interior-point answer is not accurate enough for the certificate
-    if crit != Criterion::E && !cert.holds && status != Status::Interrupted {
-        let set: Vec<usize> = if crit == Criterion::D {
-            let thr = d_prune_threshold(p, cert.max_sensitivity, cert.prior_term);
-            (0..n).filter(|&i| ev.sens[i] >= thr || w[i] > 0.0).collect()
-        } else {
-            let mut s: Vec<usize> = (0..n).filter(|&i| w[i] > 0.0).collect();
-            s.extend(top_k(&ev.sens, (2 * p).min(n)));
-            s.sort_unstable();
-            s.dedup();
-            s
-        };
-        let sub = pbs.subset(&set);
-        let mut ws_w: Vec<f64> = set.iter().map(|&i| w[i]).collect();
-        let target = match crit {
-            Criterion::D => 0.1 * opts.tol * p as f64,
-            _ => 0.1 * opts.tol * sub.evaluate(crit, &ws_w).map(|e| e.value).unwrap_or(0.0),
-        };
-        let lg = firstorder::fw_away(&sub, crit, &mut ws_w, 5000, target)?;
-        log.polish_iterations = lg.iterations;
-        let mut w2 = vec![0.0; n];
-        for (k, &i) in set.iter().enumerate() {
-            w2[i] = ws_w[k];
-        }
-        let (c2, e2) = certify(pb, crit, &w2, None, opts.tol)?;
-        if c2.efficiency_bound > cert.efficiency_bound {
-            w = w2;
-            cert = c2;
-            ev = e2;
-            if cert.holds {
-                status = Status::Optimal;
-            }
-        }
+    let sub = pbs.subset(&set);
+    let mut ws_w: Vec<f64> = set.iter().map(|&i| w[i]).collect();
+    let target = match crit {
+        Criterion::D => 0.1 * opts.tol * p as f64,
+        _ => 0.1 * opts.tol * sub.evaluate(crit, &ws_w).map(|e| e.value).unwrap_or(0.0),
+    };
+    let lg = firstorder::fw_away(&sub, crit, &mut ws_w, 5000, target, ctl)?;
+    log.polish_iterations = lg.iterations;
+    let mut w2 = vec![0.0; n];
+    for (k, &i) in set.iter().enumerate() {
+        w2[i] = ws_w[k];
     }
-    if crate::io::stop::requested() && status != Status::Optimal {
-        status = Status::Interrupted;
-    }
-    log.total_time = t_start.elapsed().as_secs_f64();
-    Ok(Relaxed {
-        criterion: crit,
-        value: cert.value,
-        weights: w,
-        sensitivities: ev.sens.clone(),
-        certificate: cert,
-        status,
-        log,
-        dual: if crit == Criterion::E { best_z } else { None },
-    })
+    let (c2, e2) = certify(pb, crit, &w2, None, opts.tol)?;
+    Ok((c2.efficiency_bound > cert.efficiency_bound).then_some((w2, c2, e2)))
 }

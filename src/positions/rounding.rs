@@ -20,7 +20,9 @@
 //! D: exp((log det M_r − log det M*)/p), A: tr M*⁻¹ / tr M_r⁻¹, E: λ_min(M_r)/λ_min(M*).
 
 use super::problem::{Criterion, Problem};
+use super::relax::Relaxed;
 use crate::error::{Error, Result};
+use crate::optim::Control;
 use nalgebra::DMatrix;
 use serde::Serialize;
 
@@ -131,13 +133,14 @@ pub fn efficiency(crit: Criterion, p: usize, v: f64, v_opt: f64) -> f64 {
 
 /// Rounds the relaxed design to whole experiments and improves it by exchange.
 ///
-/// `pb` is the problem the relaxed weights refer to (with costs: the
-/// cost-divided problem, prior already divided by the budget), `w` the relaxed
-/// weights, `sens` their sensitivities (to choose exchange candidates),
-/// `value`/`bound` the relaxed value and certificate bound, `budget` the
-/// number of experiments M (or the budget B with `costs`).
-#[allow(clippy::too_many_arguments)] // the relaxed solution (w, sensitivities, value, bound) and the budget arrive together from the solver
-pub fn round_design(pb: &Problem, crit: Criterion, w: &[f64], sens: &[f64], value: f64, bound: f64, budget: f64, costs: Option<&[f64]>) -> Result<Rounded> {
+/// `pb` is the problem the relaxed design refers to (with costs: the
+/// cost-divided problem, prior already divided by the budget); of `relaxed`
+/// the weights, their sensitivities (to choose exchange candidates), the
+/// relaxed value and the certificate's efficiency bound are used; `budget` is
+/// the number of experiments M (or the budget B with `costs`).
+pub fn round_design(pb: &Problem, crit: Criterion, relaxed: &Relaxed, budget: f64, costs: Option<&[f64]>, ctl: &Control) -> Result<Rounded> {
+    let (w, sens) = (&relaxed.weights[..], &relaxed.sensitivities[..]);
+    let (value, bound) = (relaxed.value, relaxed.certificate.efficiency_bound);
     let n = pb.n();
     if w.len() != n || sens.len() != n {
         return Err(Error::dim("weights of the relaxed design", n, w.len()));
@@ -198,7 +201,7 @@ pub fn round_design(pb: &Problem, crit: Criterion, w: &[f64], sens: &[f64], valu
     // exchange
     let mut exchanges = 0;
     for _ in 0..1000 {
-        if crate::io::stop::requested() {
+        if ctl.interrupted() {
             break;
         }
         let cur = score(crit, &info);

@@ -30,6 +30,7 @@
 use crate::data::Repetition;
 pub use crate::data::Truth;
 use crate::error::{Error, Result};
+use crate::optim::Control;
 use crate::params::{BaseOptions, BaseParams};
 use crate::robot::{forward_dynamics, gravity, inverse_dynamics, mass_matrix, Inertial, ParamKind, Robot, Workspace};
 pub use crate::trajectory::{Reference, ReferenceSpec};
@@ -324,11 +325,44 @@ pub struct SimSetup {
     pub seed: u64,
 }
 
+/// Controller periods between two polls of the run control inside a
+/// repetition (at 10 kHz with 4 RK4 substeps, well under 0.1 s of work).
+pub const POLL_STEPS: usize = 64;
+
+/// A stretch of controller periods: `steps` periods counted from `k0`,
+/// recorded with times relative to `t_rec0`.
+#[derive(Debug, Clone, Copy)]
+struct Span {
+    k0: usize,
+    steps: usize,
+    t_rec0: f64,
+}
+
+/// Whether a simulation ran all its repetitions (serialised `complete` /
+/// `interrupted`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RunStatus {
+    /// Every repetition was simulated.
+    Complete,
+    /// The run control stopped it; the repetitions written are the first ones, complete.
+    Interrupted,
+}
+
+impl std::fmt::Display for RunStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            RunStatus::Complete => "complete",
+            RunStatus::Interrupted => "interrupted",
+        })
+    }
+}
+
 /// Outcome of a simulation.
 #[derive(Debug, Clone, Serialize)]
 pub struct SimStatus {
     /// `complete` or `interrupted`.
-    pub status: String,
+    pub status: RunStatus,
     /// Repetitions produced.
     pub repetitions: usize,
     /// Largest |r − q| per joint over the recorded data (rad).
@@ -509,9 +543,11 @@ impl SimSetup {
         }
     }
 
-    /// Runs `steps` controller periods from time `t0` (periods counted from `k0`),
-    /// recording every `decimate`-th sample with time `t - t_rec0`.
-    fn run_steps(&self, lp: &mut Loop, k0: usize, steps: usize, t_rec0: f64, rng: &mut rand_chacha::ChaCha8Rng, record: Option<&mut Repetition>) -> Result<()> {
+    /// Runs `span.steps` controller periods (counted from `span.k0`),
+    /// recording every `decimate`-th sample with time `t - span.t_rec0`;
+    /// `Ok(false)` when `ctl` asked to stop (polled every [`POLL_STEPS`] periods).
+    fn run_steps(&self, lp: &mut Loop, span: Span, rng: &mut rand_chacha::ChaCha8Rng, record: Option<&mut Repetition>, ctl: &Control) -> Result<bool> {
+        let Span { k0, steps, t_rec0 } = span;
         let n = self.truth.dof();
         let dt = 1.0 / self.rate;
         let mut ws_t = Workspace::new(&self.truth);
@@ -530,6 +566,9 @@ impl SimSetup {
         let theta_nom = self.nominal.nominal_params();
         let mut rec = record;
         for s in 0..steps {
+            if s % POLL_STEPS == 0 && ctl.should_stop() {
+                return Ok(false);
+            }
             let k = k0 + s;
             let t = k as f64 * dt;
             self.reference.eval(t, &mut r, &mut rd, &mut rdd);
@@ -581,12 +620,15 @@ impl SimSetup {
                 rk4(&self.truth, &mut ws_t, &mut lp.q, &mut lp.qd, &drive, h)?;
             }
         }
-        Ok(())
+        Ok(true)
     }
 
-    /// Runs the simulation. Stops early (status `interrupted`) when
-    /// [`crate::io::stop::requested`] becomes true, with the repetitions finished so far.
-    pub fn run(&self) -> Result<SimResult> {
+    /// Runs the simulation. Stops early (status `interrupted`) when `ctl`
+    /// says stop (stop request, deadline), with the repetitions finished so
+    /// far; the control is polled every [`POLL_STEPS`] controller periods,
+    /// also inside a repetition. Progress: phase `"simulate"`, one step per
+    /// repetition. [`Error::Interrupted`] if not one repetition was finished.
+    pub fn run(&self, ctl: &Control) -> Result<SimResult> {
         let n = self.truth.dof();
         let dt = 1.0 / self.rate;
         let new_rep = || Repetition {
@@ -597,50 +639,71 @@ impl SimSetup {
             qd: None,
             qdd: None,
         };
-        let pb = crate::io::progress_bar(self.repetitions as u64, "simulate");
+        let obs = ctl.observer();
+        obs.phase("simulate", Some(self.repetitions as u64));
+        let done = std::sync::atomic::AtomicU64::new(0);
         let mut reps = Vec::with_capacity(self.repetitions);
         let mut interrupted = false;
         if self.reference.periodic() {
             let steps = (self.reference.duration() * self.rate).round() as usize;
             let mut lp = self.new_loop();
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(crate::rng::mix(self.seed, 0, 0));
-            self.run_steps(&mut lp, 0, steps, 0.0, &mut rng, None)?; // lead-in period
+            interrupted = !self.run_steps(&mut lp, Span { k0: 0, steps, t_rec0: 0.0 }, &mut rng, None, ctl)?; // lead-in period
             for i in 0..self.repetitions {
-                if crate::io::stop::requested() {
-                    interrupted = true;
+                if interrupted {
                     break;
                 }
                 let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(crate::rng::mix(self.seed, (i + 1) as u64, 0));
                 let mut rep = new_rep();
                 let k0 = (i + 1) * steps;
-                self.run_steps(&mut lp, k0, steps, k0 as f64 * dt, &mut rng, Some(&mut rep))?;
+                if !self.run_steps(
+                    &mut lp,
+                    Span {
+                        k0,
+                        steps,
+                        t_rec0: k0 as f64 * dt,
+                    },
+                    &mut rng,
+                    Some(&mut rep),
+                    ctl,
+                )? {
+                    interrupted = true;
+                    break;
+                }
                 reps.push(rep);
-                pb.inc(1);
+                obs.progress(reps.len() as u64, "");
             }
         } else {
             let steps = (self.reference.duration() * self.rate).round() as usize + 1;
             let out: Vec<Option<Result<Repetition>>> = (0..self.repetitions)
                 .into_par_iter()
                 .map(|i| {
-                    if crate::io::stop::requested() {
+                    if ctl.should_stop() {
                         return None;
                     }
                     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(crate::rng::mix(self.seed, (i + 1) as u64, 0));
                     let mut lp = self.new_loop();
                     let mut rep = new_rep();
-                    let r = self.run_steps(&mut lp, 0, steps, 0.0, &mut rng, Some(&mut rep)).map(|_| rep);
-                    pb.inc(1);
+                    let r = match self.run_steps(&mut lp, Span { k0: 0, steps, t_rec0: 0.0 }, &mut rng, Some(&mut rep), ctl) {
+                        Ok(true) => Ok(rep),
+                        Ok(false) => return None,
+                        Err(e) => Err(e),
+                    };
+                    let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                    obs.progress(k, "");
                     Some(r)
                 })
                 .collect();
+            // the repetitions before the first stopped one (a valid prefix)
             for o in out {
                 match o {
-                    Some(r) => reps.push(r?),
+                    Some(r) if !interrupted => reps.push(r?),
+                    Some(_) => {}
                     None => interrupted = true,
                 }
             }
         }
-        pb.finish_and_clear();
+        obs.phase_done();
         if reps.is_empty() {
             return Err(Error::Interrupted);
         }
@@ -662,7 +725,7 @@ impl SimSetup {
         rms.iter_mut().for_each(|v| *v = (*v / cnt.max(1) as f64).sqrt());
         Ok(SimResult {
             status: SimStatus {
-                status: if interrupted { "interrupted".into() } else { "complete".into() },
+                status: if interrupted { RunStatus::Interrupted } else { RunStatus::Complete },
                 repetitions: reps.len(),
                 max_tracking_error: max_e,
                 rms_tracking_error: rms,
@@ -735,7 +798,7 @@ impl SimResult {
         }
         crate::io::write_json(&dir.join("truth.json"), &self.truth()?)?;
         crate::io::write_json(&dir.join("design.json"), design)?;
-        let state = if self.status.status == "interrupted" {
+        let state = if self.status.status == RunStatus::Interrupted {
             crate::io::status::RunState::Interrupted
         } else {
             crate::io::status::RunState::Complete

@@ -22,7 +22,7 @@ pub fn design(text: &str) -> SimDesign {
 /// Simulates a design.
 pub fn simulate(d: &SimDesign) -> SimResult {
     let setup = SimSetup::from_design(d, &root(""), "test.toml").unwrap_or_else(|e| panic!("{e}"));
-    setup.run().unwrap_or_else(|e| panic!("{e}"))
+    setup.run(&idexp::optim::Control::new()).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// The run of a simulation (in memory).
@@ -37,7 +37,16 @@ pub fn ident(res: &SimResult, val: Option<&SimResult>, opts: &IdentOptions) -> (
     let run = run_of(res);
     let vrun = val.map(run_of);
     let vt = val.and_then(|v| v.setup.reference.fourier().cloned());
-    let mut id = identify(robot, &base, &run, res.setup.reference.fourier(), vrun.as_ref().map(|v| (v, vt.as_ref())), opts).unwrap_or_else(|e| panic!("{e}"));
+    let mut id = identify(
+        robot,
+        &base,
+        &run,
+        res.setup.reference.fourier(),
+        vrun.as_ref().map(|v| (v, vt.as_ref())),
+        opts,
+        &idexp::optim::Control::new(),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
     let truth = res.truth().unwrap();
     id.estimate.compare_truth(&truth.base_names, &truth.base).unwrap();
     (id, base)

@@ -106,7 +106,7 @@ pub fn run_multisine(a: &MultisineArgs, _ctl: &Control) -> anyhow::Result<Outcom
 
 /// Runs `idexp frf`.
 pub fn run_frf(a: &FrfArgs, ctl: &Control) -> anyhow::Result<Outcome> {
-    let (d, dir) = frf(&a.input, a.out.as_deref())?;
+    let (d, dir) = frf(&a.input, a.out.as_deref(), ctl)?;
     if a.json {
         print!("{}", idexp::io::read_to_string(&dir.join("status.json"))?);
     } else {
@@ -148,7 +148,7 @@ pub fn run_fit(a: &FitArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         shard: a.shard.as_deref().map(Shard::parse).transpose()?,
         out: a.out.clone(),
     };
-    let r = fit(&a.design, &o)?;
+    let r = fit(&a.design, &o, ctl)?;
     match &r.report {
         Some(rep) if a.json => crate::print_json(rep)?,
         Some(rep) => {

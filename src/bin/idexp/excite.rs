@@ -5,7 +5,7 @@ use anyhow::bail;
 use idexp::excitation::design::ExciteDesign;
 use idexp::excitation::report::{assess, read_states, violation_lines, write_outputs};
 use idexp::excitation::{run, Criterion, Problem, Status};
-use idexp::optim::Control;
+use idexp::optim::{Control, Termination};
 use idexp::params::{BaseOptions, BaseParams};
 use std::path::PathBuf;
 
@@ -86,7 +86,7 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         p.constraints.len(),
         p.objective.n_cols()
     );
-    let r = run(&p, true)?;
+    let r = run(&p, ctl)?;
     let _ = write_outputs(&p, &r, &out)?;
     if a.json {
         print!("{}", idexp::io::read_to_string(&out.join("report.json"))?);
@@ -110,7 +110,11 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
             println!("  stopped early: {b}");
         }
     }
-    let interrupted = r.stopped_by.as_deref().is_some_and(|b| b.contains("interrupted")) || crate::interrupted(ctl);
+    let interrupted = r
+        .stopped_by
+        .as_ref()
+        .is_some_and(|b| b.ga == Some(Termination::Interrupted) || b.refine == Some(Termination::Interrupted))
+        || crate::interrupted(ctl);
     Ok(match r.status {
         Status::Infeasible => Outcome::Unusable(format!("the design is INFEASIBLE ({} constraint(s) violated)", r.violated.len())),
         Status::Feasible if interrupted => Outcome::Interrupted,

@@ -219,7 +219,7 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         _ => None,
     };
     let base = BaseParams::compute(&robot, &BaseOptions::default())?;
-    let mut id = identify(&robot, &base, &run, traj.as_ref(), vrun.as_ref().map(|v| (v, vtraj.as_ref())), &opts)?;
+    let mut id = identify(&robot, &base, &run, traj.as_ref(), vrun.as_ref().map(|v| (v, vtraj.as_ref())), &opts, ctl)?;
     if let Some(t) = &a.truth {
         let truth = idexp::sim::Truth::read(t)?;
         id.estimate.compare_truth(&truth.base_names, &truth.base)?;

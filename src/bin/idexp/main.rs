@@ -120,8 +120,6 @@ fn install_ctrlc() -> StopFlag {
         }
         eprintln!("\nstopping: finishing the current step and writing results (Ctrl-C again to abort)");
         f.request();
-        // the library's loops that do not take a Control yet poll the process-wide flag
-        idexp::io::stop::request();
     });
     flag
 }
@@ -146,9 +144,9 @@ fn run(cli: Cli) -> anyhow::Result<Outcome> {
     }
 }
 
-/// True once the user pressed Ctrl-C (the run's flag or the library's process-wide one).
+/// True once the user pressed Ctrl-C.
 pub fn interrupted(ctl: &Control) -> bool {
-    ctl.interrupted() || idexp::io::stop::requested()
+    ctl.interrupted()
 }
 
 /// Prints `value` as pretty JSON on standard output.

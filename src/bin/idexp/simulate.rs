@@ -30,7 +30,7 @@ pub fn run(a: &SimulateArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let base = a.design.parent().map(|p| p.to_path_buf()).unwrap_or_default();
     let ctx = a.design.display().to_string();
     let setup = SimSetup::from_design(&d, &base, &ctx)?;
-    let res = setup.run()?;
+    let res = setup.run(ctl)?;
     let name = d.name.clone().unwrap_or_else(|| {
         a.design
             .file_stem()
@@ -55,7 +55,7 @@ pub fn run(a: &SimulateArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         );
         println!("written to {}", out.display());
     }
-    Ok(if st.status == "interrupted" || crate::interrupted(ctl) {
+    Ok(if st.status == idexp::sim::RunStatus::Interrupted || crate::interrupted(ctl) {
         Outcome::Interrupted
     } else {
         Outcome::Done
