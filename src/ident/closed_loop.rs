@@ -364,11 +364,15 @@ impl MlData {
     fn cost_grad(&self, theta: &[f64], grad: Option<&mut [f64]>) -> f64 {
         let (n, k) = (self.n, self.k);
         let want_grad = grad.is_some();
-        let (cost, g) = (0..self.mats.len())
+        // Fixed chunks of samples, summed in order: the floating-point
+        // order of the sums does not depend on the threads (bit-identical
+        // results for any thread count, and from run to run).
+        const CHUNK: usize = 64;
+        let m = self.mats.len();
+        let parts: Vec<(f64, Vec<f64>)> = (0..m.div_ceil(CHUNK))
             .into_par_iter()
-            .fold(
-                || (0.0, vec![0.0; k]),
-                |(mut c, mut g), i| {
+            .map(|ch| {
+                (ch * CHUNK..((ch + 1) * CHUNK).min(m)).fold((0.0, vec![0.0; k]), |(mut c, mut g), i| {
                     let th = DVector::from_column_slice(theta);
                     let SampleTerms { y, jm, stx, sxx, chol } = self.sample_terms(i, &th);
                     let Some(ch) = chol else {
@@ -394,9 +398,17 @@ impl MlData {
                         }
                     }
                     (c, g)
-                },
-            )
-            .reduce(|| (0.0, vec![0.0; k]), |a, b| (a.0 + b.0, a.1.iter().zip(&b.1).map(|(x, y)| x + y).collect()));
+                })
+            })
+            .collect();
+        let mut cost = 0.0;
+        let mut g = vec![0.0; k];
+        for (c, gp) in &parts {
+            cost += c;
+            for (a, b) in g.iter_mut().zip(gp) {
+                *a += b;
+            }
+        }
         if let Some(gr) = grad {
             gr.copy_from_slice(&g);
         }
