@@ -154,3 +154,66 @@ fn robot_out_is_a_folder_and_json_and_old_spellings_work() {
     let js: serde_json::Value = serde_json::from_str(&stdout(&a)).unwrap();
     assert_eq!(js["name"], "puma560");
 }
+
+/// Sends SIGINT to `child` after `delay` and waits (at most 60 s) for it to exit.
+fn interrupt(child: &mut std::process::Child, delay: f64) -> std::process::ExitStatus {
+    std::thread::sleep(std::time::Duration::from_secs_f64(delay));
+    let ok = Command::new("kill").arg("-INT").arg(child.id().to_string()).status().unwrap();
+    assert!(ok.success(), "kill -INT failed");
+    for _ in 0..600 {
+        if let Some(st) = child.try_wait().unwrap() {
+            return st;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    let _ = child.kill();
+    panic!("the command did not stop within 60 s of SIGINT");
+}
+
+#[test]
+fn ctrl_c_exits_130_with_valid_results() {
+    // excite: stopped during the search, the best design so far is written and says so
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("excite");
+    let mut child = idexp()
+        .args(["excite", "designs/excite_ur5_bench.toml", "--time-limit", "120", "--out"])
+        .arg(&out)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let st = interrupt(&mut child, 2.0);
+    assert_eq!(st.code(), Some(130));
+    let s = status(&out);
+    assert_common(&s, "excite", RunState::Interrupted);
+    assert!(out.join("coefficients.json").is_file());
+    // simulate at a very high rate: interrupted inside the first repetition,
+    // before any result exists: 130 and nothing written
+    let design = d.path().join("fast.toml");
+    let text = std::fs::read_to_string(root("designs/sim_puma_fourier.toml")).unwrap();
+    let text: String = text
+        .lines()
+        .map(|l| {
+            if l.starts_with("rate = ") {
+                "rate = 100000.0".to_string()
+            } else {
+                l.to_string()
+            }
+        })
+        .map(|l| l.replace("\"robots/", &format!("\"{}/", root("designs/robots").display())))
+        .collect::<Vec<_>>()
+        .join("\n");
+    std::fs::write(&design, text).unwrap();
+    let out = d.path().join("sim");
+    let mut child = idexp()
+        .arg("simulate")
+        .arg(&design)
+        .arg("--out")
+        .arg(&out)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let st = interrupt(&mut child, 1.5);
+    assert_eq!(st.code(), Some(130));
+    assert!(!out.join("status.json").exists() || status(&out).status == RunState::Interrupted);
+}

@@ -89,6 +89,10 @@ fn main() {
             eprintln!("interrupted: the files written so far are valid (their status.json says \"interrupted\")");
             EXIT_INTERRUPTED
         }
+        Err(e) if matches!(e.downcast_ref::<idexp::Error>(), Some(idexp::Error::Interrupted)) => {
+            eprintln!("interrupted before any result existed: nothing was written");
+            EXIT_INTERRUPTED
+        }
         Err(e) => {
             eprintln!("error: {e:#}");
             EXIT_INPUT
