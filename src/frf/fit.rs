@@ -117,32 +117,8 @@ impl LmProblem for InZ<'_> {
     }
 }
 
-/// How a fit ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum FitStatus {
-    /// Relative cost decrease below `ftol`.
-    ConvergedFtol,
-    /// Step below `xtol`.
-    ConvergedXtol,
-    /// Gradient numerically zero.
-    ConvergedGtol,
-    /// Iteration limit reached.
-    MaxIterations,
-    /// No decreasing step found (λ grew past 1e16).
-    Stalled,
-    /// The cost could not be evaluated at the start point.
-    Failed,
-    /// Stopped by the user.
-    Interrupted,
-}
-
-impl FitStatus {
-    /// True for the three converged outcomes.
-    pub fn converged(self) -> bool {
-        matches!(self, FitStatus::ConvergedFtol | FitStatus::ConvergedXtol | FitStatus::ConvergedGtol)
-    }
-}
+/// How a fit ended: the Levenberg–Marquardt status of the seam.
+pub use crate::optim::lm::LmStatus as FitStatus;
 
 /// Result of one local fit.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
@@ -442,19 +418,13 @@ impl FitProblem {
             Ok(o) => o,
             Err(_) => return fail(0),
         };
-        let status = match o.status {
-            LmStatus::ConvergedFtol => FitStatus::ConvergedFtol,
-            LmStatus::ConvergedXtol => FitStatus::ConvergedXtol,
-            LmStatus::ConvergedGtol => FitStatus::ConvergedGtol,
-            LmStatus::MaxIterations => FitStatus::MaxIterations,
-            LmStatus::Stalled => FitStatus::Stalled,
-            LmStatus::Interrupted => FitStatus::Interrupted,
-            LmStatus::Failed => return fail(o.evaluations),
-        };
+        if o.status == LmStatus::Failed {
+            return fail(o.evaluations);
+        }
         FitOutcome {
             theta: self.to_theta(&o.z),
             cost: o.cost,
-            status,
+            status: o.status,
             iterations: o.iterations,
             evaluations: o.evaluations,
         }

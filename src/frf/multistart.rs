@@ -83,17 +83,8 @@ pub fn start_point(theta_init: &[f64], spread: f64, seed: u64, index: usize) -> 
         .collect()
 }
 
-/// FNV-1a 64-bit fingerprint of some text, as 16 hex digits.
-pub fn fingerprint(parts: &[&str]) -> String {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for p in parts {
-        for b in p.bytes().chain(std::iter::once(0u8)) {
-            h ^= b as u64;
-            h = h.wrapping_mul(0x0100_0000_01b3);
-        }
-    }
-    format!("{h:016x}")
-}
+/// FNV-1a 64-bit fingerprint of some text, as 16 hex digits (the one of `status.json`).
+pub use crate::io::status::fingerprint;
 
 /// Reads a JSON Lines log. A last line without its newline that does not
 /// parse (a write cut by a kill) is dropped; any other bad line is an error.

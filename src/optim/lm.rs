@@ -33,8 +33,10 @@ pub trait LmProblem {
     fn clamp(&self, i: usize, zi: f64) -> f64;
 }
 
-/// How a Levenberg–Marquardt run ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// How a Levenberg–Marquardt run ended (serialised in snake_case, e.g.
+/// `"converged_ftol"`: the word the multistart logs carry).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum LmStatus {
     /// Relative cost decrease below `ftol` (with λ < 1).
     ConvergedFtol,
@@ -51,6 +53,13 @@ pub enum LmStatus {
     Failed,
     /// Stopped through the control.
     Interrupted,
+}
+
+impl LmStatus {
+    /// True for the three converged outcomes.
+    pub fn converged(self) -> bool {
+        matches!(self, LmStatus::ConvergedFtol | LmStatus::ConvergedXtol | LmStatus::ConvergedGtol)
+    }
 }
 
 /// Tolerances of [`Lm`].
