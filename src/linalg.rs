@@ -2,16 +2,18 @@
 //! where nalgebra matrices are converted to and from faer.
 
 use crate::error::{Error, Result};
+use faer_ext::{IntoFaer, IntoNalgebra};
 use nalgebra::{DMatrix, DVector};
 
-/// Copies a nalgebra matrix into a faer matrix.
-pub fn to_faer(m: &DMatrix<f64>) -> faer::Mat<f64> {
-    faer::Mat::from_fn(m.nrows(), m.ncols(), |i, j| m[(i, j)])
+/// A faer view of a nalgebra matrix (no copy: faer-ext's zero-copy view).
+pub fn to_faer(m: &DMatrix<f64>) -> faer::MatRef<'_, f64> {
+    let v: nalgebra::DMatrixView<f64> = m.as_view();
+    v.into_faer()
 }
 
-/// Copies a faer matrix view into a nalgebra matrix.
+/// Copies a faer matrix view into a nalgebra matrix (through faer-ext's view).
 pub fn from_faer(m: faer::MatRef<'_, f64>) -> DMatrix<f64> {
-    DMatrix::from_fn(m.nrows(), m.ncols(), |i, j| m[(i, j)])
+    m.into_nalgebra().into_owned()
 }
 
 /// Singular values in decreasing order.
