@@ -210,7 +210,12 @@ fn fast_kernel_equals_full_solve() {
     let fast = FrfKernel::new(&m);
     let full = FrfKernel::new(&m).with_full_solve();
     let (d, _) = idexp::frf::Design::load(&root("designs/elastic_industrial6.toml")).unwrap();
-    let theta: Vec<f64> = m.nominal_unknowns().iter().enumerate().map(|(i, t)| t * (1.0 + 0.1 * ((i % 5) as f64 - 2.0))).collect();
+    let theta: Vec<f64> = m
+        .nominal_unknowns()
+        .iter()
+        .enumerate()
+        .map(|(i, t)| t * (1.0 + 0.1 * ((i % 5) as f64 - 2.0)))
+        .collect();
     let vals = m.full_values(&theta).unwrap();
     let omegas: Vec<f64> = (1..=75).map(|k| 2.0 * std::f64::consts::PI * (2 * k + 1) as f64).collect();
     let (mut dg1, mut dg2) = (Vec::new(), Vec::new());
@@ -228,7 +233,12 @@ fn fast_kernel_equals_full_solve() {
                 };
                 assert!(rel(&g1, &g2) < 1e-10, "G at ω {w}: {:e}", rel(&g1, &g2));
                 for i in 0..theta.len() {
-                    assert!(rel(&dg1[i], &dg2[i]) < 1e-10, "∂G/∂{} at ω {w}: {:e}", m.unknown_names()[i], rel(&dg1[i], &dg2[i]));
+                    assert!(
+                        rel(&dg1[i], &dg2[i]) < 1e-10,
+                        "∂G/∂{} at ω {w}: {:e}",
+                        m.unknown_names()[i],
+                        rel(&dg1[i], &dg2[i])
+                    );
                 }
                 checked += 1;
             }
