@@ -142,6 +142,7 @@ pub struct ObjectiveSpec {
     /// Torque noise std per joint (N·m); default 1 for every joint.
     pub noise: Option<Vec<f64>>,
     /// Fix the base columns by name (`["ZZ1", "XX2", ...]`) instead of idexp's choice.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub base_columns: Option<Vec<String>>,
 }
 

@@ -417,8 +417,16 @@ impl FitProblem {
             let ww = el.w;
             let e = self.residual(el.ghat(), el.g);
             v += ww * e.norm_sqr();
+            // ∂E/∂θ_i with one reciprocal of G per element instead of a
+            // complex division per parameter
+            let ginv = C64::new(1.0, 0.0) / el.g;
             for i in 0..np {
-                psi[i] = self.dresidual(el.g, el.dg(i)) * chain[i];
+                let d = el.dg(i);
+                psi[i] = match self.estimator {
+                    Estimator::Nls => -d,
+                    Estimator::Lls => -(d * ginv),
+                    Estimator::LlsMagnitude => C64::new(-(d * ginv).re, 0.0),
+                } * chain[i];
             }
             for i in 0..np {
                 let pr = psi[i];

@@ -501,39 +501,26 @@ pub fn regressor_derivatives(
     // Y itself, and the f64 joint transforms at q, shared by every pass below
     regressor_generic(robot, q, qd, qdd, ALL, &mut ws.kin, y);
     for i in 0..n {
-        ws.dual.rot[i] = ws.kin.rot[i].map(Dual64::from);
-        ws.dual.pos[i] = ws.kin.pos[i].map(Dual64::from);
         ws.q_dual[i] = Dual64::from(q[i]);
         ws.qd_dual[i] = Dual64::from(qd[i]);
         ws.qdd_dual[i] = Dual64::from(qdd[i]);
     }
     let mut yd = std::mem::take(&mut ws.y_dual);
-    // ∂/∂q_k (dual): only joint k's transform carries a derivative
-    for k in 0..n {
-        ws.q_dual[k].eps = 1.0;
-        let (r, pk) = joint_transform(robot, k, ws.q_dual[k]);
-        ws.dual.rot[k] = r;
-        ws.dual.pos[k] = pk;
-        regressor_inner(robot, &ws.q_dual, &ws.qd_dual, &ws.qdd_dual, ALL, false, &mut ws.dual, &mut yd);
-        ws.q_dual[k].eps = 0.0;
-        ws.dual.rot[k] = ws.kin.rot[k].map(Dual64::from);
-        ws.dual.pos[k] = ws.kin.pos[k].map(Dual64::from);
-        let o = &mut dq[k];
+    let (mut qv, mut qdv, mut qddv) = (
+        std::mem::take(&mut ws.q_dual),
+        std::mem::take(&mut ws.qd_dual),
+        std::mem::take(&mut ws.qdd_dual),
+    );
+    regressor_dual_directions(robot, &ws.kin, &mut ws.dual, [&mut qv, &mut qdv, &mut qddv], &mut yd, |which, k, yd| {
+        let o = if which == 0 { &mut dq[k] } else { &mut dqd[k] };
         debug_assert_eq!(o.len(), np);
         for (d, s) in o.iter_mut().zip(yd.iter()) {
             *d = s.eps;
         }
-    }
-    // ∂/∂q̇_k (dual): the transforms do not depend on q̇
-    for k in 0..n {
-        ws.qd_dual[k].eps = 1.0;
-        regressor_inner(robot, &ws.q_dual, &ws.qd_dual, &ws.qdd_dual, ALL, false, &mut ws.dual, &mut yd);
-        ws.qd_dual[k].eps = 0.0;
-        let o = &mut dqd[k];
-        for (d, s) in o.iter_mut().zip(yd.iter()) {
-            *d = s.eps;
-        }
-    }
+    });
+    ws.q_dual = qv;
+    ws.qd_dual = qdv;
+    ws.qdd_dual = qddv;
     ws.y_dual = yd;
     // ∂/∂q̈_k (f64): Y is affine in q̈, so ∂Y/∂q̈_k is the rigid regressor at
     // (q, 0, e_k) without gravity, plus the rotor-inertia column (C e_k)_j
@@ -563,6 +550,46 @@ pub fn regressor_derivatives(
     }
     ws.fd_tmp = e;
     ws.fd_zero = zero;
+}
+
+/// The dual-number regressor passes of ∂Y/∂q_k (`which` 0) and ∂Y/∂q̇_k
+/// (`which` 1), k = 0..n, calling `f(which, k, Y_dual)` after each (the
+/// derivative is in the `eps` parts). `kin` must hold the f64 joint
+/// transforms at q (any kernel at q fills them); they are shared by every
+/// pass: only joint k's transform carries a derivative in a q_k pass, none in
+/// a q̇ pass. `state` holds q, q̇, q̈ as duals with zero `eps` (restored on
+/// return). Equals 2n independent dual passes bit for bit.
+pub(crate) fn regressor_dual_directions(
+    robot: &Robot,
+    kin: &Kin<f64>,
+    dual: &mut Kin<Dual64>,
+    state: [&mut [Dual64]; 3],
+    yd: &mut [Dual64],
+    mut f: impl FnMut(usize, usize, &[Dual64]),
+) {
+    let n = robot.dof();
+    let [q, qd, qdd] = state;
+    for i in 0..n {
+        dual.rot[i] = kin.rot[i].map(Dual64::from);
+        dual.pos[i] = kin.pos[i].map(Dual64::from);
+    }
+    for k in 0..n {
+        q[k].eps = 1.0;
+        let (r, pk) = joint_transform(robot, k, q[k]);
+        dual.rot[k] = r;
+        dual.pos[k] = pk;
+        regressor_inner(robot, q, qd, qdd, ALL, false, dual, yd);
+        q[k].eps = 0.0;
+        dual.rot[k] = kin.rot[k].map(Dual64::from);
+        dual.pos[k] = kin.pos[k].map(Dual64::from);
+        f(0, k, yd);
+    }
+    for k in 0..n {
+        qd[k].eps = 1.0;
+        regressor_inner(robot, q, qd, qdd, ALL, false, dual, yd);
+        qd[k].eps = 0.0;
+        f(1, k, yd);
+    }
 }
 
 /// Derivatives of inverse dynamics (motor side) with parameters `theta`:
