@@ -182,11 +182,23 @@ impl BaseParams {
         }
         let w = random_stack(robot, opts.samples, opts.seed);
         let b = Self::from_stack_ordered(robot, &w, opts, &forced)?;
+        let no_effect: Vec<String> = forced.iter().filter(|c| b.unidentifiable.contains(c)).map(|&c| info[c].name.clone()).collect();
+        if !no_effect.is_empty() {
+            return Err(Error::invalid(
+                ctx,
+                "names",
+                format!(
+                    "{} {} no effect on the torques and cannot be a base column",
+                    no_effect.join(", "),
+                    if no_effect.len() == 1 { "has" } else { "have" }
+                ),
+            ));
+        }
         let dependent: Vec<String> = forced.iter().filter(|c| !b.independent.contains(c)).map(|&c| info[c].name.clone()).collect();
         if !dependent.is_empty() {
             return Err(Error::invalid(
                 ctx,
-                "",
+                "names",
                 format!(
                     "the named columns are not independent: {} {} a combination of the names before {} in the list (remove {} or name other columns)",
                     dependent.join(", "),
@@ -200,7 +212,7 @@ impl BaseParams {
             let extra: Vec<String> = b.independent.iter().filter(|c| !forced.contains(c)).map(|&c| info[c].name.clone()).collect();
             return Err(Error::invalid(
                 ctx,
-                "",
+                "names",
                 format!(
                     "the {} named columns do not span the regressor (rank {}): {} more needed, e.g. {}",
                     forced.len(),

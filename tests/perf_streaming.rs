@@ -183,6 +183,11 @@ fn base_columns_are_checked_and_the_dependent_ones_named() {
     // too few
     let e = BaseParams::with_columns(&r, &std_names[..40], &opts).unwrap_err().to_string();
     assert!(e.contains("8 more needed"), "{e}");
+    // no effect on the torques (link 1 moves about a vertical axis)
+    let mut nx = std_names.clone();
+    nx.push("MX1".into());
+    let e = BaseParams::with_columns(&r, &nx, &opts).unwrap_err().to_string();
+    assert!(e.contains("MX1") && e.contains("no effect"), "{e}");
     // unknown / repeated
     let e = BaseParams::with_columns(&r, &names(&["ZZ1", "QQ7"]), &opts).unwrap_err().to_string();
     assert!(e.contains("QQ7") && e.contains("allowed"), "{e}");
