@@ -439,7 +439,8 @@ fn solve_w(lin: &LinearModel, s: C64, w: &mut [C64], full: bool) -> bool {
             }
             am[i] = at(i, i);
             let scale = (s2 * lin.m[(i, i)]).norm() + (s * lin.d[(i, i)]).norm() + lin.k[(i, i)].abs();
-            if !(am[i].norm() > 1e-6 * scale) {
+            let ok = am[i].norm() > 1e-6 * scale; // false for NaN too
+            if !ok {
                 schur = false;
                 break;
             }

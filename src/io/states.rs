@@ -112,11 +112,7 @@ pub struct StateBlock {
 impl StateBlock {
     /// Number of rows in the block.
     pub fn len(&self, n: usize) -> usize {
-        if n == 0 {
-            0
-        } else {
-            self.q.len() / n
-        }
+        self.q.len().checked_div(n).unwrap_or(0)
     }
 }
 
