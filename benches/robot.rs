@@ -1,5 +1,6 @@
 //! Kernel benchmarks, single thread: RNEA calls, regressor rows (one n×p block
-//! per state), regressor derivatives, mass matrix, for a 6-axis (UR5, PUMA 560,
+//! per state), regressor derivatives, mass matrix (allocating and into a
+//! buffer), allocation-free forward dynamics, for a 6-axis (UR5, PUMA 560,
 //! the coupled-wrist industrial arm) and a 7-axis (iiwa 14, Panda) robot.
 //!
 //! Run: `cargo bench --bench robot`.
@@ -55,6 +56,25 @@ fn bench(c: &mut Criterion) {
                 let s = &st[k % st.len()];
                 k += 1;
                 black_box(robot::mass_matrix(&r, &mut ws, black_box(&s.0)));
+            })
+        });
+        let mut mm = nalgebra::DMatrix::zeros(n, n);
+        g.bench_function("mass_matrix_into", |b| {
+            b.iter(|| {
+                let s = &st[k % st.len()];
+                k += 1;
+                robot::mass_matrix_into(&r, &mut ws, black_box(&s.0), &mut mm);
+                black_box(&mm);
+            })
+        });
+        let mut qdd = vec![0.0; n];
+        g.bench_function("forward_dynamics_into", |b| {
+            b.iter(|| {
+                let s = &st[k % st.len()];
+                k += 1;
+                // s.2 as motor torques (N·m): any finite input will do
+                robot::forward_dynamics_into(&r, &mut ws, black_box(&s.0), black_box(&s.1), black_box(&s.2), &mut qdd).expect("fd");
+                black_box(&qdd);
             })
         });
         let mut dq = vec![vec![0.0; n * p]; n];

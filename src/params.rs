@@ -19,6 +19,7 @@
 //! [`info`]: the robot summary and the torque/regressor tables of `idexp robot`.
 
 pub mod info;
+pub mod stream;
 
 use crate::error::{Error, Result};
 use crate::robot::{regressor_rows, ParamKind, Robot, Workspace};
@@ -138,9 +139,101 @@ impl BaseParams {
         Self::from_stack(robot, &w, opts)
     }
 
+    /// Base parameters whose independent columns are exactly the standard
+    /// parameters `names` (e.g. a paper's or another tool's base set,
+    /// `["ZZ1", "XX2", ...]`): each name must be a parameter of the robot,
+    /// none may be a combination of the others (the error names the
+    /// dependent ones), and together they must span the regressor (the error
+    /// says how many are missing and which columns would complete the set).
+    /// The other columns regroup onto them as in [`BaseParams::compute`].
+    pub fn with_columns(robot: &Robot, names: &[String], opts: &BaseOptions) -> Result<BaseParams> {
+        let info = robot.params();
+        let ctx = "base_columns";
+        let mut forced = Vec::with_capacity(names.len());
+        for (i, nm) in names.iter().enumerate() {
+            let c = info.iter().position(|pi| pi.name == *nm).ok_or_else(|| {
+                let all: Vec<&str> = info.iter().map(|pi| pi.name.as_str()).collect();
+                Error::invalid(
+                    ctx,
+                    format!("[{i}]"),
+                    format!("`{nm}` is not a parameter of robot `{}`; allowed: {}", robot.name, all.join(", ")),
+                )
+            })?;
+            if forced.contains(&c) {
+                return Err(Error::invalid(ctx, format!("[{i}]"), format!("`{nm}` is named twice")));
+            }
+            if opts.inertial_only && !info[c].kind.is_inertial() {
+                return Err(Error::invalid(
+                    ctx,
+                    format!("[{i}]"),
+                    format!("`{nm}` is a drive parameter, but the columns are inertial only"),
+                ));
+            }
+            forced.push(c);
+        }
+        let p = robot.n_params();
+        let min_samples = p.div_ceil(robot.dof()) + 1;
+        if opts.samples < min_samples {
+            return Err(Error::invalid(
+                "base parameters",
+                "samples",
+                format!("expected at least {min_samples} states for {p} parameters"),
+            ));
+        }
+        let w = random_stack(robot, opts.samples, opts.seed);
+        let b = Self::from_stack_ordered(robot, &w, opts, &forced)?;
+        let no_effect: Vec<String> = forced.iter().filter(|c| b.unidentifiable.contains(c)).map(|&c| info[c].name.clone()).collect();
+        if !no_effect.is_empty() {
+            return Err(Error::invalid(
+                ctx,
+                "names",
+                format!(
+                    "{} {} no effect on the torques and cannot be a base column",
+                    no_effect.join(", "),
+                    if no_effect.len() == 1 { "has" } else { "have" }
+                ),
+            ));
+        }
+        let dependent: Vec<String> = forced.iter().filter(|c| !b.independent.contains(c)).map(|&c| info[c].name.clone()).collect();
+        if !dependent.is_empty() {
+            return Err(Error::invalid(
+                ctx,
+                "names",
+                format!(
+                    "the named columns are not independent: {} {} a combination of the names before {} in the list (remove {} or name other columns)",
+                    dependent.join(", "),
+                    if dependent.len() == 1 { "is" } else { "are" },
+                    if dependent.len() == 1 { "it" } else { "them" },
+                    if dependent.len() == 1 { "it" } else { "them" }
+                ),
+            ));
+        }
+        if b.n_base() > forced.len() {
+            let extra: Vec<String> = b.independent.iter().filter(|c| !forced.contains(c)).map(|&c| info[c].name.clone()).collect();
+            return Err(Error::invalid(
+                ctx,
+                "names",
+                format!(
+                    "the {} named columns do not span the regressor (rank {}): {} more needed, e.g. {}",
+                    forced.len(),
+                    b.n_base(),
+                    extra.len(),
+                    extra.join(", ")
+                ),
+            ));
+        }
+        Ok(b)
+    }
+
     /// Computes the base parameters from a given stacked regressor W (rows × p),
     /// e.g. the regressor of a particular trajectory.
     pub fn from_stack(robot: &Robot, w: &DMatrix<f64>, opts: &BaseOptions) -> Result<BaseParams> {
+        Self::from_stack_ordered(robot, w, opts, &[])
+    }
+
+    /// [`BaseParams::from_stack`] trying the columns `first` before the
+    /// preferred order.
+    fn from_stack_ordered(robot: &Robot, w: &DMatrix<f64>, opts: &BaseOptions, first: &[usize]) -> Result<BaseParams> {
         let p = robot.n_params();
         if w.ncols() != p {
             return Err(Error::dim("stacked regressor columns", p, w.ncols()));
@@ -151,6 +244,10 @@ impl BaseParams {
         let scale = norms.iter().cloned().fold(0.0, f64::max);
         let mut order: Vec<usize> = considered.clone();
         order.sort_by_key(|&c| (priority(info[c].kind), c));
+        if !first.is_empty() {
+            order.retain(|c| !first.contains(c));
+            order.splice(0..0, first.iter().copied());
+        }
         // greedy modified Gram–Schmidt with re-orthogonalisation
         let rows = w.nrows();
         let mut basis: Vec<DVector<f64>> = Vec::new();

@@ -141,6 +141,9 @@ pub struct ObjectiveSpec {
     pub sample_rate: f64,
     /// Torque noise std per joint (N·m); default 1 for every joint.
     pub noise: Option<Vec<f64>>,
+    /// Fix the base columns by name (`["ZZ1", "XX2", ...]`) instead of idexp's choice.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub base_columns: Option<Vec<String>>,
 }
 
 impl Default for ObjectiveSpec {
@@ -151,6 +154,7 @@ impl Default for ObjectiveSpec {
             columns: Columns::Base,
             sample_rate: 10.0,
             noise: None,
+            base_columns: None,
         }
     }
 }

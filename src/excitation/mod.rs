@@ -214,7 +214,10 @@ impl Problem {
             inertial_only: design.objective.columns == Columns::Inertial,
             ..BaseOptions::default()
         };
-        let base = BaseParams::compute(&robot, &opts)?;
+        let base = match &design.objective.base_columns {
+            Some(names) => BaseParams::with_columns(&robot, names, &opts).map_err(|e| crate::Error::invalid(ctx, "objective.base_columns", e.to_string()))?,
+            None => BaseParams::compute(&robot, &opts)?,
+        };
         let theta = robot.nominal_params();
         let nominal_base: Vec<f64> = base.base_values(theta.as_slice()).iter().copied().collect();
         let l = &design.limits;

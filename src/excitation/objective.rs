@@ -50,7 +50,8 @@
 
 use super::grid::TrigGrid;
 use crate::error::{Error, Result};
-use crate::robot::dynamics::{regressor_generic, Terms};
+use crate::robot::dynamics::{regressor_dual_directions, regressor_generic, Terms};
+use crate::robot::kinematics::joint_transforms;
 use crate::robot::kinematics::Kin;
 use crate::robot::{regressor_rows, Robot, Workspace};
 use crate::trajectory::{Basis, FourierLayout, FourierTrajectory};
@@ -636,26 +637,32 @@ impl Objective {
         let p = self.robot.n_params();
         let [q, qd, qdd] = state;
         let hrow = |r: usize, j: usize| h[j * rows + i * n + r] * self.row_weight[r];
-        let all = Terms { gravity: true, drive: true };
         let no_grav = Terms { gravity: false, drive: true };
-        // ∂/∂q_k and ∂/∂q̇_k with duals
-        for which in 0..2 {
-            for k in 0..n {
-                for a in 0..n {
-                    b.q_[a] = Dual64::new(q[a], if which == 0 && a == k { 1.0 } else { 0.0 });
-                    b.qd_[a] = Dual64::new(qd[a], if which == 1 && a == k { 1.0 } else { 0.0 });
-                    b.qdd_[a] = Dual64::from(qdd[a]);
-                }
-                regressor_generic(&self.robot, &b.q_, &b.qd_, &b.qdd_, all, &mut b.dual, &mut b.yd);
+        // ∂/∂q_k and ∂/∂q̇_k with duals, sharing the joint transforms at q
+        // (filled into b.kin by the f64 pass)
+        joint_transforms(&self.robot, q, &mut b.kin);
+        for a in 0..n {
+            b.q_[a] = Dual64::from(q[a]);
+            b.qd_[a] = Dual64::from(qd[a]);
+            b.qdd_[a] = Dual64::from(qdd[a]);
+        }
+        let columns = &self.columns;
+        regressor_dual_directions(
+            &self.robot,
+            &b.kin,
+            &mut b.dual,
+            [&mut b.q_, &mut b.qd_, &mut b.qdd_],
+            &mut b.yd,
+            |which, k, yd| {
                 let mut acc = 0.0;
                 for r in 0..n {
-                    for (j, &c) in self.columns.iter().enumerate() {
-                        acc += hrow(r, j) * b.yd[r * p + c].eps;
+                    for (j, &c) in columns.iter().enumerate() {
+                        acc += hrow(r, j) * yd[r * p + c].eps;
                     }
                 }
                 g[which * n + k] = acc;
-            }
-        }
+            },
+        );
         // ∂/∂q̈_k: Y(q,0,e_k) − Y(q,0,0) without gravity (Y is affine in q̈)
         let zeros = vec![0.0; n];
         let mut e = vec![0.0; n];

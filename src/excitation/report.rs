@@ -73,51 +73,152 @@ pub struct Identifiability {
 /// `noise`: σ_j per joint (N·m).
 pub fn assess(robot: &Robot, base: &BaseParams, states: &States, noise: &[f64]) -> Result<Identifiability> {
     let n = robot.dof();
-    let p = robot.n_params();
-    if noise.len() != n {
-        return Err(Error::dim("noise levels (one per joint)", n, noise.len()));
-    }
-    let m = base.n_base();
-    let ns = states.len();
-    if ns * n < m {
-        return Err(Error::invalid(
-            "assess",
-            "states",
-            format!("{ns} samples × {n} joints cannot determine {m} base parameters"),
-        ));
-    }
-    let mut ws = Workspace::new(robot);
-    let mut y = vec![0.0; n * p];
-    let mut c = DMatrix::<f64>::zeros(ns * n, m);
-    let mut qd = vec![0.0; n];
-    for i in 0..ns {
+    let mut acc = AssessAccumulator::new(robot, base, noise)?;
+    for i in 0..states.len() {
         for (what, v) in [("q", &states.q[i]), ("qd", &states.qd[i]), ("qdd", &states.qdd[i])] {
             if v.len() != n {
                 return Err(Error::dim(format!("{what} of sample {i}"), n, v.len()));
             }
         }
-        qd.copy_from_slice(&states.qd[i]);
-        for v in qd.iter_mut() {
+        acc.add(&states.q[i], &states.qd[i], &states.qdd[i]);
+    }
+    acc.finish()
+}
+
+/// [`assess`] of a states CSV read block by block ([`read_states`]'s format
+/// and checks, every `every`-th row): memory independent of the file length.
+pub fn assess_file(robot: &Robot, base: &BaseParams, path: &Path, every: usize, noise: &[f64]) -> Result<Identifiability> {
+    let n = robot.dof();
+    let mut rdr = crate::io::states::StatesReader::open(path, n)?;
+    let mut acc = AssessAccumulator::new(robot, base, noise)?;
+    let mut block = crate::io::states::StateBlock::default();
+    while rdr.next_block(4096, every, &mut block)? > 0 {
+        for i in 0..block.len(n) {
+            let r = i * n..(i + 1) * n;
+            acc.add(&block.q[r.clone()], &block.qd[r.clone()], &block.qdd[r]);
+        }
+    }
+    if acc.samples == 0 {
+        return Err(Error::Data {
+            path: path.to_path_buf(),
+            row: 0,
+            column: "q1".into(),
+            msg: "the file has no data rows".into(),
+        });
+    }
+    acc.finish()
+}
+
+/// Rows of the weighted base regressor per QR update of the accumulator.
+const ASSESS_BLOCK: usize = 1024;
+
+/// Incremental [`assess`]: the weighted base regressor C_w (rows C/σ_j) is
+/// never stored; its triangular QR factor R (C_w = Q R, m×m) is updated block
+/// by block, and R has C_w's singular values, right singular vectors and
+/// column norms.
+struct AssessAccumulator<'a> {
+    robot: &'a Robot,
+    base: &'a BaseParams,
+    noise: Vec<f64>,
+    ws: Workspace,
+    y: Vec<f64>,
+    qd: Vec<f64>,
+    /// Pending rows (row-major, m each) of C_w.
+    rows: Vec<f64>,
+    r: Option<DMatrix<f64>>,
+    abs_sum: Vec<f64>,
+    samples: usize,
+}
+
+impl<'a> AssessAccumulator<'a> {
+    fn new(robot: &'a Robot, base: &'a BaseParams, noise: &[f64]) -> Result<Self> {
+        let n = robot.dof();
+        if noise.len() != n {
+            return Err(Error::dim("noise levels (one per joint)", n, noise.len()));
+        }
+        let m = base.n_base();
+        Ok(AssessAccumulator {
+            robot,
+            base,
+            noise: noise.to_vec(),
+            ws: Workspace::new(robot),
+            y: vec![0.0; n * robot.n_params()],
+            qd: vec![0.0; n],
+            rows: Vec::with_capacity((ASSESS_BLOCK + n) * m),
+            r: None,
+            abs_sum: vec![0.0; m],
+            samples: 0,
+        })
+    }
+
+    fn add(&mut self, q: &[f64], qd: &[f64], qdd: &[f64]) {
+        let n = self.robot.dof();
+        let p = self.robot.n_params();
+        self.qd.copy_from_slice(qd);
+        for v in self.qd.iter_mut() {
             if v.abs() < super::objective::ZERO_VELOCITY {
                 *v = 0.0;
             }
         }
-        regressor_rows(robot, &mut ws, &states.q[i], &qd, &states.qdd[i], &mut y);
+        regressor_rows(self.robot, &mut self.ws, q, &self.qd, qdd, &mut self.y);
         for r in 0..n {
-            for (j, &col) in base.independent.iter().enumerate() {
-                c[(i * n + r, j)] = y[r * p + col];
+            for (j, &col) in self.base.independent.iter().enumerate() {
+                let c = self.y[r * p + col];
+                self.abs_sum[j] += c.abs();
+                self.rows.push(c / self.noise[r]);
             }
         }
+        self.samples += 1;
+        if self.rows.len() >= ASSESS_BLOCK * self.base.n_base() {
+            self.flush();
+        }
     }
-    let sensitivity: Vec<f64> = (0..m).map(|j| c.column(j).iter().map(|v| v.abs()).sum::<f64>() / (ns * n) as f64).collect();
-    let mut cw = c.clone();
-    for i in 0..ns {
-        for r in 0..n {
+
+    /// R ← triangular factor of [R; pending rows].
+    fn flush(&mut self) {
+        let m = self.base.n_base();
+        let nr = self.rows.len() / m;
+        if nr == 0 {
+            return;
+        }
+        let prev = self.r.as_ref().map(|r| r.nrows()).unwrap_or(0);
+        let mut a = DMatrix::zeros(prev + nr, m);
+        if let Some(r) = &self.r {
+            a.view_mut((0, 0), (prev, m)).copy_from(r);
+        }
+        for i in 0..nr {
             for j in 0..m {
-                cw[(i * n + r, j)] /= noise[r];
+                a[(prev + i, j)] = self.rows[i * m + j];
             }
         }
+        self.rows.clear();
+        let r = if a.nrows() >= m { a.qr().r() } else { a };
+        self.r = Some(r);
     }
+
+    fn finish(mut self) -> Result<Identifiability> {
+        let n = self.robot.dof();
+        let m = self.base.n_base();
+        let ns = self.samples;
+        if ns * n < m {
+            return Err(Error::invalid(
+                "assess",
+                "states",
+                format!("{ns} samples × {n} joints cannot determine {m} base parameters"),
+            ));
+        }
+        self.flush();
+        let cw = self.r.take().unwrap_or_else(|| DMatrix::zeros(m, m));
+        let sensitivity: Vec<f64> = self.abs_sum.iter().map(|s| s / (ns * n) as f64).collect();
+        identifiability_from_factor(self.robot, self.base, &self.noise, cw, sensitivity, ns)
+    }
+}
+
+/// The report from a matrix with the weighted base regressor's singular
+/// values, right singular vectors and column norms (its QR factor R).
+fn identifiability_from_factor(robot: &Robot, base: &BaseParams, noise: &[f64], cw: DMatrix<f64>, sensitivity: Vec<f64>, ns: usize) -> Result<Identifiability> {
+    let n = robot.dof();
+    let m = base.n_base();
     let norms: Vec<f64> = (0..m).map(|j| cw.column(j).norm()).collect();
     let maxn = norms.iter().cloned().fold(0.0, f64::max);
     let mut cn = cw.clone();

@@ -376,21 +376,48 @@ impl FitProblem {
         let mut h: DMatrix<f64> = DMatrix::zeros(np, np);
         let chain: Vec<f64> = (0..np).map(|i| if in_z { self.dtheta_dz(theta, i) } else { 1.0 }).collect();
         let mut psi = vec![C64::new(0.0, 0.0); np];
+        // H = Σ w Re(ψ̄ψᵀ) = JᵀJ with two rows √w·Re ψ, √w·Im ψ per element,
+        // accumulated block by block as one matrix product (instead of a
+        // scalar rank-one update per element, two thirds of the time)
+        const BLOCK: usize = 2048;
+        let mut rows: Vec<f64> = Vec::with_capacity(BLOCK * np);
+        let flush = |rows: &mut Vec<f64>, h: &mut DMatrix<f64>| {
+            let nr = rows.len() / np;
+            if nr > 0 {
+                let jt = nalgebra::DMatrixView::from_slice(rows, np, nr);
+                h.gemm(1.0, &jt, &jt.transpose(), 1.0);
+                rows.clear();
+            }
+        };
         self.for_each_weighted(theta, true, |el| {
             let ww = el.w;
             let e = self.residual(el.ghat(), el.g);
             v += ww * e.norm_sqr();
+            // ∂E/∂θ_i with one reciprocal of G per element instead of a
+            // complex division per parameter
+            let ginv = C64::new(1.0, 0.0) / el.g;
             for i in 0..np {
-                psi[i] = self.dresidual(el.g, el.dg(i)) * chain[i];
+                let d = el.dg(i);
+                psi[i] = match self.estimator {
+                    Estimator::Nls => -d,
+                    Estimator::Lls => -(d * ginv),
+                    Estimator::LlsMagnitude => C64::new(-(d * ginv).re, 0.0),
+                } * chain[i];
             }
             for i in 0..np {
                 let pr = psi[i];
                 grad[i] += ww * (pr.re * e.re + pr.im * e.im);
-                for j in i..np {
-                    h[(i, j)] += ww * (pr.re * psi[j].re + pr.im * psi[j].im);
-                }
+            }
+            let sw = ww.sqrt();
+            rows.extend(psi.iter().map(|p| sw * p.re));
+            if psi.iter().any(|p| p.im != 0.0) {
+                rows.extend(psi.iter().map(|p| sw * p.im));
+            }
+            if rows.len() >= BLOCK * np {
+                flush(&mut rows, &mut h);
             }
         })?;
+        flush(&mut rows, &mut h);
         h.fill_lower_triangle_with_upper_triangle();
         if !v.is_finite() || grad.iter().any(|x| !x.is_finite()) {
             return Err(Error::Numerical("non-finite cost or gradient".into()));

@@ -20,7 +20,7 @@
 //! (Khalil–Gautier parameters XX…ZZ about the origin, first moments MX, MY, MZ,
 //! mass M). Gravity enters as a base acceleration −g.
 
-use super::kinematics::{joint_transforms, lift3, Kin, Real};
+use super::kinematics::{joint_transform, joint_transforms, lift3, Kin, Real};
 use super::model::{Friction, Inertial, Robot};
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Vector3};
 use num_dual::Dual64;
@@ -41,6 +41,16 @@ pub struct Workspace {
     /// inertials of θ); the nominal kernels read `robot.links` instead.
     theta_inertials: Vec<Inertial>,
     ic: Vec<Matrix6<f64>>,
+    /// Motion transforms parent → child of the CRBA.
+    xs: Vec<Matrix6<f64>>,
+    /// Mass matrix / Cholesky factor of forward dynamics.
+    fd_m: DMatrix<f64>,
+    /// Right-hand side and scratch of forward dynamics.
+    fd_rhs: Vec<f64>,
+    fd_tmp: Vec<f64>,
+    fd_zero: Vec<f64>,
+    /// Stages of [`rk4_step`]: a1..a4, q2..q4, v2..v4.
+    rk: [Vec<f64>; 10],
 }
 
 impl Workspace {
@@ -59,6 +69,12 @@ impl Workspace {
             y: vec![0.0; n * p],
             theta_inertials: robot.links.iter().map(|l| l.inertial).collect(),
             ic: vec![Matrix6::zeros(); n],
+            xs: vec![Matrix6::zeros(); n],
+            fd_m: DMatrix::zeros(n, n),
+            fd_rhs: vec![0.0; n],
+            fd_tmp: vec![0.0; n],
+            fd_zero: vec![0.0; n],
+            rk: std::array::from_fn(|_| vec![0.0; n]),
         }
     }
 }
@@ -75,6 +91,11 @@ const ALL: Terms = Terms { gravity: true, drive: true };
 /// Forward pass: link velocities and accelerations.
 fn forward_pass<T: Real>(robot: &Robot, q: &[T], qd: &[T], qdd: &[T], gravity: bool, kin: &mut Kin<T>) {
     joint_transforms(robot, q, kin);
+    forward_pass_given_transforms(robot, qd, qdd, gravity, kin);
+}
+
+/// [`forward_pass`] with `kin.rot`, `kin.pos` already set.
+fn forward_pass_given_transforms<T: Real>(robot: &Robot, qd: &[T], qdd: &[T], gravity: bool, kin: &mut Kin<T>) {
     let g = if gravity { -lift3::<T>(&robot.gravity) } else { Vector3::zeros() };
     for i in 0..robot.dof() {
         let rt = kin.rot[i].transpose();
@@ -299,8 +320,12 @@ pub fn friction_torque(f: &Friction, w: f64) -> f64 {
 
 /// Rigid-body regressor (link side, inertial columns only) into the row-major
 /// n×p buffer `y` (drive columns left untouched), generic scalar.
-fn rigid_regressor<T: Real>(robot: &Robot, q: &[T], qd: &[T], qdd: &[T], gravity: bool, kin: &mut Kin<T>, y: &mut [T]) {
-    forward_pass(robot, q, qd, qdd, gravity, kin);
+#[allow(clippy::too_many_arguments)] // kernel: robot, state (q, q̇, q̈), flags, buffers, output
+fn rigid_regressor<T: Real>(robot: &Robot, q: &[T], qd: &[T], qdd: &[T], gravity: bool, transforms: bool, kin: &mut Kin<T>, y: &mut [T]) {
+    if transforms {
+        joint_transforms(robot, q, kin);
+    }
+    forward_pass_given_transforms(robot, qd, qdd, gravity, kin);
     let n = robot.dof();
     let p = robot.n_params();
     for j in 0..n {
@@ -357,12 +382,19 @@ fn rigid_regressor<T: Real>(robot: &Robot, q: &[T], qd: &[T], qdd: &[T], gravity
 
 /// Full regressor (motor side, coupling and drive columns) into row-major `y` (n×p).
 pub(crate) fn regressor_generic<T: Real>(robot: &Robot, q: &[T], qd: &[T], qdd: &[T], terms: Terms, kin: &mut Kin<T>, y: &mut [T]) {
+    regressor_inner(robot, q, qd, qdd, terms, true, kin, y);
+}
+
+/// [`regressor_generic`]; with `transforms` false, `kin.rot` and `kin.pos`
+/// must already hold the joint transforms at `q` (`q` is then not read).
+#[allow(clippy::too_many_arguments)] // kernel: robot, state (q, q̇, q̈), flags, buffers, output
+fn regressor_inner<T: Real>(robot: &Robot, q: &[T], qd: &[T], qdd: &[T], terms: Terms, transforms: bool, kin: &mut Kin<T>, y: &mut [T]) {
     let n = robot.dof();
     let p = robot.n_params();
     for v in y.iter_mut() {
         *v = T::zero();
     }
-    rigid_regressor(robot, q, qd, qdd, terms.gravity, kin, y);
+    rigid_regressor(robot, q, qd, qdd, terms.gravity, transforms, kin, y);
     if robot.coupling.is_some() {
         // rows ← C⁻ᵀ rows, column by column of inertial parameters
         let mut col = std::mem::take(&mut kin.s1);
@@ -464,26 +496,100 @@ pub fn regressor_derivatives(
 ) {
     check_state(robot, q, qd, qdd);
     let n = robot.dof();
-    let np = n * robot.n_params();
+    let p = robot.n_params();
+    let np = n * p;
+    // Y itself, and the f64 joint transforms at q, shared by every pass below
     regressor_generic(robot, q, qd, qdd, ALL, &mut ws.kin, y);
+    for i in 0..n {
+        ws.q_dual[i] = Dual64::from(q[i]);
+        ws.qd_dual[i] = Dual64::from(qd[i]);
+        ws.qdd_dual[i] = Dual64::from(qdd[i]);
+    }
     let mut yd = std::mem::take(&mut ws.y_dual);
-    for (which, outs) in [(0usize, dq), (1, dqd), (2, dqdd)] {
-        for k in 0..n {
-            for i in 0..n {
-                let seed = |x: f64, on: bool| Dual64::new(x, if on { 1.0 } else { 0.0 });
-                ws.q_dual[i] = seed(q[i], which == 0 && i == k);
-                ws.qd_dual[i] = seed(qd[i], which == 1 && i == k);
-                ws.qdd_dual[i] = seed(qdd[i], which == 2 && i == k);
-            }
-            regressor_generic(robot, &ws.q_dual, &ws.qd_dual, &ws.qdd_dual, ALL, &mut ws.dual, &mut yd);
-            let o = &mut outs[k];
-            debug_assert_eq!(o.len(), np);
-            for (d, s) in o.iter_mut().zip(yd.iter()) {
-                *d = s.eps;
+    let (mut qv, mut qdv, mut qddv) = (
+        std::mem::take(&mut ws.q_dual),
+        std::mem::take(&mut ws.qd_dual),
+        std::mem::take(&mut ws.qdd_dual),
+    );
+    regressor_dual_directions(robot, &ws.kin, &mut ws.dual, [&mut qv, &mut qdv, &mut qddv], &mut yd, |which, k, yd| {
+        let o = if which == 0 { &mut dq[k] } else { &mut dqd[k] };
+        debug_assert_eq!(o.len(), np);
+        for (d, s) in o.iter_mut().zip(yd.iter()) {
+            *d = s.eps;
+        }
+    });
+    ws.q_dual = qv;
+    ws.qd_dual = qdv;
+    ws.qdd_dual = qddv;
+    ws.y_dual = yd;
+    // ∂/∂q̈_k (f64): Y is affine in q̈, so ∂Y/∂q̈_k is the rigid regressor at
+    // (q, 0, e_k) without gravity, plus the rotor-inertia column (C e_k)_j
+    // (the friction columns do not depend on q̈)
+    let mut e = std::mem::take(&mut ws.fd_tmp);
+    let zero = std::mem::take(&mut ws.fd_zero);
+    let no_grav = Terms { gravity: false, drive: false };
+    for k in 0..n {
+        e.iter_mut().for_each(|v| *v = 0.0);
+        e[k] = 1.0;
+        let o = &mut dqdd[k];
+        regressor_inner(robot, q, &zero, &e, no_grav, false, &mut ws.kin, o);
+        for j in 0..n {
+            if robot.drives[j].rotor_inertia.is_some() {
+                let cjk = if robot.coupling.is_none() {
+                    if j == k {
+                        1.0
+                    } else {
+                        0.0
+                    }
+                } else {
+                    robot.c_sparse.iter().filter(|(r, c, _)| *r == j && *c == k).map(|t| t.2).sum()
+                };
+                o[j * p + robot.drive_param_offset(j)] = cjk;
             }
         }
     }
-    ws.y_dual = yd;
+    ws.fd_tmp = e;
+    ws.fd_zero = zero;
+}
+
+/// The dual-number regressor passes of ∂Y/∂q_k (`which` 0) and ∂Y/∂q̇_k
+/// (`which` 1), k = 0..n, calling `f(which, k, Y_dual)` after each (the
+/// derivative is in the `eps` parts). `kin` must hold the f64 joint
+/// transforms at q (any kernel at q fills them); they are shared by every
+/// pass: only joint k's transform carries a derivative in a q_k pass, none in
+/// a q̇ pass. `state` holds q, q̇, q̈ as duals with zero `eps` (restored on
+/// return). Equals 2n independent dual passes bit for bit.
+pub(crate) fn regressor_dual_directions(
+    robot: &Robot,
+    kin: &Kin<f64>,
+    dual: &mut Kin<Dual64>,
+    state: [&mut [Dual64]; 3],
+    yd: &mut [Dual64],
+    mut f: impl FnMut(usize, usize, &[Dual64]),
+) {
+    let n = robot.dof();
+    let [q, qd, qdd] = state;
+    for i in 0..n {
+        dual.rot[i] = kin.rot[i].map(Dual64::from);
+        dual.pos[i] = kin.pos[i].map(Dual64::from);
+    }
+    for k in 0..n {
+        q[k].eps = 1.0;
+        let (r, pk) = joint_transform(robot, k, q[k]);
+        dual.rot[k] = r;
+        dual.pos[k] = pk;
+        regressor_inner(robot, q, qd, qdd, ALL, false, dual, yd);
+        q[k].eps = 0.0;
+        dual.rot[k] = kin.rot[k].map(Dual64::from);
+        dual.pos[k] = kin.pos[k].map(Dual64::from);
+        f(0, k, yd);
+    }
+    for k in 0..n {
+        qd[k].eps = 1.0;
+        regressor_inner(robot, q, qd, qdd, ALL, false, dual, yd);
+        qd[k].eps = 0.0;
+        f(1, k, yd);
+    }
 }
 
 /// Derivatives of inverse dynamics (motor side) with parameters `theta`:
@@ -534,62 +640,102 @@ fn motion_x(r: &Matrix3<f64>, p: &Vector3<f64>) -> Matrix6<f64> {
     x
 }
 
-/// Link-side mass matrix for parameters `theta`: M_rb(q) + Cᵀ diag(Ia) C
-/// (n×n, symmetric, positive definite for physical parameters). Composite
-/// rigid-body algorithm.
-pub fn mass_matrix_with(robot: &Robot, ws: &mut Workspace, theta: &[f64], q: &[f64]) -> DMatrix<f64> {
+/// Composite rigid-body algorithm into `m` (n×n, overwritten): M_rb(q) for
+/// the inertials `inert` plus Cᵀ diag(Ia) C for the rotor inertias `ia(j)`.
+/// Allocation-free (buffers in `ws`).
+fn crba_into(robot: &Robot, ws: &mut Workspace, inert: Inertials<'_>, ia: impl Fn(usize) -> Option<f64>, q: &[f64], m: &mut DMatrix<f64>) {
     let n = robot.dof();
-    assert_eq!(theta.len(), robot.n_params(), "parameter vector length");
-    assert_eq!(q.len(), n, "q length");
+    assert!(m.nrows() == n && m.ncols() == n, "mass matrix output must be n×n");
     joint_transforms(robot, q, &mut ws.kin);
     for i in 0..n {
-        let o = robot.link_param_offset(i);
-        ws.ic[i] = spatial_inertia(&Inertial::from_params(&theta[o..o + 10]));
+        let ine = match inert {
+            Inertials::Nominal => &robot.links[i].inertial,
+            Inertials::Of(v) => &v[i],
+        };
+        ws.ic[i] = spatial_inertia(ine);
+        ws.xs[i] = motion_x(&ws.kin.rot[i], &ws.kin.pos[i]);
     }
-    let xs: Vec<Matrix6<f64>> = (0..n).map(|i| motion_x(&ws.kin.rot[i], &ws.kin.pos[i])).collect();
     for i in (0..n).rev() {
         if let Some(p) = robot.joints[i].parent {
-            let add = xs[i].transpose() * ws.ic[i] * xs[i];
+            let add = ws.xs[i].transpose() * ws.ic[i] * ws.xs[i];
             ws.ic[p] += add;
         }
     }
-    let s: Vec<nalgebra::Vector6<f64>> = (0..n)
-        .map(|i| {
-            let (a, l) = (robot.s_ang[i], robot.s_lin[i]);
-            nalgebra::Vector6::new(a.x, a.y, a.z, l.x, l.y, l.z)
-        })
-        .collect();
-    let mut m = DMatrix::zeros(n, n);
+    let s = |i: usize| {
+        let (a, l) = (robot.s_ang[i], robot.s_lin[i]);
+        nalgebra::Vector6::new(a.x, a.y, a.z, l.x, l.y, l.z)
+    };
+    m.fill(0.0);
     for i in 0..n {
-        let mut f = ws.ic[i] * s[i];
-        m[(i, i)] = s[i].dot(&f);
+        let mut f = ws.ic[i] * s(i);
+        m[(i, i)] = s(i).dot(&f);
         let mut j = i;
         while let Some(p) = robot.joints[j].parent {
-            f = xs[j].transpose() * f;
+            f = ws.xs[j].transpose() * f;
             j = p;
-            m[(i, j)] = s[j].dot(&f);
+            m[(i, j)] = s(j).dot(&f);
             m[(j, i)] = m[(i, j)];
         }
     }
     // rotor inertias: Cᵀ diag(Ia) C
-    let c = robot.coupling_matrix();
-    for j in 0..n {
-        if robot.drives[j].rotor_inertia.is_some() {
-            let ia = theta[robot.drive_param_offset(j)];
-            for a in 0..n {
-                for b in 0..n {
-                    m[(a, b)] += c[(j, a)] * ia * c[(j, b)];
+    if robot.coupling.is_none() {
+        for j in 0..n {
+            if let Some(v) = ia(j) {
+                m[(j, j)] += v;
+            }
+        }
+    } else {
+        for &(j, a, ca) in &robot.c_sparse {
+            if let Some(v) = ia(j) {
+                for &(jj, b, cb) in &robot.c_sparse {
+                    if jj == j {
+                        m[(a, b)] += ca * v * cb;
+                    }
                 }
             }
         }
     }
+}
+
+/// Link-side mass matrix for parameters `theta` into `out` (n×n):
+/// M_rb(q) + Cᵀ diag(Ia) C. Allocation-free.
+pub fn mass_matrix_with_into(robot: &Robot, ws: &mut Workspace, theta: &[f64], q: &[f64], out: &mut DMatrix<f64>) {
+    let n = robot.dof();
+    assert_eq!(theta.len(), robot.n_params(), "parameter vector length");
+    assert_eq!(q.len(), n, "q length");
+    let mut inert = std::mem::take(&mut ws.theta_inertials);
+    for (i, slot) in inert.iter_mut().enumerate().take(n) {
+        let o = robot.link_param_offset(i);
+        *slot = Inertial::from_params(&theta[o..o + 10]);
+    }
+    let ia = |j: usize| robot.drives[j].rotor_inertia.map(|_| theta[robot.drive_param_offset(j)]);
+    crba_into(robot, ws, Inertials::Of(&inert), ia, q, out);
+    ws.theta_inertials = inert;
+}
+
+/// Link-side mass matrix with the nominal parameters into `out` (n×n).
+/// Allocation-free.
+pub fn mass_matrix_into(robot: &Robot, ws: &mut Workspace, q: &[f64], out: &mut DMatrix<f64>) {
+    assert_eq!(q.len(), robot.dof(), "q length");
+    crba_into(robot, ws, Inertials::Nominal, |j| robot.drives[j].rotor_inertia, q, out);
+}
+
+/// Link-side mass matrix for parameters `theta`: M_rb(q) + Cᵀ diag(Ia) C
+/// (n×n, symmetric, positive definite for physical parameters). Composite
+/// rigid-body algorithm ([`mass_matrix_with_into`] without the output buffer).
+pub fn mass_matrix_with(robot: &Robot, ws: &mut Workspace, theta: &[f64], q: &[f64]) -> DMatrix<f64> {
+    let n = robot.dof();
+    let mut m = DMatrix::zeros(n, n);
+    mass_matrix_with_into(robot, ws, theta, q, &mut m);
     m
 }
 
 /// Link-side mass matrix with the nominal parameters.
 pub fn mass_matrix(robot: &Robot, ws: &mut Workspace, q: &[f64]) -> DMatrix<f64> {
-    let theta = robot.nominal_params();
-    mass_matrix_with(robot, ws, theta.as_slice(), q)
+    let n = robot.dof();
+    let mut m = DMatrix::zeros(n, n);
+    mass_matrix_into(robot, ws, q, &mut m);
+    m
 }
 
 /// ∂τ/∂q̈ of the motor-side torque: C⁻ᵀ M_rb + diag(Ia) C (n×n; equals the
@@ -625,17 +771,193 @@ pub fn bias_forces(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64]) -> 
 /// (M_rb + CᵀIaC) q̈ = Cᵀ(τ_m − f(C q̇)) − c(q, q̇) − g(q).
 /// Returns an error if the mass matrix is not positive definite.
 pub fn forward_dynamics(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64], tau_motor: &[f64]) -> crate::Result<DVector<f64>> {
+    let mut out = DVector::zeros(robot.dof());
+    forward_dynamics_into(robot, ws, q, qd, tau_motor, out.as_mut_slice())?;
+    Ok(out)
+}
+
+/// [`forward_dynamics`] into `qdd` (length n), allocation-free: the
+/// simulator's inner loop.
+pub fn forward_dynamics_into(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64], tau_motor: &[f64], qdd: &mut [f64]) -> crate::Result<()> {
     let n = robot.dof();
-    let m = mass_matrix(robot, ws, q);
-    let c = robot.coupling_matrix();
-    let w = &c * DVector::from_column_slice(qd);
-    let mut tm = DVector::from_column_slice(tau_motor);
+    assert!(
+        q.len() == n && qd.len() == n && tau_motor.len() == n && qdd.len() == n,
+        "state vectors must have length n = {n}"
+    );
+    let mut m = std::mem::take(&mut ws.fd_m);
+    mass_matrix_into(robot, ws, q, &mut m);
+    let mut rhs = std::mem::take(&mut ws.fd_rhs);
+    let mut tmp = std::mem::take(&mut ws.fd_tmp);
+    // motor velocities w = C q̇ (tmp), then tmp ← τ_m − f(w)
+    couple(robot, qd, &mut tmp);
     for j in 0..n {
-        tm[j] -= friction_torque(&robot.drives[j].friction, w[j]);
+        tmp[j] = tau_motor[j] - friction_torque(&robot.drives[j].friction, tmp[j]);
     }
-    let rhs = c.transpose() * tm - bias_forces(robot, ws, q, qd);
-    let chol = m
-        .cholesky()
-        .ok_or_else(|| crate::Error::Numerical("mass matrix is not positive definite".into()))?;
-    Ok(chol.solve(&rhs))
+    // rhs = Cᵀ tmp
+    if robot.coupling.is_none() {
+        rhs.copy_from_slice(&tmp);
+    } else {
+        rhs.iter_mut().for_each(|v| *v = 0.0);
+        for &(r, c, v) in &robot.c_sparse {
+            rhs[c] += v * tmp[r];
+        }
+    }
+    // − c(q, q̇) − g(q)
+    rnea_rigid(robot, Inertials::Nominal, q, qd, &ws.fd_zero, true, &mut ws.kin, &mut tmp);
+    for j in 0..n {
+        rhs[j] -= tmp[j];
+    }
+    // nalgebra's Cholesky on the moved buffer (no allocation, the same
+    // arithmetic as before the buffers were kept)
+    let ok = match nalgebra::Cholesky::new(m) {
+        Some(chol) => {
+            chol.solve_mut(&mut nalgebra::DVectorViewMut::from_slice(&mut rhs, n));
+            ws.fd_m = chol.unpack_dirty();
+            true
+        }
+        None => {
+            ws.fd_m = DMatrix::zeros(n, n);
+            false
+        }
+    };
+    qdd.copy_from_slice(&rhs);
+    ws.fd_rhs = rhs;
+    ws.fd_tmp = tmp;
+    if ok {
+        Ok(())
+    } else {
+        Err(crate::Error::Numerical("mass matrix is not positive definite".into()))
+    }
+}
+
+/// One classical Runge–Kutta step of q̈ = FD(q, q̇, τ) (nominal parameters,
+/// `tau` held over the step) of length `h`, in place, allocation-free (stage
+/// buffers in `ws`). `check` sees every stage's accelerations and may reject
+/// them (divergence); errors of forward dynamics are mapped by `on_fd_error`.
+#[allow(clippy::too_many_arguments)] // kernel: robot, buffers, state in/out, input, step, two callbacks
+pub fn rk4_step(
+    robot: &Robot,
+    ws: &mut Workspace,
+    q: &mut [f64],
+    qd: &mut [f64],
+    tau: &[f64],
+    h: f64,
+    check: impl Fn(&[f64]) -> crate::Result<()>,
+    on_fd_error: impl Fn(crate::Error) -> crate::Error,
+) -> crate::Result<()> {
+    let n = q.len();
+    let [mut a1, mut a2, mut a3, mut a4, mut q2, mut q3, mut q4, mut v2, mut v3, mut v4] = std::mem::take(&mut ws.rk);
+    let res = (|| {
+        let f = |ws: &mut Workspace, q: &[f64], qd: &[f64], a: &mut [f64]| -> crate::Result<()> {
+            forward_dynamics_into(robot, ws, q, qd, tau, a).map_err(&on_fd_error)?;
+            check(a)
+        };
+        f(ws, q, qd, &mut a1)?;
+        for j in 0..n {
+            q2[j] = q[j] + 0.5 * h * qd[j];
+            v2[j] = qd[j] + 0.5 * h * a1[j];
+        }
+        f(ws, &q2, &v2, &mut a2)?;
+        for j in 0..n {
+            q3[j] = q[j] + 0.5 * h * v2[j];
+            v3[j] = qd[j] + 0.5 * h * a2[j];
+        }
+        f(ws, &q3, &v3, &mut a3)?;
+        for j in 0..n {
+            q4[j] = q[j] + h * v3[j];
+            v4[j] = qd[j] + h * a3[j];
+        }
+        f(ws, &q4, &v4, &mut a4)?;
+        for j in 0..n {
+            q[j] += h / 6.0 * (qd[j] + 2.0 * v2[j] + 2.0 * v3[j] + v4[j]);
+            qd[j] += h / 6.0 * (a1[j] + 2.0 * a2[j] + 2.0 * a3[j] + a4[j]);
+        }
+        Ok(())
+    })();
+    ws.rk = [a1, a2, a3, a4, q2, q3, q4, v2, v3, v4];
+    res
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The previous kernel: 3n independent dual passes, transforms recomputed.
+    fn reference(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f64>> {
+        let n = robot.dof();
+        let mut out = Vec::new();
+        let mut yd = ws.y_dual.clone();
+        for which in 0..3 {
+            for k in 0..n {
+                for i in 0..n {
+                    let seed = |x: f64, on: bool| Dual64::new(x, if on { 1.0 } else { 0.0 });
+                    ws.q_dual[i] = seed(q[i], which == 0 && i == k);
+                    ws.qd_dual[i] = seed(qd[i], which == 1 && i == k);
+                    ws.qdd_dual[i] = seed(qdd[i], which == 2 && i == k);
+                }
+                regressor_generic(robot, &ws.q_dual, &ws.qd_dual, &ws.qdd_dual, ALL, &mut ws.dual, &mut yd);
+                out.push(yd.iter().map(|d| d.eps).collect());
+            }
+        }
+        out
+    }
+
+    /// Shared transforms and the f64 q̈ passes give the dual passes' numbers
+    /// (to the last bit up to the sign of zeros), on robots with and without
+    /// coupling, rotor inertia and friction.
+    #[test]
+    fn regressor_derivatives_equal_independent_dual_passes() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        for name in ["ur5", "industrial6", "puma560", "panda"] {
+            let r = crate::robot::load(&root.join(format!("designs/robots/{name}.toml"))).unwrap();
+            let (n, p) = (r.dof(), r.n_params());
+            let mut ws = Workspace::new(&r);
+            let mut t = 0.0_f64;
+            for _ in 0..5 {
+                let mut st = || {
+                    (0..n)
+                        .map(|_| {
+                            t += 0.731;
+                            2.0 * (3.7 * t).sin()
+                        })
+                        .collect::<Vec<f64>>()
+                };
+                let (q, qd, qdd) = (st(), st(), st());
+                let mut y = vec![0.0; n * p];
+                let mut d = vec![vec![0.0; n * p]; 3 * n];
+                let (a, rest) = d.split_at_mut(n);
+                let (b, c) = rest.split_at_mut(n);
+                regressor_derivatives(&r, &mut ws, &q, &qd, &qdd, &mut y, a, b, c);
+                let want = reference(&r, &mut ws, &q, &qd, &qdd);
+                for (k, (got, exp)) in d.iter().zip(&want).enumerate() {
+                    for (i, (g, e)) in got.iter().zip(exp).enumerate() {
+                        assert!(g == e, "{name}: direction {k}, entry {i}: {g:e} vs {e:e}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// The allocation-free forward dynamics inverts inverse dynamics.
+    #[test]
+    fn forward_dynamics_into_inverts_rnea() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        for name in ["ur5", "industrial6", "panda"] {
+            let r = crate::robot::load(&root.join(format!("designs/robots/{name}.toml"))).unwrap();
+            let n = r.dof();
+            let mut ws = Workspace::new(&r);
+            let q: Vec<f64> = (0..n).map(|i| 0.3 * i as f64 - 0.7).collect();
+            let qd: Vec<f64> = (0..n).map(|i| 0.2 - 0.1 * i as f64).collect();
+            let qdd: Vec<f64> = (0..n).map(|i| 0.5 * (i as f64).sin()).collect();
+            let mut tau = vec![0.0; n];
+            rnea(&r, &mut ws, &q, &qd, &qdd, &mut tau);
+            let mut got = vec![0.0; n];
+            forward_dynamics_into(&r, &mut ws, &q, &qd, &tau, &mut got).unwrap();
+            for i in 0..n {
+                assert!((got[i] - qdd[i]).abs() < 1e-9 * (1.0 + qdd[i].abs()), "{name}: {got:?} vs {qdd:?}");
+            }
+            let old = forward_dynamics(&r, &mut ws, &q, &qd, &tau).unwrap();
+            assert_eq!(old.as_slice(), &got[..]);
+        }
+    }
 }

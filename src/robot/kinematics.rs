@@ -125,27 +125,35 @@ pub(crate) fn axis_angle<T: Real>(a: &Vector3<f64>, th: T) -> Matrix3<T> {
 
 /// Fills `kin.rot`, `kin.pos` (parent-relative transforms) for configuration `q`.
 pub fn joint_transforms<T: Real>(robot: &Robot, q: &[T], kin: &mut Kin<T>) {
-    for (i, j) in robot.joints.iter().enumerate() {
-        let g = &robot.geo[i];
-        let th = q[i] + T::c(j.offset);
-        let a = j.axis.into_inner();
-        match j.kind {
-            JointKind::Revolute => {
-                let rm = axis_angle(&a, th);
-                let r_plm = lift33::<T>(&g.pl_r) * rm;
-                if g.post_identity {
-                    kin.rot[i] = r_plm;
-                    kin.pos[i] = lift3::<T>(&g.pl_p);
-                } else {
-                    kin.rot[i] = r_plm * lift33::<T>(&g.po_r);
-                    kin.pos[i] = lift3::<T>(&g.pl_p) + r_plm * lift3::<T>(&g.po_p);
-                }
-            }
-            JointKind::Prismatic => {
-                kin.rot[i] = lift33::<T>(&(g.pl_r * g.po_r));
-                kin.pos[i] = lift3::<T>(&g.pl_p) + lift33::<T>(&g.pl_r) * (lift3::<T>(&a) * th + lift3::<T>(&g.po_p));
+    for i in 0..robot.joints.len() {
+        let (r, p) = joint_transform(robot, i, q[i]);
+        kin.rot[i] = r;
+        kin.pos[i] = p;
+    }
+}
+
+/// Orientation and position of joint `i`'s child frame in its parent's at
+/// joint coordinate `qi`.
+#[inline]
+pub(crate) fn joint_transform<T: Real>(robot: &Robot, i: usize, qi: T) -> (Matrix3<T>, Vector3<T>) {
+    let j = &robot.joints[i];
+    let g = &robot.geo[i];
+    let th = qi + T::c(j.offset);
+    let a = j.axis.into_inner();
+    match j.kind {
+        JointKind::Revolute => {
+            let rm = axis_angle(&a, th);
+            let r_plm = lift33::<T>(&g.pl_r) * rm;
+            if g.post_identity {
+                (r_plm, lift3::<T>(&g.pl_p))
+            } else {
+                (r_plm * lift33::<T>(&g.po_r), lift3::<T>(&g.pl_p) + r_plm * lift3::<T>(&g.po_p))
             }
         }
+        JointKind::Prismatic => (
+            lift33::<T>(&(g.pl_r * g.po_r)),
+            lift3::<T>(&g.pl_p) + lift33::<T>(&g.pl_r) * (lift3::<T>(&a) * th + lift3::<T>(&g.po_p)),
+        ),
     }
 }
 

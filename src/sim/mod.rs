@@ -32,7 +32,7 @@ pub use crate::data::Truth;
 use crate::error::{Error, Result};
 use crate::optim::Control;
 use crate::params::{BaseOptions, BaseParams};
-use crate::robot::{forward_dynamics, gravity, inverse_dynamics, mass_matrix, Inertial, ParamKind, Robot, Workspace};
+use crate::robot::{gravity, inverse_dynamics, mass_matrix, Inertial, ParamKind, Robot, Workspace};
 pub use crate::trajectory::{Reference, ReferenceSpec};
 use nalgebra::{Matrix3, Vector3};
 use rand::SeedableRng;
@@ -740,31 +740,23 @@ impl SimSetup {
 }
 
 fn rk4(robot: &Robot, ws: &mut Workspace, q: &mut [f64], qd: &mut [f64], tau: &[f64], h: f64) -> Result<()> {
-    let n = q.len();
-    let f = |ws: &mut Workspace, q: &[f64], qd: &[f64]| -> Result<Vec<f64>> {
-        let a = forward_dynamics(robot, ws, q, qd, tau).map_err(|e| Error::Numerical(format!("simulation: {e} (the true parameters are not physical?)")))?;
-        if a.iter().any(|v| !v.is_finite()) || a.amax() > 1e6 {
-            return Err(Error::Numerical(
-                "simulation diverged: accelerations above 1e6 (lower the gains or raise the rate)".into(),
-            ));
-        }
-        Ok(a.as_slice().to_vec())
-    };
-    let a1 = f(ws, q, qd)?;
-    let q2: Vec<f64> = (0..n).map(|j| q[j] + 0.5 * h * qd[j]).collect();
-    let v2: Vec<f64> = (0..n).map(|j| qd[j] + 0.5 * h * a1[j]).collect();
-    let a2 = f(ws, &q2, &v2)?;
-    let q3: Vec<f64> = (0..n).map(|j| q[j] + 0.5 * h * v2[j]).collect();
-    let v3: Vec<f64> = (0..n).map(|j| qd[j] + 0.5 * h * a2[j]).collect();
-    let a3 = f(ws, &q3, &v3)?;
-    let q4: Vec<f64> = (0..n).map(|j| q[j] + h * v3[j]).collect();
-    let v4: Vec<f64> = (0..n).map(|j| qd[j] + h * a3[j]).collect();
-    let a4 = f(ws, &q4, &v4)?;
-    for j in 0..n {
-        q[j] += h / 6.0 * (qd[j] + 2.0 * v2[j] + 2.0 * v3[j] + v4[j]);
-        qd[j] += h / 6.0 * (a1[j] + 2.0 * a2[j] + 2.0 * a3[j] + a4[j]);
-    }
-    Ok(())
+    crate::robot::rk4_step(
+        robot,
+        ws,
+        q,
+        qd,
+        tau,
+        h,
+        |a| {
+            if a.iter().any(|v| !v.is_finite()) || a.iter().fold(0.0_f64, |m, v| m.max(v.abs())) > 1e6 {
+                return Err(Error::Numerical(
+                    "simulation diverged: accelerations above 1e6 (lower the gains or raise the rate)".into(),
+                ));
+            }
+            Ok(())
+        },
+        |e| Error::Numerical(format!("simulation: {e} (the true parameters are not physical?)")),
+    )
 }
 
 impl SimResult {

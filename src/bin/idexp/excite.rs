@@ -3,7 +3,7 @@
 use crate::Outcome;
 use anyhow::bail;
 use idexp::excitation::design::ExciteDesign;
-use idexp::excitation::report::{assess, read_states, violation_lines, write_outputs};
+use idexp::excitation::report::{assess_file, violation_lines, write_outputs};
 use idexp::excitation::{run, Criterion, Problem, Status};
 use idexp::optim::{Control, Termination};
 use idexp::params::{BaseOptions, BaseParams};
@@ -44,6 +44,9 @@ pub struct AssessArgs {
     /// Rigid-body (inertial) base parameters only, no drive/friction columns.
     #[arg(long)]
     pub inertial: bool,
+    /// Fix the base columns by name, comma separated (e.g. ZZ1,XX2,...): checked to form a base.
+    #[arg(long, value_delimiter = ',')]
+    pub base_columns: Vec<String>,
     /// Also write report.json, report.txt, singular_values.svg and inputs.json into this folder.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -138,15 +141,17 @@ pub fn run_assess(a: &AssessArgs, _ctl: &Control) -> anyhow::Result<Outcome> {
         bail!("idexp assess: --every: expected k ≥ 1");
     }
     let started = std::time::SystemTime::now();
-    let states = read_states(&a.trajectory, n, a.every)?;
-    let base = BaseParams::compute(
-        &robot,
-        &BaseOptions {
-            inertial_only: a.inertial,
-            ..BaseOptions::default()
-        },
-    )?;
-    let id = assess(&robot, &base, &states, &noise)?;
+    let bopts = BaseOptions {
+        inertial_only: a.inertial,
+        ..BaseOptions::default()
+    };
+    let base = if a.base_columns.is_empty() {
+        BaseParams::compute(&robot, &bopts)?
+    } else {
+        BaseParams::with_columns(&robot, &a.base_columns, &bopts)?
+    };
+    // streamed: memory independent of the trajectory length
+    let id = assess_file(&robot, &base, &a.trajectory, a.every, &noise)?;
     let title = format!("identifiability of {} on robot `{}`", a.trajectory.display(), robot.name);
     if let Some(dir) = &a.out {
         id.write(dir, &title)?;

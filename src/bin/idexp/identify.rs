@@ -88,6 +88,9 @@ pub struct IdentifyArgs {
     /// truth.json of a simulated run: compare the estimates with the true base parameters.
     #[arg(long)]
     pub truth: Option<PathBuf>,
+    /// Fix the base columns by name, comma separated (e.g. ZZ1,XX2,...): checked to form a base.
+    #[arg(long, value_delimiter = ',')]
+    pub base_columns: Vec<String>,
     /// Dedicated experiment instead of the full identification.
     #[arg(long, value_enum)]
     pub experiment: Option<Experiment>,
@@ -218,7 +221,11 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         (None, Some(v)) => run_trajectory(v)?,
         _ => None,
     };
-    let base = BaseParams::compute(&robot, &BaseOptions::default())?;
+    let base = if a.base_columns.is_empty() {
+        BaseParams::compute(&robot, &BaseOptions::default())?
+    } else {
+        BaseParams::with_columns(&robot, &a.base_columns, &BaseOptions::default())?
+    };
     let mut id = identify(&robot, &base, &run, traj.as_ref(), vrun.as_ref().map(|v| (v, vtraj.as_ref())), &opts, ctl)?;
     if let Some(t) = &a.truth {
         let truth = idexp::sim::Truth::read(t)?;

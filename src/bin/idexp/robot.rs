@@ -3,9 +3,9 @@
 
 use crate::Outcome;
 use anyhow::Context;
-use idexp::io::States;
 use idexp::optim::Control;
-use idexp::params::info::{regressor_table, torques_table, RobotInfo};
+use idexp::params::info::RobotInfo;
+use idexp::params::stream::{stream_table, stream_table_to_file, TableKind};
 use idexp::params::{BaseOptions, BaseParams};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -84,42 +84,35 @@ pub fn run(args: &RobotArgs, _ctl: &Control) -> anyhow::Result<Outcome> {
         }
         RobotCmd::Torques { robot, states, out } => {
             let r = idexp::robot::load(robot)?;
-            let s = States::read(states, r.dof())?;
-            let (header, rows) = torques_table(&r, &s);
-            emit(out.as_deref(), "torques.csv", &header, &rows)?;
+            stream(&r, states, TableKind::Torques, out.as_deref(), "torques.csv")?;
         }
         RobotCmd::Regressor { robot, states, base, out } => {
             let r = idexp::robot::load(robot)?;
-            let s = States::read(states, r.dof())?;
             let bp = if *base {
                 Some(BaseParams::compute(&r, &BaseOptions::default())?)
             } else {
                 None
             };
-            let (header, rows) = regressor_table(&r, &s, bp.as_ref());
-            emit(out.as_deref(), "regressor.csv", &header, &rows)?;
+            stream(&r, states, TableKind::Regressor(bp.as_ref()), out.as_deref(), "regressor.csv")?;
         }
     }
     Ok(Outcome::Done)
 }
 
-/// Writes the table to `<out>/<file>` (and says where), or to standard output.
-fn emit(out: Option<&Path>, file: &str, header: &[String], rows: &[Vec<f64>]) -> anyhow::Result<()> {
+/// Streams the table to `<out>/<file>` (atomically, and says where), or to
+/// standard output: read, computed and written block by block.
+fn stream(r: &idexp::robot::Robot, states: &Path, kind: TableKind<'_>, out: Option<&Path>, file: &str) -> anyhow::Result<()> {
     match out {
         Some(dir) => {
             let path = dir.join(file);
-            idexp::io::write_csv(&path, header, rows)?;
+            stream_table_to_file(r, states, kind, &path)?;
             println!("written to {}", path.display());
         }
         None => {
-            let mut s = String::new();
-            s.push_str(&header.join(","));
-            s.push('\n');
-            for r in rows {
-                s.push_str(&r.iter().map(|v| idexp::io::format_f64(*v)).collect::<Vec<_>>().join(","));
-                s.push('\n');
-            }
-            std::io::stdout().write_all(s.as_bytes()).context("writing to standard output")?;
+            let stdout = std::io::stdout();
+            let mut w = std::io::BufWriter::with_capacity(1 << 20, stdout.lock());
+            stream_table(r, states, kind, &mut w)?;
+            w.flush().context("writing to standard output")?;
         }
     }
     Ok(())
