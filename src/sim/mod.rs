@@ -787,7 +787,7 @@ impl SimResult {
     /// the reference at the recording rate), `trajectory.json` (Fourier
     /// references), `truth.json`, `design.json` (the resolved design) and `status.json`.
     pub fn write(&self, dir: &Path, design: &SimDesign) -> Result<()> {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        crate::io::folder::begin(dir, "simulate", &crate::io::status::fingerprint_of(design)?)?;
         for (i, rep) in self.reps.iter().enumerate() {
             rep.write(&dir.join(format!("rep_{:03}.csv", i + 1)))?;
         }

@@ -116,6 +116,7 @@ fn install_ctrlc() -> StopFlag {
     let f = flag.clone();
     let _ = ctrlc::set_handler(move || {
         if f.requested() {
+            idexp::io::folder::remove_live_temps();
             std::process::exit(EXIT_INTERRUPTED);
         }
         eprintln!("\nstopping: finishing the current step and writing results (Ctrl-C again to abort)");
