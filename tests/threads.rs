@@ -8,8 +8,36 @@ use common::root;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// Keys that hold wall-clock times or durations (they differ between any two runs).
-const CLOCK_KEYS: &[&str] = &["started", "finished", "seconds", "information_time", "elapsed", "wall_seconds", "time_s"];
+/// Keys that hold wall-clock times, durations or the thread count itself
+/// (they differ between any two runs); also every key ending in `time`.
+const CLOCK_KEYS: &[&str] = &["started", "finished", "seconds", "elapsed", "threads"];
+
+fn is_clock_key(k: &str) -> bool {
+    CLOCK_KEYS.contains(&k) || k.ends_with("time")
+}
+
+/// The first JSON pointer at which `a` and `b` differ.
+fn first_difference(a: &serde_json::Value, b: &serde_json::Value, at: String) -> Option<String> {
+    use serde_json::Value::{Array, Object};
+    match (a, b) {
+        (Object(x), Object(y)) => {
+            for (k, v) in x {
+                match y.get(k) {
+                    Some(w) => {
+                        if let Some(d) = first_difference(v, w, format!("{at}/{k}")) {
+                            return Some(d);
+                        }
+                    }
+                    None => return Some(format!("{at}/{k} only in the first")),
+                }
+            }
+            y.keys().find(|k| !x.contains_key(*k)).map(|k| format!("{at}/{k} only in the second"))
+        }
+        (Array(x), Array(y)) if x.len() == y.len() => x.iter().zip(y).enumerate().find_map(|(i, (v, w))| first_difference(v, w, format!("{at}/{i}"))),
+        _ if a == b => None,
+        _ => Some(format!("{at}: {a} vs {b}")),
+    }
+}
 
 fn idexp(threads: usize, args: &[&str]) {
     let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
@@ -44,12 +72,23 @@ fn files(dir: &Path) -> Vec<PathBuf> {
     v
 }
 
+/// `l` with every number followed by the unit `s`, and the count in "on N threads", replaced by `#`.
+fn mask_durations(l: &str) -> String {
+    let w: Vec<&str> = l.split(' ').collect();
+    let mut out = Vec::with_capacity(w.len());
+    for (i, t) in w.iter().enumerate() {
+        let next = w.get(i + 1).copied().unwrap_or("");
+        let unit = next.trim_end_matches([',', ';', ')']) == "s" || next.starts_with("threads");
+        let num = t.trim_start_matches('(').parse::<f64>().is_ok();
+        out.push(if unit && num { "#" } else { t });
+    }
+    out.join(" ")
+}
+
 fn strip_clock(v: &mut serde_json::Value) {
     match v {
         serde_json::Value::Object(m) => {
-            for k in CLOCK_KEYS {
-                m.remove(*k);
-            }
+            m.retain(|k, _| !is_clock_key(k));
             m.values_mut().for_each(strip_clock);
         }
         serde_json::Value::Array(a) => a.iter_mut().for_each(strip_clock),
@@ -57,13 +96,27 @@ fn strip_clock(v: &mut serde_json::Value) {
     }
 }
 
-/// Byte comparison of two folders; JSON files (and JSON lines) without their clock fields.
+/// Byte comparison of two folders; JSON files (and JSON lines) without their
+/// clock fields, and with each folder's own path replaced by `{out}`.
 fn assert_same(a: &Path, b: &Path) {
     let (fa, fb) = (files(a), files(b));
     assert_eq!(fa, fb, "{} and {} hold different files", a.display(), b.display());
     assert!(!fa.is_empty());
     for f in fa {
-        let (x, y) = (std::fs::read(a.join(&f)).unwrap(), std::fs::read(b.join(&f)).unwrap());
+        let read = |root: &Path| -> Vec<u8> {
+            let bytes = std::fs::read(root.join(&f)).unwrap();
+            // the run folder (the parent of a subfolder output) as written in the files
+            let base = if root.file_name().is_some_and(|n| n.to_string_lossy().ends_with(char::is_numeric)) {
+                root
+            } else {
+                root.parent().unwrap()
+            };
+            match String::from_utf8(bytes) {
+                Ok(t) => t.replace(base.to_str().unwrap(), "{out}").into_bytes(),
+                Err(e) => e.into_bytes(),
+            }
+        };
+        let (x, y) = (read(a), read(b));
         let ext = f.extension().and_then(|e| e.to_str()).unwrap_or("");
         if ext == "json" || ext == "jsonl" || f.ends_with("report.txt") {
             let norm = |t: &[u8]| -> Vec<String> {
@@ -85,13 +138,15 @@ fn assert_same(a: &Path, b: &Path) {
                 let mut vy: serde_json::Value = serde_json::from_slice(&y).unwrap();
                 strip_clock(&mut vx);
                 strip_clock(&mut vy);
-                assert_eq!(vx, vy, "{}: differs between --threads 1 and 2", f.display());
+                if let Some(d) = first_difference(&vx, &vy, String::new()) {
+                    panic!("{}: differs between --threads 1 and 2 at {d}", f.display());
+                }
             } else if ext == "jsonl" {
                 assert_eq!(norm(&x), norm(&y), "{}: differs between --threads 1 and 2", f.display());
             } else {
-                // report.txt: lines naming a duration excepted
-                let keep = |v: Vec<String>| -> Vec<String> { v.into_iter().filter(|l| !l.contains(" s)") && !l.contains("time")).collect() };
-                assert_eq!(keep(norm(&x)), keep(norm(&y)), "{}: differs between --threads 1 and 2", f.display());
+                // report.txt: durations ("1.21 s") and the thread count masked
+                let mask = |v: Vec<String>| -> Vec<String> { v.iter().map(|l| mask_durations(l)).collect() };
+                assert_eq!(mask(norm(&x)), mask(norm(&y)), "{}: differs between --threads 1 and 2", f.display());
             }
         } else {
             assert!(x == y, "{}: differs between --threads 1 and 2", f.display());
