@@ -321,8 +321,8 @@ pub fn setup(design: &Path, o: &FitOptions) -> Result<FitSetup> {
         d.seed = seed;
     }
     if let Some(s) = o.starts {
-        if s == 0 {
-            return Err(Error::invalid("--starts", "starts", "expected at least 1"));
+        if s == 0 || s > super::design::MAX_STARTS {
+            return Err(Error::invalid("--starts", "starts", format!("{s}: expected 1..={}", super::design::MAX_STARTS)));
         }
         d.fit.starts = s;
     }
