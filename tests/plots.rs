@@ -26,8 +26,11 @@ fn tick_labels_are_short_and_log_ticks_are_decades_with_subdivisions() {
     assert!(log_ticks(1e-30, 1e30).len() <= 9);
 }
 
+/// A `<text>` element: x, y and content.
+type Text = (f64, f64, String);
+
 /// (width, height) of the SVG and every <text> with its x, y and content.
-fn texts(svg: &str) -> ((f64, f64), Vec<(f64, f64, String)>) {
+fn texts(svg: &str) -> ((f64, f64), Vec<Text>) {
     let attr = |tag: &str, name: &str| -> Option<f64> {
         let i = tag.find(&format!(" {name}=\""))? + name.len() + 3;
         tag[i..].split('"').next()?.parse().ok()
