@@ -10,14 +10,15 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
-    /// An I/O failure on a named file.
-    #[error("{path}: {source}")]
+    /// An I/O failure on a named file. The OS message is part of the
+    /// message (and not repeated as a `source`, so a printed error chain
+    /// says it once).
+    #[error("{path}: {err}")]
     Io {
         /// The file concerned.
         path: PathBuf,
         /// The underlying error.
-        #[source]
-        source: std::io::Error,
+        err: std::io::Error,
     },
     /// A file could not be parsed (syntax), with location if known.
     #[error("{path}: {msg}")]
@@ -88,7 +89,10 @@ impl Error {
     }
     /// Shorthand for [`Error::Io`].
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        Error::Io { path: path.into(), source }
+        Error::Io {
+            path: path.into(),
+            err: source,
+        }
     }
     /// Shorthand for [`Error::Dimension`].
     pub fn dim(what: impl Into<String>, expected: usize, got: usize) -> Self {

@@ -391,8 +391,8 @@ struct ExciteReport<'a> {
 /// trajectory.csv, report.json, report.txt, design.json, status.json and
 /// the SVG plots (joints.svg, singular_values.svg, ee_path.svg).
 pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Identifiability> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let d = &p.design;
+    crate::io::folder::begin(dir, "excite", &crate::io::status::fingerprint_of(d)?)?;
     let noise = d.objective.noise.clone().unwrap_or_else(|| vec![1.0; p.robot.dof()]);
     let samples = r.trajectory.sample(d.objective.sample_rate)?;
     let ident = assess(&p.robot, &p.base, &samples, &noise)?;
@@ -430,7 +430,6 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Identi
         (super::Status::Feasible, false) => (RunState::Complete, format!("feasible, condition number {:.4}", r.spectrum.cond)),
     };
     let started = std::time::SystemTime::now().checked_sub(std::time::Duration::from_secs_f64(r.seconds.max(0.0)));
-    crate::io::status::write_status(dir, "excite", state, detail, started, crate::io::status::fingerprint_of(d)?, summary)?;
     let robot_path = d.robot.display().to_string();
     crate::io::write_json(
         &dir.join("report.json"),
@@ -450,6 +449,8 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Identi
     )?;
     joints_svg(p, r, &dir.join("joints.svg"))?;
     ee_svg(p, r, &dir.join("ee_path.svg"))?;
+    // the final status last: a folder without it is marked `running`
+    crate::io::status::write_status(dir, "excite", state, detail, started, crate::io::status::fingerprint_of(d)?, summary)?;
     Ok(ident)
 }
 

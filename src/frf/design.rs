@@ -10,6 +10,10 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+/// The most multistart starts of a fit (`fit.starts`, `--starts`): each
+/// start is a record in the log and an entry of the report.
+pub const MAX_STARTS: usize = 100_000;
+
 /// A whole design file.
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
@@ -321,8 +325,8 @@ impl Design {
                 format!("expected {} non-negative factors (one per position)", self.positions.len()),
             );
         }
-        if f.starts == 0 {
-            return inv("fit.starts", "expected at least 1 start".into());
+        if f.starts == 0 || f.starts > MAX_STARTS {
+            return inv("fit.starts", format!("{}: expected 1..={MAX_STARTS} starts", f.starts));
         }
         if !(f.spread.is_finite() && f.spread >= 0.0) {
             return inv("fit.spread", format!("expected a non-negative number of decades, found {}", f.spread));

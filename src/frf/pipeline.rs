@@ -59,6 +59,7 @@ pub fn multisine(design: &Path, out: Option<&Path>) -> Result<(MultisineSummary,
     let (d, model) = Design::load(design)?;
     let n = model.n_motors();
     let dir = d.out_dir(out).join("multisine");
+    crate::io::folder::begin(&dir, "multisine", &fingerprint_of(&d)?)?;
     let ms = Multisine::new(&d, n);
     let mut crest = Vec::new();
     let mut files = Vec::new();
@@ -143,6 +144,8 @@ pub fn frf(input: &Path, out: Option<&Path>, ctl: &crate::optim::Control) -> Res
             .unwrap_or_else(|| input.parent().unwrap_or(Path::new(".")).to_path_buf());
         // the resolved input of this estimate, beside it
         let manifest: serde_json::Value = serde_json::from_str(&crate::io::read_to_string(input)?).map_err(|e| Error::parse(input, e.to_string()))?;
+        // the folder may hold the runs themselves: nothing is moved aside
+        crate::io::folder::begin_in_place(&dir, "frf", &fingerprint_of(&manifest)?)?;
         crate::io::write_json(
             &dir.join("input_runs.json"),
             &serde_json::json!({ "manifest": abs(input), "contents": manifest }),
@@ -152,6 +155,7 @@ pub fn frf(input: &Path, out: Option<&Path>, ctl: &crate::optim::Control) -> Res
     } else {
         let (d, model) = Design::load(input)?;
         let dir = d.out_dir(out).join("frf");
+        crate::io::folder::begin(&dir, "frf", &fingerprint_of(&d)?)?;
         let (data, truth) = super::simulate::simulate(&d, &model, &dir.join("runs"), ctl)?;
         crate::io::write_json(&dir.join("truth.json"), &truth)?;
         crate::io::write_json(&dir.join("design.json"), &d)?;
@@ -317,8 +321,8 @@ pub fn setup(design: &Path, o: &FitOptions) -> Result<FitSetup> {
         d.seed = seed;
     }
     if let Some(s) = o.starts {
-        if s == 0 {
-            return Err(Error::invalid("--starts", "starts", "expected at least 1"));
+        if s == 0 || s > super::design::MAX_STARTS {
+            return Err(Error::invalid("--starts", "starts", format!("{s}: expected 1..={}", super::design::MAX_STARTS)));
         }
         d.fit.starts = s;
     }
@@ -393,6 +397,8 @@ pub fn fit_dir(d: &Design, out: Option<&Path>) -> PathBuf {
 
 /// Writes the sorted log and the report of a complete set of records.
 fn finish(s: &FitSetup, dir: &Path, records: &[StartRecord], command: &str, started: SystemTime) -> Result<Report> {
+    // the shard logs and run.json stay: nothing is moved aside
+    crate::io::folder::begin_in_place(dir, command, &s.info.hash)?;
     crate::io::write_atomic(&dir.join("starts.jsonl"), sorted_lines(records)?.as_bytes())?;
     let w = if s.info.weights == WeightKind::User { "user" } else { "optimal" };
     let r = report::build(&s.problem, records, s.design.fit.starts, s.design.fit.reasonable, w, s.truth.as_deref());

@@ -3,8 +3,10 @@
 //!
 //! Every result file is written to a temporary file in the same folder and then
 //! renamed over the target, so an interrupted run never leaves a half-written
-//! output behind.
+//! file behind; [`folder`] keeps a whole output folder from being mixed or
+//! half-written (status "running" first, the previous set moved aside).
 
+pub mod folder;
 pub mod plot;
 pub mod states;
 pub mod status;
@@ -17,21 +19,38 @@ use std::path::{Path, PathBuf};
 pub use states::States;
 pub use table::Table;
 
-/// Writes `bytes` to `path` atomically (temp file in the same folder, fsync, rename).
+/// Writes `bytes` to `path` atomically: a uniquely named temporary file in
+/// the target folder (`.<name>.<pid>.<random>.tmp`, see [`folder`]), written,
+/// synced and then persisted (renamed) over `path`. On an error the temporary
+/// file is removed; a process killed in between leaves one whose owner is dead,
+/// and the next run writing into that folder removes it
+/// ([`folder::sweep_stale_temps`]); a second Ctrl-C removes the live ones before
+/// exiting ([`folder::remove_live_temps`]).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
     };
     std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-    let file_name = path.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let tmp = dir.join(format!(".{}.{}.tmp", file_name, std::process::id()));
-    {
-        let mut f = std::fs::File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
-        f.write_all(bytes).map_err(|e| Error::io(&tmp, e))?;
-        f.sync_all().map_err(|e| Error::io(&tmp, e))?;
+    if path.is_dir() {
+        return Err(Error::io(path, std::io::Error::other("is a folder, cannot write a file there")));
     }
-    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+    let file_name = path.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let mut tmp = tempfile::Builder::new()
+        .prefix(&folder::temp_prefix(&file_name))
+        .suffix(folder::TEMP_SUFFIX)
+        .tempfile_in(&dir)
+        .map_err(|e| Error::io(&dir, e))?;
+    let tmp_path = tmp.path().to_path_buf();
+    folder::register_temp(&tmp_path);
+    let result = (|| {
+        tmp.write_all(bytes).map_err(|e| Error::io(&tmp_path, e))?;
+        tmp.as_file().sync_all().map_err(|e| Error::io(&tmp_path, e))?;
+        tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
+        Ok(())
+    })();
+    folder::unregister_temp(&tmp_path);
+    result
 }
 
 /// Serialises `value` as pretty JSON and writes it atomically.
@@ -69,9 +88,61 @@ pub fn format_f64(v: f64) -> String {
     format!("{v}")
 }
 
+/// The largest text input read whole ([`read_to_string`]): 512 MiB.
+pub const MAX_TEXT_BYTES: u64 = 512 << 20;
+
 /// Reads a whole text file, mapping errors to [`Error::Io`] naming the file.
+///
+/// Only regular files (after following links) of at most [`MAX_TEXT_BYTES`]
+/// are read (a device such as `/dev/zero` or a FIFO is refused before any
+/// byte is read; a file that grows while read stops at the bound). A leading
+/// UTF-8 byte-order mark is dropped, so JSON, TOML, CSV and URDF written by
+/// editors that add one are read alike.
 pub fn read_to_string(path: &Path) -> Result<String> {
-    std::fs::read_to_string(path).map_err(|e| Error::io(path, e))
+    read_to_string_bounded(path, MAX_TEXT_BYTES)
+}
+
+/// [`read_to_string`] with an explicit size bound (bytes).
+pub fn read_to_string_bounded(path: &Path, max_bytes: u64) -> Result<String> {
+    use std::io::Read;
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if meta.is_dir() {
+        return Err(Error::io(path, std::io::Error::other("is a folder, expected a file")));
+    }
+    if !meta.is_file() {
+        return Err(Error::io(
+            path,
+            std::io::Error::other("is not a regular file (a device, FIFO or socket); only regular files are read"),
+        ));
+    }
+    if meta.len() > max_bytes {
+        return Err(Error::io(
+            path,
+            std::io::Error::other(format!("is {} bytes; at most {max_bytes} bytes are read", meta.len())),
+        ));
+    }
+    let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    f.take(max_bytes + 1).read_to_end(&mut bytes).map_err(|e| Error::io(path, e))?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(Error::io(
+            path,
+            std::io::Error::other(format!("grew beyond {max_bytes} bytes while being read")),
+        ));
+    }
+    let mut text = String::from_utf8(bytes).map_err(|e| {
+        Error::io(
+            path,
+            std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("is not UTF-8 text (invalid byte at offset {})", e.utf8_error().valid_up_to()),
+            ),
+        )
+    })?;
+    if text.starts_with('\u{feff}') {
+        text.drain(..'\u{feff}'.len_utf8());
+    }
+    Ok(text)
 }
 
 /// Reads a TOML file into `T`, reporting syntax and field errors with the file

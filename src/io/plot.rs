@@ -99,6 +99,68 @@ pub struct Panel {
     pub log_x: bool,
 }
 
+/// A tick label: at most 4 significant digits without trailing zeros
+/// ("0.25", "40", "1500"), exponent form outside [1e-3, 1e5) ("1e-4",
+/// "2.5e6"); never "-0" nor a 17-digit rounding artefact.
+pub fn tick_label(v: f64) -> String {
+    if !v.is_finite() {
+        return String::new();
+    }
+    let a = v.abs();
+    if a < 1e-12 * 1.0f64.max(a) || a == 0.0 {
+        return "0".into();
+    }
+    let trim = |t: String| -> String {
+        if t.contains('.') {
+            t.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            t
+        }
+    };
+    if (1e-3..1e5).contains(&a) {
+        let digits = (3 - a.log10().floor() as i32).clamp(0, 6) as usize;
+        let t = trim(format!("{v:.digits$}"));
+        if t == "-0" {
+            "0".into()
+        } else {
+            t
+        }
+    } else {
+        let t = format!("{v:.3e}");
+        let (m, e) = t.split_once('e').unwrap_or((&t, "0"));
+        format!("{}e{e}", trim(m.to_string()))
+    }
+}
+
+/// Tick positions of a log axis over [lo, hi] (lo > 0): the decades, with 2
+/// and 5 between them when the range spans at most two decades, every 1..9
+/// inside a single decade, and every k-th decade on ranges over 8 decades.
+pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    if !(lo > 0.0 && hi > lo && lo.is_finite() && hi.is_finite()) {
+        return vec![];
+    }
+    let (d0, d1) = (lo.log10().floor() as i32, hi.log10().ceil() as i32);
+    let span = d1 - d0;
+    let mults: &[f64] = if span <= 1 {
+        &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]
+    } else if span <= 3 {
+        &[1.0, 2.0, 5.0]
+    } else {
+        &[1.0]
+    };
+    let step = (span / 8 + 1).max(1);
+    let mut v = Vec::new();
+    for d in (d0..=d1).filter(|d| (d - d0) % step == 0) {
+        for m in mults {
+            let t = m * 10f64.powi(d);
+            if t >= lo * (1.0 - 1e-12) && t <= hi * (1.0 + 1e-12) {
+                v.push(t);
+            }
+        }
+    }
+    v
+}
+
 #[cfg(feature = "plots")]
 mod draw {
     use super::{Mark, Panel, Result};
@@ -186,6 +248,8 @@ mod draw {
                     .x_desc(p.x_label.as_str())
                     .y_desc(p.y_label.as_str())
                     .label_style(("sans-serif", 11))
+                    .x_label_formatter(&|v: &f64| super::tick_label(*v))
+                    .y_label_formatter(&|v: &f64| super::tick_label(*v))
                     .light_line_style(WHITE.mix(0.0))
                     .draw()
                     .map_err(perr(path))?;
@@ -248,11 +312,15 @@ mod draw {
                 }
             }};
         }
+        // log axes: ticks at the decades (and 2, 5 between them on short
+        // ranges) instead of plotters' default points, whose labels collide
+        let lx = || (x0..x1).log_scale().with_key_points(super::log_ticks(x0, x1));
+        let ly = || (y0..y1).log_scale().with_key_points(super::log_ticks(y0, y1));
         match (p.log_x, p.log_y) {
             (false, false) => body!(b.build_cartesian_2d(x0..x1, y0..y1).map_err(perr(path))?),
-            (false, true) => body!(b.build_cartesian_2d(x0..x1, (y0..y1).log_scale()).map_err(perr(path))?),
-            (true, false) => body!(b.build_cartesian_2d((x0..x1).log_scale(), y0..y1).map_err(perr(path))?),
-            (true, true) => body!(b.build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale()).map_err(perr(path))?),
+            (false, true) => body!(b.build_cartesian_2d(x0..x1, ly()).map_err(perr(path))?),
+            (true, false) => body!(b.build_cartesian_2d(lx(), y0..y1).map_err(perr(path))?),
+            (true, true) => body!(b.build_cartesian_2d(lx(), ly()).map_err(perr(path))?),
         }
         Ok(())
     }

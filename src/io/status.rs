@@ -108,15 +108,58 @@ impl StatusFile {
         }
     }
 
-    /// Writes `dir/status.json` atomically.
+    /// Writes `dir/status.json` atomically. A final status (anything but
+    /// `running`) also removes the previous result set that
+    /// [`super::folder::begin`] moved aside.
     pub fn write(&self, dir: &Path) -> Result<()> {
-        super::write_json(&dir.join("status.json"), self)
+        super::write_json(&dir.join("status.json"), self)?;
+        if self.status != RunState::Running {
+            super::folder::discard_previous(dir);
+        }
+        Ok(())
     }
 
     /// Reads a `status.json` (an error names the file and the field).
     pub fn read(path: &Path) -> Result<StatusFile> {
         let text = super::read_to_string(path)?;
         serde_json::from_str(&text).map_err(|e| Error::parse(path, e.to_string()))
+    }
+}
+
+/// Refuses `dir` as an input folder unless its `status.json` says
+/// `complete` (or there is no `status.json`: a folder recorded outside idexp).
+/// `allow_incomplete` accepts a folder marked `interrupted`, `failed`,
+/// `infeasible` or `shard_complete` (never one marked `running`: its writer
+/// was killed while writing, so its files are partial).
+pub fn require_complete(dir: &Path, allow_incomplete: bool) -> Result<()> {
+    let dir = if dir.is_file() { dir.parent().unwrap_or(Path::new(".")) } else { dir };
+    let path = dir.join("status.json");
+    if !path.exists() {
+        return Ok(());
+    }
+    let s = StatusFile::read(&path)?;
+    match s.status {
+        RunState::Complete => Ok(()),
+        RunState::Running => Err(Error::invalid(
+            path.display().to_string(),
+            "status",
+            format!(
+                "`running`: the `{}` run that writes this folder has not finished (or was killed while writing), so its files are partial; run it again",
+                s.command
+            ),
+        )),
+        other if allow_incomplete => {
+            let _ = other;
+            Ok(())
+        }
+        other => Err(Error::invalid(
+            path.display().to_string(),
+            "status",
+            format!(
+                "`{other}` ({}): the folder is not a complete result; pass --allow-incomplete to use it anyway",
+                s.detail
+            ),
+        )),
     }
 }
 

@@ -96,7 +96,7 @@ pub fn status_words(s: Status) -> &'static str {
 /// Writes every output of a run into `out`; `started`: when the run began
 /// (for `status.json`, `None` if unknown).
 pub fn write_outputs(run: &PositionsRun, out: &Path, started: Option<SystemTime>) -> Result<()> {
-    std::fs::create_dir_all(out).map_err(|e| crate::Error::io(out, e))?;
+    crate::io::folder::begin(out, "positions", &crate::io::status::fingerprint_of(&run.design)?)?;
     let rel = &run.relaxed;
     let idx = plan_indices(run);
     let pos = positions_of(run, &idx);
@@ -190,15 +190,6 @@ pub fn write_outputs(run: &PositionsRun, out: &Path, started: Option<SystemTime>
         Status::Optimal | Status::NotCertified => RunState::Complete,
         Status::Interrupted => RunState::Interrupted,
     };
-    crate::io::status::write_status(
-        out,
-        "positions",
-        state,
-        status_words(rel.status),
-        started,
-        crate::io::status::fingerprint_of(&run.design)?,
-        serde_json::json!({ "relaxed_status": rel.status, "certified": rel.certificate.holds, "efficiency_bound": rel.certificate.efficiency_bound }),
-    )?;
     // plots
     let xs: Vec<f64> = (1..=rel.weights.len()).map(|i| i as f64).collect();
     let sx: Vec<f64> = idx.iter().map(|&i| (i + 1) as f64).collect();
@@ -267,6 +258,16 @@ pub fn write_outputs(run: &PositionsRun, out: &Path, started: Option<SystemTime>
         let cols = panels.len();
         write_svg(&out.join("poses.svg"), &format!("{}: chosen poses", run.design.name), &panels, cols)?;
     }
+    // the final status last: a folder without it is marked `running`
+    crate::io::status::write_status(
+        out,
+        "positions",
+        state,
+        status_words(rel.status),
+        started,
+        crate::io::status::fingerprint_of(&run.design)?,
+        serde_json::json!({ "relaxed_status": rel.status, "certified": rel.certificate.holds, "efficiency_bound": rel.certificate.efficiency_bound }),
+    )?;
     Ok(())
 }
 

@@ -240,10 +240,29 @@ impl SimDesign {
             }
         };
         pos("rate", self.rate)?;
+        if self.rate > MAX_RATE {
+            return Err(Error::invalid(
+                ctx,
+                "rate",
+                format!("{} Hz is above the largest controller rate {MAX_RATE} Hz", self.rate),
+            ));
+        }
         pos("controller.bandwidth", self.controller.bandwidth)?;
         pos("controller.damping", self.controller.damping)?;
         if !(self.controller.velocity_filter.is_finite() && self.controller.velocity_filter >= 0.0) {
             return Err(Error::invalid(ctx, "controller.velocity_filter", "expected a cut-off ≥ 0 Hz (0 = no filter)"));
+        }
+        if self.controller.velocity_filter > 0.5 * self.rate {
+            return Err(Error::invalid(
+                ctx,
+                "controller.velocity_filter",
+                format!(
+                    "{} Hz is above the Nyquist frequency {} Hz of the controller rate; expected 0 (no filter) or a cut-off in (0, {}] Hz",
+                    self.controller.velocity_filter,
+                    0.5 * self.rate,
+                    0.5 * self.rate
+                ),
+            ));
         }
         if self.controller.bandwidth * 10.0 > self.rate {
             return Err(Error::invalid(
@@ -285,6 +304,12 @@ impl SimDesign {
         self.reference.validate(ctx)
     }
 }
+
+/// The largest controller rate of a simulation (Hz).
+pub const MAX_RATE: f64 = 100_000.0;
+/// The most controller steps of a simulation (all repetitions): 2·10⁷
+/// (at 1 kHz, 5.5 hours of motion; the recorded run is at most this many rows).
+pub const MAX_STEPS: f64 = 2.0e7;
 
 /// Everything the simulation loop needs, resolved for one robot.
 #[derive(Debug, Clone)]
@@ -471,6 +496,19 @@ impl SimSetup {
         } else {
             0.0
         };
+        let steps = reference.duration() * d.rate * d.repetitions as f64;
+        if !(steps.is_finite() && steps <= MAX_STEPS) {
+            return Err(Error::invalid(
+                ctx,
+                "rate",
+                format!(
+                    "{} repetitions of {} s at {} Hz are {steps:.3e} controller steps; at most {MAX_STEPS:.0e} are simulated (lower the rate, the duration or the repetitions)",
+                    d.repetitions,
+                    reference.duration(),
+                    d.rate
+                ),
+            ));
+        }
         if reference.periodic() {
             let p = reference.duration() * d.rate;
             if (p - p.round()).abs() > 1e-6 * p.max(1.0) {
@@ -779,7 +817,7 @@ impl SimResult {
     /// the reference at the recording rate), `trajectory.json` (Fourier
     /// references), `truth.json`, `design.json` (the resolved design) and `status.json`.
     pub fn write(&self, dir: &Path, design: &SimDesign) -> Result<()> {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        crate::io::folder::begin(dir, "simulate", &crate::io::status::fingerprint_of(design)?)?;
         for (i, rep) in self.reps.iter().enumerate() {
             rep.write(&dir.join(format!("rep_{:03}.csv", i + 1)))?;
         }

@@ -171,6 +171,13 @@ fn default_cycles() -> usize {
 fn default_move() -> f64 {
     1.0
 }
+/// The longest move or dwell of a pick-and-place reference (s).
+pub const MAX_SEGMENT_S: f64 = 3600.0;
+/// The most pick-and-place cycles.
+pub const MAX_CYCLES: usize = 100_000;
+/// The most samples of a generated reference (one repetition).
+pub const MAX_REFERENCE_SAMPLES: f64 = 2.0e7;
+
 fn default_dwell() -> f64 {
     0.3
 }
@@ -394,6 +401,18 @@ impl ReferenceSpec {
                 if !(dwell.is_finite() && *dwell >= 0.0) {
                     return Err(Error::invalid(ctx, "reference.dwell", "expected a non-negative time"));
                 }
+                for (name, v) in [("move_time", *move_time), ("dwell", *dwell)] {
+                    if v > MAX_SEGMENT_S {
+                        return Err(Error::invalid(
+                            ctx,
+                            format!("reference.{name}"),
+                            format!("{v} s is longer than the longest move or dwell, {MAX_SEGMENT_S} s"),
+                        ));
+                    }
+                }
+                if *cycles > MAX_CYCLES {
+                    return Err(Error::invalid(ctx, "reference.cycles", format!("{cycles} cycles; expected 1..={MAX_CYCLES}")));
+                }
                 Ok(())
             }
             ReferenceSpec::Square {
@@ -493,6 +512,17 @@ impl ReferenceSpec {
                     }
                 }
                 pts.push(home);
+                let samples = pts.len() as f64 * (*move_time + *dwell) * rate;
+                if samples > MAX_REFERENCE_SAMPLES {
+                    return Err(Error::invalid(
+                        ctx,
+                        "reference",
+                        format!(
+                            "{} points × ({move_time} s + {dwell} s) at {rate} Hz are {samples:.3e} samples; at most {MAX_REFERENCE_SAMPLES:.0e}",
+                            pts.len()
+                        ),
+                    ));
+                }
                 let q = via_points(&pts, *move_time, *dwell, dt);
                 Reference::from_positions(dt, q, false)
             }

@@ -80,6 +80,7 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let robot = idexp::robot::load(&d.robot)?;
     let p = Problem::new(d, robot, &ctx)?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&p.design.name));
+    idexp::io::folder::check_out_dir(&out)?;
     eprintln!(
         "excite `{}`: {} ({} joints), {} variables, {} constraints, {} base columns",
         p.design.name,
@@ -154,6 +155,7 @@ pub fn run_assess(a: &AssessArgs, _ctl: &Control) -> anyhow::Result<Outcome> {
     let id = assess_file(&robot, &base, &a.trajectory, a.every, &noise)?;
     let title = format!("identifiability of {} on robot `{}`", a.trajectory.display(), robot.name);
     if let Some(dir) = &a.out {
+        idexp::io::folder::begin(dir, "assess", "")?;
         id.write(dir, &title)?;
         let inputs = serde_json::json!({
             "command": "assess",

@@ -112,6 +112,9 @@ pub struct IdentifyArgs {
     /// Output folder (default: out/identify_<run folder name>).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Accept run folders whose status.json is not `complete` (e.g. an interrupted simulate); never one marked `running`.
+    #[arg(long)]
+    pub allow_incomplete: bool,
     /// Print estimate.json's contents (or the experiment's fit) instead of the text report.
     #[arg(long)]
     #[serde(skip)]
@@ -175,6 +178,10 @@ fn estimate_state(status: &str) -> RunState {
 pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let started = SystemTime::now();
     let robot = idexp::robot::load(&a.robot)?;
+    a.run
+        .iter()
+        .chain(&a.validate)
+        .try_for_each(|r| idexp::io::status::require_complete(r, a.allow_incomplete))?;
     let run = Run::read(&a.run, robot.dof())?;
     let traj = match &a.trajectory {
         Some(p) => Some(FourierTrajectory::load(p)?),
@@ -232,6 +239,7 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         id.estimate.compare_truth(&truth.base_names, &truth.base)?;
     }
     let out = a.out.clone().unwrap_or_else(|| default_out(&a.run, ""));
+    idexp::io::folder::begin(&out, "identify", "")?;
     id.write(&out)?;
     let options = serde_json::json!({ "arguments": a, "options": opts });
     idexp::io::write_json(&out.join("options.json"), &options)?;
@@ -259,6 +267,7 @@ fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run, started: SystemT
         .context("identify --experiment: --joint: name the joint (1-based) of the dedicated experiment")?;
     let pr = idexp::ident::process(run, &Filter::LowPass { cutoff: a.cutoff })?;
     let out = a.out.clone().unwrap_or_else(|| default_out(&a.run, &format!("_{exp:?}").to_lowercase()));
+    idexp::io::folder::begin(&out, "identify", "")?;
     let (text, json) = match exp {
         Experiment::Gravity => {
             let g = gravity_experiment(&pr, joint)?;

@@ -75,6 +75,8 @@ const EXIT_INPUT: i32 = 1;
 const EXIT_UNUSABLE: i32 = 3;
 /// Exit code of an interrupted run (128 + SIGINT).
 const EXIT_INTERRUPTED: i32 = 130;
+/// Parallel splits of faer's dense kernels, fixed so results do not depend on `--threads`.
+const FAER_SPLITS: usize = 4;
 
 fn main() {
     restore_default_sigpipe();
@@ -120,6 +122,7 @@ fn install_ctrlc() -> StopFlag {
     let f = flag.clone();
     let _ = ctrlc::set_handler(move || {
         if f.requested() {
+            idexp::io::folder::remove_live_temps();
             std::process::exit(EXIT_INTERRUPTED);
         }
         eprintln!("\nstopping: finishing the current step and writing results (Ctrl-C again to abort)");
@@ -132,6 +135,9 @@ fn run(cli: Cli) -> anyhow::Result<Outcome> {
     if let Some(t) = cli.threads {
         rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global()?;
     }
+    // faer splits its parallel kernels (matmul, SVD) by this count, not by the
+    // pool's threads: results are bit-identical for any --threads
+    faer::set_global_parallelism(faer::Par::rayon(FAER_SPLITS));
     let stop = install_ctrlc();
     let ctl = Control::new().with_stop(stop).with_observer(Arc::new(progress::Bars::new()));
     match &cli.cmd {

@@ -33,6 +33,7 @@ pub fn run(args: &PositionsArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     }
     let dir = args.design.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."));
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&design.name));
+    idexp::io::folder::check_out_dir(&out)?;
     let run = run_design(&design, &dir, ctl)?;
     write_outputs(&run, &out, Some(started))?;
     if args.json {

@@ -29,6 +29,9 @@ pub fn run(a: &SimulateArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     }
     let base = a.design.parent().map(|p| p.to_path_buf()).unwrap_or_default();
     let ctx = a.design.display().to_string();
+    if let Some(o) = &a.out {
+        idexp::io::folder::check_out_dir(o)?;
+    }
     let setup = SimSetup::from_design(&d, &base, &ctx)?;
     let res = setup.run(ctl)?;
     let name = d.name.clone().unwrap_or_else(|| {

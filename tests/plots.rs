@@ -1,0 +1,129 @@
+//! The SVG figures are readable: every tick label is formatted (no
+//! 17-digit rounding artefacts, no "-0"), log axes carry decade ticks, and
+//! no text is placed outside the canvas. Checked on the figures written by
+//! shipped designs (excite, positions, multisine/frf/fit) and on the tick
+//! functions themselves.
+#![cfg(feature = "cli")]
+
+mod common;
+use common::root;
+use idexp::io::plot::{log_ticks, tick_label};
+use std::path::Path;
+use std::process::Command;
+
+#[test]
+fn tick_labels_are_short_and_log_ticks_are_decades_with_subdivisions() {
+    assert_eq!(tick_label(9.999999999999999e-5), "1e-4");
+    assert_eq!(tick_label(-0.0), "0");
+    assert_eq!(tick_label(1e-17), "0");
+    assert_eq!(tick_label(0.25), "0.25");
+    assert_eq!(tick_label(40.0), "40");
+    assert_eq!(tick_label(2.5e6), "2.5e6");
+    assert_eq!(tick_label(0.30000000000000004), "0.3");
+    assert_eq!(log_ticks(3.0, 150.0), vec![5.0, 10.0, 20.0, 50.0, 100.0]);
+    assert_eq!(log_ticks(1e-6, 1.0), vec![1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0]);
+    assert_eq!(log_ticks(40.0, 100.0), vec![40.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0]);
+    assert!(log_ticks(1e-30, 1e30).len() <= 9);
+}
+
+/// A `<text>` element: x, y and content.
+type Text = (f64, f64, String);
+
+/// (width, height) of the SVG and every <text> with its x, y and content.
+fn texts(svg: &str) -> ((f64, f64), Vec<Text>) {
+    let attr = |tag: &str, name: &str| -> Option<f64> {
+        let i = tag.find(&format!(" {name}=\""))? + name.len() + 3;
+        tag[i..].split('"').next()?.parse().ok()
+    };
+    let head = &svg[svg.find("<svg").unwrap()..];
+    let head = &head[..head.find('>').unwrap()];
+    let size = (attr(head, "width").unwrap(), attr(head, "height").unwrap());
+    let mut out = Vec::new();
+    let mut rest = svg;
+    while let Some(i) = rest.find("<text") {
+        let tag_end = rest[i..].find('>').unwrap() + i;
+        let tag = &rest[i..tag_end];
+        let close = rest[tag_end..].find("</text>").unwrap() + tag_end;
+        let body = rest[tag_end + 1..close].trim().to_string();
+        if let (Some(x), Some(y)) = (attr(tag, "x"), attr(tag, "y")) {
+            out.push((x, y, body));
+        }
+        rest = &rest[close..];
+    }
+    (size, out)
+}
+
+/// A number with 12 or more significant digits (a rounding artefact).
+fn long_number(t: &str) -> bool {
+    let digits: String = t
+        .chars()
+        .take_while(|c| c.is_ascii_digit() || *c == '.' || *c == '-')
+        .filter(|c| c.is_ascii_digit())
+        .collect();
+    digits.trim_start_matches('0').len() >= 12
+}
+
+fn check_svg(path: &Path) {
+    let svg = std::fs::read_to_string(path).unwrap();
+    let ((w, h), ts) = texts(&svg);
+    assert!(!ts.is_empty(), "{}: no text", path.display());
+    for (x, y, t) in &ts {
+        assert!(!long_number(t), "{}: tick label `{t}`", path.display());
+        assert!(t != "-0" && t != "-0.0", "{}: tick label `{t}`", path.display());
+        assert!(
+            (-1.0..=w + 1.0).contains(x) && (-1.0..=h + 1.0).contains(y),
+            "{}: `{t}` at ({x}, {y}) outside {w}×{h}",
+            path.display()
+        );
+    }
+}
+
+fn run(args: &[&str]) {
+    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .current_dir(root(""))
+        .env("IDEXP_NO_PROGRESS", "1")
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.code().is_some_and(|c| c == 0 || c == 3),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+fn svgs(dir: &Path) -> Vec<std::path::PathBuf> {
+    let mut v: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "svg"))
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn figures_of_shipped_designs_have_formatted_ticks_inside_the_canvas() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = |s: &str| tmp.path().join(s).to_str().unwrap().to_string();
+    run(&["excite", "designs/excite_ur5.toml", "--out", &t("ex")]);
+    run(&["positions", "designs/positions_file_a.toml", "--out", &t("pa")]);
+    run(&["positions", "designs/positions_elastic6_small.toml", "--out", &t("pe")]);
+    run(&["frf", "designs/elastic_industrial6.toml", "--out", &t("el")]);
+    run(&["fit", "designs/elastic_industrial6.toml", "--starts", "3", "--out", &t("el")]);
+    let mut n = 0;
+    for d in ["ex", "pa", "pe", "el/frf", "el/fit_lls_user"] {
+        for p in svgs(&tmp.path().join(d)) {
+            check_svg(&p);
+            n += 1;
+        }
+    }
+    assert!(n >= 10, "{n} figures");
+    // the Bode plots: decade ticks on the frequency axis, none colliding
+    let bode = std::fs::read_to_string(tmp.path().join("el/fit_lls_user/bode_pos1.svg")).unwrap();
+    let labels: Vec<String> = texts(&bode).1.into_iter().map(|t| t.2).collect();
+    for want in ["10", "100", "5", "50"] {
+        assert!(labels.iter().any(|l| l == want), "no tick `{want}` in {labels:?}");
+    }
+}
