@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Builds the Python package (python/, maturin + pyo3) into a venv under
+# target/python-venv and runs its pytest suite (python/tests/).
+#
+# Idempotent and offline-safe once installed: PyPI packages (maturin, numpy,
+# pytest, matplotlib, pin = Pinocchio) are installed only when missing; the
+# wheel is rebuilt by cargo's incremental build and reinstalled each run.
+# Extra arguments go to pytest (e.g. `-k pinocchio`).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+./scripts/setup-system.sh
+PY="${PYTHON:-python3}"
+VENV=target/python-venv
+if [ ! -x "$VENV/bin/python" ]; then
+  "$PY" -m venv "$VENV"
+fi
+VPY="$VENV/bin/python"
+if ! "$VPY" -c "import maturin, numpy, pytest, matplotlib, pinocchio" >/dev/null 2>&1; then
+  echo "python-test: installing maturin numpy pytest matplotlib pin into $VENV" >&2
+  "$VPY" -m pip install -q "maturin>=1.7,<2" numpy pytest matplotlib pin
+fi
+# the command-line binary the tests compare against
+cargo build --release --bin idexp
+rm -rf target/wheels/idexp-*.whl
+"$VENV/bin/maturin" build --release -m python/Cargo.toml -o target/wheels -i "$VPY" --quiet
+"$VPY" -m pip install -q --force-reinstall --no-deps target/wheels/idexp-*.whl
+# from the repository root: `import idexp` is the installed wheel (python/idexp
+# without the native module is not on sys.path)
+exec "$VPY" -m pytest -q python/tests "$@"
