@@ -191,7 +191,10 @@ def identify(
     method: ols, wls, projection or ml."""
 
 class PositionsResult:
-    names: list[str]
+    param_names: list[str]
+    n_candidates: int
+    ranks: list[int]
+    costs: F64
     q: F64
     weights: F64
     plan: list[int]

@@ -740,15 +740,35 @@ pub struct PositionsResult {
 
 #[pymethods]
 impl PositionsResult {
-    /// Candidate names.
+    /// Names of the identified parameters (p).
     #[getter]
-    fn names(&self) -> Vec<String> {
+    fn param_names(&self) -> Vec<String> {
         self.inner.names.clone()
     }
-    /// Candidate configurations (n_candidates, n).
+    /// Number of candidate configurations.
+    #[getter]
+    fn n_candidates(&self) -> usize {
+        self.inner.relaxed.weights.len()
+    }
+    /// Rank of each candidate's information matrix.
+    #[getter]
+    fn ranks(&self) -> Vec<usize> {
+        self.inner.ranks.clone()
+    }
+    /// Cost of each candidate (ones when the design gives none).
+    #[getter]
+    fn costs<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        let n = self.inner.relaxed.weights.len();
+        out1(py, self.inner.costs.clone().unwrap_or_else(|| vec![1.0; n]))
+    }
+    /// Candidate configurations (n_candidates, n); (n_candidates, 0) when the
+    /// information comes from a file without joint values.
     #[getter]
     fn q<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         let n = self.inner.q.first().map_or(0, Vec::len);
+        if self.inner.q.iter().any(|r| r.len() != n) {
+            return out2(py, self.inner.q.len(), 0, Vec::new());
+        }
         out_rows(py, &self.inner.q, n)
     }
     /// Relaxed weights w (n_candidates,), Σ w = 1.
@@ -794,7 +814,7 @@ impl PositionsResult {
     fn __repr__(&self) -> String {
         format!(
             "PositionsResult({} candidates, {} experiments, efficiency bound {:.4})",
-            self.inner.names.len(),
+            self.inner.relaxed.weights.len(),
             self.inner.rounded.total,
             self.inner.relaxed.certificate.efficiency_bound
         )
@@ -928,5 +948,5 @@ pub fn multisine<'py>(py: Python<'py>, design: PathBuf, out: Option<PathBuf>) ->
 #[pyo3(signature = (input, out = None, progress = None))]
 pub fn frf(py: Python<'_>, input: PathBuf, out: Option<PathBuf>, progress: Option<Bound<'_, PyAny>>) -> PyResult<PathBuf> {
     let (_, dir) = run_long(py, None, progress.as_ref(), |ctl| idexp::frf::pipeline::frf(&input, out.as_deref(), ctl))?;
-    Ok(dir)
+    Ok(dir.join("frf.json"))
 }
