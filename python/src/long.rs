@@ -57,10 +57,7 @@ where
     }
     let stop = StopFlag::new();
     let rec = Arc::new(Recorder::default());
-    let ctl = Control::new()
-        .with_stop(stop.clone())
-        .with_time_limit(time_limit)
-        .with_observer(rec.clone());
+    let ctl = Control::new().with_stop(stop.clone()).with_time_limit(time_limit).with_observer(rec.clone());
     std::thread::scope(|s| {
         let h = s.spawn(|| work(&ctl));
         let mut raised: Option<PyErr> = None;

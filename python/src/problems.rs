@@ -314,7 +314,12 @@ impl Identifiability {
         Ok(folder)
     }
     fn __repr__(&self) -> String {
-        format!("Identifiability(rank={}/{}, cond={:.4})", self.inner.rank, self.inner.names.len(), self.inner.cond)
+        format!(
+            "Identifiability(rank={}/{}, cond={:.4})",
+            self.inner.rank,
+            self.inner.names.len(),
+            self.inner.cond
+        )
     }
 }
 
@@ -322,16 +327,7 @@ impl Identifiability {
 #[pyfunction]
 #[pyo3(signature = (robot, t, q, qd, qdd, noise = None, inertial = false))]
 #[allow(clippy::too_many_arguments)] // the Python signature: robot, the sampled states, options
-pub fn assess(
-    py: Python<'_>,
-    robot: &Robot,
-    t: Option<Arg>,
-    q: Arg,
-    qd: Arg,
-    qdd: Arg,
-    noise: Option<Arg>,
-    inertial: bool,
-) -> PyResult<Identifiability> {
+pub fn assess(py: Python<'_>, robot: &Robot, t: Option<Arg>, q: Arg, qd: Arg, qdd: Arg, noise: Option<Arg>, inertial: bool) -> PyResult<Identifiability> {
     let r = &robot.inner;
     let n = r.dof();
     let q = arrays::matrix_rows("q", &q, None, n)?;
@@ -427,7 +423,11 @@ impl SimRun {
         self.result.reps.len()
     }
     fn __repr__(&self) -> String {
-        format!("SimRun({} repetitions of {} samples)", self.result.reps.len(), self.result.reps.first().map_or(0, |r| r.len()))
+        format!(
+            "SimRun({} repetitions of {} samples)",
+            self.result.reps.len(),
+            self.result.reps.first().map_or(0, |r| r.len())
+        )
     }
 }
 
@@ -581,7 +581,13 @@ impl Identification {
     }
     fn __repr__(&self) -> String {
         let e = &self.inner.estimate;
-        format!("Identification({}, {}, {} base parameters, cond={:.4})", e.method.name(), e.status, e.names.len(), e.cond)
+        format!(
+            "Identification({}, {}, {} base parameters, cond={:.4})",
+            e.method.name(),
+            e.status,
+            e.names.len(),
+            e.cond
+        )
     }
 }
 
@@ -723,10 +729,7 @@ pub fn identify(
         id.estimate.compare_truth(&t.base_names, &t.base).py()?;
     }
     let options = serde_json::json!({ "robot": robot.path.display().to_string(), "options": opts, "source": "python" });
-    Ok(Identification {
-        inner: Arc::new(id),
-        options,
-    })
+    Ok(Identification { inner: Arc::new(id), options })
 }
 
 // ───────────────────────────── positions ─────────────────────────────
@@ -891,7 +894,11 @@ impl FitResult {
         self.inner.report.as_ref().map(|r| r.text())
     }
     fn __repr__(&self) -> String {
-        format!("FitResult({} starts, folder={:?})", self.inner.records.len(), self.inner.dir.display().to_string())
+        format!(
+            "FitResult({} starts, folder={:?})",
+            self.inner.records.len(),
+            self.inner.dir.display().to_string()
+        )
     }
 }
 

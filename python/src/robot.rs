@@ -307,6 +307,7 @@ impl Robot {
     /// into a standard parameter vector (p,); the drive parameters are taken
     /// from `theta` (default: the nominal ones).
     #[pyo3(signature = (pi, theta = None))]
+    #[allow(clippy::wrong_self_convention)] // the Python method's name, the inverse of `to_pinocchio`
     fn from_pinocchio<'py>(&self, py: Python<'py>, pi: Arg, theta: Option<Arg>) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let r = &self.inner;
         let nb = r.links.len();
@@ -411,6 +412,11 @@ impl BaseParameters {
         self.inner.n_base()
     }
     fn __repr__(&self) -> String {
-        format!("BaseParameters(n_base={}, p={}, tol={:e})", self.inner.n_base(), self.inner.n_std, self.inner.tol)
+        format!(
+            "BaseParameters(n_base={}, p={}, tol={:e})",
+            self.inner.n_base(),
+            self.inner.n_std,
+            self.inner.tol
+        )
     }
 }
