@@ -4,7 +4,7 @@
 #
 # Idempotent and offline-safe once installed: PyPI packages (maturin, numpy,
 # pytest, matplotlib, pin = Pinocchio) are installed only when missing; the
-# wheel is rebuilt by cargo's incremental build and reinstalled each run.
+# wheel is rebuilt (cargo's incremental build, in target/) and reinstalled each run.
 # Extra arguments go to pytest (e.g. `-k pinocchio`).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -21,9 +21,8 @@ if ! "$VPY" -c "import maturin, numpy, pytest, matplotlib, pinocchio" >/dev/null
 fi
 # the command-line binary the tests compare against
 cargo build --release --bin idexp
-rm -rf target/wheels/idexp-*.whl
-"$VENV/bin/maturin" build --release -m python/Cargo.toml -o target/wheels -i "$VPY" --quiet
-"$VPY" -m pip install -q --force-reinstall --no-deps target/wheels/idexp-*.whl
+# the README's install command, with the venv's maturin (no download: offline-safe)
+"$VPY" -m pip install -q --no-build-isolation --force-reinstall --no-deps ./python
 # from the repository root: `import idexp` is the installed wheel (python/idexp
 # without the native module is not on sys.path)
 exec "$VPY" -m pytest -q python/tests "$@"
