@@ -1,0 +1,75 @@
+"""idexp: design and evaluation of identification experiments for industrial robots.
+
+Python bindings of the idexp Rust library (numpy float64 arrays in and out;
+C or Fortran order accepted; shapes checked with ``ValueError`` naming the
+argument and the expected shape). Units are SI, angles in rad.
+
+>>> import idexp, numpy as np
+>>> robot = idexp.Robot.load("designs/robots/ur5.urdf")
+>>> q = np.zeros((100, robot.dof))
+>>> robot.regressor(q, q, q).shape          # (N·n, p)
+(600, 60)
+
+The problems:
+
+- :func:`excite` designs an excitation trajectory (Fourier series), :func:`assess`
+  rates a given one;
+- :func:`simulate` runs the closed-loop simulation of a design (a rehearsal);
+- :func:`identify` identifies the base parameters from a run (folder, arrays or
+  a :class:`SimRun`);
+- :func:`positions` selects optimal measurement positions (with a
+  Kiefer-Wolfowitz certificate); :func:`fit` fits the elastic gray-box model
+  to FRF data from many starts.
+
+Long calls release the GIL, report progress to an optional
+``progress(phase, done, total, message)`` callback and stop on Ctrl-C within a
+second, raising ``KeyboardInterrupt`` (nothing half-done is returned).
+Library errors raise :class:`IdexpError` (a ``ValueError``) or ``OSError``
+with idexp's message (file, field, value, what is allowed).
+
+Pinocchio: :meth:`Robot.to_pinocchio` / :meth:`Robot.from_pinocchio` convert
+standard parameters to and from Pinocchio's ``[m, mcx, mcy, mcz, Ixx, Ixy,
+Iyy, Ixz, Iyz, Izz]`` order per body.
+"""
+
+from ._idexp import (
+    BaseParameters,
+    ExciteResult,
+    FitResult,
+    IdexpError,
+    Identifiability,
+    Identification,
+    PositionsResult,
+    Robot,
+    SimRun,
+    __version__,
+    assess,
+    excite,
+    fit,
+    frf,
+    identify,
+    multisine,
+    positions,
+    simulate,
+)
+
+__all__ = [
+    "BaseParameters",
+    "ExciteResult",
+    "FitResult",
+    "IdexpError",
+    "Identifiability",
+    "Identification",
+    "PositionsResult",
+    "Robot",
+    "SimRun",
+    "__version__",
+    "assess",
+    "excite",
+    "fit",
+    "frf",
+    "identify",
+    "multisine",
+    "positions",
+    "simulate",
+]

@@ -1,0 +1,142 @@
+"""excite / assess: results equal to the command line's files (same design,
+same seed), arrays and shapes, KeyboardInterrupt on a long design, errors."""
+
+import json
+import os
+import signal
+import threading
+import time
+import tomllib
+
+import numpy as np
+import pytest
+
+import idexp
+from conftest import DESIGNS, ROBOTS
+
+
+def small_design(tmp_path, generations=4, extra=""):
+    """designs/excite_ur5.toml with a small GA and refinement (a few seconds)."""
+    s = (DESIGNS / "excite_ur5.toml").read_text()
+    s = s.replace('robot = "robots/ur5.toml"', f'robot = "{ROBOTS / "ur5.toml"}"')
+    s = s.replace("population = 32", "population = 12").replace("generations = 20", f"generations = {generations}")
+    s = s.replace("starts = 2", "starts = 1").replace("max_evals = 200", "max_evals = 25")
+    p = tmp_path / "small.toml"
+    p.write_text(s + extra)
+    return p
+
+
+@pytest.fixture(scope="module")
+def designed(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("excite")
+    d = small_design(tmp)
+    return d, idexp.excite(d, seed=3)
+
+
+def test_result_arrays(designed):
+    _, r = designed
+    assert r.feasible and r.status == "feasible" and r.stopped_by is None
+    c = r.coefficients
+    assert c["q0"].shape == (6,) and c["a"].shape == (6, 5) and c["b"].shape == (6, 5)
+    assert c["omega"] == pytest.approx(2 * np.pi * 0.1) and c["period"] == pytest.approx(10.0)
+    tr = r.trajectory
+    n_rows = tr["t"].shape[0]
+    assert all(tr[k].shape == (n_rows, 6) and tr[k].dtype == np.float64 for k in ("q", "qd", "qdd"))
+    sv = r.singular_values
+    assert sv.shape == (len(r.base_names),) and np.all(np.diff(sv) <= 0)
+    assert r.cond == pytest.approx(sv[0] / sv[-1], rel=1e-9)
+    assert all(m["margin"] >= 0 for m in r.margins) and r.violated == []
+    assert r.report["status"] == "feasible"
+    # the sampled trajectory obeys the Fourier series: q̇ is the derivative of q
+    s = r.sample(1000.0)
+    dq = np.gradient(s["q"], s["t"], axis=0)
+    np.testing.assert_allclose(dq[5:-5], s["qd"][5:-5], atol=1e-3)
+
+
+def test_equal_to_cli_files(designed, cli, tmp_path):
+    d, r = designed
+    out_cli = tmp_path / "cli"
+    cli("excite", d, "--seed", 3, "--out", out_cli)
+    out_py = r.write(tmp_path / "py")
+    coeff_cli = json.loads((out_cli / "coefficients.json").read_text())
+    coeff_py = json.loads((out_py / "coefficients.json").read_text())
+    assert coeff_py == coeff_cli
+    np.testing.assert_array_equal(r.x, coeff_cli["x"])
+    np.testing.assert_array_equal(r.coefficients["a"], coeff_cli["trajectory"]["a"])
+    assert r.cond == coeff_cli["cond"]
+    for f in ("trajectory.csv", "design.json", "singular_values.svg", "joints.svg"):
+        assert (out_py / f).read_bytes() == (out_cli / f).read_bytes(), f
+    # the arrays are the rows of trajectory.csv
+    csv = np.genfromtxt(out_cli / "trajectory.csv", delimiter=",", names=True)
+    np.testing.assert_allclose(r.trajectory["q"][:, 0], csv["q1"], rtol=1e-12, atol=1e-12)
+    status = json.loads((out_py / "status.json").read_text())
+    assert status["command"] == "excite" and status["status"] == "complete"
+
+
+def test_dict_design_equals_file(designed):
+    d, r = designed
+    spec = tomllib.loads(d.read_text())
+    r2 = idexp.excite(spec, seed=3)
+    np.testing.assert_array_equal(r2.x, r.x)
+    spec["ga"]["populaton"] = 3
+    with pytest.raises(idexp.IdexpError, match="populaton"):
+        idexp.excite(spec)
+
+
+def test_assess_equals_cli(designed, cli, tmp_path, ur5):
+    _, r = designed
+    s = r.sample(10.0)
+    a = idexp.assess(ur5, s["t"], s["q"], s["qd"], s["qdd"])
+    assert a.rank == len(a.names) == 48
+    # the CLI on the same rows
+    r.write(tmp_path / "x")
+    rows = tmp_path / "rows.csv"
+    n = 6
+    header = ["t"] + [f"{k}{j}" for k in ("q", "qd", "qdd") for j in range(1, n + 1)]
+    np.savetxt(rows, np.column_stack([s["t"], s["q"], s["qd"], s["qdd"]]), delimiter=",", header=",".join(header),
+               comments="", fmt="%.17g")
+    rep = json.loads(cli("assess", ROBOTS / "ur5.toml", rows, "--json"))
+    assert a.cond == pytest.approx(rep["cond"], rel=1e-12)
+    # JSON has no infinity: the command line writes null where σ* is unbounded (a zero nominal value)
+    want = np.array([np.inf if v is None else v for v in rep["rel_std_dev"]])
+    np.testing.assert_allclose(a.rel_std_dev, want, rtol=1e-12)
+    assert a.report["names"] == rep["names"]
+    with pytest.raises(ValueError, match=r"qd: expected shape \(100, 6\), got \(99, 6\)"):
+        idexp.assess(ur5, None, s["q"], s["qd"][:-1], s["qdd"])
+    with pytest.raises(ValueError, match="noise"):
+        idexp.assess(ur5, None, s["q"], s["qd"], s["qdd"], noise=[1.0, 2.0])
+
+
+def test_keyboard_interrupt_on_long_excite(tmp_path):
+    d = small_design(tmp_path, generations=100000)
+    seen = []
+    timer = threading.Timer(1.5, lambda: (seen.append(time.monotonic()), os.kill(os.getpid(), signal.SIGINT)))
+    timer.start()
+    t0 = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        idexp.excite(d, progress=lambda *a: seen.append(a))
+    stopped = time.monotonic()
+    timer.join()
+    sent = next(x for x in seen if isinstance(x, float))
+    # the generous bound leaves room for a loaded machine; the design alone would run for hours
+    assert stopped - sent < 3.0, f"stopped {stopped - sent:.2f} s after SIGINT"
+    assert stopped - t0 > 1.0
+    # progress reached the callback from the GA phase
+    phases = {a[0] for a in seen if isinstance(a, tuple)}
+    assert "excite GA" in phases, phases
+
+
+def test_time_limit_and_errors(tmp_path):
+    d = small_design(tmp_path, generations=100000)
+    r = idexp.excite(d, time_limit=1.5)
+    assert r.stopped_by is not None and "time limit" in r.stopped_by
+    with pytest.raises(ValueError, match="time_limit"):
+        idexp.excite(d, time_limit=-1)
+    with pytest.raises(OSError, match="missing.toml"):
+        idexp.excite(tmp_path / "missing.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text(d.read_text().replace("harmonics = 5", "harmonics = 0"))
+    with pytest.raises(idexp.IdexpError, match="bad.toml.*harmonics"):
+        idexp.excite(bad)
+    with pytest.raises(ValueError, match="design: expected a path"):
+        idexp.excite(42)
