@@ -116,7 +116,10 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         .is_some_and(|b| b.ga == Some(Termination::Interrupted) || b.refine == Some(Termination::Interrupted))
         || crate::interrupted(ctl);
     Ok(match r.status {
-        Status::Infeasible => Outcome::Unusable(format!("the design is INFEASIBLE ({} constraint(s) violated)", r.violated.len())),
+        Status::Infeasible => Outcome::Unusable(match (&r.execution.problem, r.violated.len()) {
+            (Some(e), 0) => format!("the design is INFEASIBLE: not playable rest to rest: {e}"),
+            (_, k) => format!("the design is INFEASIBLE ({k} constraint(s) violated)"),
+        }),
         Status::Feasible if interrupted => Outcome::Interrupted,
         Status::Feasible => Outcome::Done,
     })
