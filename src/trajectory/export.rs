@@ -231,6 +231,21 @@ pub fn ros2_waypoints_yaml(names: &[String], poses: &[Vec<f64>], times: &[f64]) 
     joint_trajectory_yaml(names, points)
 }
 
+/// The same message as the `trajectory` field of a
+/// `control_msgs/action/FollowJointTrajectory` goal (what
+/// `ros2 action send_goal` takes for a joint_trajectory_controller).
+pub fn ros2_goal_yaml(s: &Samples) -> Result<String> {
+    let msg = ros2_yaml(s)?;
+    let mut out = String::with_capacity(msg.len() + msg.lines().count() * 2 + 16);
+    out.push_str("trajectory:\n");
+    for line in msg.lines() {
+        out.push_str("  ");
+        out.push_str(line);
+        out.push('\n');
+    }
+    Ok(out)
+}
+
 fn joint_trajectory_yaml(names: &[String], points: Vec<RosPoint>) -> Result<String> {
     let msg = RosJointTrajectory {
         header: RosHeader {
@@ -312,4 +327,157 @@ pub fn csv(s: &Samples, revolute: &[bool], o: CsvOptions) -> Result<String> {
         out.push('\n');
     }
     Ok(out)
+}
+
+/// A controller export format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Format {
+    /// URScript `servoj` program (`<stem>.script`).
+    Ur,
+    /// ROS 2 JointTrajectory YAML (`<stem>_ros2.yaml`) and the
+    /// FollowJointTrajectory goal (`<stem>_ros2_goal.yaml`).
+    Ros2,
+    /// CSV at the chosen rate (`<stem>_export.csv`).
+    Csv,
+}
+
+impl Format {
+    /// Parses `ur`, `ros2` or `csv`.
+    pub fn parse(s: &str) -> Result<Format> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "ur" | "urscript" => Ok(Format::Ur),
+            "ros2" | "ros" => Ok(Format::Ros2),
+            "csv" => Ok(Format::Csv),
+            other => Err(Error::invalid("export", "format", format!("`{other}`: expected ur, ros2 or csv"))),
+        }
+    }
+}
+
+/// What [`write_exports`] writes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExportOptions {
+    /// Formats.
+    pub formats: Vec<Format>,
+    /// Rate of the ROS 2 and CSV exports (Hz); URScript uses the controller's.
+    pub rate: f64,
+    /// UR controller generation.
+    pub ur: UrController,
+    /// CSV contents.
+    pub csv: CsvOptions,
+    /// File stem and URScript program name.
+    pub stem: String,
+    /// `movej` from the current pose to the start: (rad/s², rad/s).
+    pub approach: (f64, f64),
+}
+
+/// Writes the delivered trajectory `d` in every format of `o` into `dir`
+/// (each file atomically) and returns the paths written.
+pub fn write_exports(dir: &std::path::Path, names: &[String], revolute: &[bool], d: &Delivered, o: &ExportOptions) -> Result<Vec<std::path::PathBuf>> {
+    if names.len() != d.home.len() || revolute.len() != d.home.len() {
+        return Err(Error::dim("joint names and kinds", d.home.len(), names.len().min(revolute.len())));
+    }
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let mut written = Vec::new();
+    let mut seen = Vec::new();
+    for f in &o.formats {
+        if seen.contains(f) {
+            continue;
+        }
+        seen.push(*f);
+        match f {
+            Format::Ur => {
+                let s = Samples::from_delivered(names.to_vec(), d, o.ur.rate())?;
+                let path = dir.join(format!("{}.script", o.stem));
+                crate::io::write_atomic(&path, urscript(&s, o.ur, &o.stem, o.approach)?.as_bytes())?;
+                written.push(path);
+            }
+            Format::Ros2 => {
+                let s = Samples::from_delivered(names.to_vec(), d, o.rate)?;
+                let path = dir.join(format!("{}_ros2.yaml", o.stem));
+                crate::io::write_atomic(&path, ros2_yaml(&s)?.as_bytes())?;
+                written.push(path);
+                let path = dir.join(format!("{}_ros2_goal.yaml", o.stem));
+                crate::io::write_atomic(&path, ros2_goal_yaml(&s)?.as_bytes())?;
+                written.push(path);
+            }
+            Format::Csv => {
+                let s = Samples::from_delivered(names.to_vec(), d, o.rate)?;
+                let path = dir.join(format!("{}_export.csv", o.stem));
+                crate::io::write_atomic(&path, csv(&s, revolute, o.csv)?.as_bytes())?;
+                written.push(path);
+            }
+        }
+    }
+    Ok(written)
+}
+
+/// What an exported trajectory needs, read back from the `coefficients.json`
+/// written by `idexp excite`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Designed {
+    /// Design name.
+    pub design: String,
+    /// Joint names.
+    pub names: Vec<String>,
+    /// Revolute joints (angles).
+    pub revolute: Vec<bool>,
+    /// The delivered trajectory.
+    pub delivered: Delivered,
+    /// The design's controller rate (Hz).
+    pub controller_rate: f64,
+}
+
+impl Designed {
+    /// Reads `coefficients.json` (as written by `idexp excite`).
+    pub fn load(path: &std::path::Path) -> Result<Designed> {
+        let text = crate::io::read_to_string(path)?;
+        let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| Error::parse(path, format!("line {}, column {}: {e}", e.line(), e.column())))?;
+        let field = |k: &str| v.get(k).cloned().ok_or_else(|| Error::parse(path, format!("no `{k}` field (is this the coefficients.json written by `idexp excite`?)")));
+        let names: Vec<String> = serde_json::from_value(field("joint_names")?).map_err(|e| Error::parse(path, format!("joint_names: {e}")))?;
+        let revolute: Vec<bool> = serde_json::from_value(field("revolute")?).map_err(|e| Error::parse(path, format!("revolute: {e}")))?;
+        let delivered: Option<Delivered> = serde_json::from_value(field("delivered")?).map_err(|e| Error::parse(path, format!("delivered: {e}")))?;
+        let delivered = delivered.ok_or_else(|| Error::parse(path, "`delivered` is null: the design has no playable rest-to-rest trajectory (see its report.txt)"))?;
+        let controller_rate = v.get("controller_rate").and_then(|r| r.as_f64()).unwrap_or(1000.0);
+        let design = v.get("design").and_then(|d| d.as_str()).unwrap_or("trajectory").to_string();
+        let n = names.len();
+        delivered.periodic.validate(&path.display().to_string())?;
+        let bad = |what: &str, got: usize| Error::invalid(path.display().to_string(), what, format!("expected {n} values (one per joint name), got {got}"));
+        if revolute.len() != n {
+            return Err(bad("revolute", revolute.len()));
+        }
+        if delivered.home.len() != n || delivered.periodic.n_joints() != n {
+            return Err(bad("delivered.home", delivered.home.len()));
+        }
+        for (what, l) in [("delivered.lead_in", &delivered.lead_in), ("delivered.lead_out", &delivered.lead_out)] {
+            if let Some(l) = l {
+                if l.coef.len() != n {
+                    return Err(bad(what, l.coef.len()));
+                }
+                if !(l.duration.is_finite() && l.duration > 0.0 && l.duration <= 3600.0) || l.coef.iter().flatten().any(|c| !c.is_finite()) {
+                    return Err(Error::invalid(path.display().to_string(), what, format!("duration {} s or coefficients not finite / out of (0, 3600] s", l.duration)));
+                }
+            }
+        }
+        if delivered.periods == 0 || delivered.periods > 1000 || delivered.home.iter().any(|h| !h.is_finite()) {
+            return Err(Error::invalid(path.display().to_string(), "delivered.periods", format!("expected 1..=1000 periods and a finite home pose, got {}", delivered.periods)));
+        }
+        Ok(Designed {
+            design,
+            names,
+            revolute,
+            delivered,
+            controller_rate,
+        })
+    }
+}
+
+/// A URScript program name (and file stem) from a design name: letters,
+/// digits and `_` (others become `_`), starting with a letter, at most 64.
+pub fn program_name(name: &str) -> String {
+    let mut s: String = name.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).take(60).collect();
+    if !s.starts_with(|c: char| c.is_ascii_alphabetic()) {
+        s.insert_str(0, "idexp_");
+    }
+    s
 }

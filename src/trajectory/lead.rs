@@ -220,7 +220,14 @@ impl Delivered {
         let period = self.periodic.period();
         if t < t_in {
             if let Some(p) = &self.lead_in {
-                p.eval_into(t, q, qd, qdd);
+                if t <= 0.0 {
+                    // exactly home at rest
+                    q.copy_from_slice(&self.home);
+                    qd.fill(0.0);
+                    qdd.fill(0.0);
+                } else {
+                    p.eval_into(t, q, qd, qdd);
+                }
             }
             return LEAD_IN;
         }
@@ -233,6 +240,12 @@ impl Delivered {
             return k as i64 + 1;
         }
         match &self.lead_out {
+            Some(_) if t >= self.duration() => {
+                // exactly home at rest (the quintic's end value up to rounding)
+                q.copy_from_slice(&self.home);
+                qd.fill(0.0);
+                qdd.fill(0.0);
+            }
             Some(p) => p.eval_into(t - t_end, q, qd, qdd),
             None => {
                 // no lead-out: the periodic part ends at rest at home

@@ -26,6 +26,11 @@ pub struct ExciteArgs {
     /// Print report.json's contents instead of the one-line summary.
     #[arg(long)]
     pub json: bool,
+    /// Also write the delivered trajectory for a controller: ur, ros2, csv (comma separated).
+    #[arg(long, value_delimiter = ',')]
+    pub export: Vec<String>,
+    #[command(flatten)]
+    pub export_opts: crate::export::ExportOpts,
 }
 
 /// `idexp assess`: identifiability of a given trajectory.
@@ -86,6 +91,7 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         p.constraints.len(),
         p.objective.n_cols()
     );
+    let formats = if a.export.is_empty() { None } else { Some(crate::export::formats(&a.export)?) };
     let r = run(&p, ctl)?;
     let _ = write_outputs(&p, &r, &out)?;
     if a.json {
@@ -108,6 +114,21 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         }
         if let Some(b) = &r.stopped_by {
             println!("  stopped early: {b}");
+        }
+        if let Some(e) = &r.execution.problem {
+            println!("  not playable rest to rest: {e}");
+        }
+    }
+    if let Some(f) = formats {
+        match &r.execution.delivered {
+            Some(dl) if r.status == Status::Feasible => {
+                let names: Vec<String> = p.robot.joints.iter().map(|j| j.name.clone()).collect();
+                let revolute: Vec<bool> = p.robot.joints.iter().map(|j| j.kind == idexp::robot::JointKind::Revolute).collect();
+                for path in crate::export::export(&out, &p.design.name, &names, &revolute, dl, f, p.design.trajectory.controller_rate, &a.export_opts)? {
+                    eprintln!("  wrote {}", path.display());
+                }
+            }
+            _ => eprintln!("no controller export: the design is INFEASIBLE (nothing safe to play)"),
         }
     }
     let interrupted = r
