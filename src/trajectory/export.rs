@@ -259,7 +259,7 @@ fn joint_trajectory_yaml(names: &[String], points: Vec<RosPoint>) -> Result<Stri
 }
 
 /// A URScript program visiting `poses` with `movej` (blend radius 0), waiting
-/// `dwell` seconds at each (the measurement), then returning to the first.
+/// `dwell` seconds at each (the measurement).
 pub fn urscript_poses(names: &[String], poses: &[Vec<f64>], program: &str, motion: (f64, f64), dwell: f64) -> Result<String> {
     check_program_name(program)?;
     if poses.is_empty() {
