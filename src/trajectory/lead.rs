@@ -240,7 +240,7 @@ impl Delivered {
             return k as i64 + 1;
         }
         match &self.lead_out {
-            Some(_) if t >= self.duration() => {
+            Some(_) if t >= self.duration() - 1e-9 => {
                 // exactly home at rest (the quintic's end value up to rounding)
                 q.copy_from_slice(&self.home);
                 qd.fill(0.0);
