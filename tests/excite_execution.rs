@@ -16,7 +16,13 @@ fn root(p: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
 }
 
-const SHIPPED: [&str; 5] = ["excite_ur5", "excite_ur5_bench", "excite_industrial6_full", "excite_industrial6_restrained", "excite_panda_table"];
+const SHIPPED: [&str; 5] = [
+    "excite_ur5",
+    "excite_ur5_bench",
+    "excite_industrial6_full",
+    "excite_industrial6_restrained",
+    "excite_panda_table",
+];
 
 /// Every sample at 1 kHz within every joint limit, torque limit and
 /// workspace constraint of the design (computed here, not by the library's
@@ -32,19 +38,48 @@ fn assert_playable(p: &Problem, d: &Delivered) {
     let theta = p.robot.nominal_params().as_slice().to_vec();
     let mut ws = Workspace::new(&p.robot);
     let mut tau = vec![0.0; n];
-    let frames: Vec<_> = p.design.workspace.iter().map(|c| (c.resolve(&p.robot, "t", "w").unwrap(), c.shape.clone())).collect();
+    let frames: Vec<_> = p
+        .design
+        .workspace
+        .iter()
+        .map(|c| (c.resolve(&p.robot, "t", "w").unwrap(), c.shape.clone()))
+        .collect();
     let tol = 1e-9;
     for k in 0..s.len() {
         for j in 0..n {
             let [lo, hi] = p.limits.position[j];
-            assert!(s.q[k][j] >= lo - tol && s.q[k][j] <= hi + tol, "{}: q{} at t = {}", p.design.name, j + 1, s.t[k]);
-            assert!(s.qd[k][j].abs() <= p.limits.velocity[j] * (1.0 + tol), "{}: qd{} at t = {}", p.design.name, j + 1, s.t[k]);
-            assert!(s.qdd[k][j].abs() <= p.limits.acceleration[j] * (1.0 + tol), "{}: qdd{} at t = {}", p.design.name, j + 1, s.t[k]);
+            assert!(
+                s.q[k][j] >= lo - tol && s.q[k][j] <= hi + tol,
+                "{}: q{} at t = {}",
+                p.design.name,
+                j + 1,
+                s.t[k]
+            );
+            assert!(
+                s.qd[k][j].abs() <= p.limits.velocity[j] * (1.0 + tol),
+                "{}: qd{} at t = {}",
+                p.design.name,
+                j + 1,
+                s.t[k]
+            );
+            assert!(
+                s.qdd[k][j].abs() <= p.limits.acceleration[j] * (1.0 + tol),
+                "{}: qdd{} at t = {}",
+                p.design.name,
+                j + 1,
+                s.t[k]
+            );
         }
         if p.limits.torque.iter().any(|t| t.is_finite()) {
             inverse_dynamics(&p.robot, &mut ws, &theta, &s.q[k], &s.qd[k], &s.qdd[k], &mut tau);
             for j in 0..n {
-                assert!(tau[j].abs() <= p.limits.torque[j] * (1.0 + tol), "{}: torque {} at t = {}", p.design.name, j + 1, s.t[k]);
+                assert!(
+                    tau[j].abs() <= p.limits.torque[j] * (1.0 + tol),
+                    "{}: torque {} at t = {}",
+                    p.design.name,
+                    j + 1,
+                    s.t[k]
+                );
             }
         }
         for (f, shape) in &frames {
@@ -100,7 +135,11 @@ fn study_every_shipped_design_full_budget_is_playable() {
         let r = run(&p, &Control::new()).unwrap();
         assert_eq!(r.status, Status::Feasible, "{name}");
         assert_playable(&p, r.execution.delivered.as_ref().unwrap());
-        println!("{name}: cond {:.4}, delivered {:.2} s", r.spectrum.cond, r.execution.delivered.as_ref().unwrap().duration());
+        println!(
+            "{name}: cond {:.4}, delivered {:.2} s",
+            r.spectrum.cond,
+            r.execution.delivered.as_ref().unwrap().duration()
+        );
     }
 }
 
@@ -110,7 +149,14 @@ fn a_limit_class_missing_in_the_robot_is_a_named_error_or_an_explicit_skip() {
     d.robot = root("designs/robots/ur5.urdf"); // the URDF has no acceleration limits
     let robot = idexp::robot::load(&d.robot).unwrap();
     let e = Problem::new(d.clone(), robot.clone(), "excite_ur5.toml").unwrap_err().to_string();
-    for want in ["excite_ur5.toml", "limits.acceleration", "`shoulder_pan_joint`", "ur5.urdf", "`acceleration`", "missing = \"skip\""] {
+    for want in [
+        "excite_ur5.toml",
+        "limits.acceleration",
+        "`shoulder_pan_joint`",
+        "ur5.urdf",
+        "`acceleration`",
+        "missing = \"skip\"",
+    ] {
         assert!(e.contains(want), "{want} not in: {e}");
     }
     d.limits.missing = MissingLimits::Skip;
@@ -122,13 +168,21 @@ fn a_limit_class_missing_in_the_robot_is_a_named_error_or_an_explicit_skip() {
     // the shipped robot file states them: 36 constraints, sources named
     let p = shipped("excite_ur5", true);
     assert_eq!(p.constraints.len(), 36);
-    let a = p.applied_limits.iter().find(|a| a.class == "acceleration" && a.joint == "wrist_1_joint").unwrap();
+    let a = p
+        .applied_limits
+        .iter()
+        .find(|a| a.class == "acceleration" && a.joint == "wrist_1_joint")
+        .unwrap();
     assert_eq!(a.imposed, [-12.0, 12.0]);
     assert!(a.source.contains("ur5.toml [[drive]] wrist_1_joint"), "{}", a.source);
     let v = p.applied_limits.iter().find(|a| a.class == "velocity" && a.joint == "elbow_joint").unwrap();
     assert!(v.source.starts_with("URDF") && v.source.contains("ur5.urdf"), "{}", v.source);
     // torque asked for on the URDF, which has efforts: fine; with limits.torque = 0: listed as not imposed
-    assert!(p.applied_limits.iter().filter(|a| a.class == "torque").all(|a| a.source == "not imposed (limits.torque = 0)"));
+    assert!(p
+        .applied_limits
+        .iter()
+        .filter(|a| a.class == "torque")
+        .all(|a| a.source == "not imposed (limits.torque = 0)"));
 }
 
 #[test]
@@ -158,7 +212,18 @@ fn excite_export_and_idexp_export_write_the_same_files_holding_the_trajectory_ro
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("ur5");
     let o = idexp()
-        .args(["excite", "designs/excite_ur5.toml", "--export", "ur,ros2,csv", "--ur", "cb3", "--rate", "1000", "--csv-derivatives", "--out"])
+        .args([
+            "excite",
+            "designs/excite_ur5.toml",
+            "--export",
+            "ur,ros2,csv",
+            "--ur",
+            "cb3",
+            "--rate",
+            "1000",
+            "--csv-derivatives",
+            "--out",
+        ])
         .arg(&out)
         .output()
         .unwrap();
@@ -188,14 +253,28 @@ fn excite_export_and_idexp_export_write_the_same_files_holding_the_trajectory_ro
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    for f in ["excite_ur5.script", "excite_ur5_ros2.yaml", "excite_ur5_ros2_goal.yaml", "excite_ur5_export.csv"] {
+    for f in [
+        "excite_ur5.script",
+        "excite_ur5_ros2.yaml",
+        "excite_ur5_ros2_goal.yaml",
+        "excite_ur5_export.csv",
+    ] {
         assert_eq!(std::fs::read(out.join(f)).unwrap(), std::fs::read(again.join(f)).unwrap(), "{f}");
     }
     // the URScript at 125 Hz holds every 8th row of trajectory.csv
     let script = std::fs::read_to_string(out.join("excite_ur5.script")).unwrap();
     let servo: Vec<&str> = script.lines().filter(|l| l.trim_start().starts_with("servoj(")).collect();
     assert_eq!(servo.len(), (t.rows.len() - 1) / 8 + 1);
-    let q: Vec<f64> = servo[100].split('[').nth(1).unwrap().split(']').next().unwrap().split(',').map(|x| x.trim().parse().unwrap()).collect();
+    let q: Vec<f64> = servo[100]
+        .split('[')
+        .nth(1)
+        .unwrap()
+        .split(']')
+        .next()
+        .unwrap()
+        .split(',')
+        .map(|x| x.trim().parse().unwrap())
+        .collect();
     for j in 0..6 {
         assert!((q[j] - t.rows[800][1 + j]).abs() < 1e-9);
     }
@@ -203,7 +282,12 @@ fn excite_export_and_idexp_export_write_the_same_files_holding_the_trajectory_ro
     let o = idexp().args(["export", "Cargo.toml", "--format", "ur"]).output().unwrap();
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("Cargo.toml"));
-    let o = idexp().args(["export"]).arg(out.join("coefficients.json")).args(["--format", "kuka"]).output().unwrap();
+    let o = idexp()
+        .args(["export"])
+        .arg(out.join("coefficients.json"))
+        .args(["--format", "kuka"])
+        .output()
+        .unwrap();
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("ur, ros2 or csv"));
 }

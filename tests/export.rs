@@ -82,11 +82,25 @@ fn shortest_lead_is_the_first_duration_that_passes_and_an_impossible_check_is_a_
     let a = State::rest(&[0.0]);
     let b = State::rest(&[1.0]);
     // rest-to-rest quintic: peak speed 1.875 h / T, so |q̇| ≤ 1 needs T ≥ 1.875 s
-    let p = shortest(&a, &b, 0.1, 10.0, 1e-3, |_, _, qd, _| if qd[0].abs() > 1.0 { Err(format!("speed {}", qd[0])) } else { Ok(()) }).unwrap();
+    let p = shortest(&a, &b, 0.1, 10.0, 1e-3, |_, _, qd, _| {
+        if qd[0].abs() > 1.0 {
+            Err(format!("speed {}", qd[0]))
+        } else {
+            Ok(())
+        }
+    })
+    .unwrap();
     assert!(p.duration >= 1.875 && p.duration < 1.875 * 1.05 + 0.04 + 1e-9, "{}", p.duration);
     let steps = (p.duration / 0.04).round();
     assert!((p.duration - steps * 0.04).abs() < 1e-9, "a whole number of 40 ms quanta");
-    let e = shortest(&a, &b, 0.1, 2.0, 1e-3, |_, q, _, _| if q[0] > 0.5 { Err("joint `j1` position beyond 0.5".into()) } else { Ok(()) }).unwrap_err();
+    let e = shortest(&a, &b, 0.1, 2.0, 1e-3, |_, q, _, _| {
+        if q[0] > 0.5 {
+            Err("joint `j1` position beyond 0.5".into())
+        } else {
+            Ok(())
+        }
+    })
+    .unwrap_err();
     let msg = e.to_string();
     assert!(msg.contains("joint `j1` position beyond 0.5") && msg.contains("duration"), "{msg}");
 }
@@ -144,7 +158,9 @@ fn jerk_bound(d: &Delivered) -> f64 {
     }
     let tr = &d.periodic;
     for j in 0..tr.n_joints() {
-        let s: f64 = (0..tr.n_harmonics()).map(|k| ((k + 1) as f64 * tr.omega).powi(2) * tr.a[j][k].hypot(tr.b[j][k])).sum();
+        let s: f64 = (0..tr.n_harmonics())
+            .map(|k| ((k + 1) as f64 * tr.omega).powi(2) * tr.a[j][k].hypot(tr.b[j][k]))
+            .sum();
         b = b.max(s);
     }
     b
@@ -216,7 +232,10 @@ fn urscript_is_one_program_with_one_servoj_per_sample_at_the_controller_rate() {
         }
     }
     let s = Samples::from_delivered(names(), &d, 1000.0).unwrap();
-    assert!(export::urscript(&s, UrController::Cb3, "x", (1.0, 0.5)).unwrap_err().to_string().contains("125"));
+    assert!(export::urscript(&s, UrController::Cb3, "x", (1.0, 0.5))
+        .unwrap_err()
+        .to_string()
+        .contains("125"));
     let s = Samples::from_delivered(names(), &d, 125.0).unwrap();
     assert!(export::urscript(&s, UrController::Cb3, "bad-name", (1.0, 0.5)).is_err());
 }
@@ -280,7 +299,15 @@ fn csv_export_holds_the_samples_in_the_chosen_units() {
     let s = Samples::from_delivered(names(), &d, 200.0).unwrap();
     let revolute = [true, true, false];
     for (deg, der) in [(false, false), (true, true)] {
-        let text = export::csv(&s, &revolute, CsvOptions { derivatives: der, degrees: deg }).unwrap();
+        let text = export::csv(
+            &s,
+            &revolute,
+            CsvOptions {
+                derivatives: der,
+                degrees: deg,
+            },
+        )
+        .unwrap();
         let mut r = csv::Reader::from_reader(text.as_bytes());
         let h: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
         assert_eq!(h[0], "t[s]");
@@ -314,7 +341,10 @@ fn write_exports_writes_every_format_and_rejects_bad_input() {
         formats: vec![Format::Ur, Format::Ros2, Format::Csv],
         rate: 100.0,
         ur: UrController::Cb3,
-        csv: CsvOptions { derivatives: false, degrees: false },
+        csv: CsvOptions {
+            derivatives: false,
+            degrees: false,
+        },
         stem: export::program_name("excite-test 1"),
         approach: (1.0, 0.5),
     };

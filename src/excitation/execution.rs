@@ -63,16 +63,27 @@ impl ExecutionSpec {
     /// Checks the values; `ctx` names the file.
     pub fn validate(&self, ctx: &str) -> Result<()> {
         if self.periods == 0 || self.periods > 1000 {
-            return Err(Error::invalid(ctx, "execution.periods", format!("expected 1..=1000 periods, got {}", self.periods)));
+            return Err(Error::invalid(
+                ctx,
+                "execution.periods",
+                format!("expected 1..=1000 periods, got {}", self.periods),
+            ));
         }
         if !(self.min_transition.is_finite() && self.min_transition > 0.0) {
-            return Err(Error::invalid(ctx, "execution.min_transition", format!("expected a positive duration in s, got {}", self.min_transition)));
+            return Err(Error::invalid(
+                ctx,
+                "execution.min_transition",
+                format!("expected a positive duration in s, got {}", self.min_transition),
+            ));
         }
         if !(self.max_transition.is_finite() && self.max_transition >= self.min_transition && self.max_transition <= 3600.0) {
             return Err(Error::invalid(
                 ctx,
                 "execution.max_transition",
-                format!("expected min_transition ({}) ≤ max_transition ≤ 3600 s, got {}", self.min_transition, self.max_transition),
+                format!(
+                    "expected min_transition ({}) ≤ max_transition ≤ 3600 s, got {}",
+                    self.min_transition, self.max_transition
+                ),
             ));
         }
         if let Some(h) = &self.home {
@@ -83,6 +94,9 @@ impl ExecutionSpec {
         Ok(())
     }
 }
+
+/// A check of one pose (q), e.g. the minimum link distance.
+pub type PoseCheck<'a> = Box<dyn FnMut(&[f64]) -> CheckResult + 'a>;
 
 /// Relative tolerance of the state check (the periodic part touches its
 /// limits by design; rounding must not make it fail).
@@ -103,7 +117,7 @@ pub struct StateCheck<'a> {
     margins: Vec<(f64, nalgebra::Vector3<f64>)>,
     /// Extra check per pose (q): the place for the collision check
     /// (see [`StateCheck::with_pose_check`]).
-    pose_check: Option<Box<dyn FnMut(&[f64]) -> CheckResult + 'a>>,
+    pose_check: Option<PoseCheck<'a>>,
 }
 
 impl<'a> StateCheck<'a> {
@@ -113,7 +127,11 @@ impl<'a> StateCheck<'a> {
         for (i, c) in p.design.workspace.iter().enumerate() {
             let field = format!("workspace[{i}]");
             let frame = c.resolve(&p.robot, &p.design.name, &field)?;
-            cart.push((frame, c.shape.clone(), format!("{field} ({}, {})", c.frame.as_deref().unwrap_or("end effector"), c.shape.describe())));
+            cart.push((
+                frame,
+                c.shape.clone(),
+                format!("{field} ({}, {})", c.frame.as_deref().unwrap_or("end effector"), c.shape.describe()),
+            ));
         }
         let check = StateCheck {
             robot: &p.robot,
@@ -276,7 +294,9 @@ fn verify(d: &Delivered, rate: f64, check: &mut StateCheck) -> std::result::Resu
     for k in 0..=m {
         let t = k as f64 / rate;
         let seg = d.eval(t, &mut q, &mut qd, &mut qdd);
-        check.check(&q, &qd, &qdd).map_err(|e| format!("delivered trajectory at t = {t:.3} s (segment {seg}): {e}"))?;
+        check
+            .check(&q, &qd, &qdd)
+            .map_err(|e| format!("delivered trajectory at t = {t:.3} s (segment {seg}): {e}"))?;
     }
     Ok(())
 }

@@ -99,7 +99,10 @@ pub fn resolve(l: &LimitsSpec, robot: &Robot, robot_path: &Path, ctx: &str) -> R
             let (c, h) = (0.5 * (lo + hi), 0.5 * (hi - lo));
             ([c - l.position * h, c + l.position * h], src)
         } else if skip {
-            ([lo, hi], format!("not imposed (joint without a finite range in {src}; limits.missing = \"skip\")"))
+            (
+                [lo, hi],
+                format!("not imposed (joint without a finite range in {src}; limits.missing = \"skip\")"),
+            )
         } else {
             return Err(Error::invalid(
                 ctx,
@@ -141,7 +144,7 @@ pub fn resolve(l: &LimitsSpec, robot: &Robot, robot_path: &Path, ctx: &str) -> R
             } else if value.is_finite() {
                 (fraction * value, source_of(robot_path, &jt.name, &[key]))
             } else if skip {
-                (f64::INFINITY, format!("not imposed (missing in the robot; limits.missing = \"skip\")"))
+                (f64::INFINITY, "not imposed (missing in the robot; limits.missing = \"skip\")".to_string())
             } else {
                 return Err(missing(&jt.name, class, key));
             };

@@ -547,7 +547,11 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
     };
     // the delivered trajectory: lead-in, periods, lead-out, every sample checked
     let execution = execution::deliver(p, &trajectory)?;
-    let status = if violated.is_empty() && execution.verified { Status::Feasible } else { Status::Infeasible };
+    let status = if violated.is_empty() && execution.verified {
+        Status::Feasible
+    } else {
+        Status::Infeasible
+    };
     let last = gares.history.last();
     Ok(ExciteResult {
         status,

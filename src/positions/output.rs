@@ -348,9 +348,12 @@ pub fn report_text(run: &PositionsRun) -> String {
     s
 }
 
+/// The playable poses of a plan: joint names, poses, measurements per pose.
+pub type PlanPoses = (Vec<String>, Vec<Vec<f64>>, Vec<usize>);
+
 /// The poses of the rounded plan (m_i > 0) in candidate order, with their
 /// number of measurements m_i, and the robot's joint names.
-pub fn plan_poses(run: &PositionsRun) -> Result<(Vec<String>, Vec<Vec<f64>>, Vec<usize>)> {
+pub fn plan_poses(run: &PositionsRun) -> Result<PlanPoses> {
     let Some(r) = &run.robot else {
         return Err(crate::Error::invalid(
             &run.design.name,
@@ -409,7 +412,12 @@ fn move_time(dq: f64, v: f64, a: f64) -> f64 {
 /// Writes the plan's poses as a URScript `movej` sequence (`<stem>_poses.script`)
 /// and/or ROS 2 JointTrajectory waypoints (`<stem>_poses_ros2.yaml`: each
 /// pose reached at rest and held for its dwell); returns the paths written.
-pub fn write_plan_exports(run: &PositionsRun, out: &Path, formats: &[crate::trajectory::export::Format], motion: &PlanMotion) -> Result<Vec<std::path::PathBuf>> {
+pub fn write_plan_exports(
+    run: &PositionsRun,
+    out: &Path,
+    formats: &[crate::trajectory::export::Format],
+    motion: &PlanMotion,
+) -> Result<Vec<std::path::PathBuf>> {
     use crate::trajectory::export::{program_name, ros2_waypoints_yaml, urscript_poses, Format};
     let (names, poses, m) = plan_poses(run)?;
     for (what, v) in [("speed", motion.speed), ("acceleration", motion.acceleration), ("approach", motion.approach)] {

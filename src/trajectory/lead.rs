@@ -266,7 +266,11 @@ impl Delivered {
             return Err(Error::invalid(
                 "sampling",
                 "rate",
-                format!("{rate} Hz over {:.1} s gives {} samples, more than the {MAX_SAMPLES} allowed", self.duration(), steps + 1.0),
+                format!(
+                    "{rate} Hz over {:.1} s gives {} samples, more than the {MAX_SAMPLES} allowed",
+                    self.duration(),
+                    steps + 1.0
+                ),
             ));
         }
         let m = steps as usize + 1;

@@ -91,7 +91,11 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         p.constraints.len(),
         p.objective.n_cols()
     );
-    let formats = if a.export.is_empty() { None } else { Some(crate::export::formats(&a.export)?) };
+    let formats = if a.export.is_empty() {
+        None
+    } else {
+        Some(crate::export::formats(&a.export)?)
+    };
     let r = run(&p, ctl)?;
     let _ = write_outputs(&p, &r, &out)?;
     if a.json {
@@ -124,7 +128,16 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
             Some(dl) if r.status == Status::Feasible => {
                 let names: Vec<String> = p.robot.joints.iter().map(|j| j.name.clone()).collect();
                 let revolute: Vec<bool> = p.robot.joints.iter().map(|j| j.kind == idexp::robot::JointKind::Revolute).collect();
-                for path in crate::export::export(&out, &p.design.name, &names, &revolute, dl, f, p.design.trajectory.controller_rate, &a.export_opts)? {
+                for path in crate::export::export(
+                    &out,
+                    &p.design.name,
+                    &names,
+                    &revolute,
+                    dl,
+                    f,
+                    p.design.trajectory.controller_rate,
+                    &a.export_opts,
+                )? {
                     eprintln!("  wrote {}", path.display());
                 }
             }

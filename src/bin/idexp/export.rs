@@ -78,7 +78,16 @@ pub fn formats(list: &[String]) -> anyhow::Result<Vec<Format>> {
 
 /// Writes the exports of `d` into `dir`; returns the paths written.
 #[allow(clippy::too_many_arguments)] // the pieces of one export, from two commands
-pub fn export(dir: &Path, design: &str, names: &[String], revolute: &[bool], d: &Delivered, formats: Vec<Format>, default_rate: f64, o: &ExportOpts) -> anyhow::Result<Vec<PathBuf>> {
+pub fn export(
+    dir: &Path,
+    design: &str,
+    names: &[String],
+    revolute: &[bool],
+    d: &Delivered,
+    formats: Vec<Format>,
+    default_rate: f64,
+    o: &ExportOpts,
+) -> anyhow::Result<Vec<PathBuf>> {
     let rate = o.rate.unwrap_or(default_rate);
     if !(rate.is_finite() && rate > 0.0 && rate <= 100_000.0) {
         bail!("--rate: expected a rate in (0, 100000] Hz, got {rate}");

@@ -45,7 +45,11 @@ pub fn run(args: &PositionsArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     }
     let dir = args.design.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."));
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&design.name));
-    let formats = if args.export.is_empty() { None } else { Some(crate::export::formats(&args.export)?) };
+    let formats = if args.export.is_empty() {
+        None
+    } else {
+        Some(crate::export::formats(&args.export)?)
+    };
     let run = run_design(&design, &dir, ctl)?;
     write_outputs(&run, &out, Some(started))?;
     if let Some(f) = formats {
