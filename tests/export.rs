@@ -359,3 +359,73 @@ fn write_exports_writes_every_format_and_rejects_bad_input() {
     assert!(d.sample(-1.0).is_err());
     assert!(d.sample(1e9).unwrap_err().to_string().contains("samples"));
 }
+
+/// `idexp positions --export ur,ros2,csv`: one `movej` per pose of the
+/// rounded plan with a dwell per measurement, JointTrajectory waypoints that
+/// parse, reach every pose at rest and hold it; the poses are plan.csv's.
+#[cfg(feature = "cli")]
+#[test]
+fn positions_plan_exports_hold_the_plan_poses() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("pos");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .env("IDEXP_NO_PROGRESS", "1")
+        .current_dir(root)
+        .args([
+            "positions",
+            "designs/positions_file_a.toml",
+            "--export",
+            "ur,ros2,csv",
+            "--dwell",
+            "1.5",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // the rounded plan: rows of plan.csv with m > 0
+    let plan = idexp::io::Table::read(&out.join("plan.csv")).unwrap();
+    let im = plan.index("m").unwrap();
+    let q: Vec<Vec<f64>> = plan.rows.iter().filter(|r| r[im] > 0.0).map(|r| r[1..7].to_vec()).collect();
+    let m: Vec<f64> = plan.rows.iter().filter(|r| r[im] > 0.0).map(|r| r[im]).collect();
+    assert!(!q.is_empty());
+    let script = std::fs::read_to_string(out.join("positions_file_a_poses.script")).unwrap();
+    let lines: Vec<&str> = script.lines().collect();
+    assert_eq!(lines[0], "def positions_file_a_poses():");
+    assert_eq!(lines[lines.len() - 2], "end");
+    let moves: Vec<Vec<f64>> = lines
+        .iter()
+        .filter_map(|l| l.trim().strip_prefix("movej("))
+        .map(|rest| parse_list(&format!("{}]", rest.split(']').next().unwrap())))
+        .collect();
+    let sleeps: Vec<f64> = lines
+        .iter()
+        .filter_map(|l| l.trim().strip_prefix("sleep("))
+        .map(|rest| rest.split(')').next().unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(moves.len(), q.len());
+    for (k, pose) in moves.iter().enumerate() {
+        for j in 0..6 {
+            assert!((pose[j] - q[k][j]).abs() < 5e-9 * (1.0 + q[k][j].abs()), "pose {k}");
+        }
+        assert!((sleeps[k] - 1.5 * m[k]).abs() < 1e-12, "dwell per measurement");
+    }
+    let y = YamlLoader::load_from_str(&std::fs::read_to_string(out.join("positions_file_a_poses_ros2.yaml")).unwrap()).unwrap();
+    let pts = y[0]["points"].as_vec().unwrap();
+    assert_eq!(pts.len(), 2 * q.len(), "arrive and leave each pose");
+    let mut last = -1.0;
+    for (i, p) in pts.iter().enumerate() {
+        let t = msg_time(&p["time_from_start"]);
+        assert!(t > last, "times increase");
+        last = t;
+        let pos: Vec<f64> = p["positions"].as_vec().unwrap().iter().map(yaml_f64).collect();
+        assert_eq!(pos, q[i / 2]);
+        assert!(
+            p["velocities"].as_vec().unwrap().iter().all(|v| yaml_f64(v) == 0.0),
+            "at rest at every waypoint"
+        );
+    }
+    assert!(out.join("positions_file_a_poses.csv").is_file());
+}

@@ -15,7 +15,7 @@
 //!
 //! ```toml
 //! [execution]
-//! rest_to_rest = true      # false: deliver one period as designed (it may start at speed)
+//! rest_to_rest = true      # false: the periods as designed, starting at speed (periods = 1: one period)
 //! home = [0, 0, 0, 0, 0, 0] # default: the trajectory's q0
 //! periods = 3              # repetitions of the periodic part (averaging)
 //! min_transition = 0.5     # shortest lead-in / lead-out tried (s)
@@ -39,7 +39,7 @@ pub struct ExecutionSpec {
     pub rest_to_rest: bool,
     /// Home pose (default: the trajectory's q0).
     pub home: Option<Vec<f64>>,
-    /// Periods played (default 3; 1 with `rest_to_rest = false`).
+    /// Periods played (default 3), with or without the leads.
     pub periods: usize,
     /// Shortest lead duration tried (s).
     pub min_transition: f64,
