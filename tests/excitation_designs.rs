@@ -157,6 +157,7 @@ fn idexp_excite_on_the_readme_design_writes_every_output_and_assess_reads_the_tr
     for f in [
         "coefficients.json",
         "trajectory.csv",
+        "periodic.csv",
         "report.json",
         "report.txt",
         "design.json",
@@ -167,10 +168,11 @@ fn idexp_excite_on_the_readme_design_writes_every_output_and_assess_reads_the_tr
     ] {
         assert!(out.join(f).is_file(), "missing {f}");
     }
-    // coefficients reload, and reproduce trajectory.csv (1 kHz, one period)
+    // coefficients reload, and reproduce periodic.csv (1 kHz, one period;
+    // trajectory.csv is the delivered rest-to-rest trajectory, tests/excite_execution.rs)
     let tr = FourierTrajectory::load(&out.join("coefficients.json")).unwrap();
     assert_eq!(tr.n_harmonics(), 5);
-    let s = idexp::io::States::read(&out.join("trajectory.csv"), 6).unwrap();
+    let s = idexp::io::States::read(&out.join("periodic.csv"), 6).unwrap();
     assert_eq!(s.len(), 10_000);
     let mut q = [0.0; 6];
     let (mut qd, mut qdd) = ([0.0; 6], [0.0; 6]);

@@ -29,6 +29,12 @@
 //! torque = 0.0                      # fraction of the effort limit (0: not imposed)
 //! grid_rate = 50.0                  # grid of torque and Cartesian constraints (Hz)
 //! check_rate = 1000.0               # verification grid of the report (Hz)
+//! missing = "error"                 # a limit asked for but missing in the robot: error | skip
+//!
+//! [execution]                       # how the trajectory is played (see excitation::execution)
+//! rest_to_rest = true               # lead-in from home at rest, periods, lead-out to home at rest
+//! home = [0, 0, 0, 0, 0, 0]         # default: q0
+//! periods = 3                       # periodic part repeated for averaging
 //!
 //! [[workspace]]                     # Cartesian constraints, any number
 //! frame = "tool0"                   # default: the end effector
@@ -90,6 +96,9 @@ pub struct ExciteDesign {
     /// Gradient refinement.
     #[serde(default)]
     pub refine: RefineSpec,
+    /// How the trajectory is delivered: rest-to-rest from a home pose, periods.
+    #[serde(default)]
+    pub execution: super::execution::ExecutionSpec,
 }
 
 fn one() -> u64 {
@@ -177,6 +186,20 @@ pub struct LimitsSpec {
     pub check_rate: f64,
     /// Per-joint position ranges overriding the robot's ([lower, upper] each; rad or m).
     pub position_range: Option<Vec<[f64; 2]>>,
+    /// What to do when a limit class asked for is missing in the robot for
+    /// some joint (default: an error naming the joint and the key to set).
+    pub missing: MissingLimits,
+}
+
+/// `limits.missing`: a limit class the design asks for but the robot lacks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MissingLimits {
+    /// An error naming the joint and the key to set (default).
+    #[default]
+    Error,
+    /// Leave the missing limits out (listed as "not imposed" in the report).
+    Skip,
 }
 
 impl Default for LimitsSpec {
@@ -189,6 +212,7 @@ impl Default for LimitsSpec {
             grid_rate: 50.0,
             check_rate: 1000.0,
             position_range: None,
+            missing: MissingLimits::Error,
         }
     }
 }
@@ -336,6 +360,7 @@ impl ExciteDesign {
             w.shape.validate(ctx, &format!("workspace[{i}].shape"))?;
         }
         self.ga.validate(ctx)?;
+        self.execution.validate(ctx)?;
         let r = &self.refine;
         if r.algorithm != RefineAlgorithm::None && (r.starts == 0 || r.max_evals == 0) {
             return bad(
@@ -374,6 +399,9 @@ impl ExciteDesign {
         }
         if let Some(r) = &self.limits.position_range {
             check("limits.position_range", r.len())?;
+        }
+        if let Some(h) = &self.execution.home {
+            check("execution.home", h.len())?;
         }
         Ok(())
     }

@@ -36,9 +36,11 @@
 
 pub mod constraints;
 pub mod design;
+pub mod execution;
 /// The GA lives in the optimisation seam ([`crate::optim::ga`]); re-exported here.
 pub use crate::optim::ga;
 pub mod grid;
+pub mod limits;
 pub mod objective;
 pub mod refine;
 pub mod report;
@@ -77,6 +79,8 @@ pub struct Problem {
     pub constraints: Constraints,
     /// The joint limits imposed.
     pub limits: JointLimitSpec,
+    /// Every limit applied (or not imposed) per joint, with its source.
+    pub applied_limits: Vec<limits::AppliedLimit>,
     /// Lower bounds of x.
     pub lower: Vec<f64>,
     /// Upper bounds of x.
@@ -155,6 +159,9 @@ pub struct ExciteResult {
     pub refinements: Vec<RefineSummary>,
     /// Where the final design came from (`ga` or `refine #k`).
     pub chosen: String,
+    /// The trajectory as delivered to the robot (rest to rest, N periods;
+    /// see [`execution`]) and its verification.
+    pub execution: execution::Execution,
     /// Wall time of the search (s).
     pub seconds: f64,
     /// Worker threads used.
@@ -220,29 +227,8 @@ impl Problem {
         };
         let theta = robot.nominal_params();
         let nominal_base: Vec<f64> = base.base_values(theta.as_slice()).iter().copied().collect();
-        let l = &design.limits;
-        let ranges: Vec<[f64; 2]> = match &l.position_range {
-            Some(r) => r.clone(),
-            None => robot.joints.iter().map(|j| [j.limits.lower, j.limits.upper]).collect(),
-        };
-        let position: Vec<[f64; 2]> = ranges
-            .iter()
-            .map(|&[lo, hi]| {
-                if lo.is_finite() && hi.is_finite() {
-                    let (c, h) = (0.5 * (lo + hi), 0.5 * (hi - lo));
-                    [c - l.position * h, c + l.position * h]
-                } else {
-                    [lo, hi]
-                }
-            })
-            .collect();
-        let frac = |f: f64, v: f64| if f > 0.0 { f * v } else { f64::INFINITY };
-        let limits = JointLimitSpec {
-            position: position.clone(),
-            velocity: robot.joints.iter().map(|j| frac(l.velocity, j.limits.velocity)).collect(),
-            acceleration: robot.joints.iter().map(|j| frac(l.acceleration, j.limits.acceleration)).collect(),
-            torque: robot.joints.iter().map(|j| frac(l.torque, j.limits.effort)).collect(),
-        };
+        let (limits, applied_limits) = limits::resolve(&design.limits, &robot, &design.robot, ctx)?;
+        let position = limits.position.clone();
         let tr = &design.trajectory;
         let q0 = match &tr.q0 {
             Some(q) => q.clone(),
@@ -270,7 +256,7 @@ impl Problem {
                 noise: noise.clone(),
             },
         )?;
-        let constraints = Constraints::new(&robot, &layout, &limits, &design.workspace, l.grid_rate, ctx)?;
+        let constraints = Constraints::new(&robot, &layout, &limits, &design.workspace, design.limits.grid_rate, ctx)?;
         // box: each harmonic alone within the joint's limits
         let mut lower = vec![0.0; layout.n_vars()];
         let mut upper = vec![0.0; layout.n_vars()];
@@ -325,6 +311,7 @@ impl Problem {
             objective,
             constraints,
             limits,
+            applied_limits,
             lower,
             upper,
         })
@@ -561,7 +548,13 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
     } else {
         chosen_from
     };
-    let status = if violated.is_empty() { Status::Feasible } else { Status::Infeasible };
+    // the delivered trajectory: lead-in, periods, lead-out, every sample checked
+    let execution = execution::deliver(p, &trajectory)?;
+    let status = if violated.is_empty() && execution.verified {
+        Status::Feasible
+    } else {
+        Status::Infeasible
+    };
     let last = gares.history.last();
     Ok(ExciteResult {
         status,
@@ -592,6 +585,7 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
             })
             .collect(),
         chosen: chosen_from,
+        execution,
         trajectory,
         seconds: t0.elapsed().as_secs_f64(),
         threads: rayon::current_num_threads(),

@@ -352,6 +352,10 @@ impl Identifiability {
     }
 }
 
+fn fmt_list(v: &[f64]) -> String {
+    format!("[{}]", v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", "))
+}
+
 fn fmt_num(v: f64) -> String {
     if !v.is_finite() {
         return if v > 0.0 { "∞".into() } else { format!("{v}") };
@@ -385,10 +389,13 @@ struct ExciteReport<'a> {
     result: &'a ExciteResult,
     identifiability: &'a Identifiability,
     verification_rate: f64,
+    applied_limits: &'a [super::limits::AppliedLimit],
 }
 
 /// Writes the outputs of a design run into `dir`: coefficients.json,
-/// trajectory.csv, report.json, report.txt, design.json, status.json and
+/// trajectory.csv (the delivered trajectory, rest to rest, with a `segment`
+/// column: 0 lead-in, k period k, −1 lead-out), periodic.csv (one period,
+/// `t, q, qd, qdd`), report.json, report.txt, design.json, status.json and
 /// the SVG plots (joints.svg, singular_values.svg, ee_path.svg).
 pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Identifiability> {
     let d = &p.design;
@@ -409,9 +416,26 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Identi
         "layout": p.layout,
         "x": r.x,
         "trajectory": r.trajectory,
+        "joint_names": p.robot.joints.iter().map(|j| j.name.clone()).collect::<Vec<_>>(),
+        "revolute": p.robot.joints.iter().map(|j| j.kind == crate::robot::JointKind::Revolute).collect::<Vec<_>>(),
+        "controller_rate": d.trajectory.controller_rate,
+        "delivered": r.execution.delivered,
     });
     crate::io::write_json(&dir.join("coefficients.json"), &coeff)?;
-    r.trajectory.sample(d.trajectory.controller_rate)?.write(&dir.join("trajectory.csv"))?;
+    // trajectory.csv: the delivered trajectory (lead-in, periods, lead-out)
+    // with its segment column; periodic.csv: one period, the former layout
+    let delivered = match &r.execution.delivered {
+        Some(dl) => dl.clone(),
+        None => crate::trajectory::lead::Delivered {
+            home: r.trajectory.q0.clone(),
+            lead_in: None,
+            periodic: r.trajectory.clone(),
+            periods: 1,
+            lead_out: None,
+        },
+    };
+    delivered.sample(d.trajectory.controller_rate)?.write_csv(&dir.join("trajectory.csv"))?;
+    r.trajectory.sample(d.trajectory.controller_rate)?.write(&dir.join("periodic.csv"))?;
     crate::io::write_json(&dir.join("design.json"), d)?;
     let summary = serde_json::json!({
         "design_status": r.status,
@@ -419,13 +443,21 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Identi
         "violated": r.violated.iter().map(|m| format!("{}: {} {} beyond the limit", m.name, fmt_num(-m.margin), m.unit)).collect::<Vec<_>>(),
         "cond": r.spectrum.cond,
         "seconds": r.seconds,
+        "execution_problem": r.execution.problem,
+        "delivered_seconds": r.execution.delivered.as_ref().map(|dl| dl.duration()),
     });
     let interrupted = r
         .stopped_by
         .as_ref()
         .is_some_and(|b| b.ga == Some(Termination::Interrupted) || b.refine == Some(Termination::Interrupted));
     let (state, detail) = match (r.status, interrupted) {
-        (super::Status::Infeasible, _) => (RunState::Infeasible, format!("infeasible: {} constraint(s) violated", r.violated.len())),
+        (super::Status::Infeasible, _) => (
+            RunState::Infeasible,
+            match (&r.execution.problem, r.violated.len()) {
+                (Some(e), 0) => format!("infeasible: not playable rest to rest: {e}"),
+                (_, k) => format!("infeasible: {k} constraint(s) violated"),
+            },
+        ),
         (super::Status::Feasible, true) => (RunState::Interrupted, "interrupted; the best feasible design so far".to_string()),
         (super::Status::Feasible, false) => (RunState::Complete, format!("feasible, condition number {:.4}", r.spectrum.cond)),
     };
@@ -439,6 +471,7 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Identi
             result: r,
             identifiability: &ident,
             verification_rate: d.limits.check_rate,
+            applied_limits: &p.applied_limits,
         },
     )?;
     crate::io::write_atomic(&dir.join("report.txt"), excite_text(p, r, &ident).as_bytes())?;
@@ -513,6 +546,47 @@ pub fn excite_text(p: &Problem, r: &ExciteResult, ident: &Identifiability) -> St
             );
         }
         let _ = writeln!(s, "  (no trajectory found by the search meets these; relax them or move q0 / the workspace)");
+    }
+    let _ = writeln!(s, "\ndelivered trajectory (what trajectory.csv and the exports hold):");
+    match (&r.execution.delivered, &r.execution.problem) {
+        (Some(dl), problem) => {
+            let _ = writeln!(
+                s,
+                "  from home {} at rest: lead-in {:.2} s, {} period(s) of {} s, lead-out {:.2} s back to home at rest; total {:.2} s",
+                fmt_list(&dl.home),
+                dl.lead_in_duration(),
+                dl.periods,
+                dl.periodic.period(),
+                dl.lead_out_duration(),
+                dl.duration()
+            );
+            match problem {
+                None => {
+                    let _ = writeln!(
+                        s,
+                        "  every sample within every joint limit{} on the {} Hz grid",
+                        if d.workspace.is_empty() { "" } else { " and workspace constraint" },
+                        r.execution.check_rate
+                    );
+                }
+                Some(e) => {
+                    let _ = writeln!(s, "  NOT playable: {e}");
+                }
+            }
+        }
+        (None, Some(e)) => {
+            let _ = writeln!(s, "  NOT playable: {e}");
+        }
+        (None, None) => {}
+    }
+    let _ = writeln!(s, "\nlimits applied (value imposed; source):");
+    for a in &p.applied_limits {
+        let v = if a.class == "position" {
+            format!("[{}, {}]", fmt_num(a.imposed[0]), fmt_num(a.imposed[1]))
+        } else {
+            format!("±{}", fmt_num(a.imposed[1]))
+        };
+        let _ = writeln!(s, "  {:<22} {:<13} {:>24} {:<7} {}", a.joint, a.class, v, a.unit, a.source);
     }
     let _ = writeln!(s, "\nworst margin per constraint ({} Hz grid; ≥ 0 holds):", d.limits.check_rate);
     for m in &r.margins {

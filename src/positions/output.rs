@@ -348,3 +348,149 @@ pub fn report_text(run: &PositionsRun) -> String {
     );
     s
 }
+
+/// The playable poses of a plan: joint names, poses, measurements per pose.
+pub type PlanPoses = (Vec<String>, Vec<Vec<f64>>, Vec<usize>);
+
+/// The poses of the rounded plan (m_i > 0) in candidate order, with their
+/// number of measurements m_i, and the robot's joint names.
+pub fn plan_poses(run: &PositionsRun) -> Result<PlanPoses> {
+    let Some(r) = &run.robot else {
+        return Err(crate::Error::invalid(
+            &run.design.name,
+            "export",
+            "the plan's candidates are not robot poses (no robot in the design): nothing to play",
+        ));
+    };
+    let names: Vec<String> = r.joints.iter().map(|j| j.name.clone()).collect();
+    let mut poses = Vec::new();
+    let mut m = Vec::new();
+    for i in 0..run.rounded.m.len() {
+        if run.rounded.m[i] == 0 {
+            continue;
+        }
+        if run.q[i].len() != names.len() {
+            return Err(crate::Error::invalid(
+                &run.design.name,
+                "export",
+                format!("candidate {} has {} joint values, the robot {} joints", i + 1, run.q[i].len(), names.len()),
+            ));
+        }
+        poses.push(run.q[i].clone());
+        m.push(run.rounded.m[i]);
+    }
+    if poses.is_empty() {
+        return Err(crate::Error::invalid(&run.design.name, "export", "the rounded plan has no pose"));
+    }
+    Ok((names, poses, m))
+}
+
+/// How the measurement poses are played.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanMotion {
+    /// Joint speed of the moves (rad/s).
+    pub speed: f64,
+    /// Joint acceleration of the moves (rad/s²).
+    pub acceleration: f64,
+    /// Dwell per measurement at a pose (s); a pose with m_i measurements is
+    /// held m_i · dwell.
+    pub dwell: f64,
+    /// Time to reach the first pose from wherever the robot is (s, ROS 2).
+    pub approach: f64,
+}
+
+/// Duration of a rest-to-rest move of `dq` (max over joints) under a
+/// trapezoidal speed profile with the given speed and acceleration.
+fn move_time(dq: f64, v: f64, a: f64) -> f64 {
+    let dq = dq.abs();
+    if dq <= v * v / a {
+        2.0 * (dq / a).sqrt()
+    } else {
+        dq / v + v / a
+    }
+}
+
+/// Writes the plan's poses as a URScript `movej` sequence (`<stem>_poses.script`)
+/// and/or ROS 2 JointTrajectory waypoints (`<stem>_poses_ros2.yaml`: each
+/// pose reached at rest and held for its dwell); returns the paths written.
+pub fn write_plan_exports(
+    run: &PositionsRun,
+    out: &Path,
+    formats: &[crate::trajectory::export::Format],
+    motion: &PlanMotion,
+) -> Result<Vec<std::path::PathBuf>> {
+    use crate::trajectory::export::{program_name, ros2_waypoints_yaml, urscript_poses, Format};
+    let (names, poses, m) = plan_poses(run)?;
+    for (what, v) in [("speed", motion.speed), ("acceleration", motion.acceleration), ("approach", motion.approach)] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(crate::Error::invalid("positions export", what, format!("{v}: expected a positive value")));
+        }
+    }
+    if !(motion.dwell.is_finite() && motion.dwell >= 0.0) {
+        return Err(crate::Error::invalid("positions export", "dwell", format!("{} s: expected ≥ 0", motion.dwell)));
+    }
+    std::fs::create_dir_all(out).map_err(|e| crate::Error::io(out, e))?;
+    let stem = program_name(&run.design.name);
+    let mut written = Vec::new();
+    for f in formats {
+        match f {
+            Format::Ur => {
+                // one movej per pose, held for m_i dwells
+                let prog = format!("{stem}_poses");
+                let holds: Vec<f64> = m.iter().map(|&mi| mi as f64 * motion.dwell).collect();
+                let text = urscript_poses(&names, &poses, &prog, (motion.acceleration, motion.speed), motion.dwell)?;
+                let mut k = 0;
+                let text: String = text
+                    .lines()
+                    .map(|l| {
+                        if l.trim_start().starts_with("sleep(") && k < holds.len() {
+                            k += 1;
+                            format!("  sleep({})  # {} measurement(s)\n", holds[k - 1], m[k - 1])
+                        } else {
+                            format!("{l}\n")
+                        }
+                    })
+                    .collect();
+                let path = out.join(format!("{prog}.script"));
+                crate::io::write_atomic(&path, text.as_bytes())?;
+                written.push(path);
+            }
+            Format::Ros2 => {
+                let mut pts = Vec::new();
+                let mut times = Vec::new();
+                let mut t = motion.approach;
+                for (k, (q, &mi)) in poses.iter().zip(&m).enumerate() {
+                    if k > 0 {
+                        let dq = q.iter().zip(&poses[k - 1]).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+                        t += move_time(dq, motion.speed, motion.acceleration);
+                    }
+                    pts.push(q.clone());
+                    times.push(t);
+                    let hold = mi as f64 * motion.dwell;
+                    if hold > 0.0 {
+                        t += hold;
+                        pts.push(q.clone());
+                        times.push(t);
+                    }
+                }
+                let path = out.join(format!("{stem}_poses_ros2.yaml"));
+                crate::io::write_atomic(&path, ros2_waypoints_yaml(&names, &pts, &times)?.as_bytes())?;
+                written.push(path);
+            }
+            Format::Csv => {
+                let mut rows = Vec::new();
+                for (q, &mi) in poses.iter().zip(&m) {
+                    let mut r = q.clone();
+                    r.push(mi as f64);
+                    rows.push(r);
+                }
+                let mut header = names.clone();
+                header.push("measurements".into());
+                let path = out.join(format!("{stem}_poses.csv"));
+                crate::io::write_csv(&path, &header, &rows)?;
+                written.push(path);
+            }
+        }
+    }
+    Ok(written)
+}

@@ -15,6 +15,8 @@
 //! A sampled trajectory is an [`crate::io::States`] (`t, q, qd, qdd` CSV).
 
 pub mod differentiate;
+pub mod export;
+pub mod lead;
 pub mod multisine;
 pub mod reference;
 

@@ -26,6 +26,11 @@ pub struct ExciteArgs {
     /// Print report.json's contents instead of the one-line summary.
     #[arg(long)]
     pub json: bool,
+    /// Also write the delivered trajectory for a controller: ur, ros2, csv (comma separated).
+    #[arg(long, value_delimiter = ',')]
+    pub export: Vec<String>,
+    #[command(flatten)]
+    pub export_opts: crate::export::ExportOpts,
 }
 
 /// `idexp assess`: identifiability of a given trajectory.
@@ -90,6 +95,11 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         p.constraints.len(),
         p.objective.n_cols()
     );
+    let formats = if a.export.is_empty() {
+        None
+    } else {
+        Some(crate::export::formats(&a.export)?)
+    };
     let r = run(&p, ctl)?;
     let _ = write_outputs(&p, &r, &out)?;
     if a.json {
@@ -113,6 +123,30 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         if let Some(b) = &r.stopped_by {
             println!("  stopped early: {b}");
         }
+        if let Some(e) = &r.execution.problem {
+            println!("  not playable rest to rest: {e}");
+        }
+    }
+    if let Some(f) = formats {
+        match &r.execution.delivered {
+            Some(dl) if r.status == Status::Feasible => {
+                let names: Vec<String> = p.robot.joints.iter().map(|j| j.name.clone()).collect();
+                let revolute: Vec<bool> = p.robot.joints.iter().map(|j| j.kind == idexp::robot::JointKind::Revolute).collect();
+                for path in crate::export::export(
+                    &out,
+                    &p.design.name,
+                    &names,
+                    &revolute,
+                    dl,
+                    f,
+                    p.design.trajectory.controller_rate,
+                    &a.export_opts,
+                )? {
+                    eprintln!("  wrote {}", path.display());
+                }
+            }
+            _ => eprintln!("no controller export: the design is INFEASIBLE (nothing safe to play)"),
+        }
     }
     let interrupted = r
         .stopped_by
@@ -120,7 +154,10 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         .is_some_and(|b| b.ga == Some(Termination::Interrupted) || b.refine == Some(Termination::Interrupted))
         || crate::interrupted(ctl);
     Ok(match r.status {
-        Status::Infeasible => Outcome::Unusable(format!("the design is INFEASIBLE ({} constraint(s) violated)", r.violated.len())),
+        Status::Infeasible => Outcome::Unusable(match (&r.execution.problem, r.violated.len()) {
+            (Some(e), 0) => format!("the design is INFEASIBLE: not playable rest to rest: {e}"),
+            (_, k) => format!("the design is INFEASIBLE ({k} constraint(s) violated)"),
+        }),
         Status::Feasible if interrupted => Outcome::Interrupted,
         Status::Feasible => Outcome::Done,
     })

@@ -13,6 +13,7 @@
 
 mod elastic;
 mod excite;
+mod export;
 mod identify;
 mod positions;
 mod progress;
@@ -56,6 +57,8 @@ enum Cmd {
     Excite(excite::ExciteArgs),
     /// Identifiability of a given trajectory CSV: rank, condition number, unexcited parameters.
     Assess(excite::AssessArgs),
+    /// Write a designed excitation trajectory (coefficients.json) as URScript, ROS 2 JointTrajectory YAML or CSV.
+    Export(export::ExportArgs),
 }
 
 /// How a command ended (errors are the `Err` of the runner).
@@ -151,6 +154,7 @@ fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Cmd::Positions(a) => positions::run(a, &ctl),
         Cmd::Excite(a) => excite::run_excite(a, &ctl),
         Cmd::Assess(a) => excite::run_assess(a, &ctl),
+        Cmd::Export(a) => export::run(a, &ctl),
     }
 }
 

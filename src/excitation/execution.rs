@@ -1,0 +1,302 @@
+//! `[execution]`: how the designed periodic trajectory is played on the
+//! robot, and the delivered trajectory built from it.
+//!
+//! By default (`rest_to_rest = true`) the robot starts at rest at the home
+//! pose (default: q0), follows a quintic lead-in to the periodic part's
+//! state at t = 0 (position, velocity and acceleration matched, so q, q̇, q̈
+//! are continuous), plays `periods` periods, and a quintic lead-out brings it
+//! back to home at rest ([`crate::trajectory::lead::Delivered`]). Each lead
+//! is the shortest on a ladder of durations (from `min_transition`, 5 %
+//! steps, at most `max_transition`) that keeps every joint position,
+//! velocity, acceleration and torque limit of the design and every Cartesian
+//! workspace constraint at every sample of the `check_rate` grid
+//! ([`StateCheck`]). The periodic part itself is verified on the same grid by
+//! the design's constraints.
+//!
+//! ```toml
+//! [execution]
+//! rest_to_rest = true      # false: the periods as designed, starting at speed (periods = 1: one period)
+//! home = [0, 0, 0, 0, 0, 0] # default: the trajectory's q0
+//! periods = 3              # repetitions of the periodic part (averaging)
+//! min_transition = 0.5     # shortest lead-in / lead-out tried (s)
+//! max_transition = 60.0    # longest (s)
+//! ```
+
+use super::constraints::{frame_point, JointLimitSpec};
+use super::Problem;
+use crate::error::{Error, Result};
+use crate::robot::cartesian::Shape;
+use crate::robot::{inverse_dynamics, Frame, Robot, Workspace};
+use crate::trajectory::lead::{self, CheckResult, Delivered, State};
+use crate::trajectory::FourierTrajectory;
+use serde::{Deserialize, Serialize};
+
+/// `[execution]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ExecutionSpec {
+    /// Lead-in from home at rest and lead-out back (default true).
+    pub rest_to_rest: bool,
+    /// Home pose (default: the trajectory's q0).
+    pub home: Option<Vec<f64>>,
+    /// Periods played (default 3), with or without the leads.
+    pub periods: usize,
+    /// Shortest lead duration tried (s).
+    pub min_transition: f64,
+    /// Longest lead duration tried (s).
+    pub max_transition: f64,
+}
+
+impl Default for ExecutionSpec {
+    fn default() -> Self {
+        ExecutionSpec {
+            rest_to_rest: true,
+            home: None,
+            periods: 3,
+            min_transition: 0.5,
+            max_transition: 60.0,
+        }
+    }
+}
+
+impl ExecutionSpec {
+    /// Checks the values; `ctx` names the file.
+    pub fn validate(&self, ctx: &str) -> Result<()> {
+        if self.periods == 0 || self.periods > 1000 {
+            return Err(Error::invalid(
+                ctx,
+                "execution.periods",
+                format!("expected 1..=1000 periods, got {}", self.periods),
+            ));
+        }
+        if !(self.min_transition.is_finite() && self.min_transition > 0.0) {
+            return Err(Error::invalid(
+                ctx,
+                "execution.min_transition",
+                format!("expected a positive duration in s, got {}", self.min_transition),
+            ));
+        }
+        if !(self.max_transition.is_finite() && self.max_transition >= self.min_transition && self.max_transition <= 3600.0) {
+            return Err(Error::invalid(
+                ctx,
+                "execution.max_transition",
+                format!(
+                    "expected min_transition ({}) ≤ max_transition ≤ 3600 s, got {}",
+                    self.min_transition, self.max_transition
+                ),
+            ));
+        }
+        if let Some(h) = &self.home {
+            if let Some(j) = h.iter().position(|v| !v.is_finite()) {
+                return Err(Error::invalid(ctx, format!("execution.home[{j}]"), "expected a finite number"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A check of one pose (q), e.g. the minimum link distance.
+pub type PoseCheck<'a> = Box<dyn FnMut(&[f64]) -> CheckResult + 'a>;
+
+/// Relative tolerance of the state check (the periodic part touches its
+/// limits by design; rounding must not make it fail).
+const TOL: f64 = 1e-9;
+
+/// The check every sample of a lead-in / lead-out passes: joint position,
+/// velocity, acceleration and torque limits (nominal parameters, as the
+/// design's torque constraints), the design's Cartesian workspace
+/// constraints, and the collision hook.
+pub struct StateCheck<'a> {
+    robot: &'a Robot,
+    limits: &'a JointLimitSpec,
+    theta: Vec<f64>,
+    cart: Vec<(Frame, Shape, String)>,
+    torque: bool,
+    ws: Workspace,
+    tau: Vec<f64>,
+    margins: Vec<(f64, nalgebra::Vector3<f64>)>,
+    /// Extra check per pose (q): the place for the collision check
+    /// (see [`StateCheck::with_pose_check`]).
+    pose_check: Option<PoseCheck<'a>>,
+}
+
+impl<'a> StateCheck<'a> {
+    /// The check of a design problem's limits and workspace.
+    pub fn new(p: &'a Problem) -> Result<StateCheck<'a>> {
+        let mut cart = Vec::with_capacity(p.design.workspace.len());
+        for (i, c) in p.design.workspace.iter().enumerate() {
+            let field = format!("workspace[{i}]");
+            let frame = c.resolve(&p.robot, &p.design.name, &field)?;
+            cart.push((
+                frame,
+                c.shape.clone(),
+                format!("{field} ({}, {})", c.frame.as_deref().unwrap_or("end effector"), c.shape.describe()),
+            ));
+        }
+        let check = StateCheck {
+            robot: &p.robot,
+            limits: &p.limits,
+            theta: p.robot.nominal_params().as_slice().to_vec(),
+            cart,
+            torque: p.limits.torque.iter().any(|t| t.is_finite()),
+            ws: Workspace::new(&p.robot),
+            tau: vec![0.0; p.robot.dof()],
+            margins: Vec::new(),
+            pose_check: None,
+        };
+        // COLLISION HOOK (issue 11, items 1–3): at the merge, plug the
+        // collision engineer's distance check in here, e.g.
+        //   check.with_pose_check(move |q| p.constraints.collision_at(&mut ws, q))
+        // returning Err("pair `forearm_link`–`wrist_2_link`: distance -0.004 m below the margin 0.02 m").
+        Ok(check)
+    }
+
+    /// Adds a check of every pose (e.g. the minimum link distance).
+    pub fn with_pose_check(mut self, f: impl FnMut(&[f64]) -> CheckResult + 'a) -> Self {
+        self.pose_check = Some(Box::new(f));
+        self
+    }
+
+    /// `Err(what, where, by how much)` at the first violated limit.
+    pub fn check(&mut self, q: &[f64], qd: &[f64], qdd: &[f64]) -> CheckResult {
+        let l = self.limits;
+        for (j, jt) in self.robot.joints.iter().enumerate() {
+            let [lo, hi] = l.position[j];
+            let pad = TOL * (1.0 + lo.abs().max(hi.abs()));
+            if q[j] < lo - pad || q[j] > hi + pad {
+                return Err(format!("joint `{}` position {:.6} outside [{lo:.6}, {hi:.6}]", jt.name, q[j]));
+            }
+            for (what, v, lim) in [("velocity", qd[j], l.velocity[j]), ("acceleration", qdd[j], l.acceleration[j])] {
+                if v.abs() > lim * (1.0 + TOL) {
+                    return Err(format!("joint `{}` {what} {v:.6} beyond the limit ±{lim:.6}", jt.name));
+                }
+            }
+        }
+        if self.torque {
+            inverse_dynamics(self.robot, &mut self.ws, &self.theta, q, qd, qdd, &mut self.tau);
+            for (j, jt) in self.robot.joints.iter().enumerate() {
+                let lim = l.torque[j];
+                if self.tau[j].abs() > lim * (1.0 + TOL) {
+                    return Err(format!("joint `{}` torque {:.4} beyond the limit ±{lim:.4}", jt.name, self.tau[j]));
+                }
+            }
+        }
+        for (frame, shape, name) in &self.cart {
+            let pt = frame_point(self.robot, &mut self.ws, q, frame);
+            self.margins.clear();
+            shape.margins(&pt, &mut self.margins);
+            if let Some(m) = self.margins.iter().map(|m| m.0).min_by(f64::total_cmp) {
+                if m < -1e-9 {
+                    return Err(format!("{name}: {:.4} m outside at [{:.3}, {:.3}, {:.3}]", -m, pt[0], pt[1], pt[2]));
+                }
+            }
+        }
+        if let Some(f) = &mut self.pose_check {
+            f(q)?;
+        }
+        Ok(())
+    }
+}
+
+/// The delivered trajectory of a design, or why none is playable.
+#[derive(Debug, Clone, Serialize)]
+pub struct Execution {
+    /// The delivered trajectory (None when no lead-in / lead-out fits).
+    pub delivered: Option<Delivered>,
+    /// Why no delivered trajectory could be built (None when it was).
+    pub problem: Option<String>,
+    /// Every sample of the delivered trajectory passed the state check on
+    /// the `check_rate` grid (lead parts and periods).
+    pub verified: bool,
+    /// Verification grid (Hz).
+    pub check_rate: f64,
+}
+
+/// The home pose of a design: `execution.home`, else the trajectory's q0.
+pub fn home_of(p: &Problem, tr: &FourierTrajectory) -> Vec<f64> {
+    p.design.execution.home.clone().unwrap_or_else(|| tr.q0.clone())
+}
+
+/// Builds the delivered trajectory of `tr` for design `p`: home → lead-in →
+/// `periods` periods → lead-out → home, every lead sample checked with
+/// [`StateCheck`] on the `check_rate` grid, then the whole delivered
+/// trajectory verified on that grid.
+pub fn deliver(p: &Problem, tr: &FourierTrajectory) -> Result<Execution> {
+    let e = &p.design.execution;
+    let rate = p.design.limits.check_rate;
+    let dt = 1.0 / rate;
+    let mut check = StateCheck::new(p)?;
+    if !e.rest_to_rest {
+        let d = Delivered {
+            home: tr.q0.clone(),
+            lead_in: None,
+            periodic: tr.clone(),
+            periods: e.periods,
+            lead_out: None,
+        };
+        return Ok(Execution {
+            verified: verify(&d, rate, &mut check).is_ok(),
+            delivered: Some(d),
+            problem: None,
+            check_rate: rate,
+        });
+    }
+    let home = home_of(p, tr);
+    let rest = State::rest(&home);
+    let start = State::of(tr, 0.0);
+    let at_home = start.q.iter().zip(&home).all(|(a, b)| (a - b).abs() <= 1e-12) && start.qd.iter().chain(&start.qdd).all(|v| v.abs() <= 1e-12);
+    let (lead_in, lead_out) = if at_home {
+        (None, None)
+    } else {
+        let lead_in = lead::shortest(&rest, &start, e.min_transition, e.max_transition, dt, |_, q, qd, qdd| check.check(q, qd, qdd));
+        let lead_in = match lead_in {
+            Ok(l) => l,
+            Err(err) => return Ok(failed(format!("lead-in from the home pose: {err}"), rate)),
+        };
+        // the state at the end of every period is the state at t = 0
+        let lead_out = lead::shortest(&start, &rest, e.min_transition, e.max_transition, dt, |_, q, qd, qdd| check.check(q, qd, qdd));
+        let lead_out = match lead_out {
+            Ok(l) => l,
+            Err(err) => return Ok(failed(format!("lead-out to the home pose: {err}"), rate)),
+        };
+        (Some(lead_in), Some(lead_out))
+    };
+    let d = Delivered {
+        home,
+        lead_in,
+        periodic: tr.clone(),
+        periods: e.periods,
+        lead_out,
+    };
+    let verified = verify(&d, rate, &mut check);
+    Ok(Execution {
+        verified: verified.is_ok(),
+        problem: verified.err(),
+        delivered: Some(d),
+        check_rate: rate,
+    })
+}
+
+fn failed(problem: String, rate: f64) -> Execution {
+    Execution {
+        delivered: None,
+        problem: Some(problem),
+        verified: false,
+        check_rate: rate,
+    }
+}
+
+/// Checks every sample of the delivered trajectory at `rate` Hz.
+fn verify(d: &Delivered, rate: f64, check: &mut StateCheck) -> std::result::Result<(), String> {
+    let n = d.home.len();
+    let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let m = (d.duration() * rate - 1e-6).ceil().max(0.0) as usize;
+    for k in 0..=m {
+        let t = k as f64 / rate;
+        let seg = d.eval(t, &mut q, &mut qd, &mut qdd);
+        check
+            .check(&q, &qd, &qdd)
+            .map_err(|e| format!("delivered trajectory at t = {t:.3} s (segment {seg}): {e}"))?;
+    }
+    Ok(())
+}

@@ -1,0 +1,357 @@
+//! Rest-to-rest execution: a quintic lead-in from a home pose at rest to the
+//! state where the periodic excitation starts, the periodic part repeated N
+//! times, and a quintic lead-out back to the home pose at rest
+//! ([`Delivered`]).
+//!
+//! Per joint, q(s) = Σ_{i=0}^{5} c_i s^i on s ∈ [0, T] with the position,
+//! velocity and acceleration prescribed at both ends (six conditions, one
+//! quintic). The duration T is the shortest on a geometric ladder
+//! T_k = T_min · 1.05^k (each rounded up to a multiple of
+//! [`DURATION_QUANTUM`]) whose motion passes the caller's check (joint
+//! limits, torques, workspace, collision), sampled `dt` apart.
+
+use super::FourierTrajectory;
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// Lead-in and lead-out durations are whole multiples of this (s): 40 ms is
+/// a whole number of samples at 1 kHz, 500 Hz, 250 Hz, 125 Hz, 100 Hz, 50 Hz
+/// and 25 Hz, so the lead parts start and end on the sample grid of every
+/// usual controller rate.
+pub const DURATION_QUANTUM: f64 = 0.04;
+
+/// One quintic per joint over [0, T].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Quintic {
+    /// Coefficients c_0..c_5 per joint (q(s) = Σ c_i sⁱ).
+    pub coef: Vec<[f64; 6]>,
+    /// Duration (s).
+    pub duration: f64,
+}
+
+/// A boundary state: positions, velocities, accelerations.
+#[derive(Debug, Clone, PartialEq)]
+pub struct State {
+    /// q (rad, m).
+    pub q: Vec<f64>,
+    /// q̇.
+    pub qd: Vec<f64>,
+    /// q̈.
+    pub qdd: Vec<f64>,
+}
+
+impl State {
+    /// At rest at `q`.
+    pub fn rest(q: &[f64]) -> State {
+        State {
+            q: q.to_vec(),
+            qd: vec![0.0; q.len()],
+            qdd: vec![0.0; q.len()],
+        }
+    }
+
+    /// The state of a Fourier trajectory at time t.
+    pub fn of(tr: &FourierTrajectory, t: f64) -> State {
+        let n = tr.n_joints();
+        let mut s = State {
+            q: vec![0.0; n],
+            qd: vec![0.0; n],
+            qdd: vec![0.0; n],
+        };
+        tr.eval(t, &mut s.q, &mut s.qd, &mut s.qdd);
+        s
+    }
+}
+
+impl Quintic {
+    /// The quintic from `a` at s = 0 to `b` at s = `t` (t > 0).
+    pub fn new(a: &State, b: &State, t: f64) -> Quintic {
+        let coef = (0..a.q.len())
+            .map(|j| {
+                let (q0, v0, a0) = (a.q[j], a.qd[j], a.qdd[j]);
+                let (q1, v1, a1) = (b.q[j], b.qd[j], b.qdd[j]);
+                let (t2, t3, t4, t5) = (t * t, t.powi(3), t.powi(4), t.powi(5));
+                let h = q1 - q0;
+                [
+                    q0,
+                    v0,
+                    a0 / 2.0,
+                    (20.0 * h - (8.0 * v1 + 12.0 * v0) * t - (3.0 * a0 - a1) * t2) / (2.0 * t3),
+                    (-30.0 * h + (14.0 * v1 + 16.0 * v0) * t + (3.0 * a0 - 2.0 * a1) * t2) / (2.0 * t4),
+                    (12.0 * h - 6.0 * (v1 + v0) * t - (a0 - a1) * t2) / (2.0 * t5),
+                ]
+            })
+            .collect();
+        Quintic { coef, duration: t }
+    }
+
+    /// q, q̇, q̈ at time s (clamped to [0, T]) into the slices.
+    pub fn eval_into(&self, s: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
+        let s = s.clamp(0.0, self.duration);
+        for (j, c) in self.coef.iter().enumerate() {
+            q[j] = c[0] + s * (c[1] + s * (c[2] + s * (c[3] + s * (c[4] + s * c[5]))));
+            qd[j] = c[1] + s * (2.0 * c[2] + s * (3.0 * c[3] + s * (4.0 * c[4] + s * 5.0 * c[5])));
+            qdd[j] = 2.0 * c[2] + s * (6.0 * c[3] + s * (12.0 * c[4] + s * 20.0 * c[5]));
+        }
+    }
+
+    /// (q, q̇, q̈) at time s (clamped to [0, T]).
+    pub fn eval(&self, s: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let n = self.coef.len();
+        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        self.eval_into(s, &mut q, &mut qd, &mut qdd);
+        (q, qd, qdd)
+    }
+}
+
+/// Why a sampled motion fails the caller's check: what, where, by how much.
+pub type CheckResult = std::result::Result<(), String>;
+
+/// The shortest quintic from `a` to `b` (T on the ladder from `t_min`, at most
+/// `t_max`) for which `check(s, q, q̇, q̈)` holds at every sample `dt` apart
+/// (both ends included). `check` returns `Err(reason)` at the first violated
+/// sample; when no duration fits, the error names the reason found at the
+/// shortest and at the longest duration tried.
+pub fn shortest(a: &State, b: &State, t_min: f64, t_max: f64, dt: f64, mut check: impl FnMut(f64, &[f64], &[f64], &[f64]) -> CheckResult) -> Result<Quintic> {
+    if !(t_min > 0.0 && t_max >= t_min && t_max.is_finite() && dt > 0.0) {
+        return Err(Error::invalid(
+            "execution",
+            "lead duration",
+            format!("need 0 < t_min ≤ t_max < ∞ and dt > 0, got {t_min}, {t_max}, {dt}"),
+        ));
+    }
+    let quantise = |t: f64| (t / DURATION_QUANTUM - 1e-9).ceil().max(1.0) * DURATION_QUANTUM;
+    let mut t = quantise(t_min);
+    let mut first: Option<String> = None;
+    let mut last = String::new();
+    let mut tried = 0.0;
+    let n = a.q.len();
+    let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    while t <= t_max * (1.0 + 1e-12) {
+        let p = Quintic::new(a, b, t);
+        let m = (t / dt - 1e-9).ceil() as usize;
+        let mut ok = Ok(());
+        for k in 0..=m {
+            let s = (k as f64 * dt).min(t);
+            p.eval_into(s, &mut q, &mut qd, &mut qdd);
+            if let Err(e) = check(s, &q, &qd, &qdd) {
+                ok = Err(e);
+                break;
+            }
+        }
+        match ok {
+            Ok(()) => return Ok(p),
+            Err(e) => {
+                let e = format!("{e} (with a duration of {t:.2} s)");
+                if first.is_none() {
+                    first = Some(e.clone());
+                }
+                last = e;
+            }
+        }
+        tried = t;
+        // next rung: 5 % longer, at least one quantum
+        t = quantise((t * 1.05).max(t + DURATION_QUANTUM));
+    }
+    Err(Error::Numerical(format!(
+        "no smooth transition of {t_min:.2}–{tried:.2} s stays within the limits: at the shortest, {}; at the longest, {last}",
+        first.unwrap_or_default()
+    )))
+}
+
+/// Segment number of a sample of a [`Delivered`] trajectory: 0 the lead-in,
+/// k = 1..N period k, −1 the lead-out (and the rest sample after it).
+pub const LEAD_IN: i64 = 0;
+/// Segment number of the lead-out.
+pub const LEAD_OUT: i64 = -1;
+
+/// The trajectory as it is played on the robot: from `home` at rest, the
+/// lead-in, `periods` repetitions of the periodic part, the lead-out back to
+/// `home` at rest. A missing lead (None) has zero duration: the periodic
+/// part then starts (ends) at rest at home by construction.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Delivered {
+    /// Home pose (rad, m): start and end, at rest.
+    pub home: Vec<f64>,
+    /// Lead-in from home at rest to the periodic part's state at t = 0.
+    pub lead_in: Option<Quintic>,
+    /// The periodic excitation.
+    pub periodic: FourierTrajectory,
+    /// Number of periods played (≥ 1).
+    pub periods: usize,
+    /// Lead-out from the periodic part's state at the end of the last period
+    /// to home at rest.
+    pub lead_out: Option<Quintic>,
+}
+
+impl Delivered {
+    /// Duration of the lead-in (s).
+    pub fn lead_in_duration(&self) -> f64 {
+        self.lead_in.as_ref().map_or(0.0, |p| p.duration)
+    }
+
+    /// Duration of the lead-out (s).
+    pub fn lead_out_duration(&self) -> f64 {
+        self.lead_out.as_ref().map_or(0.0, |p| p.duration)
+    }
+
+    /// Start time of the periodic part (s).
+    pub fn periodic_start(&self) -> f64 {
+        self.lead_in_duration()
+    }
+
+    /// End time of the periodic part (s).
+    pub fn periodic_end(&self) -> f64 {
+        self.lead_in_duration() + self.periods as f64 * self.periodic.period()
+    }
+
+    /// Total duration (s).
+    pub fn duration(&self) -> f64 {
+        self.periodic_end() + self.lead_out_duration()
+    }
+
+    /// Evaluates at time t (after the end: home at rest) and returns the
+    /// segment ([`LEAD_IN`], period 1..N, [`LEAD_OUT`]).
+    pub fn eval(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) -> i64 {
+        let t_in = self.lead_in_duration();
+        let t_end = self.periodic_end();
+        let period = self.periodic.period();
+        if t < t_in {
+            if let Some(p) = &self.lead_in {
+                if t <= 0.0 {
+                    // exactly home at rest
+                    q.copy_from_slice(&self.home);
+                    qd.fill(0.0);
+                    qdd.fill(0.0);
+                } else {
+                    p.eval_into(t, q, qd, qdd);
+                }
+            }
+            return LEAD_IN;
+        }
+        if t < t_end {
+            let s = t - t_in;
+            let k = ((s / period).floor() as usize).min(self.periods - 1);
+            // evaluate at the time within the period: the series is periodic,
+            // and the phase stays exact however many periods are played
+            self.periodic.eval(s - k as f64 * period, q, qd, qdd);
+            return k as i64 + 1;
+        }
+        match &self.lead_out {
+            Some(_) if t >= self.duration() - 1e-9 => {
+                // exactly home at rest (the quintic's end value up to rounding)
+                q.copy_from_slice(&self.home);
+                qd.fill(0.0);
+                qdd.fill(0.0);
+            }
+            Some(p) => p.eval_into(t - t_end, q, qd, qdd),
+            None => {
+                // no lead-out: the periodic part ends at rest at home
+                self.periodic.eval(0.0, q, qd, qdd);
+            }
+        }
+        LEAD_OUT
+    }
+
+    /// Samples at `rate` Hz: t_k = k/rate from 0 up to the first grid point
+    /// at or after the end (so the last row is home at rest).
+    pub fn sample(&self, rate: f64) -> Result<DeliveredSamples> {
+        if !(rate.is_finite() && rate > 0.0) {
+            return Err(Error::invalid("sampling", "rate", format!("expected a positive rate in Hz, got {rate}")));
+        }
+        let steps = (self.duration() * rate - 1e-6).ceil().max(0.0);
+        if steps + 1.0 > MAX_SAMPLES as f64 {
+            return Err(Error::invalid(
+                "sampling",
+                "rate",
+                format!(
+                    "{rate} Hz over {:.1} s gives {} samples, more than the {MAX_SAMPLES} allowed",
+                    self.duration(),
+                    steps + 1.0
+                ),
+            ));
+        }
+        let m = steps as usize + 1;
+        let n = self.home.len();
+        let mut out = DeliveredSamples {
+            rate,
+            t: Vec::with_capacity(m),
+            q: Vec::with_capacity(m),
+            qd: Vec::with_capacity(m),
+            qdd: Vec::with_capacity(m),
+            segment: Vec::with_capacity(m),
+        };
+        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        for k in 0..m {
+            let t = k as f64 / rate;
+            let seg = self.eval(t, &mut q, &mut qd, &mut qdd);
+            out.t.push(t);
+            out.q.push(q.clone());
+            out.qd.push(qd.clone());
+            out.qdd.push(qdd.clone());
+            out.segment.push(seg);
+        }
+        Ok(out)
+    }
+}
+
+/// Largest number of samples a delivered trajectory is sampled into (about
+/// 28 h at 1 kHz): bounds the memory before anything is allocated.
+pub const MAX_SAMPLES: usize = 100_000_000;
+
+/// A [`Delivered`] trajectory on a uniform grid, with the segment of every row.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeliveredSamples {
+    /// Sample rate (Hz).
+    pub rate: f64,
+    /// Times (s), t_k = k / rate.
+    pub t: Vec<f64>,
+    /// Positions per sample.
+    pub q: Vec<Vec<f64>>,
+    /// Velocities per sample.
+    pub qd: Vec<Vec<f64>>,
+    /// Accelerations per sample.
+    pub qdd: Vec<Vec<f64>>,
+    /// Segment per sample: 0 lead-in, k period k, −1 lead-out.
+    pub segment: Vec<i64>,
+}
+
+impl DeliveredSamples {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// True without samples.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// Writes `t, q1..qn, qd1..qdn, qdd1..qddn, segment` (the layout
+    /// `idexp assess` and [`crate::io::States::read`] read; `segment` is an
+    /// extra column they ignore).
+    pub fn write_csv(&self, path: &std::path::Path) -> Result<()> {
+        let n = self.q.first().map_or(0, |v| v.len());
+        let mut header: Vec<String> = vec!["t".into()];
+        for p in ["q", "qd", "qdd"] {
+            header.extend((1..=n).map(|j| format!("{p}{j}")));
+        }
+        header.push("segment".into());
+        let mut s = String::with_capacity(self.len() * (20 * 3 * n + 24) + 64);
+        s.push_str(&header.join(","));
+        s.push('\n');
+        for k in 0..self.len() {
+            s.push_str(&format!("{}", self.t[k]));
+            for b in [&self.q[k], &self.qd[k], &self.qdd[k]] {
+                for v in b {
+                    s.push(',');
+                    s.push_str(&format!("{v}"));
+                }
+            }
+            s.push_str(&format!(",{}\n", self.segment[k]));
+        }
+        crate::io::write_atomic(path, s.as_bytes())
+    }
+}
