@@ -88,8 +88,17 @@ fn hull_distance_socp(a: &[Point3<f64>], b: &[Point3<f64>]) -> f64 {
     let p = CscMatrix::zeros((nv, nv));
     let mut q = vec![0.0; nv];
     q[nv - 1] = 1.0;
-    let cones = [SupportedConeT::ZeroConeT(2), SupportedConeT::NonnegativeConeT(na + nb), SupportedConeT::SecondOrderConeT(4)];
-    let settings = DefaultSettingsBuilder::default().verbose(false).tol_gap_abs(1e-10).tol_gap_rel(1e-10).build().unwrap();
+    let cones = [
+        SupportedConeT::ZeroConeT(2),
+        SupportedConeT::NonnegativeConeT(na + nb),
+        SupportedConeT::SecondOrderConeT(4),
+    ];
+    let settings = DefaultSettingsBuilder::default()
+        .verbose(false)
+        .tol_gap_abs(1e-10)
+        .tol_gap_rel(1e-10)
+        .build()
+        .unwrap();
     let mut s = DefaultSolver::new(&p, &q, &amat, &bvec, &cones, settings).unwrap();
     s.solve();
     s.solution.x[nv - 1]
@@ -158,7 +167,12 @@ fn floor_and_attached_sphere_distances_are_exact() {
         let q = random_q(&r, &mut rng);
         let x = idexp::robot::frame_pose(&r, &mut ws, &q, &tool);
         let c = x * Point3::new(0.0, 0.0, 0.1);
-        let d = sc.distances(&r, &mut kin, &q, 10.0).into_iter().find(|d| d.label == "world: wrist_3_link – floor").unwrap().distance;
+        let d = sc
+            .distances(&r, &mut kin, &q, 10.0)
+            .into_iter()
+            .find(|d| d.label == "world: wrist_3_link – floor")
+            .unwrap()
+            .distance;
         // the wrist_3 body holds its mesh hull and the ball: its floor distance is at most the ball's
         assert!(d <= c.z - 0.05 + 1e-9, "{d} vs ball {}", c.z - 0.05);
         if c.z < 0.0 {
@@ -205,7 +219,12 @@ fn gradient_matches_central_differences() {
                     qp[j] += h;
                     qm[j] -= h;
                     let fd = (dist(&qp, k, &mut kin) - dist(&qm, k, &mut kin)) / (2.0 * h);
-                    assert!((fd - g[j]).abs() < 1e-4 * (1.0 + fd.abs()), "{name} {} joint {j}: analytic {} fd {fd}", sc.pairs[k].label(), g[j]);
+                    assert!(
+                        (fd - g[j]).abs() < 1e-4 * (1.0 + fd.abs()),
+                        "{name} {} joint {j}: analytic {} fd {fd}",
+                        sc.pairs[k].label(),
+                        g[j]
+                    );
                 }
                 checked += 1;
             }
@@ -247,7 +266,10 @@ fn pair_list_excludes_adjacent_and_allowed_and_ignores_srdf_never() {
     let r2 = idexp::robot::load(&rf).unwrap();
     let sc2 = scene(&r2, &CollisionSpec::default());
     let l2: Vec<String> = sc2.pairs.iter().map(|p| p.label()).collect();
-    assert!(l2.iter().any(|l| l == "self: forearm_link – wrist_2_link"), "SRDF Never must be ignored by default");
+    assert!(
+        l2.iter().any(|l| l == "self: forearm_link – wrist_2_link"),
+        "SRDF Never must be ignored by default"
+    );
     assert!(!l2.iter().any(|l| l == "self: wrist_1_link – wrist_3_link"), "SRDF Adjacent taken");
     assert!(!l2.iter().any(|l| l == "self: base_link – wrist_3_link"), "allowed pair checked");
     assert!(sc2.excluded.iter().any(|e| e.reason.contains("test")));
@@ -258,7 +280,14 @@ fn missing_mesh_names_the_link_and_the_path() {
     let dir = tempfile::tempdir().unwrap();
     let rd = designs().join("robots");
     let rf = dir.path().join("ur5.toml");
-    std::fs::write(&rf, format!("urdf = \"{}/ur5.urdf\"\nbase_link = \"base_link\"\ntip_link = \"tool0\"\nmesh_path = [\"nowhere\"]\n", rd.display())).unwrap();
+    std::fs::write(
+        &rf,
+        format!(
+            "urdf = \"{}/ur5.urdf\"\nbase_link = \"base_link\"\ntip_link = \"tool0\"\nmesh_path = [\"nowhere\"]\n",
+            rd.display()
+        ),
+    )
+    .unwrap();
     let e = idexp::robot::load(&rf).unwrap_err().to_string();
     assert!(e.contains("base_link") && e.contains("collision/base.stl") && e.contains("nowhere"), "{e}");
 }
@@ -269,7 +298,10 @@ fn excite(design: &str, out: &Path) -> (i32, String) {
         .arg(out)
         .output()
         .unwrap();
-    (o.status.code().unwrap_or(-1), format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr)))
+    (
+        o.status.code().unwrap_or(-1),
+        format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr)),
+    )
 }
 
 #[test]
@@ -306,7 +338,10 @@ algorithm = "none"
     assert_eq!(code, 3, "{text}");
     assert!(text.contains("INFEASIBLE"), "{text}");
     let report = std::fs::read_to_string(dir.path().join("out/report.txt")).unwrap();
-    assert!(report.contains("collision world: shoulder_link – pillar") && report.contains("penetration depth"), "{report}");
+    assert!(
+        report.contains("collision world: shoulder_link – pillar") && report.contains("penetration depth"),
+        "{report}"
+    );
 }
 
 /// Every constraint of a finished design on its 1 kHz grid, recomputed from
@@ -326,7 +361,9 @@ fn check_delivered(design: &str, out: &Path) {
     // trajectory.csv at the controller rate: every row keeps the margin
     let mut rd = csv::Reader::from_path(out.join("trajectory.csv")).unwrap();
     let hdr = rd.headers().unwrap().clone();
-    let qcols: Vec<usize> = (0..p.robot.dof()).map(|j| hdr.iter().position(|h| h == format!("q{}", j + 1)).unwrap()).collect();
+    let qcols: Vec<usize> = (0..p.robot.dof())
+        .map(|j| hdr.iter().position(|h| h == format!("q{}", j + 1)).unwrap())
+        .collect();
     let mut kin = Kin::new(p.robot.dof());
     let mut worst = f64::INFINITY;
     for rec in rd.records() {
@@ -350,4 +387,28 @@ fn excite_ur5_keeps_every_link_above_the_floor_and_apart() {
 fn excite_panda_table_keeps_the_margin() {
     let dir = tempfile::tempdir().unwrap();
     check_delivered(designs().join("excite_panda_table.toml").to_str().unwrap(), dir.path());
+}
+
+#[test]
+fn position_candidates_in_collision_are_dropped() {
+    use idexp::positions::candidates::CandidateSpec;
+    let r = robot("ur5.toml");
+    let spec: CandidateSpec = toml::from_str(
+        "kind = \"grid\"\njoints = [2, 3]\npoints = [9, 9]\nlower = [-3.0, -2.8]\nupper = [0.0, 2.8]\nfixed = [0.0, -1.57, 0.0, -1.57, 0.0, 0.0]\n[collision]\nmargin = 0.01\n",
+    )
+    .unwrap();
+    let c = spec.generate(&r, &[0.0; 6], 1, &designs(), "test").unwrap();
+    assert!(c.rejected_collision > 0 && !c.q.is_empty(), "{} dropped", c.rejected_collision);
+    assert!(c.collision_reasons[0].contains("floor") || c.collision_reasons[0].contains("self:"));
+    let sc = scene(&r, &toml::from_str("margin = 0.01").unwrap());
+    let mut kin = Kin::new(6);
+    for q in &c.q {
+        assert!(sc.worst_at(&r, &mut kin, q, 1.0).unwrap().distance >= 0.01);
+    }
+    let off: CandidateSpec = toml::from_str(
+        "kind = \"grid\"\njoints = [2, 3]\npoints = [9, 9]\nlower = [-3.0, -2.8]\nupper = [0.0, 2.8]\nfixed = [0.0, -1.57, 0.0, -1.57, 0.0, 0.0]\n[collision]\nenabled = false\n",
+    )
+    .unwrap();
+    let c2 = off.generate(&r, &[0.0; 6], 1, &designs(), "test").unwrap();
+    assert_eq!(c2.q.len(), c.q.len() + c.rejected_collision);
 }

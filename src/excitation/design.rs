@@ -272,7 +272,12 @@ impl ExciteDesign {
         }
         if let Some(dir) = path.parent() {
             use crate::robot::collision::ShapeSpec;
-            let shapes = d.collision.obstacle.iter_mut().map(|o| &mut o.shape).chain(d.collision.attached.iter_mut().map(|a| &mut a.shape));
+            let shapes = d
+                .collision
+                .obstacle
+                .iter_mut()
+                .map(|o| &mut o.shape)
+                .chain(d.collision.attached.iter_mut().map(|a| &mut a.shape));
             for sh in shapes {
                 if let ShapeSpec::Mesh { file, .. } = sh {
                     if file.is_relative() {

@@ -665,10 +665,7 @@ fn distance_violation(m: &Margin) -> String {
     };
     format!(
         "collision {pair} at t = {:.3} s: distance {:.4} m ({pen}), {:.4} m inside the {} m margin",
-        m.at,
-        m.worst,
-        -m.margin,
-        m.limit
+        m.at, m.worst, -m.margin, m.limit
     )
 }
 
@@ -694,7 +691,12 @@ pub fn collision_text(p: &Problem, margins: &[Margin], rate: f64) -> String {
         n_self,
         sc.len() - n_self,
         {
-            let mut w: Vec<&str> = sc.pairs.iter().filter(|q| q.class == crate::robot::collision::PairClass::World).map(|q| q.b.as_str()).collect();
+            let mut w: Vec<&str> = sc
+                .pairs
+                .iter()
+                .filter(|q| q.class == crate::robot::collision::PairClass::World)
+                .map(|q| q.b.as_str())
+                .collect();
             w.dedup();
             if w.is_empty() {
                 "none".to_string()

@@ -171,7 +171,10 @@ pub fn read_stl(path: &Path, scale: [f64; 3]) -> Result<(Vec<Point3<f64>>, Vec<[
     }
     const MAX: u64 = 512 << 20;
     if meta.len() > MAX {
-        return Err(Error::parse(path, format!("mesh of {} bytes is larger than the {} MiB allowed", meta.len(), MAX >> 20)));
+        return Err(Error::parse(
+            path,
+            format!("mesh of {} bytes is larger than the {} MiB allowed", meta.len(), MAX >> 20),
+        ));
     }
     let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let mesh = stl_io::read_stl(&mut f).map_err(|e| Error::parse(path, format!("not a readable STL mesh: {e}")))?;
@@ -256,7 +259,11 @@ impl Body {
                     match mode {
                         MeshMode::Hull => {
                             let hull = SharedShape::convex_hull(&pts).ok_or_else(|| {
-                                Error::invalid(&here, "mesh", format!("{}: the vertices are flat or degenerate: no convex hull", path.display()))
+                                Error::invalid(
+                                    &here,
+                                    "mesh",
+                                    format!("{}: the vertices are flat or degenerate: no convex hull", path.display()),
+                                )
                             })?;
                             parts.push(part(hull, o));
                         }
@@ -273,7 +280,11 @@ impl Body {
                     let n = Vector3::from(*normal);
                     let len = n.norm();
                     if !(len.is_finite() && len > 0.0) || !offset.is_finite() {
-                        return Err(Error::invalid(&here, "plane", "the normal must be a finite non-zero vector and the offset finite"));
+                        return Err(Error::invalid(
+                            &here,
+                            "plane",
+                            "the normal must be a finite non-zero vector and the offset finite",
+                        ));
                     }
                     let n = n / len;
                     // parry's half-space: {x : nᵀx ≤ 0} in its frame; move the plane by offset along n.
@@ -296,7 +307,10 @@ impl Body {
 
     /// A body with no shapes (a link without collision geometry).
     pub fn empty(name: &str) -> Body {
-        Body { name: name.to_string(), parts: Vec::new() }
+        Body {
+            name: name.to_string(),
+            parts: Vec::new(),
+        }
     }
 
     /// True if the body has no shapes.
@@ -466,11 +480,23 @@ impl ShapeSpec {
     pub fn primitive(&self, dir: &Path) -> Primitive {
         match self {
             ShapeSpec::Box { size } => Primitive::Box { size: *size },
-            ShapeSpec::Cylinder { radius, length } => Primitive::Cylinder { radius: *radius, length: *length },
+            ShapeSpec::Cylinder { radius, length } => Primitive::Cylinder {
+                radius: *radius,
+                length: *length,
+            },
             ShapeSpec::Sphere { radius } => Primitive::Sphere { radius: *radius },
-            ShapeSpec::Capsule { radius, length } => Primitive::Capsule { radius: *radius, length: *length },
-            ShapeSpec::Plane { normal, offset } => Primitive::HalfSpace { normal: *normal, offset: *offset },
-            ShapeSpec::Mesh { file, scale } => Primitive::Mesh { path: dir.join(file), scale: *scale },
+            ShapeSpec::Capsule { radius, length } => Primitive::Capsule {
+                radius: *radius,
+                length: *length,
+            },
+            ShapeSpec::Plane { normal, offset } => Primitive::HalfSpace {
+                normal: *normal,
+                offset: *offset,
+            },
+            ShapeSpec::Mesh { file, scale } => Primitive::Mesh {
+                path: dir.join(file),
+                scale: *scale,
+            },
         }
     }
 }
@@ -745,7 +771,11 @@ impl CollisionScene {
                     }
                     // b > a ≥ 0, b a moving link: joined by one joint if a is b's parent body
                     let parent_b = robot.joints[b - 1].parent.map_or(0, |p| p + 1);
-                    let parent_a = if a == 0 { None } else { Some(robot.joints[a - 1].parent.map_or(0, |p| p + 1)) };
+                    let parent_a = if a == 0 {
+                        None
+                    } else {
+                        Some(robot.joints[a - 1].parent.map_or(0, |p| p + 1))
+                    };
                     if parent_b == a || parent_a == Some(b) {
                         excluded.push(ExcludedPair {
                             a: bodies[a].name.clone(),
@@ -781,7 +811,10 @@ impl CollisionScene {
             let floor = Body::new(
                 "floor",
                 &[GeometrySpec {
-                    primitive: Primitive::HalfSpace { normal: [0.0, 0.0, 1.0], offset: 0.0 },
+                    primitive: Primitive::HalfSpace {
+                        normal: [0.0, 0.0, 1.0],
+                        offset: 0.0,
+                    },
                     origin: Isometry3::identity(),
                 }],
                 MeshMode::Hull,

@@ -281,7 +281,9 @@ fn collision_geometry(path: &Path, f: &RobotFile, robot: &Robot, ctx: &str) -> R
             super::urdf::load_collision(&upath, &parts, f.base_link.as_deref(), &mesh_path, mode)?
         }
         None => {
-            let b: Vec<Body> = std::iter::once(Body::empty("base")).chain(robot.links.iter().map(|l| Body::empty(&l.name))).collect();
+            let b: Vec<Body> = std::iter::once(Body::empty("base"))
+                .chain(robot.links.iter().map(|l| Body::empty(&l.name)))
+                .collect();
             let m = b.iter().map(|b| vec![b.name.clone()]).collect();
             (b, m)
         }
@@ -330,7 +332,11 @@ fn collision_geometry(path: &Path, f: &RobotFile, robot: &Robot, ctx: &str) -> R
             }
         }
         if a.reason.trim().is_empty() {
-            return Err(Error::invalid(ctx, format!("allowed_collision[{k}].reason"), "give the reason the pair is not checked"));
+            return Err(Error::invalid(
+                ctx,
+                format!("allowed_collision[{k}].reason"),
+                "give the reason the pair is not checked",
+            ));
         }
         allowed.push(a.clone());
     }

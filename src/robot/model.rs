@@ -616,7 +616,11 @@ impl Robot {
     /// The same robot with its collision geometry (one body per moving link plus the base).
     pub fn with_collision(mut self, geometry: super::collision::RobotGeometry) -> crate::Result<Robot> {
         if geometry.bodies.len() != self.dof() + 1 {
-            return Err(crate::Error::dim("collision bodies (base + one per link)", self.dof() + 1, geometry.bodies.len()));
+            return Err(crate::Error::dim(
+                "collision bodies (base + one per link)",
+                self.dof() + 1,
+                geometry.bodies.len(),
+            ));
         }
         self.collision = Some(std::sync::Arc::new(geometry));
         Ok(self)

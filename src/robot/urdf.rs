@@ -307,7 +307,9 @@ pub fn load_collision(
             .unwrap_or_default(),
     };
     let n = parts.links.len();
-    let mut bodies: Vec<Body> = std::iter::once(Body::empty(&root)).chain(parts.links.iter().map(|l| Body::empty(&l.name))).collect();
+    let mut bodies: Vec<Body> = std::iter::once(Body::empty(&root))
+        .chain(parts.links.iter().map(|l| Body::empty(&l.name)))
+        .collect();
     let mut members: Vec<Vec<String>> = bodies.iter().map(|b| vec![b.name.clone()]).collect();
     let dir = path.parent().unwrap_or(Path::new("."));
     for ul in &u.links {
@@ -330,8 +332,14 @@ pub fn load_collision(
             let origin = pose_to_iso(c.origin.xyz.0, c.origin.rpy.0);
             let primitive = match &c.geometry {
                 urdf_rs::Geometry::Box { size } => Primitive::Box { size: size.0 },
-                urdf_rs::Geometry::Cylinder { radius, length } => Primitive::Cylinder { radius: *radius, length: *length },
-                urdf_rs::Geometry::Capsule { radius, length } => Primitive::Capsule { radius: *radius, length: *length },
+                urdf_rs::Geometry::Cylinder { radius, length } => Primitive::Cylinder {
+                    radius: *radius,
+                    length: *length,
+                },
+                urdf_rs::Geometry::Capsule { radius, length } => Primitive::Capsule {
+                    radius: *radius,
+                    length: *length,
+                },
                 urdf_rs::Geometry::Sphere { radius } => Primitive::Sphere { radius: *radius },
                 urdf_rs::Geometry::Mesh { filename, scale } => {
                     let p = super::collision::resolve_mesh(filename, dir, mesh_path).ok_or_else(|| {
