@@ -163,8 +163,11 @@ pub struct Proximity {
     pub normal: Vector3<f64>,
 }
 
+/// Vertices and triangles of a mesh.
+pub type MeshData = (Vec<Point3<f64>>, Vec<[u32; 3]>);
+
 /// Reads the vertices and triangles of an STL file (binary or ASCII), scaled.
-pub fn read_stl(path: &Path, scale: [f64; 3]) -> Result<(Vec<Point3<f64>>, Vec<[u32; 3]>)> {
+pub fn read_stl(path: &Path, scale: [f64; 3]) -> Result<MeshData> {
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
     if !meta.is_file() {
         return Err(Error::parse(path, "not a regular file"));
@@ -279,7 +282,7 @@ impl Body {
                 Primitive::HalfSpace { normal, offset } => {
                     let n = Vector3::from(*normal);
                     let len = n.norm();
-                    if !(len.is_finite() && len > 0.0) || !offset.is_finite() {
+                    if !(len.is_finite() && len > 0.0 && offset.is_finite()) {
                         return Err(Error::invalid(
                             &here,
                             "plane",
@@ -785,8 +788,8 @@ impl CollisionScene {
                         continue;
                     }
                     if let Some(al) = allowed.iter().find(|al| {
-                        let (x, y) = (members[a].iter().any(|m| *m == al.a), members[b].iter().any(|m| *m == al.b));
-                        let (x2, y2) = (members[a].iter().any(|m| *m == al.b), members[b].iter().any(|m| *m == al.a));
+                        let (x, y) = (members[a].contains(&al.a), members[b].contains(&al.b));
+                        let (x2, y2) = (members[a].contains(&al.b), members[b].contains(&al.a));
                         (x && y) || (x2 && y2)
                     }) {
                         excluded.push(ExcludedPair {

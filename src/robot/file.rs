@@ -347,7 +347,7 @@ fn collision_geometry(path: &Path, f: &RobotFile, robot: &Robot, ctx: &str) -> R
         let accepted: Vec<String> = f.srdf_reasons.clone().unwrap_or_else(|| vec!["Adjacent".into()]);
         for d in srdf.disable_collisions {
             let reason = d.reason.unwrap_or_default();
-            if accepted.iter().any(|r| *r == reason) && known(&d.link1) && known(&d.link2) {
+            if accepted.contains(&reason) && known(&d.link1) && known(&d.link2) {
                 allowed.push(AllowedCollision {
                     a: d.link1,
                     b: d.link2,
