@@ -55,6 +55,10 @@ generations = 4
 [refine]
 starts = 3
 max_evals = 25
+# these tests are about limits, workspace boxes and determinism; collision
+# constraints are tested in tests/collision.rs
+[collision]
+enabled = false
 "#;
 
 #[test]
@@ -186,7 +190,8 @@ fn idexp_excite_on_the_readme_design_writes_every_output_and_assess_reads_the_tr
     assert_eq!(rep["result"]["status"], "feasible");
     assert_eq!(rep["verification_rate"], 1000.0);
     let margins = rep["result"]["margins"].as_array().unwrap();
-    assert_eq!(margins.len(), 36);
+    // 36 joint limits + 21 minimum distances (15 self pairs, 6 links above the floor)
+    assert_eq!(margins.len(), 57);
     assert!(margins.iter().all(|m| m["margin"].as_f64().unwrap() >= 0.0));
     assert_eq!(rep["identifiability"]["rank"], 48);
     let cond = rep["result"]["spectrum"]["cond"].as_f64().unwrap();

@@ -20,6 +20,7 @@ fn grid(joints: Vec<usize>, points: Vec<usize>) -> CandidateSpec {
         fixed: Some(vec![0.0, -1.0, 0.5, 0.0, 0.5, 0.0]),
         path: None,
         workspace: vec![],
+        collision: Default::default(),
     }
 }
 

@@ -27,6 +27,8 @@
 use super::grid::TrigGrid;
 use crate::error::{Error, Result};
 use crate::robot::cartesian::{CartesianConstraint, Shape};
+use crate::robot::collision::{CollisionScene, PairClass};
+use crate::robot::kinematics::forward_kinematics;
 use crate::robot::{frame_jacobian, id_derivatives, inverse_dynamics, motor_inertia, Frame, Robot, Workspace};
 use crate::trajectory::{period_grid, Basis, FourierLayout, FourierTrajectory};
 use nalgebra::Vector3;
@@ -49,6 +51,10 @@ pub enum ConstraintKind {
     Torque,
     /// Cartesian workspace margin of a frame.
     Cartesian,
+    /// Minimum distance between two bodies of the robot.
+    SelfCollision,
+    /// Minimum distance between a robot body and an obstacle (floor, cell).
+    WorldCollision,
 }
 
 /// Description of one scalar constraint.
@@ -75,6 +81,25 @@ enum Item {
     Joint { j: usize, order: usize },
     Torque { j: usize },
     Cart { idx: usize, margin: usize },
+    Distance { pair: usize },
+}
+
+/// Scale of the dimensionless distance constraints (m).
+pub const DISTANCE_SCALE: f64 = 0.1;
+
+/// The worst pair of a configuration (see [`Constraints::collision_at`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct CollisionReport {
+    /// `self: forearm_link – wrist_2_link` or `world: wrist_3_link – floor`.
+    pub pair: String,
+    /// Self or world.
+    pub kind: ConstraintKind,
+    /// Signed distance (m; negative: the bodies overlap), capped at margin + band.
+    pub distance: f64,
+    /// Required distance (m).
+    pub margin: f64,
+    /// Penetration depth max(0, −distance) (m).
+    pub depth: f64,
 }
 
 #[derive(Debug, Clone)]
@@ -93,6 +118,7 @@ pub struct Constraints {
     pub info: Vec<ConstraintInfo>,
     items: Vec<Item>,
     cart: Vec<CartItem>,
+    scene: Option<std::sync::Arc<CollisionScene>>,
     grid: TrigGrid,
     scan: TrigGrid,
     theta: Vec<f64>,
@@ -113,6 +139,9 @@ pub struct ConstraintWorkspace {
     g_q0: Vec<f64>,
     g_a: Vec<Vec<f64>>,
     g_b: Vec<Vec<f64>>,
+    dist_grid: Vec<Vec<f64>>,
+    poses: Vec<nalgebra::Isometry3<f64>>,
+    gq: Vec<f64>,
 }
 
 /// Which joint limits are imposed and how much of each is usable.
@@ -372,9 +401,59 @@ impl Constraints {
             info,
             items,
             cart,
+            scene: None,
             grid,
             scan,
             theta: robot.nominal_params().as_slice().to_vec(),
+        })
+    }
+
+    /// Adds one minimum-distance constraint per checked pair of `scene`:
+    /// c = (margin − min_t d̃(t)) / [`DISTANCE_SCALE`], d̃ = min(d, cap) on the
+    /// constraint grid, the minimum refined by a parabola.
+    pub fn with_collision(mut self, scene: CollisionScene) -> Self {
+        for (k, p) in scene.pairs.iter().enumerate() {
+            self.info.push(ConstraintInfo {
+                name: format!("distance {} ≥ {:.4}", p.label(), scene.margin),
+                kind: match p.class {
+                    PairClass::SelfCollision => ConstraintKind::SelfCollision,
+                    PairClass::World => ConstraintKind::WorldCollision,
+                },
+                joint: None,
+                limit: scene.margin,
+                upper: false,
+                scale: DISTANCE_SCALE,
+                unit: "m".into(),
+            });
+            self.items.push(Item::Distance { pair: k });
+        }
+        self.scene = Some(std::sync::Arc::new(scene));
+        self
+    }
+
+    /// The collision scene, if collisions are checked.
+    pub fn scene(&self) -> Option<&CollisionScene> {
+        self.scene.as_deref()
+    }
+
+    /// Checks one configuration: the pair closest to the bodies' margin, if
+    /// it is closer than the margin (`None`: every checked pair keeps the
+    /// margin, or no collision is checked). For lead-in/out and pose checks.
+    pub fn collision_at(&self, ws: &mut Workspace, q: &[f64]) -> Option<CollisionReport> {
+        let sc = self.scene.as_deref()?;
+        let w = sc.worst_at(&self.robot, &mut ws.kin, q, sc.cap)?;
+        if w.distance >= sc.margin {
+            return None;
+        }
+        Some(CollisionReport {
+            pair: w.label,
+            kind: match sc.pairs[w.pair].class {
+                PairClass::SelfCollision => ConstraintKind::SelfCollision,
+                PairClass::World => ConstraintKind::WorldCollision,
+            },
+            distance: w.distance,
+            margin: sc.margin,
+            depth: (-w.distance).max(0.0),
         })
     }
 
@@ -415,6 +494,9 @@ impl Constraints {
             g_q0: vec![0.0; n],
             g_a: vec![vec![0.0; nh]; n],
             g_b: vec![vec![0.0; nh]; n],
+            dist_grid: vec![Vec::new(); self.grid.len()],
+            poses: Vec::new(),
+            gq: vec![0.0; n],
         }
     }
 
@@ -448,6 +530,16 @@ impl Constraints {
             }
         }
         let mut last_cart = usize::MAX;
+        if let Some(sc) = self.scene.as_deref() {
+            for g in 0..self.grid.len() {
+                self.grid.state(tr, g, &mut cw.q, &mut cw.qd, &mut cw.qdd);
+                forward_kinematics(&self.robot, &cw.q, &mut cw.ws.kin);
+                sc.poses(&cw.ws.kin, &mut cw.poses);
+                let row = &mut cw.dist_grid[g];
+                row.clear();
+                row.extend((0..sc.len()).map(|k| sc.pair_proximity(k, &cw.poses, sc.cap).map_or(sc.cap, |p| p.distance)));
+            }
+        }
         for (i, item) in self.items.iter().enumerate() {
             let inf = &self.info[i];
             let sgn = if inf.upper { 1.0 } else { -1.0 };
@@ -545,6 +637,40 @@ impl Constraints {
                         }
                     }
                 }
+                Item::Distance { pair } => {
+                    let sc = self.scene.as_deref().expect("distance constraints have a scene");
+                    let vals: Vec<f64> = cw.dist_grid.iter().map(|r| -r[pair]).collect();
+                    let (fv, t) = self.refine_grid(
+                        &vals,
+                        |t, cw: &mut ConstraintWorkspace| {
+                            tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
+                            forward_kinematics(&self.robot, &cw.q, &mut cw.ws.kin);
+                            sc.poses(&cw.ws.kin, &mut cw.poses);
+                            -sc.pair_proximity(pair, &cw.poses, sc.cap).map_or(sc.cap, |p| p.distance)
+                        },
+                        cw,
+                    );
+                    c[i] = (sc.margin + fv) / DISTANCE_SCALE;
+                    if want_grad {
+                        tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
+                        forward_kinematics(&self.robot, &cw.q, &mut cw.ws.kin);
+                        sc.poses(&cw.ws.kin, &mut cw.poses);
+                        if let Some(p) = sc.pair_proximity(pair, &cw.poses, sc.cap) {
+                            cw.gq.iter_mut().for_each(|v| *v = 0.0);
+                            // c = (margin − d)/scale: ∂c/∂q = −∂d/∂q / scale
+                            sc.add_gradient(&self.robot, &cw.ws.kin, pair, &p, -1.0 / DISTANCE_SCALE, &mut cw.gq);
+                            tr.basis(t, &mut cw.basis);
+                            for a in 0..n {
+                                let gq = cw.gq[a];
+                                cw.g_q0[a] = gq;
+                                for k in 0..nh {
+                                    cw.g_a[a][k] = gq * cw.basis.k[k][0];
+                                    cw.g_b[a][k] = gq * cw.basis.k[k][1];
+                                }
+                            }
+                        }
+                    }
+                }
             }
             if let Some(jac) = jac.as_deref_mut() {
                 self.layout.pullback(&cw.g_q0, &cw.g_a, &cw.g_b, &mut jac[i * nv..(i + 1) * nv]);
@@ -611,6 +737,17 @@ impl Constraints {
                 marg_all[ci].push(m.iter().map(|v| v.0).collect());
             }
         }
+        let mut dist_all: Vec<Vec<f64>> = Vec::new();
+        if let Some(sc) = self.scene.as_deref() {
+            // distances up to 1 m above the margin (the report's worst values are exact below that)
+            let cap = sc.margin + 1.0;
+            let mut poses = Vec::new();
+            for k in 0..s.len() {
+                forward_kinematics(&self.robot, &s.q[k], &mut ws.kin);
+                sc.poses(&ws.kin, &mut poses);
+                dist_all.push((0..sc.len()).map(|p| sc.pair_proximity(p, &poses, cap).map_or(cap, |x| x.distance)).collect());
+            }
+        }
         let mut out = Vec::with_capacity(self.len());
         for (i, item) in self.items.iter().enumerate() {
             let inf = &self.info[i];
@@ -623,6 +760,7 @@ impl Constraints {
                     },
                     Item::Torque { j } => tau_all[k][j],
                     Item::Cart { idx, margin } => marg_all[idx][k][margin],
+                    Item::Distance { pair } => dist_all[k][pair],
                 }
             };
             let (mut worst, mut at) = (if inf.upper { f64::NEG_INFINITY } else { f64::INFINITY }, 0.0);

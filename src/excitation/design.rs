@@ -40,6 +40,25 @@
 //! frame = "tool0"                   # default: the end effector
 //! shape = { type = "half_space", normal = [0, 0, 1], offset = 0.05 }
 //!
+//! [collision]                     # checked when the robot has collision geometry
+//! enabled = true
+//! margin = 0.02                     # minimum distance (m) for every checked pair
+//! band = 0.1                        # distances above margin + band count as margin + band (m)
+//! self = true                       # link-to-link pairs (not adjacent, not allowed by the robot file)
+//! floor = true                      # every link but the base above z = 0 of the base frame
+//!
+//! [[collision.obstacle]]            # cell obstacles, base frame
+//! name = "fence"
+//! shape = { type = "box", size = [2.0, 0.05, 1.5] }   # box | cylinder | sphere | capsule | plane | mesh
+//! xyz = [0.0, -0.8, 0.75]
+//! rpy = [0.0, 0.0, 0.0]
+//!
+//! [[collision.attached]]            # tool or payload fixed to a robot frame
+//! name = "gripper"
+//! frame = "tool0"
+//! shape = { type = "cylinder", radius = 0.04, length = 0.12 }
+//! xyz = [0.0, 0.0, 0.06]
+//!
 //! [ga]
 //! population = 40
 //! generations = 30
@@ -90,6 +109,9 @@ pub struct ExciteDesign {
     /// Cartesian workspace constraints.
     #[serde(default)]
     pub workspace: Vec<CartesianConstraint>,
+    /// Collision checking (minimum distance per checked pair).
+    #[serde(default)]
+    pub collision: crate::robot::collision::CollisionSpec,
     /// Genetic algorithm.
     #[serde(default)]
     pub ga: GaSpec,
@@ -274,6 +296,22 @@ impl ExciteDesign {
         if d.robot.is_relative() {
             if let Some(dir) = path.parent() {
                 d.robot = dir.join(&d.robot);
+            }
+        }
+        if let Some(dir) = path.parent() {
+            use crate::robot::collision::ShapeSpec;
+            let shapes = d
+                .collision
+                .obstacle
+                .iter_mut()
+                .map(|o| &mut o.shape)
+                .chain(d.collision.attached.iter_mut().map(|a| &mut a.shape));
+            for sh in shapes {
+                if let ShapeSpec::Mesh { file, .. } = sh {
+                    if file.is_relative() {
+                        *file = dir.join(&*file);
+                    }
+                }
             }
         }
         d.validate(&path.display().to_string())?;

@@ -144,11 +144,17 @@ impl<'a> StateCheck<'a> {
             margins: Vec::new(),
             pose_check: None,
         };
-        // COLLISION HOOK (issue 11, items 1–3): at the merge, plug the
-        // collision engineer's distance check in here, e.g.
-        //   check.with_pose_check(move |q| p.constraints.collision_at(&mut ws, q))
-        // returning Err("pair `forearm_link`–`wrist_2_link`: distance -0.004 m below the margin 0.02 m").
-        Ok(check)
+        // every pose also keeps the design's minimum distance (self, floor,
+        // cell) when the robot has collision geometry
+        let mut cws = Workspace::new(&p.robot);
+        let constraints = &p.constraints;
+        Ok(check.with_pose_check(move |q| match constraints.collision_at(&mut cws, q) {
+            None => Ok(()),
+            Some(c) => Err(format!(
+                "collision {}: distance {:.4} m (penetration depth {:.4} m), below the margin {} m",
+                c.pair, c.distance, c.depth, c.margin
+            )),
+        }))
     }
 
     /// Adds a check of every pose (e.g. the minimum link distance).

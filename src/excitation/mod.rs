@@ -256,7 +256,12 @@ impl Problem {
                 noise: noise.clone(),
             },
         )?;
-        let constraints = Constraints::new(&robot, &layout, &limits, &design.workspace, design.limits.grid_rate, ctx)?;
+        let mut constraints = Constraints::new(&robot, &layout, &limits, &design.workspace, design.limits.grid_rate, ctx)?;
+        if let Some(scene) = crate::robot::collision::CollisionScene::new(&robot, &design.collision, std::path::Path::new(""), ctx)? {
+            if !scene.is_empty() {
+                constraints = constraints.with_collision(scene);
+            }
+        }
         // box: each harmonic alone within the joint's limits
         let mut lower = vec![0.0; layout.n_vars()];
         let mut upper = vec![0.0; layout.n_vars()];

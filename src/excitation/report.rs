@@ -17,7 +17,7 @@
 //! * the parameters that are not excited: zero columns, and those with a
 //!   component above 0.1 in a right singular vector of the numerical null space.
 
-use super::constraints::Margin;
+use super::constraints::{ConstraintKind, Margin};
 use super::{ExciteResult, Problem, Status};
 use crate::error::{Error, Result};
 use crate::io::plot::{write_svg, Panel, Series};
@@ -534,6 +534,10 @@ pub fn excite_text(p: &Problem, r: &ExciteResult, ident: &Identifiability) -> St
     if !r.violated.is_empty() {
         let _ = writeln!(s, "\nviolated constraints (on the {} Hz verification grid), worst first:", d.limits.check_rate);
         for m in &r.violated {
+            if is_distance(m) {
+                let _ = writeln!(s, "  {}", distance_violation(m));
+                continue;
+            }
             let _ = writeln!(
                 s,
                 "  {}: reaches {} {} at t = {:.3} s, {} {} beyond the limit",
@@ -547,6 +551,7 @@ pub fn excite_text(p: &Problem, r: &ExciteResult, ident: &Identifiability) -> St
         }
         let _ = writeln!(s, "  (no trajectory found by the search meets these; relax them or move q0 / the workspace)");
     }
+    s.push_str(&collision_text(p, &r.margins, d.limits.check_rate));
     let _ = writeln!(s, "\ndelivered trajectory (what trajectory.csv and the exports hold):");
     match (&r.execution.delivered, &r.execution.problem) {
         (Some(dl), problem) => {
@@ -811,6 +816,86 @@ pub fn read_states(path: &Path, n: usize, every: usize) -> Result<States> {
 pub fn violation_lines(m: &[Margin]) -> Vec<String> {
     m.iter()
         .filter(|m| m.margin < 0.0)
-        .map(|m| format!("{}: {} {} beyond the limit", m.name, fmt_num(-m.margin), m.unit))
+        .map(|m| {
+            if is_distance(m) {
+                distance_violation(m)
+            } else {
+                format!("{}: {} {} beyond the limit", m.name, fmt_num(-m.margin), m.unit)
+            }
+        })
         .collect()
+}
+
+fn is_distance(m: &Margin) -> bool {
+    matches!(m.kind, ConstraintKind::SelfCollision | ConstraintKind::WorldCollision)
+}
+
+/// `collision self: forearm_link – wrist_2_link at t = 3.141 s: distance −0.0130 m
+/// (penetration 0.0130 m), 0.0330 m inside the 0.02 m margin`.
+fn distance_violation(m: &Margin) -> String {
+    let pair = m.name.trim_start_matches("distance ").split(" ≥ ").next().unwrap_or(&m.name);
+    let pen = if m.worst < 0.0 {
+        format!("penetration depth {:.4} m", -m.worst)
+    } else {
+        "no contact".to_string()
+    };
+    format!(
+        "collision {pair} at t = {:.3} s: distance {:.4} m ({pen}), {:.4} m inside the {} m margin",
+        m.at, m.worst, -m.margin, m.limit
+    )
+}
+
+/// The collision lines of the report: geometry, checked and excluded pairs,
+/// the worst distance per class on the verification grid.
+pub fn collision_text(p: &Problem, margins: &[Margin], rate: f64) -> String {
+    let mut s = String::new();
+    let Some(sc) = p.constraints.scene() else {
+        let why = if !p.design.collision.enabled {
+            "off ([collision] enabled = false)"
+        } else {
+            "nothing to check (the robot file gives no collision geometry)"
+        };
+        let _ = writeln!(s, "\ncollision: {why}");
+        return s;
+    };
+    let n_self = sc.pairs.iter().filter(|q| q.class == crate::robot::collision::PairClass::SelfCollision).count();
+    let _ = writeln!(
+        s,
+        "\ncollision: margin {} m for {} pairs ({} self, {} world: {}); {} pairs not checked",
+        sc.margin,
+        sc.len(),
+        n_self,
+        sc.len() - n_self,
+        {
+            let mut w: Vec<&str> = sc
+                .pairs
+                .iter()
+                .filter(|q| q.class == crate::robot::collision::PairClass::World)
+                .map(|q| q.b.as_str())
+                .collect();
+            w.dedup();
+            if w.is_empty() {
+                "none".to_string()
+            } else {
+                w.join(", ")
+            }
+        },
+        sc.excluded.len()
+    );
+    for e in &sc.excluded {
+        let _ = writeln!(s, "  not checked: {} – {}: {}", e.a, e.b, e.reason);
+    }
+    for (kind, label) in [(ConstraintKind::SelfCollision, "self"), (ConstraintKind::WorldCollision, "world")] {
+        if let Some(w) = margins.iter().filter(|m| m.kind == kind).min_by(|a, b| a.worst.total_cmp(&b.worst)) {
+            let pair = w.name.trim_start_matches("distance ").split(" ≥ ").next().unwrap_or(&w.name);
+            let _ = writeln!(
+                s,
+                "  worst {label} distance on the {rate} Hz grid: {:.4} m ({pair}, t = {:.3} s){}",
+                w.worst,
+                w.at,
+                if w.margin < 0.0 { " — VIOLATES the margin" } else { "" }
+            );
+        }
+    }
+    s
 }

@@ -1,7 +1,10 @@
 //! Candidate configurations: a grid or a seeded random sample over chosen
 //! joints (the others fixed), or a CSV of configurations; filtered by the
 //! joint limits (less a per-joint margin, e.g. the amplitude of a local
-//! excitation) and by Cartesian workspace constraints at the pose.
+//! excitation), by Cartesian workspace constraints at the pose, and by
+//! collision: a pose where any checked pair (self, floor, cell obstacles; the
+//! same geometry, pairs and margin as the excitation design) is closer than
+//! the margin is dropped.
 
 use crate::error::{Error, Result};
 use crate::io::Table;
@@ -55,6 +58,11 @@ pub struct CandidateSpec {
     /// Cartesian workspace constraints the pose must satisfy.
     #[serde(default)]
     pub workspace: Vec<CartesianConstraint>,
+    /// Collision check of every pose (`[candidates.collision]`, the keys of
+    /// the excitation design's `[collision]`); on by default when the robot
+    /// has collision geometry.
+    #[serde(default)]
+    pub collision: crate::robot::collision::CollisionSpec,
 }
 
 /// Generated candidates.
@@ -70,6 +78,10 @@ pub struct Candidates {
     pub rejected_limits: usize,
     /// Rejected by the workspace constraints.
     pub rejected_workspace: usize,
+    /// Rejected because a checked pair is closer than the collision margin.
+    pub rejected_collision: usize,
+    /// Why, for the first few rejected poses: `candidate 12: self: forearm_link – wrist_2_link at −0.0131 m`.
+    pub collision_reasons: Vec<String>,
 }
 
 fn range_of(robot: &Robot, j: usize, margin: f64) -> (f64, f64) {
@@ -215,6 +227,10 @@ impl CandidateSpec {
             .enumerate()
             .map(|(k, c)| c.resolve(robot, ctx, &format!("candidates.workspace[{k}]")))
             .collect::<Result<Vec<_>>>()?;
+        let scene =
+            crate::robot::collision::CollisionScene::new(robot, &self.collision, dir, &format!("{ctx}: candidates.collision"))?.filter(|s| !s.is_empty());
+        let mut kin = crate::robot::kinematics::Kin::new(n);
+        let (mut rc, mut reasons) = (0, Vec::new());
         let mut ws = Workspace::new(robot);
         let generated = raw.len();
         let (mut rl, mut rw) = (0, 0);
@@ -237,6 +253,15 @@ impl CandidateSpec {
                 rw += 1;
                 continue;
             }
+            if let Some(sc) = &scene {
+                if let Some(w) = sc.worst_at(robot, &mut kin, &q, sc.cap).filter(|w| w.distance < sc.margin) {
+                    rc += 1;
+                    if reasons.len() < 10 {
+                        reasons.push(format!("candidate {}: {} at {:.4} m (margin {} m)", i + 1, w.label, w.distance, sc.margin));
+                    }
+                    continue;
+                }
+            }
             if let Some(c) = &costs {
                 c_out.push(c[i]);
             }
@@ -246,7 +271,10 @@ impl CandidateSpec {
             return Err(Error::invalid(
                 ctx,
                 "candidates",
-                format!("no candidate left: {generated} generated, {rl} outside the joint limits (less the margin), {rw} outside the workspace"),
+                format!(
+                    "no candidate left: {generated} generated, {rl} outside the joint limits (less the margin), {rw} outside the workspace, {rc} in collision{}",
+                    reasons.first().map(|r| format!(" (e.g. {r})")).unwrap_or_default()
+                ),
             ));
         }
         Ok(Candidates {
@@ -255,6 +283,8 @@ impl CandidateSpec {
             generated,
             rejected_limits: rl,
             rejected_workspace: rw,
+            rejected_collision: rc,
+            collision_reasons: reasons,
         })
     }
 }

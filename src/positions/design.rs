@@ -308,8 +308,8 @@ pub struct PositionsRun {
     pub costs: Option<Vec<f64>>,
     /// Rank of each candidate's information.
     pub ranks: Vec<usize>,
-    /// Candidate generation counts: generated, rejected by limits, rejected by workspace.
-    pub generation: (usize, usize, usize),
+    /// Candidate generation counts: generated, rejected by limits, by workspace, by collision.
+    pub generation: (usize, usize, usize, usize),
     /// The relaxed design.
     pub relaxed: Relaxed,
     /// The integer plan.
@@ -363,7 +363,7 @@ pub fn run_design(design: &PositionsDesign, dir: &Path, ctl: &Control) -> Result
             }
             let n = f.q.len();
             let costs = if f.has_costs { Some(f.costs.clone()) } else { None };
-            (f.names.clone(), f.q.clone(), f.factors.clone(), costs, f.prior.clone(), (n, 0, 0))
+            (f.names.clone(), f.q.clone(), f.factors.clone(), costs, f.prior.clone(), (n, 0, 0, 0))
         }
         InformationSpec::Elastic {
             design: file,
@@ -422,7 +422,7 @@ pub fn run_design(design: &PositionsDesign, dir: &Path, ctl: &Control) -> Result
                 factors,
                 c.costs,
                 prior,
-                (c.generated, c.rejected_limits, c.rejected_workspace),
+                (c.generated, c.rejected_limits, c.rejected_workspace, c.rejected_collision),
             )
         }
         InformationSpec::Rigid {
@@ -470,7 +470,7 @@ pub fn run_design(design: &PositionsDesign, dir: &Path, ctl: &Control) -> Result
                 factors,
                 c.costs,
                 prior,
-                (c.generated, c.rejected_limits, c.rejected_workspace),
+                (c.generated, c.rejected_limits, c.rejected_workspace, c.rejected_collision),
             )
         }
     };

@@ -52,6 +52,7 @@ struct ReportJson<'a> {
     candidates_generated: usize,
     rejected_by_limits: usize,
     rejected_by_workspace: usize,
+    rejected_by_collision: usize,
     relaxed_value: f64,
     support: usize,
     certificate: &'a super::relax::Certificate,
@@ -175,6 +176,7 @@ pub fn write_outputs(run: &PositionsRun, out: &Path, started: Option<SystemTime>
         candidates_generated: run.generation.0,
         rejected_by_limits: run.generation.1,
         rejected_by_workspace: run.generation.2,
+        rejected_by_collision: run.generation.3,
         relaxed_value: rel.value,
         support,
         certificate: &rel.certificate,
@@ -281,11 +283,16 @@ pub fn report_text(run: &PositionsRun) -> String {
     let _ = writeln!(s, "positions: {}", run.design.name);
     let _ = writeln!(
         s,
-        "candidates: {} ({} generated, {} outside the limits, {} outside the workspace); parameters p = {}",
+        "candidates: {} ({} generated, {} outside the limits, {} outside the workspace{}); parameters p = {}",
         rel.weights.len(),
         run.generation.0,
         run.generation.1,
         run.generation.2,
+        if run.generation.3 > 0 {
+            format!(", {} in collision", run.generation.3)
+        } else {
+            String::new()
+        },
         run.names.len()
     );
     let _ = writeln!(

@@ -51,6 +51,40 @@ struct RobotFile {
     coupling: Option<Vec<Vec<f64>>>,
     #[serde(default)]
     frame: Vec<FrameSpec>,
+    /// Directories (relative to the robot file) searched for URDF collision meshes.
+    #[serde(default)]
+    mesh_path: Vec<String>,
+    /// `hull` (default) or `decomposition` for URDF meshes.
+    mesh_mode: Option<MeshModeName>,
+    /// Collision shapes per link (DH robots; added to a URDF's own).
+    #[serde(default)]
+    collision: Vec<CollisionShapeSpec>,
+    /// Pairs never checked, each with its reason.
+    #[serde(default)]
+    allowed_collision: Vec<super::collision::AllowedCollision>,
+    /// An SRDF whose `<disable_collisions>` entries with an accepted reason are allowed pairs.
+    srdf: Option<String>,
+    /// SRDF reasons accepted (default: only "Adjacent").
+    srdf_reasons: Option<Vec<String>>,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+enum MeshModeName {
+    Hull,
+    Decomposition,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CollisionShapeSpec {
+    /// Link name (a moving link, a frame on one, or the base: `base`).
+    link: String,
+    shape: super::collision::ShapeSpec,
+    #[serde(default)]
+    xyz: [f64; 3],
+    #[serde(default)]
+    rpy: [f64; 3],
 }
 
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq, Default)]
@@ -195,7 +229,7 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
         name
     });
     let source = f.source.clone().unwrap_or_else(|| path.display().to_string());
-    Robot::new(RobotParts {
+    let robot = Robot::new(RobotParts {
         name,
         joints,
         links,
@@ -204,7 +238,134 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
         frames,
         gravity,
         source,
-    })
+    })?;
+    match collision_geometry(path, &f, &robot, &ctx)? {
+        Some(g) => robot.with_collision(g),
+        None => Ok(robot),
+    }
+}
+
+/// `<disable_collisions>` of an SRDF.
+#[derive(Debug, Deserialize)]
+struct Srdf {
+    #[serde(default)]
+    disable_collisions: Vec<SrdfDisable>,
+}
+
+#[derive(Debug, Deserialize)]
+struct SrdfDisable {
+    #[serde(rename = "@link1")]
+    link1: String,
+    #[serde(rename = "@link2")]
+    link2: String,
+    #[serde(rename = "@reason", default)]
+    reason: Option<String>,
+}
+
+/// The robot's collision geometry: the URDF's `<collision>` elements (meshes
+/// found through `mesh_path`), the file's `[[collision]]` shapes, the allowed
+/// pairs (`[[allowed_collision]]`, SRDF entries with an accepted reason).
+fn collision_geometry(path: &Path, f: &RobotFile, robot: &Robot, ctx: &str) -> Result<Option<super::collision::RobotGeometry>> {
+    use super::collision::{AllowedCollision, Body, GeometrySpec, MeshMode, RobotGeometry};
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let mesh_path: Vec<std::path::PathBuf> = f.mesh_path.iter().map(|m| dir.join(m)).collect();
+    let mode = match f.mesh_mode {
+        Some(MeshModeName::Decomposition) => MeshMode::Decomposition,
+        _ => MeshMode::Hull,
+    };
+    let n = robot.dof();
+    let (mut bodies, mut members) = match &f.urdf {
+        Some(u) => {
+            let upath = dir.join(u);
+            let parts = load_urdf(&upath, f.base_link.as_deref(), f.tip_link.as_deref())?;
+            super::urdf::load_collision(&upath, &parts, f.base_link.as_deref(), &mesh_path, mode)?
+        }
+        None => {
+            let b: Vec<Body> = std::iter::once(Body::empty("base"))
+                .chain(robot.links.iter().map(|l| Body::empty(&l.name)))
+                .collect();
+            let m = b.iter().map(|b| vec![b.name.clone()]).collect();
+            (b, m)
+        }
+    };
+    if !members[0].iter().any(|m| m == "base") {
+        members[0].push("base".into());
+    }
+    for (k, c) in f.collision.iter().enumerate() {
+        let field = format!("collision[{k}] (link `{}`)", c.link);
+        if matches!(c.shape, super::collision::ShapeSpec::Plane { .. }) {
+            return Err(Error::invalid(ctx, &field, "a robot body cannot be a plane"));
+        }
+        let (idx, at) = if let Some(i) = members.iter().position(|m| m.contains(&c.link)) {
+            let at = if i == 0 || robot.links[i - 1].name == c.link {
+                Isometry3::identity()
+            } else {
+                robot.find_frame(&c.link).map(|fr| fr.placement).unwrap_or_else(Isometry3::identity)
+            };
+            (i, at)
+        } else if let Some(fr) = robot.find_frame(&c.link) {
+            (fr.link.map_or(0, |l| l + 1), fr.placement)
+        } else {
+            return Err(Error::invalid(
+                ctx,
+                format!("{field}.link"),
+                format!(
+                    "no link or frame named `{}`; links are: base, {}",
+                    c.link,
+                    robot.links.iter().map(|l| l.name.as_str()).collect::<Vec<_>>().join(", ")
+                ),
+            ));
+        };
+        let spec = GeometrySpec {
+            primitive: c.shape.primitive(dir),
+            origin: pose_to_iso(c.xyz, c.rpy),
+        };
+        let b = Body::new(&c.link, &[spec], mode, &format!("{ctx}: {field}"))?;
+        bodies[idx].merge(&b, &at);
+    }
+    let known = |name: &str| members.iter().any(|m| m.iter().any(|x| x == name));
+    let mut allowed = Vec::new();
+    for (k, a) in f.allowed_collision.iter().enumerate() {
+        for (key, l) in [("a", &a.a), ("b", &a.b)] {
+            if !known(l) {
+                return Err(Error::invalid(ctx, format!("allowed_collision[{k}].{key}"), format!("no link named `{l}`")));
+            }
+        }
+        if a.reason.trim().is_empty() {
+            return Err(Error::invalid(
+                ctx,
+                format!("allowed_collision[{k}].reason"),
+                "give the reason the pair is not checked",
+            ));
+        }
+        allowed.push(a.clone());
+    }
+    if let Some(s) = &f.srdf {
+        let spath = dir.join(s);
+        let text = crate::io::read_to_string(&spath)?;
+        let srdf: Srdf = quick_xml::de::from_str(&text).map_err(|e| Error::parse(&spath, format!("malformed SRDF: {e}")))?;
+        let accepted: Vec<String> = f.srdf_reasons.clone().unwrap_or_else(|| vec!["Adjacent".into()]);
+        for d in srdf.disable_collisions {
+            let reason = d.reason.unwrap_or_default();
+            if accepted.contains(&reason) && known(&d.link1) && known(&d.link2) {
+                allowed.push(AllowedCollision {
+                    a: d.link1,
+                    b: d.link2,
+                    reason: format!("SRDF {} (reason=\"{reason}\")", spath.display()),
+                });
+            }
+        }
+    }
+    if bodies.iter().all(|b| b.is_empty()) {
+        return Ok(None);
+    }
+    debug_assert_eq!(bodies.len(), n + 1);
+    Ok(Some(RobotGeometry {
+        bodies,
+        members,
+        allowed,
+        source: format!("{}", path.display()),
+    }))
 }
 
 /// Joints, links, drives and frames of the kinematic structure: from the URDF

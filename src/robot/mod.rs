@@ -7,6 +7,7 @@
 //! (`regressor(&robot, &mut ws, q, qd, qdd, &mut out)`).
 
 pub mod cartesian;
+pub mod collision;
 pub mod dynamics;
 pub mod file;
 pub mod kinematics;

@@ -346,6 +346,8 @@ pub struct Robot {
     pub gravity: Vector3<f64>,
     /// Where the model came from (file names, references).
     pub source: String,
+    /// Collision geometry (URDF `<collision>` elements, robot-file shapes), if any.
+    pub collision: Option<std::sync::Arc<super::collision::RobotGeometry>>,
     pub(crate) coupling_inv_t: Option<DMatrix<f64>>,
     pub(crate) params: Vec<ParamInfo>,
     pub(crate) drive_offset: Vec<usize>,
@@ -599,6 +601,7 @@ impl Robot {
             frames,
             gravity,
             source,
+            collision: None,
             coupling_inv_t,
             geo,
             c_sparse,
@@ -608,6 +611,19 @@ impl Robot {
             s_ang,
             s_lin,
         })
+    }
+
+    /// The same robot with its collision geometry (one body per moving link plus the base).
+    pub fn with_collision(mut self, geometry: super::collision::RobotGeometry) -> crate::Result<Robot> {
+        if geometry.bodies.len() != self.dof() + 1 {
+            return Err(crate::Error::dim(
+                "collision bodies (base + one per link)",
+                self.dof() + 1,
+                geometry.bodies.len(),
+            ));
+        }
+        self.collision = Some(std::sync::Arc::new(geometry));
+        Ok(self)
     }
 
     /// Number of actuated joints n.

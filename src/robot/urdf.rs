@@ -280,3 +280,100 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
         frames,
     })
 }
+
+/// Collision geometry of a URDF robot: the `<collision>` elements of every
+/// link in the model (moving links, the base, links fixed to either) merged
+/// into one body per moving link plus the base, in that link's frame. Mesh
+/// files resolve through [`super::collision::resolve_mesh`]; a missing mesh is
+/// an error naming the link and the file.
+pub fn load_collision(
+    path: &Path,
+    parts: &UrdfParts,
+    base_link: Option<&str>,
+    mesh_path: &[std::path::PathBuf],
+    mode: super::collision::MeshMode,
+) -> Result<(Vec<super::collision::Body>, Vec<Vec<String>>)> {
+    use super::collision::{Body, GeometrySpec, Primitive};
+    let text = crate::io::read_to_string(path)?;
+    let u = urdf_rs::read_from_string(&text).map_err(|e| Error::parse(path, format!("malformed URDF: {e}")))?;
+    let ctx = path.display().to_string();
+    let root = match base_link {
+        Some(b) => b.to_string(),
+        None => u
+            .links
+            .iter()
+            .find(|l| !u.joints.iter().any(|j| j.child.link == l.name))
+            .map(|l| l.name.clone())
+            .unwrap_or_default(),
+    };
+    let n = parts.links.len();
+    let mut bodies: Vec<Body> = std::iter::once(Body::empty(&root))
+        .chain(parts.links.iter().map(|l| Body::empty(&l.name)))
+        .collect();
+    let mut members: Vec<Vec<String>> = bodies.iter().map(|b| vec![b.name.clone()]).collect();
+    let dir = path.parent().unwrap_or(Path::new("."));
+    for ul in &u.links {
+        // which body and where in its frame
+        let (idx, at) = if ul.name == root {
+            (0, Isometry3::identity())
+        } else if let Some(i) = parts.links.iter().position(|l| l.name == ul.name) {
+            (i + 1, Isometry3::identity())
+        } else if let Some(f) = parts.frames.iter().find(|f| f.name == ul.name) {
+            let idx = f.link.map_or(0, |l| l + 1);
+            if !members[idx].contains(&ul.name) {
+                members[idx].push(ul.name.clone());
+            }
+            (idx, f.placement)
+        } else {
+            continue; // outside the modelled chain
+        };
+        let mut specs = Vec::new();
+        for c in &ul.collision {
+            let origin = pose_to_iso(c.origin.xyz.0, c.origin.rpy.0);
+            let primitive = match &c.geometry {
+                urdf_rs::Geometry::Box { size } => Primitive::Box { size: size.0 },
+                urdf_rs::Geometry::Cylinder { radius, length } => Primitive::Cylinder {
+                    radius: *radius,
+                    length: *length,
+                },
+                urdf_rs::Geometry::Capsule { radius, length } => Primitive::Capsule {
+                    radius: *radius,
+                    length: *length,
+                },
+                urdf_rs::Geometry::Sphere { radius } => Primitive::Sphere { radius: *radius },
+                urdf_rs::Geometry::Mesh { filename, scale } => {
+                    let p = super::collision::resolve_mesh(filename, dir, mesh_path).ok_or_else(|| {
+                        Error::invalid(
+                            &ctx,
+                            format!("link `{}` <collision> mesh", ul.name),
+                            format!(
+                                "mesh file `{filename}` not found (searched {} and the robot file's mesh_path: [{}])",
+                                dir.display(),
+                                mesh_path.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+                            ),
+                        )
+                    })?;
+                    if !p.to_string_lossy().to_ascii_lowercase().ends_with(".stl") {
+                        return Err(Error::invalid(
+                            &ctx,
+                            format!("link `{}` <collision> mesh", ul.name),
+                            format!("{}: only STL collision meshes are read", p.display()),
+                        ));
+                    }
+                    Primitive::Mesh {
+                        path: p,
+                        scale: scale.map_or([1.0; 3], |s| s.0),
+                    }
+                }
+            };
+            specs.push(GeometrySpec { primitive, origin });
+        }
+        if specs.is_empty() {
+            continue;
+        }
+        let b = Body::new(&ul.name, &specs, mode, &format!("{ctx}: link `{}` <collision>", ul.name))?;
+        bodies[idx].merge(&b, &at);
+    }
+    debug_assert_eq!(bodies.len(), n + 1);
+    Ok((bodies, members))
+}

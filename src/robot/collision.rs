@@ -1,0 +1,985 @@
+//! Collision geometry: convex shapes fixed to the robot's bodies and to the
+//! world, signed distances between them, their witness points and normals.
+//!
+//! A body (the fixed base, a moving link, an obstacle of the cell) is a set of
+//! convex parts, each a [parry3d](https://parry.rs) shape at a fixed pose in
+//! the body frame: URDF `<collision>` primitives (box, cylinder, sphere,
+//! capsule) as they are, meshes (STL) as their convex hull, or as a convex
+//! decomposition (V-HACD) where one hull is too coarse.
+//!
+//! **Why parry3d-f64 0.25.** It is the maintained geometry crate of the Rust
+//! ecosystem (dimforge: GJK/EPA distance and penetration for any pair of
+//! convex shapes, convex hulls, V-HACD), in double precision, and 0.25 is its
+//! last release on nalgebra 0.34 — the version idexp pins — so poses and
+//! points cross the boundary without conversion (0.26 and later moved to glam).
+//!
+//! **Distance.** For two bodies A, B at poses X_A, X_B the signed distance is
+//! d = min over part pairs of the GJK distance, negative (the penetration
+//! depth, EPA) when the parts overlap. With the witness points p_A, p_B
+//! (world frame) and the unit normal n from A to B, d = nᵀ(p_B − p_A), and when
+//! A and B move rigidly, ḋ = nᵀ(v_B(p_B) − v_A(p_A)): the gradient of a
+//! distance with respect to the joint positions is nᵀ(J_B(p_B) − J_A(p_A)),
+//! J the point Jacobian of the witness point fixed on its body.
+//!
+//! **Cap.** Queries take a cap c: a pair farther apart than c reports c
+//! (d̃ = min(d, c)), which lets a bounding-sphere test skip exact queries
+//! without changing any value at or below the cap.
+
+use crate::error::{Error, Result};
+use crate::robot::kinematics::Kin;
+use crate::robot::model::Robot;
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
+use parry3d_f64::query;
+use parry3d_f64::shape::{HalfSpace, SharedShape};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// A shape as a robot or design file describes it, in the body frame.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Primitive {
+    /// Box with full side lengths (m), centred on its origin.
+    Box {
+        /// Side lengths along x, y, z (m).
+        size: [f64; 3],
+    },
+    /// Cylinder along its z axis, centred (m).
+    Cylinder {
+        /// Radius (m).
+        radius: f64,
+        /// Length along z (m).
+        length: f64,
+    },
+    /// Sphere (m).
+    Sphere {
+        /// Radius (m).
+        radius: f64,
+    },
+    /// Capsule: a cylinder of `length` along z with hemispherical caps (m).
+    Capsule {
+        /// Radius (m).
+        radius: f64,
+        /// Length of the cylindrical part along z (m).
+        length: f64,
+    },
+    /// A triangle mesh (STL) scaled per axis; used as its convex hull or
+    /// convex decomposition.
+    Mesh {
+        /// Resolved file path.
+        path: PathBuf,
+        /// Scale factors along x, y, z.
+        scale: [f64; 3],
+    },
+    /// The half-space below a plane: points x with nᵀx ≤ offset are inside
+    /// (obstacles only: floor, walls).
+    HalfSpace {
+        /// Outward unit normal (pointing to the free side).
+        normal: [f64; 3],
+        /// Offset of the plane along the normal (m).
+        offset: f64,
+    },
+}
+
+/// How a mesh becomes convex parts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MeshMode {
+    /// One convex hull per mesh (default: conservative, fast).
+    #[default]
+    Hull,
+    /// Approximate convex decomposition (V-HACD), for concave links where the
+    /// hull would report contacts that do not exist.
+    Decomposition,
+}
+
+/// One shape of a body, with its pose in the body frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GeometrySpec {
+    /// The shape.
+    pub primitive: Primitive,
+    /// Pose of the shape in the body frame.
+    pub origin: Isometry3<f64>,
+}
+
+/// A convex part of a body, ready for distance queries.
+#[derive(Clone)]
+pub struct ConvexPart {
+    shape: SharedShape,
+    local: Isometry3<f64>,
+    /// Bounding-sphere centre (body frame) and radius; radius ∞ for half-spaces.
+    centre: Point3<f64>,
+    radius: f64,
+    halfspace: Option<(Vector3<f64>, f64)>,
+}
+
+impl std::fmt::Debug for ConvexPart {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ConvexPart")
+            .field("shape", &self.shape.shape_type())
+            .field("local", &self.local)
+            .field("radius", &self.radius)
+            .finish()
+    }
+}
+
+/// A rigid body of the collision model: its name and convex parts.
+#[derive(Debug, Clone)]
+pub struct Body {
+    /// Name (URDF link, obstacle or attached-shape name).
+    pub name: String,
+    parts: Vec<ConvexPart>,
+}
+
+impl Body {
+    /// Adds the parts of `other` (given in `other`'s frame) placed at `at` in this body's frame.
+    pub fn merge(&mut self, other: &Body, at: &Isometry3<f64>) {
+        for p in &other.parts {
+            let mut q = p.clone();
+            q.local = at * p.local;
+            q.centre = at * p.centre;
+            if let Some((n, off)) = p.halfspace {
+                let nw = at.rotation * n;
+                q.halfspace = Some((nw, off + nw.dot(&at.translation.vector)));
+            }
+            self.parts.push(q);
+        }
+    }
+
+    /// True if the body contains an unbounded part (a half-space).
+    pub fn is_unbounded(&self) -> bool {
+        self.parts.iter().any(|p| p.halfspace.is_some())
+    }
+}
+
+/// Signed distance between two bodies with its witness points (world frame)
+/// and the unit normal from the first body toward the second.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Proximity {
+    /// Signed distance (m): negative when the bodies overlap (penetration depth).
+    pub distance: f64,
+    /// Witness point on the first body (world frame).
+    pub p1: Point3<f64>,
+    /// Witness point on the second body (world frame).
+    pub p2: Point3<f64>,
+    /// Unit normal from the first body toward the second (world frame).
+    pub normal: Vector3<f64>,
+}
+
+/// Vertices and triangles of a mesh.
+pub type MeshData = (Vec<Point3<f64>>, Vec<[u32; 3]>);
+
+/// Reads the vertices and triangles of an STL file (binary or ASCII), scaled.
+pub fn read_stl(path: &Path, scale: [f64; 3]) -> Result<MeshData> {
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if !meta.is_file() {
+        return Err(Error::parse(path, "not a regular file"));
+    }
+    const MAX: u64 = 512 << 20;
+    if meta.len() > MAX {
+        return Err(Error::parse(
+            path,
+            format!("mesh of {} bytes is larger than the {} MiB allowed", meta.len(), MAX >> 20),
+        ));
+    }
+    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mesh = stl_io::read_stl(&mut f).map_err(|e| Error::parse(path, format!("not a readable STL mesh: {e}")))?;
+    let pts: Vec<Point3<f64>> = mesh
+        .vertices
+        .iter()
+        .map(|v| Point3::new(v[0] as f64 * scale[0], v[1] as f64 * scale[1], v[2] as f64 * scale[2]))
+        .collect();
+    if let Some(k) = pts.iter().position(|p| !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite())) {
+        return Err(Error::parse(path, format!("vertex {} is not finite", k + 1)));
+    }
+    let tris: Vec<[u32; 3]> = mesh.faces.iter().map(|t| t.vertices.map(|i| i as u32)).collect();
+    if pts.len() < 4 {
+        return Err(Error::parse(path, format!("a mesh needs at least 4 vertices, found {}", pts.len())));
+    }
+    Ok((pts, tris))
+}
+
+fn rot_y_to_z() -> UnitQuaternion<f64> {
+    // parry's cylinders are along y; URDF's along z: rotate y onto z.
+    UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_2)
+}
+
+fn part(shape: SharedShape, local: Isometry3<f64>) -> ConvexPart {
+    let bs = shape.compute_local_bounding_sphere();
+    ConvexPart {
+        centre: local * bs.center(),
+        radius: bs.radius(),
+        shape,
+        local,
+        halfspace: None,
+    }
+}
+
+fn positive(ctx: &str, what: &str, v: f64) -> Result<()> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::invalid(ctx, what, format!("{v} must be positive and finite")))
+    }
+}
+
+impl Body {
+    /// Builds a body from its shapes. `ctx` names the file and element for
+    /// messages (e.g. `ur5.urdf: link `forearm_link` collision 1`).
+    pub fn new(name: &str, specs: &[GeometrySpec], mode: MeshMode, ctx: &str) -> Result<Body> {
+        let mut parts = Vec::with_capacity(specs.len());
+        for (k, s) in specs.iter().enumerate() {
+            let here = format!("{ctx}: `{name}` shape {}", k + 1);
+            let o = s.origin;
+            match &s.primitive {
+                Primitive::Box { size } => {
+                    for (a, v) in ["x", "y", "z"].iter().zip(size) {
+                        positive(&here, &format!("box size {a}"), *v)?;
+                    }
+                    parts.push(part(SharedShape::cuboid(size[0] / 2.0, size[1] / 2.0, size[2] / 2.0), o));
+                }
+                Primitive::Cylinder { radius, length } => {
+                    positive(&here, "cylinder radius", *radius)?;
+                    positive(&here, "cylinder length", *length)?;
+                    let local = o * Isometry3::from_parts(Translation3::identity(), rot_y_to_z());
+                    parts.push(part(SharedShape::cylinder(length / 2.0, *radius), local));
+                }
+                Primitive::Sphere { radius } => {
+                    positive(&here, "sphere radius", *radius)?;
+                    parts.push(part(SharedShape::ball(*radius), o));
+                }
+                Primitive::Capsule { radius, length } => {
+                    positive(&here, "capsule radius", *radius)?;
+                    if !(length.is_finite() && *length >= 0.0) {
+                        return Err(Error::invalid(&here, "capsule length", format!("{length} must be ≥ 0 and finite")));
+                    }
+                    parts.push(part(SharedShape::capsule_z(length / 2.0, *radius), o));
+                }
+                Primitive::Mesh { path, scale } => {
+                    for (a, v) in ["x", "y", "z"].iter().zip(scale) {
+                        if !(v.is_finite() && *v != 0.0) {
+                            return Err(Error::invalid(&here, format!("mesh scale {a}"), format!("{v} must be finite and non-zero")));
+                        }
+                    }
+                    let (pts, tris) = read_stl(path, *scale).map_err(|e| Error::invalid(&here, "mesh", e.to_string()))?;
+                    match mode {
+                        MeshMode::Hull => {
+                            let hull = SharedShape::convex_hull(&pts).ok_or_else(|| {
+                                Error::invalid(
+                                    &here,
+                                    "mesh",
+                                    format!("{}: the vertices are flat or degenerate: no convex hull", path.display()),
+                                )
+                            })?;
+                            parts.push(part(hull, o));
+                        }
+                        MeshMode::Decomposition => {
+                            let dec = SharedShape::convex_decomposition(&pts, &tris);
+                            let compound = dec.as_compound().ok_or_else(|| Error::invalid(&here, "mesh", "convex decomposition failed"))?;
+                            for (iso, sh) in compound.shapes() {
+                                parts.push(part(sh.clone(), o * iso));
+                            }
+                        }
+                    }
+                }
+                Primitive::HalfSpace { normal, offset } => {
+                    let n = Vector3::from(*normal);
+                    let len = n.norm();
+                    if !(len.is_finite() && len > 0.0 && offset.is_finite()) {
+                        return Err(Error::invalid(
+                            &here,
+                            "plane",
+                            "the normal must be a finite non-zero vector and the offset finite",
+                        ));
+                    }
+                    let n = n / len;
+                    // parry's half-space: {x : nᵀx ≤ 0} in its frame; move the plane by offset along n.
+                    let local = o * Isometry3::from_parts(Translation3::from(n * *offset), UnitQuaternion::identity());
+                    let hs = SharedShape::new(HalfSpace::new(Unit::new_unchecked(n)));
+                    let nw = o.rotation * n;
+                    let offw = nw.dot(&(local.translation.vector));
+                    parts.push(ConvexPart {
+                        shape: hs,
+                        local,
+                        centre: Point3::origin(),
+                        radius: f64::INFINITY,
+                        halfspace: Some((nw, offw)),
+                    });
+                }
+            }
+        }
+        Ok(Body { name: name.to_string(), parts })
+    }
+
+    /// A body with no shapes (a link without collision geometry).
+    pub fn empty(name: &str) -> Body {
+        Body {
+            name: name.to_string(),
+            parts: Vec::new(),
+        }
+    }
+
+    /// True if the body has no shapes.
+    pub fn is_empty(&self) -> bool {
+        self.parts.is_empty()
+    }
+
+    /// Number of convex parts.
+    pub fn n_parts(&self) -> usize {
+        self.parts.len()
+    }
+
+    /// Vertices of every convex polyhedral part in the body frame (meshes and
+    /// boxes; for tests and plots).
+    pub fn polyhedron_points(&self) -> Vec<Vec<Point3<f64>>> {
+        self.parts
+            .iter()
+            .filter_map(|p| {
+                if let Some(c) = p.shape.as_convex_polyhedron() {
+                    Some(c.points().iter().map(|q| p.local * q).collect())
+                } else {
+                    p.shape.as_cuboid().map(|c| {
+                        let h = c.half_extents;
+                        let mut v = Vec::with_capacity(8);
+                        for sx in [-1.0, 1.0] {
+                            for sy in [-1.0, 1.0] {
+                                for sz in [-1.0, 1.0] {
+                                    v.push(p.local * Point3::new(sx * h.x, sy * h.y, sz * h.z));
+                                }
+                            }
+                        }
+                        v
+                    })
+                }
+            })
+            .collect()
+    }
+}
+
+/// Lower bound on the distance between two parts from their bounding spheres
+/// (or the plane), in the world frame.
+fn part_lower_bound(a: &ConvexPart, xa: &Isometry3<f64>, b: &ConvexPart, xb: &Isometry3<f64>) -> f64 {
+    match (&a.halfspace, &b.halfspace) {
+        (None, None) => ((xa * a.centre) - (xb * b.centre)).norm() - a.radius - b.radius,
+        (Some((n, off)), None) => {
+            let (n, off) = world_plane(xa, n, *off);
+            n.dot(&(xb * b.centre).coords) - off - b.radius
+        }
+        (None, Some((n, off))) => {
+            let (n, off) = world_plane(xb, n, *off);
+            n.dot(&(xa * a.centre).coords) - off - a.radius
+        }
+        (Some(_), Some(_)) => f64::NEG_INFINITY,
+    }
+}
+
+fn world_plane(x: &Isometry3<f64>, n: &Vector3<f64>, off: f64) -> (Vector3<f64>, f64) {
+    let nw = x.rotation * n;
+    (nw, off + nw.dot(&x.translation.vector))
+}
+
+/// Signed distance of two convex parts at world poses, if below `cap`.
+fn part_proximity(a: &ConvexPart, xa: &Isometry3<f64>, b: &ConvexPart, xb: &Isometry3<f64>, cap: f64) -> Option<Proximity> {
+    if part_lower_bound(a, xa, b, xb) > cap {
+        return None;
+    }
+    let pa = xa * a.local;
+    let pb = xb * b.local;
+    // parry 0.25's (support map, half-space) contact measures from the wrong
+    // side (found by tests/collision.rs); the (half-space, support map) order
+    // is right, so a half-space always goes first and the result is flipped.
+    let c = if b.halfspace.is_some() && a.halfspace.is_none() {
+        query::contact(&pb, &*b.shape, &pa, &*a.shape, cap.max(0.0)).ok()??.flipped()
+    } else {
+        query::contact(&pa, &*a.shape, &pb, &*b.shape, cap.max(0.0)).ok()??
+    };
+    if c.dist > cap {
+        return None;
+    }
+    Some(Proximity {
+        distance: c.dist,
+        p1: c.point1,
+        p2: c.point2,
+        normal: c.normal1.into_inner(),
+    })
+}
+
+/// Signed distance between bodies `a` and `b` at world poses `xa`, `xb`:
+/// the closest pair of parts, or `None` if every pair is farther than `cap`
+/// (then the capped distance is `cap`). Bodies without shapes never collide.
+pub fn proximity(a: &Body, xa: &Isometry3<f64>, b: &Body, xb: &Isometry3<f64>, cap: f64) -> Option<Proximity> {
+    let mut best: Option<Proximity> = None;
+    let mut lim = cap;
+    for pa in &a.parts {
+        for pb in &b.parts {
+            if let Some(p) = part_proximity(pa, xa, pb, xb, lim) {
+                if best.is_none_or(|b| p.distance < b.distance) {
+                    lim = p.distance.max(0.0).min(lim);
+                    best = Some(p);
+                }
+            }
+        }
+    }
+    best
+}
+
+// ---------------------------------------------------------------------------
+// Shapes as files describe them
+// ---------------------------------------------------------------------------
+
+fn ones() -> [f64; 3] {
+    [1.0; 3]
+}
+
+/// A shape in a robot or design file (TOML): `{ type = "box", size = [..] }`,
+/// `cylinder` (radius, length along z), `sphere`, `capsule` (radius, length of
+/// the cylindrical part along z), `plane` (obstacles only: the free side is
+/// nᵀx ≥ offset), `mesh` (an STL file, relative to the file that names it; its
+/// convex hull).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ShapeSpec {
+    /// Box with full side lengths (m).
+    Box {
+        /// Side lengths (m).
+        size: [f64; 3],
+    },
+    /// Cylinder along z, centred.
+    Cylinder {
+        /// Radius (m).
+        radius: f64,
+        /// Length (m).
+        length: f64,
+    },
+    /// Sphere.
+    Sphere {
+        /// Radius (m).
+        radius: f64,
+    },
+    /// Capsule along z.
+    Capsule {
+        /// Radius (m).
+        radius: f64,
+        /// Length of the cylindrical part (m).
+        length: f64,
+    },
+    /// Plane: everything with nᵀx < offset is solid.
+    Plane {
+        /// Normal toward the free side.
+        normal: [f64; 3],
+        /// Offset along the normal (m).
+        #[serde(default)]
+        offset: f64,
+    },
+    /// STL mesh (convex hull), path relative to the file naming it.
+    Mesh {
+        /// File.
+        file: PathBuf,
+        /// Scale per axis.
+        #[serde(default = "ones")]
+        scale: [f64; 3],
+    },
+}
+
+impl ShapeSpec {
+    /// The primitive, resolving a mesh path against `dir`.
+    pub fn primitive(&self, dir: &Path) -> Primitive {
+        match self {
+            ShapeSpec::Box { size } => Primitive::Box { size: *size },
+            ShapeSpec::Cylinder { radius, length } => Primitive::Cylinder {
+                radius: *radius,
+                length: *length,
+            },
+            ShapeSpec::Sphere { radius } => Primitive::Sphere { radius: *radius },
+            ShapeSpec::Capsule { radius, length } => Primitive::Capsule {
+                radius: *radius,
+                length: *length,
+            },
+            ShapeSpec::Plane { normal, offset } => Primitive::HalfSpace {
+                normal: *normal,
+                offset: *offset,
+            },
+            ShapeSpec::Mesh { file, scale } => Primitive::Mesh {
+                path: dir.join(file),
+                scale: *scale,
+            },
+        }
+    }
+}
+
+/// Pose from xyz (m) and roll-pitch-yaw (rad), URDF convention.
+pub fn pose(xyz: [f64; 3], rpy: [f64; 3]) -> Isometry3<f64> {
+    let rot = Rotation3::from_euler_angles(rpy[0], rpy[1], rpy[2]);
+    Isometry3::from_parts(Translation3::new(xyz[0], xyz[1], xyz[2]), UnitQuaternion::from_rotation_matrix(&rot))
+}
+
+/// A pair of bodies the robot file declares as never to be checked.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AllowedCollision {
+    /// First link.
+    pub a: String,
+    /// Second link.
+    pub b: String,
+    /// Why the pair cannot collide or may touch (required).
+    pub reason: String,
+}
+
+// ---------------------------------------------------------------------------
+// The robot's geometry
+// ---------------------------------------------------------------------------
+
+/// The collision geometry of a robot, built once at load: one body per moving
+/// link (everything fixed to it merged in: fixed child links, tool flanges,
+/// the hand and fingers) and one for the base.
+#[derive(Debug, Clone)]
+pub struct RobotGeometry {
+    /// Body 0 is the base, body i + 1 moves with link i.
+    pub bodies: Vec<Body>,
+    /// URDF link names merged into each body (for `allowed_collision` and messages).
+    pub members: Vec<Vec<String>>,
+    /// Pairs the robot file excludes, with their reasons.
+    pub allowed: Vec<AllowedCollision>,
+    /// Where the geometry came from (for reports).
+    pub source: String,
+}
+
+impl RobotGeometry {
+    /// Body index of a link name (a moving link, the base or any link merged into one).
+    pub fn body_of(&self, name: &str) -> Option<usize> {
+        self.members.iter().position(|m| m.iter().any(|x| x == name))
+    }
+}
+
+/// Which class a checked pair belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PairClass {
+    /// Two bodies of the robot.
+    SelfCollision,
+    /// A robot body and an obstacle (floor, cell).
+    World,
+}
+
+impl PairClass {
+    /// `self` or `world`.
+    pub fn label(self) -> &'static str {
+        match self {
+            PairClass::SelfCollision => "self",
+            PairClass::World => "world",
+        }
+    }
+}
+
+/// One checked pair of a scene.
+#[derive(Debug, Clone, Serialize)]
+pub struct PairInfo {
+    /// Name of the first body.
+    pub a: String,
+    /// Name of the second body.
+    pub b: String,
+    /// Self or world.
+    pub class: PairClass,
+    #[serde(skip)]
+    ia: usize,
+    #[serde(skip)]
+    ib: usize,
+}
+
+impl PairInfo {
+    /// `self: forearm_link – wrist_2_link`.
+    pub fn label(&self) -> String {
+        format!("{}: {} – {}", self.class.label(), self.a, self.b)
+    }
+}
+
+/// A pair left out, and why.
+#[derive(Debug, Clone, Serialize)]
+pub struct ExcludedPair {
+    /// First body.
+    pub a: String,
+    /// Second body.
+    pub b: String,
+    /// Why.
+    pub reason: String,
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn default_margin() -> f64 {
+    0.02
+}
+
+fn default_band() -> f64 {
+    0.1
+}
+
+/// A fixed obstacle of the cell (`[[collision.obstacle]]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObstacleSpec {
+    /// Name in reports.
+    pub name: String,
+    /// Shape.
+    pub shape: ShapeSpec,
+    /// Position in the base frame (m).
+    #[serde(default)]
+    pub xyz: [f64; 3],
+    /// Orientation (roll, pitch, yaw; rad).
+    #[serde(default)]
+    pub rpy: [f64; 3],
+}
+
+/// A tool or payload shape fixed to a frame of the robot (`[[collision.attached]]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AttachedSpec {
+    /// Name in reports.
+    pub name: String,
+    /// Frame or link it is fixed to.
+    pub frame: String,
+    /// Shape (not a plane).
+    pub shape: ShapeSpec,
+    /// Position in the frame (m).
+    #[serde(default)]
+    pub xyz: [f64; 3],
+    /// Orientation in the frame (rad).
+    #[serde(default)]
+    pub rpy: [f64; 3],
+}
+
+/// The `[collision]` section of a design file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CollisionSpec {
+    /// Check collisions at all (default true; without robot geometry there is nothing to check).
+    #[serde(default = "yes")]
+    pub enabled: bool,
+    /// Required minimum distance (m) for every checked pair.
+    #[serde(default = "default_margin")]
+    pub margin: f64,
+    /// Distances above margin + band count as margin + band (m): the broad phase skips those pairs exactly.
+    #[serde(default = "default_band")]
+    pub band: f64,
+    /// Self-collision between the robot's bodies.
+    #[serde(default = "yes", rename = "self")]
+    pub self_collision: bool,
+    /// The mounting plane z = 0 of the base frame for every body but the base.
+    #[serde(default = "yes")]
+    pub floor: bool,
+    /// Obstacles of the cell.
+    #[serde(default)]
+    pub obstacle: Vec<ObstacleSpec>,
+    /// Tool or payload shapes on robot frames.
+    #[serde(default)]
+    pub attached: Vec<AttachedSpec>,
+}
+
+impl Default for CollisionSpec {
+    fn default() -> Self {
+        CollisionSpec {
+            enabled: true,
+            margin: default_margin(),
+            band: default_band(),
+            self_collision: true,
+            floor: true,
+            obstacle: Vec::new(),
+            attached: Vec::new(),
+        }
+    }
+}
+
+/// The robot's bodies (with attached shapes) and the world's obstacles, the
+/// checked pairs, the margin and the cap.
+#[derive(Debug, Clone)]
+pub struct CollisionScene {
+    bodies: Vec<Body>,
+    /// Moving link of each body (`None`: fixed in the base frame).
+    owner: Vec<Option<usize>>,
+    /// Checked pairs.
+    pub pairs: Vec<PairInfo>,
+    /// Pairs not checked and why.
+    pub excluded: Vec<ExcludedPair>,
+    /// Required distance (m).
+    pub margin: f64,
+    /// Cap of the distances in the optimisation (m): margin + band.
+    pub cap: f64,
+}
+
+/// Distance of one pair at one configuration.
+#[derive(Debug, Clone, Serialize)]
+pub struct PairDistance {
+    /// Index into [`CollisionScene::pairs`].
+    pub pair: usize,
+    /// `self: a – b`.
+    pub label: String,
+    /// Signed distance (m; negative: penetration), capped at the query's cap.
+    pub distance: f64,
+}
+
+impl CollisionScene {
+    /// Builds the scene of `robot` under `spec`; `dir` resolves mesh paths of
+    /// the design file, `ctx` names it in messages. `None` when nothing is
+    /// checked (disabled, or the robot has no geometry and there is no pair).
+    pub fn new(robot: &Robot, spec: &CollisionSpec, dir: &Path, ctx: &str) -> Result<Option<CollisionScene>> {
+        if !spec.enabled {
+            return Ok(None);
+        }
+        if !(spec.margin.is_finite() && spec.margin >= 0.0) {
+            return Err(Error::invalid(ctx, "collision.margin", format!("{} must be ≥ 0 m and finite", spec.margin)));
+        }
+        if !(spec.band.is_finite() && spec.band > 0.0) {
+            return Err(Error::invalid(ctx, "collision.band", format!("{} must be > 0 m and finite", spec.band)));
+        }
+        let n = robot.dof();
+        let (mut bodies, members, allowed) = match &robot.collision {
+            Some(g) => (g.bodies.clone(), g.members.clone(), g.allowed.clone()),
+            None => {
+                let mut b = vec![Body::empty("base")];
+                let mut m = vec![vec!["base".to_string()]];
+                for l in &robot.links {
+                    b.push(Body::empty(&l.name));
+                    m.push(vec![l.name.clone()]);
+                }
+                (b, m, Vec::new())
+            }
+        };
+        for (k, a) in spec.attached.iter().enumerate() {
+            let field = format!("collision.attached[{k}] (`{}`)", a.name);
+            if matches!(a.shape, ShapeSpec::Plane { .. }) {
+                return Err(Error::invalid(ctx, &field, "an attached shape cannot be a plane"));
+            }
+            let frame = robot.find_frame(&a.frame).ok_or_else(|| {
+                Error::invalid(
+                    ctx,
+                    format!("{field}.frame"),
+                    format!("no frame or link named `{}` on robot `{}`", a.frame, robot.name),
+                )
+            })?;
+            let spec = GeometrySpec {
+                primitive: a.shape.primitive(dir),
+                origin: pose(a.xyz, a.rpy),
+            };
+            let body = Body::new(&a.name, &[spec], MeshMode::Hull, &format!("{ctx}: {field}"))?;
+            let idx = frame.link.map_or(0, |l| l + 1);
+            bodies[idx].merge(&body, &frame.placement);
+        }
+        let mut owner: Vec<Option<usize>> = (0..=n).map(|i| i.checked_sub(1)).collect();
+        let mut pairs = Vec::new();
+        let mut excluded = Vec::new();
+        if spec.self_collision {
+            for a in 0..=n {
+                for b in a + 1..=n {
+                    if bodies[a].is_empty() || bodies[b].is_empty() {
+                        continue;
+                    }
+                    // b > a ≥ 0, b a moving link: joined by one joint if a is b's parent body
+                    let parent_b = robot.joints[b - 1].parent.map_or(0, |p| p + 1);
+                    let parent_a = if a == 0 {
+                        None
+                    } else {
+                        Some(robot.joints[a - 1].parent.map_or(0, |p| p + 1))
+                    };
+                    if parent_b == a || parent_a == Some(b) {
+                        excluded.push(ExcludedPair {
+                            a: bodies[a].name.clone(),
+                            b: bodies[b].name.clone(),
+                            reason: "adjacent: joined by one joint".into(),
+                        });
+                        continue;
+                    }
+                    if let Some(al) = allowed.iter().find(|al| {
+                        let (x, y) = (members[a].contains(&al.a), members[b].contains(&al.b));
+                        let (x2, y2) = (members[a].contains(&al.b), members[b].contains(&al.a));
+                        (x && y) || (x2 && y2)
+                    }) {
+                        excluded.push(ExcludedPair {
+                            a: bodies[a].name.clone(),
+                            b: bodies[b].name.clone(),
+                            reason: format!("allowed by the robot file: {}", al.reason),
+                        });
+                        continue;
+                    }
+                    pairs.push(PairInfo {
+                        a: bodies[a].name.clone(),
+                        b: bodies[b].name.clone(),
+                        class: PairClass::SelfCollision,
+                        ia: a,
+                        ib: b,
+                    });
+                }
+            }
+        }
+        let mut obstacles: Vec<Body> = Vec::new();
+        if spec.floor {
+            let floor = Body::new(
+                "floor",
+                &[GeometrySpec {
+                    primitive: Primitive::HalfSpace {
+                        normal: [0.0, 0.0, 1.0],
+                        offset: 0.0,
+                    },
+                    origin: Isometry3::identity(),
+                }],
+                MeshMode::Hull,
+                ctx,
+            )?;
+            obstacles.push(floor);
+        }
+        for (k, o) in spec.obstacle.iter().enumerate() {
+            let field = format!("collision.obstacle[{k}] (`{}`)", o.name);
+            let g = GeometrySpec {
+                primitive: o.shape.primitive(dir),
+                origin: pose(o.xyz, o.rpy),
+            };
+            obstacles.push(Body::new(&o.name, &[g], MeshMode::Hull, &format!("{ctx}: {field}"))?);
+        }
+        for (k, ob) in obstacles.into_iter().enumerate() {
+            let oi = bodies.len();
+            let is_floor = spec.floor && k == 0;
+            bodies.push(ob);
+            owner.push(None);
+            for b in 0..=n {
+                if bodies[b].is_empty() {
+                    continue;
+                }
+                if b == 0 {
+                    // the base stands on the floor; against a cell obstacle
+                    // the distance is constant in q: checked all the same
+                    if is_floor {
+                        continue;
+                    }
+                }
+                pairs.push(PairInfo {
+                    a: bodies[b].name.clone(),
+                    b: bodies[oi].name.clone(),
+                    class: PairClass::World,
+                    ia: b,
+                    ib: oi,
+                });
+            }
+        }
+        Ok(Some(CollisionScene {
+            bodies,
+            owner,
+            pairs,
+            excluded,
+            margin: spec.margin,
+            cap: spec.margin + spec.band,
+        }))
+    }
+
+    /// Number of checked pairs.
+    pub fn len(&self) -> usize {
+        self.pairs.len()
+    }
+
+    /// True when no pair is checked.
+    pub fn is_empty(&self) -> bool {
+        self.pairs.is_empty()
+    }
+
+    /// World poses of every body from the forward kinematics in `kin` (`out` resized).
+    pub fn poses(&self, kin: &Kin<f64>, out: &mut Vec<Isometry3<f64>>) {
+        out.clear();
+        for o in &self.owner {
+            out.push(match o {
+                None => Isometry3::identity(),
+                Some(l) => iso(&kin.wpos[*l], &kin.wrot[*l]),
+            });
+        }
+    }
+
+    /// Signed distance of pair `k` at body poses `poses`, capped at `cap`
+    /// (`None`: farther than the cap).
+    pub fn pair_proximity(&self, k: usize, poses: &[Isometry3<f64>], cap: f64) -> Option<Proximity> {
+        let p = &self.pairs[k];
+        proximity(&self.bodies[p.ia], &poses[p.ia], &self.bodies[p.ib], &poses[p.ib], cap)
+    }
+
+    /// Adds `scale · ∂d/∂q` of pair `k` to `grad` (length n): nᵀ(J_B(p_B) − J_A(p_A)),
+    /// the point Jacobians of the witness points fixed on their bodies. `kin`
+    /// must hold the forward kinematics of the configuration of `prox`.
+    pub fn add_gradient(&self, robot: &Robot, kin: &Kin<f64>, k: usize, prox: &Proximity, scale: f64, grad: &mut [f64]) {
+        let p = &self.pairs[k];
+        if let Some(l) = self.owner[p.ib] {
+            point_jacobian_t(robot, kin, l, &prox.p2, &prox.normal, scale, grad);
+        }
+        if let Some(l) = self.owner[p.ia] {
+            point_jacobian_t(robot, kin, l, &prox.p1, &prox.normal, -scale, grad);
+        }
+    }
+
+    /// Distances of every pair at configuration `q` (forward kinematics into
+    /// `kin`), capped at `cap`.
+    pub fn distances(&self, robot: &Robot, kin: &mut Kin<f64>, q: &[f64], cap: f64) -> Vec<PairDistance> {
+        crate::robot::kinematics::forward_kinematics(robot, q, kin);
+        let mut poses = Vec::with_capacity(self.bodies.len());
+        self.poses(kin, &mut poses);
+        (0..self.pairs.len())
+            .map(|k| PairDistance {
+                pair: k,
+                label: self.pairs[k].label(),
+                distance: self.pair_proximity(k, &poses, cap).map_or(cap, |p| p.distance),
+            })
+            .collect()
+    }
+
+    /// The pair closest to violating the margin at `q` and its distance (capped at `cap`).
+    pub fn worst_at(&self, robot: &Robot, kin: &mut Kin<f64>, q: &[f64], cap: f64) -> Option<PairDistance> {
+        self.distances(robot, kin, q, cap).into_iter().min_by(|a, b| a.distance.total_cmp(&b.distance))
+    }
+
+    /// The bodies (robot bodies first, index i + 1 for link i, then obstacles).
+    pub fn bodies(&self) -> &[Body] {
+        &self.bodies
+    }
+}
+
+fn iso(p: &Vector3<f64>, r: &Matrix3<f64>) -> Isometry3<f64> {
+    let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*r));
+    Isometry3::from_parts(Translation3::from(*p), rot)
+}
+
+/// grad += s · nᵀ J(p), J the linear point Jacobian of point p fixed on link `link`.
+fn point_jacobian_t(robot: &Robot, kin: &Kin<f64>, link: usize, p: &Point3<f64>, n: &Vector3<f64>, s: f64, grad: &mut [f64]) {
+    let mut cur = Some(link);
+    while let Some(j) = cur {
+        let wa = kin.wrot[j] * robot.s_ang[j];
+        let wl = kin.wrot[j] * robot.s_lin[j];
+        let lin = wl + wa.cross(&(p.coords - kin.wpos[j]));
+        grad[j] += s * n.dot(&lin);
+        cur = robot.joints[j].parent;
+    }
+}
+
+/// Resolves a URDF mesh file name: `package://pkg/a/b.stl` or a relative
+/// path. Tried in order: a relative path against `urdf_dir`, then for every
+/// directory of `mesh_path` the longest suffix of the path that exists below
+/// it (`package://example-robot-data/robots/ur_description/meshes/ur5/collision/base.stl`
+/// is found as `<dir>/collision/base.stl` or `<dir>/ur5/collision/base.stl` …).
+pub fn resolve_mesh(filename: &str, urdf_dir: &Path, mesh_path: &[PathBuf]) -> Option<PathBuf> {
+    let (rel, is_pkg) = match filename.strip_prefix("package://") {
+        Some(r) => (r, true),
+        None => (filename.strip_prefix("file://").unwrap_or(filename), false),
+    };
+    let relp = Path::new(rel);
+    if !is_pkg {
+        let p = if relp.is_absolute() { relp.to_path_buf() } else { urdf_dir.join(relp) };
+        if p.is_file() {
+            return Some(p);
+        }
+    }
+    let comps: Vec<&std::ffi::OsStr> = relp.iter().collect();
+    for dir in mesh_path {
+        for start in 0..comps.len() {
+            let mut p = dir.clone();
+            for c in &comps[start..] {
+                p.push(c);
+            }
+            if p.is_file() {
+                return Some(p);
+            }
+        }
+    }
+    None
+}

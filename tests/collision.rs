@@ -1,0 +1,414 @@
+//! Collision geometry (robot::collision) and the collision constraints of the
+//! excitation design: distances against independent computations, gradients
+//! against finite differences, the pair list, errors, INFEASIBLE designs, and
+//! the shipped designs checked on the 1 kHz grid.
+
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SupportedConeT};
+use idexp::robot::collision::{CollisionScene, CollisionSpec, PairClass};
+use idexp::robot::kinematics::{forward_kinematics, Kin};
+use idexp::robot::Robot;
+use nalgebra::Point3;
+use rand::{RngExt, SeedableRng};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn designs() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("designs")
+}
+
+fn robot(name: &str) -> Robot {
+    idexp::robot::load(&designs().join("robots").join(name)).unwrap()
+}
+
+fn scene(r: &Robot, spec: &CollisionSpec) -> CollisionScene {
+    CollisionScene::new(r, spec, &designs(), "test").unwrap().unwrap()
+}
+
+fn random_q(r: &Robot, rng: &mut rand_chacha::ChaCha8Rng) -> Vec<f64> {
+    r.joints
+        .iter()
+        .map(|j| rng.random_range(j.limits.lower.max(-3.1)..j.limits.upper.min(3.1)))
+        .collect()
+}
+
+/// Distance between the convex hulls of two point sets by a second-order
+/// cone program (Clarabel): min t s.t. ‖Σλ_i a_i − Σμ_k b_k‖ ≤ t, λ, μ in
+/// the simplex. Independent of GJK.
+fn hull_distance_socp(a: &[Point3<f64>], b: &[Point3<f64>]) -> f64 {
+    let (na, nb) = (a.len(), b.len());
+    let nv = na + nb + 1;
+    let (mut ii, mut jj, mut vv) = (Vec::new(), Vec::new(), Vec::new());
+    let mut bvec = Vec::new();
+    let mut row = 0;
+    // Σλ = 1, Σμ = 1
+    for i in 0..na {
+        ii.push(row);
+        jj.push(i);
+        vv.push(1.0);
+    }
+    bvec.push(1.0);
+    row += 1;
+    for k in 0..nb {
+        ii.push(row);
+        jj.push(na + k);
+        vv.push(1.0);
+    }
+    bvec.push(1.0);
+    row += 1;
+    // λ, μ ≥ 0
+    for v in 0..na + nb {
+        ii.push(row);
+        jj.push(v);
+        vv.push(-1.0);
+        bvec.push(0.0);
+        row += 1;
+    }
+    // (t, Aλ − Bμ) ∈ SOC
+    ii.push(row);
+    jj.push(na + nb);
+    vv.push(-1.0);
+    bvec.push(0.0);
+    row += 1;
+    for c in 0..3 {
+        for i in 0..na {
+            ii.push(row);
+            jj.push(i);
+            vv.push(-a[i][c]);
+        }
+        for k in 0..nb {
+            ii.push(row);
+            jj.push(na + k);
+            vv.push(b[k][c]);
+        }
+        bvec.push(0.0);
+        row += 1;
+    }
+    let amat = CscMatrix::new_from_triplets(row, nv, ii, jj, vv);
+    let p = CscMatrix::zeros((nv, nv));
+    let mut q = vec![0.0; nv];
+    q[nv - 1] = 1.0;
+    let cones = [
+        SupportedConeT::ZeroConeT(2),
+        SupportedConeT::NonnegativeConeT(na + nb),
+        SupportedConeT::SecondOrderConeT(4),
+    ];
+    let settings = DefaultSettingsBuilder::default()
+        .verbose(false)
+        .tol_gap_abs(1e-10)
+        .tol_gap_rel(1e-10)
+        .build()
+        .unwrap();
+    let mut s = DefaultSolver::new(&p, &q, &amat, &bvec, &cones, settings).unwrap();
+    s.solve();
+    s.solution.x[nv - 1]
+}
+
+#[test]
+fn distances_match_an_independent_socp_on_the_convex_hulls() {
+    let r = robot("ur5.toml");
+    let sc = scene(&r, &CollisionSpec::default());
+    let mut kin = Kin::new(r.dof());
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let mut checked = 0;
+    for _ in 0..6 {
+        let q = random_q(&r, &mut rng);
+        forward_kinematics(&r, &q, &mut kin);
+        let mut poses = Vec::new();
+        sc.poses(&kin, &mut poses);
+        for (k, p) in sc.pairs.iter().enumerate() {
+            if p.class != PairClass::SelfCollision {
+                continue;
+            }
+            let d = sc.pair_proximity(k, &poses, 10.0).unwrap().distance;
+            if d <= 1e-3 {
+                continue;
+            }
+            let body = |name: &str| sc.bodies().iter().position(|b| b.name == name).unwrap();
+            let (ia, ib) = (body(&p.a), body(&p.b));
+            let pts = |i: usize| -> Vec<Point3<f64>> { sc.bodies()[i].polyhedron_points().concat().iter().map(|x| poses[i] * x).collect() };
+            let (pa, pb) = (pts(ia), pts(ib));
+            if sc.bodies()[ia].n_parts() != 1 || sc.bodies()[ib].n_parts() != 1 {
+                continue;
+            }
+            let ds = hull_distance_socp(&pa, &pb);
+            // the vertex-pair distance bounds the hull distance from above
+            let dv = pa.iter().flat_map(|x| pb.iter().map(move |y| (x - y).norm())).fold(f64::INFINITY, f64::min);
+            assert!((d - ds).abs() < 1e-5, "{} at {q:?}: GJK {d}, SOCP {ds}", p.label());
+            assert!(d <= dv + 1e-9, "{}: GJK {d} above the vertex distance {dv}", p.label());
+            checked += 1;
+        }
+    }
+    assert!(checked >= 20, "only {checked} pairs compared");
+}
+
+#[test]
+fn floor_and_attached_sphere_distances_are_exact() {
+    // a sphere of radius 0.05 on tool0: its floor distance is z(tool0 + offset) − r, also below the floor
+    let r = robot("ur5.toml");
+    let spec: CollisionSpec = toml::from_str(
+        r#"
+        self = false
+        [[attached]]
+        name = "ball"
+        frame = "tool0"
+        shape = { type = "sphere", radius = 0.05 }
+        xyz = [0.0, 0.0, 0.1]
+        "#,
+    )
+    .unwrap();
+    let sc = scene(&r, &spec);
+    let mut ws = idexp::robot::Workspace::new(&r);
+    let mut kin = Kin::new(r.dof());
+    let tool = r.find_frame("tool0").unwrap();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let mut below = 0;
+    for _ in 0..50 {
+        let q = random_q(&r, &mut rng);
+        let x = idexp::robot::frame_pose(&r, &mut ws, &q, &tool);
+        let c = x * Point3::new(0.0, 0.0, 0.1);
+        let d = sc
+            .distances(&r, &mut kin, &q, 10.0)
+            .into_iter()
+            .find(|d| d.label == "world: wrist_3_link – floor")
+            .unwrap()
+            .distance;
+        // the wrist_3 body holds its mesh hull and the ball: its floor distance is at most the ball's
+        assert!(d <= c.z - 0.05 + 1e-9, "{d} vs ball {}", c.z - 0.05);
+        if c.z < 0.0 {
+            below += 1;
+        }
+    }
+    assert!(below > 0, "no pose below the floor sampled");
+    // ball alone (a DH-free check of the half-space sign): on a robot whose wrist_3 has only the ball
+    let spec2: CollisionSpec = toml::from_str("self = false").unwrap();
+    let sc2 = scene(&r, &spec2);
+    assert!(!sc2.is_empty());
+}
+
+#[test]
+fn gradient_matches_central_differences() {
+    for name in ["ur5.toml", "panda.toml"] {
+        let r = robot(name);
+        let sc = scene(&r, &CollisionSpec::default());
+        let n = r.dof();
+        let mut kin = Kin::new(n);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let dist = |q: &[f64], k: usize, kin: &mut Kin<f64>| {
+            forward_kinematics(&r, q, kin);
+            let mut poses = Vec::new();
+            sc.poses(kin, &mut poses);
+            sc.pair_proximity(k, &poses, 10.0).unwrap().distance
+        };
+        let mut checked = 0;
+        for _ in 0..8 {
+            let q = random_q(&r, &mut rng);
+            for k in 0..sc.len() {
+                forward_kinematics(&r, &q, &mut kin);
+                let mut poses = Vec::new();
+                sc.poses(&kin, &mut poses);
+                let p = sc.pair_proximity(k, &poses, 10.0).unwrap();
+                if p.distance < 1e-3 {
+                    continue; // penetration and contact: EPA, tested by sign elsewhere
+                }
+                let mut g = vec![0.0; n];
+                sc.add_gradient(&r, &kin, k, &p, 1.0, &mut g);
+                let h = 1e-6;
+                for j in 0..n {
+                    let (mut qp, mut qm) = (q.clone(), q.clone());
+                    qp[j] += h;
+                    qm[j] -= h;
+                    let fd = (dist(&qp, k, &mut kin) - dist(&qm, k, &mut kin)) / (2.0 * h);
+                    assert!(
+                        (fd - g[j]).abs() < 1e-4 * (1.0 + fd.abs()),
+                        "{name} {} joint {j}: analytic {} fd {fd}",
+                        sc.pairs[k].label(),
+                        g[j]
+                    );
+                }
+                checked += 1;
+            }
+        }
+        assert!(checked > 50, "{name}: only {checked} pairs");
+    }
+}
+
+#[test]
+fn pair_list_excludes_adjacent_and_allowed_and_ignores_srdf_never() {
+    let r = robot("ur5.toml");
+    let sc = scene(&r, &CollisionSpec::default());
+    let labels: Vec<String> = sc.pairs.iter().map(|p| p.label()).collect();
+    assert!(!labels.iter().any(|l| l == "self: forearm_link – wrist_1_link"), "adjacent pair checked");
+    assert!(labels.iter().any(|l| l == "self: forearm_link – wrist_2_link"));
+    assert_eq!(sc.pairs.iter().filter(|p| p.class == PairClass::SelfCollision).count(), 21 - 6);
+    assert_eq!(sc.pairs.iter().filter(|p| p.class == PairClass::World).count(), 6);
+    // an SRDF with a sampled `Never` and an `Adjacent` entry, plus an allowed pair
+    let dir = tempfile::tempdir().unwrap();
+    let srdf = dir.path().join("ur5.srdf");
+    std::fs::write(
+        &srdf,
+        r#"<?xml version="1.0"?>
+<robot name="ur5">
+  <disable_collisions link1="forearm_link" link2="wrist_2_link" reason="Never"/>
+  <disable_collisions link1="wrist_1_link" link2="wrist_3_link" reason="Adjacent"/>
+</robot>"#,
+    )
+    .unwrap();
+    let rd = designs().join("robots");
+    let toml = format!(
+        "urdf = \"{}/ur5.urdf\"\nbase_link = \"base_link\"\ntip_link = \"tool0\"\nmesh_path = [\"{}/meshes/ur5\"]\nsrdf = \"ur5.srdf\"\n\
+         [[allowed_collision]]\na = \"base_link\"\nb = \"wrist_3_link\"\nreason = \"test\"\n",
+        rd.display(),
+        rd.display()
+    );
+    let rf = dir.path().join("ur5.toml");
+    std::fs::write(&rf, toml).unwrap();
+    let r2 = idexp::robot::load(&rf).unwrap();
+    let sc2 = scene(&r2, &CollisionSpec::default());
+    let l2: Vec<String> = sc2.pairs.iter().map(|p| p.label()).collect();
+    assert!(
+        l2.iter().any(|l| l == "self: forearm_link – wrist_2_link"),
+        "SRDF Never must be ignored by default"
+    );
+    assert!(!l2.iter().any(|l| l == "self: wrist_1_link – wrist_3_link"), "SRDF Adjacent taken");
+    assert!(!l2.iter().any(|l| l == "self: base_link – wrist_3_link"), "allowed pair checked");
+    assert!(sc2.excluded.iter().any(|e| e.reason.contains("test")));
+}
+
+#[test]
+fn missing_mesh_names_the_link_and_the_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let rd = designs().join("robots");
+    let rf = dir.path().join("ur5.toml");
+    std::fs::write(
+        &rf,
+        format!(
+            "urdf = \"{}/ur5.urdf\"\nbase_link = \"base_link\"\ntip_link = \"tool0\"\nmesh_path = [\"nowhere\"]\n",
+            rd.display()
+        ),
+    )
+    .unwrap();
+    let e = idexp::robot::load(&rf).unwrap_err().to_string();
+    assert!(e.contains("base_link") && e.contains("collision/base.stl") && e.contains("nowhere"), "{e}");
+}
+
+fn excite(design: &str, out: &Path) -> (i32, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .args(["excite", design, "--out"])
+        .arg(out)
+        .output()
+        .unwrap();
+    (
+        o.status.code().unwrap_or(-1),
+        format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr)),
+    )
+}
+
+#[test]
+fn impossible_obstacle_is_infeasible_with_pair_and_depth() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path().join("blocked.toml");
+    std::fs::write(
+        &d,
+        format!(
+            r#"robot = "{}/robots/ur5.toml"
+[trajectory]
+harmonics = 2
+frequency = 0.2
+q0 = [0.0, -1.5707963, 0.0, -1.5707963, 0.0, 0.0]
+[objective]
+sample_rate = 5.0
+[collision]
+margin = 0.01
+[[collision.obstacle]]
+name = "pillar"
+shape = {{ type = "box", size = [0.3, 0.3, 0.3] }}
+xyz = [0.0, 0.0, 0.1]
+[ga]
+population = 8
+generations = 2
+[refine]
+algorithm = "none"
+"#,
+            designs().display()
+        ),
+    )
+    .unwrap();
+    let (code, text) = excite(d.to_str().unwrap(), &dir.path().join("out"));
+    assert_eq!(code, 3, "{text}");
+    assert!(text.contains("INFEASIBLE"), "{text}");
+    let report = std::fs::read_to_string(dir.path().join("out/report.txt")).unwrap();
+    assert!(
+        report.contains("collision world: shoulder_link – pillar") && report.contains("penetration depth"),
+        "{report}"
+    );
+}
+
+/// Every constraint of a finished design on its 1 kHz grid, recomputed from
+/// trajectory.csv with the collision scene (independent of the optimiser's grid).
+fn check_delivered(design: &str, out: &Path) {
+    let (code, text) = excite(design, out);
+    assert_eq!(code, 0, "{text}");
+    let p = idexp::excitation::Problem::from_file(Path::new(design)).unwrap();
+    let sc = p.constraints.scene().expect("collision checked");
+    let rep: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let margins = rep["result"]["margins"].as_array().unwrap();
+    let dist: Vec<&serde_json::Value> = margins.iter().filter(|m| m["kind"].as_str().unwrap().ends_with("collision")).collect();
+    assert_eq!(dist.len(), sc.len());
+    for m in margins {
+        assert!(m["margin"].as_f64().unwrap() >= 0.0, "{design}: {m}");
+    }
+    // trajectory.csv at the controller rate: every row keeps the margin
+    let mut rd = csv::Reader::from_path(out.join("trajectory.csv")).unwrap();
+    let hdr = rd.headers().unwrap().clone();
+    let qcols: Vec<usize> = (0..p.robot.dof())
+        .map(|j| hdr.iter().position(|h| h == format!("q{}", j + 1)).unwrap())
+        .collect();
+    let mut kin = Kin::new(p.robot.dof());
+    let mut worst = f64::INFINITY;
+    for rec in rd.records() {
+        let rec = rec.unwrap();
+        let q: Vec<f64> = qcols.iter().map(|&c| rec[c].parse().unwrap()).collect();
+        if let Some(w) = sc.worst_at(&p.robot, &mut kin, &q, 1.0) {
+            worst = worst.min(w.distance);
+        }
+    }
+    assert!(worst >= sc.margin - 1e-9, "{design}: {worst} < {}", sc.margin);
+}
+
+#[test]
+fn excite_ur5_keeps_every_link_above_the_floor_and_apart() {
+    let dir = tempfile::tempdir().unwrap();
+    check_delivered(designs().join("excite_ur5.toml").to_str().unwrap(), dir.path());
+}
+
+#[test]
+#[ignore = "a full Panda design run (about a minute on 2 cores)"]
+fn excite_panda_table_keeps_the_margin() {
+    let dir = tempfile::tempdir().unwrap();
+    check_delivered(designs().join("excite_panda_table.toml").to_str().unwrap(), dir.path());
+}
+
+#[test]
+fn position_candidates_in_collision_are_dropped() {
+    use idexp::positions::candidates::CandidateSpec;
+    let r = robot("ur5.toml");
+    let spec: CandidateSpec = toml::from_str(
+        "kind = \"grid\"\njoints = [2, 3]\npoints = [9, 9]\nlower = [-3.0, -2.8]\nupper = [0.0, 2.8]\nfixed = [0.0, -1.57, 0.0, -1.57, 0.0, 0.0]\n[collision]\nmargin = 0.01\n",
+    )
+    .unwrap();
+    let c = spec.generate(&r, &[0.0; 6], 1, &designs(), "test").unwrap();
+    assert!(c.rejected_collision > 0 && !c.q.is_empty(), "{} dropped", c.rejected_collision);
+    assert!(c.collision_reasons[0].contains("floor") || c.collision_reasons[0].contains("self:"));
+    let sc = scene(&r, &toml::from_str("margin = 0.01").unwrap());
+    let mut kin = Kin::new(6);
+    for q in &c.q {
+        assert!(sc.worst_at(&r, &mut kin, q, 1.0).unwrap().distance >= 0.01);
+    }
+    let off: CandidateSpec = toml::from_str(
+        "kind = \"grid\"\njoints = [2, 3]\npoints = [9, 9]\nlower = [-3.0, -2.8]\nupper = [0.0, 2.8]\nfixed = [0.0, -1.57, 0.0, -1.57, 0.0, 0.0]\n[collision]\nenabled = false\n",
+    )
+    .unwrap();
+    let c2 = off.generate(&r, &[0.0; 6], 1, &designs(), "test").unwrap();
+    assert_eq!(c2.q.len(), c.q.len() + c.rejected_collision);
+}
