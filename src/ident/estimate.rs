@@ -79,9 +79,38 @@ impl Dataset {
     /// vanish and the rank check of the reduction removes them).
     /// `slow_ratio = min_speed = 0` keeps every row.
     pub fn new(robot: &Robot, base: &BaseParams, pr: &super::Processed, slow_ratio: f64, min_speed: f64) -> Dataset {
+        Dataset::every_row(robot, base, pr).moving_rows(pr, slow_ratio, min_speed)
+    }
+
+    /// The dataset of every sample of a processed run (no row left out): the
+    /// rows paper 000's e_j, e*_j (eq. 11–12) are defined on.
+    pub fn every_row(robot: &Robot, base: &BaseParams, pr: &super::Processed) -> Dataset {
         let n = robot.dof();
         let m = pr.len();
         let c = base_design(robot, base, &pr.q, &pr.qd, &pr.qdd);
+        let y = DVector::from_iterator(n * m, (0..n * m).map(|r| pr.tau[r % m][r / m]));
+        let var = pr
+            .tau_var
+            .as_ref()
+            .map(|v| DVector::from_iterator(n * m, (0..n * m).map(|r| v[r % m][r / m] / pr.n_reps as f64)));
+        Dataset {
+            n,
+            n_samples: m,
+            c,
+            y,
+            var,
+            names: base.names.clone(),
+            joint: (0..n * m).map(|r| r / m).collect(),
+            sample: (0..n * m).map(|r| r % m).collect(),
+        }
+    }
+
+    /// The rows of a complete dataset ([`Dataset::every_row`] of `pr`) that
+    /// [`Dataset::new`] keeps: joint j at samples with |q̇_j| ≥
+    /// max(`slow_ratio` · max_p |q̇_j(p)|, `min_speed`).
+    pub fn moving_rows(&self, pr: &super::Processed, slow_ratio: f64, min_speed: f64) -> Dataset {
+        let n = self.n;
+        let m = self.n_samples;
         let vmax: Vec<f64> = (0..n).map(|j| pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max)).collect();
         let keep: Vec<usize> = (0..n * m)
             .filter(|&r| {
@@ -89,18 +118,16 @@ impl Dataset {
                 thr <= 0.0 || pr.qd[r % m][r / m].abs() >= thr
             })
             .collect();
-        let y = DVector::from_iterator(keep.len(), keep.iter().map(|&r| pr.tau[r % m][r / m]));
-        let var = pr
-            .tau_var
-            .as_ref()
-            .map(|v| DVector::from_iterator(keep.len(), keep.iter().map(|&r| v[r % m][r / m] / pr.n_reps as f64)));
+        if keep.len() == n * m {
+            return self.clone();
+        }
         Dataset {
             n,
             n_samples: m,
-            c: c.select_rows(keep.iter()),
-            y,
-            var,
-            names: base.names.clone(),
+            c: self.c.select_rows(keep.iter()),
+            y: DVector::from_iterator(keep.len(), keep.iter().map(|&r| self.y[r])),
+            var: self.var.as_ref().map(|v| DVector::from_iterator(keep.len(), keep.iter().map(|&r| v[r]))),
+            names: self.names.clone(),
             joint: keep.iter().map(|&r| r / m).collect(),
             sample: keep.iter().map(|&r| r % m).collect(),
         }
@@ -347,7 +374,14 @@ pub fn row_variances(ds: &Dataset, weights: Weights) -> Result<DVector<f64>> {
     let var = match (&ds.var, weights) {
         (Some(v), Weights::Sample) => v.clone(),
         (Some(v), Weights::Joint) => per_joint_mean(v),
-        (None, _) => {
+        (None, Weights::Sample) => {
+            return Err(Error::invalid(
+                "identify",
+                "--weights",
+                "sample weights (paper 000 eq. 7–9) need the per-sample torque variances: a run of N_r ≥ 2 repetitions, or an averaged run with var_tau columns; use --weights joint (per-joint residual variance of OLS) or --method ols",
+            ))
+        }
+        (None, Weights::Joint) => {
             let ones = DVector::from_element(ds.y.len(), 1.0);
             let (th, _, _) = weighted_svd_solve(&ds.c, &ds.y, &ones)?;
             let r = &ds.y - &ds.c * th;

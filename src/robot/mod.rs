@@ -8,6 +8,7 @@
 
 pub mod cartesian;
 pub mod dynamics;
+pub mod export;
 pub mod file;
 pub mod kinematics;
 pub mod model;
