@@ -497,7 +497,14 @@ pub fn identify(
         implausible,
         n_reps: pr.n_reps,
         n_samples: pr.len(),
-        warnings: filter_warnings(&pr),
+        warnings: filter_warnings(&pr)
+            .into_iter()
+            .chain(
+                crate::robot::export::inertial_warnings(robot)
+                    .into_iter()
+                    .map(|w| format!("nominal model: {w}")),
+            )
+            .collect(),
         filter_residual: pr.filter_residual.clone(),
         filter,
         projection,

@@ -163,7 +163,7 @@ fn replace_inertial(robot: &Robot, merged: &[&str], link: &str, a: usize, b: usi
     if let Some(i) = robot.links.iter().position(|l| l.name == link) {
         edits.push((a, b, inertial_xml(&robot.links[i].inertial, "    ")));
     } else if merged.contains(&link) {
-        edits.push((a, b, "<!-- inertial lumped into its moving parent link by idexp identify --export -->".into()));
+        edits.push((a, b, "<!-- inertial lumped into its moving parent link by the idexp identify export -->".into()));
     }
 }
 
