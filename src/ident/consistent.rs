@@ -510,14 +510,14 @@ mod tests {
         let mut kinds = vec![];
         for i in 0..3 {
             let m: f64 = rng.random_range(1.0..5.0);
-            let c = Vector3::new(rng.random_range(-0.2..0.2), rng.random_range(-0.2..0.2), rng.random_range(-0.2..0.2));
+            let c: Vector3<f64> = Vector3::new(rng.random_range(-0.2..0.2), rng.random_range(-0.2..0.2), rng.random_range(-0.2..0.2));
             let (a, b, cc): (f64, f64, f64) = (rng.random_range(0.05..0.3), rng.random_range(0.05..0.3), rng.random_range(0.05..0.3));
             let ic = Matrix3::from_diagonal(&Vector3::new(
                 m * (b * b + cc * cc) / 12.0,
                 m * (a * a + cc * cc) / 12.0,
                 m * (a * a + b * b) / 12.0,
             ));
-            let io = ic + m * (c.dot(&c) * Matrix3::identity() - c * c.transpose());
+            let io: Matrix3<f64> = ic + m * (c.dot(&c) * Matrix3::identity() - c * c.transpose());
             links.push(theta.len());
             theta.extend_from_slice(&[
                 io[(0, 0)],
