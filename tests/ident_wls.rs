@@ -123,8 +123,7 @@ fn one_repetition_and_missing_inputs() {
         &IdentOptions::default(),
         &idexp::optim::Control::new(),
     )
-    .err()
-    .expect("sample weights without variances must be refused")
+    .expect_err("sample weights without variances must be refused")
     .to_string();
     assert!(e.contains("--weights joint"), "{e}");
     // ... and --weights joint takes the per-joint OLS residual variance
