@@ -38,6 +38,45 @@ fn bench_wls(c: &mut Criterion) {
     c.bench_function("ident/wls 6000x52 (thin SVD, covariance)", |b| b.iter(|| wls(&ds, Weights::Sample).unwrap()));
 }
 
+/// The consistent fit on the industrial 6-axis robot (≈ 90 standard
+/// parameters with drives, 6 × 5,000 rows): the whole fit (blockwise QR of the
+/// weighted regressor + Clarabel), and Clarabel's own solve time is printed.
+fn bench_consistent(c: &mut Criterion) {
+    let robot = idexp::robot::load(&root("designs/robots/industrial6.toml")).unwrap();
+    let base = BaseParams::compute(&robot, &BaseOptions::default()).unwrap();
+    let traj = idexp::trajectory::reference::random_fourier(&robot, 5, 0.1, 0.8, None, 3, "bench").unwrap();
+    let s = traj.sample(500.0).unwrap(); // 5000 samples × 6 joints
+    let cmat = base_design(&robot, &base, &s.q, &s.qd, &s.qdd);
+    let theta = base.base_values(robot.nominal_params().as_slice());
+    let rows = cmat.nrows();
+    let m = rows / 6;
+    let y = &cmat * &theta + DVector::from_fn(rows, |i, _| 0.05 * ((i * 7919 % 1000) as f64 / 500.0 - 1.0));
+    let ds = Dataset {
+        n: 6,
+        n_samples: m,
+        var: Some(DVector::from_element(rows, 0.01)),
+        y,
+        names: base.names.clone(),
+        joint: (0..rows).map(|r| r / m).collect(),
+        sample: (0..rows).map(|r| r % m).collect(),
+        c: cmat,
+    };
+    let fit = wls(&ds, Weights::Sample).unwrap();
+    let sw = DVector::from_element(rows, 10.0);
+    let o = idexp::ident::ConsistentOptions::default();
+    let (_, sol) = idexp::ident::consistent::fit(&robot, &base, &ds, &sw, &fit.theta, &o).unwrap();
+    eprintln!(
+        "consistent fit industrial6: {} standard parameters, {rows} rows, Clarabel {:?} in {} iterations, solver time {:.1} ms",
+        robot.n_params(),
+        sol.status,
+        sol.iterations,
+        1e3 * sol.solve_time
+    );
+    c.bench_function(&format!("ident/consistent industrial6 {} params {rows} rows", robot.n_params()), |b| {
+        b.iter(|| idexp::ident::consistent::fit(&robot, &base, &ds, &sw, &fit.theta, &o).unwrap())
+    });
+}
+
 fn bench_sim(c: &mut Criterion) {
     for (name, robot) in [("puma560", "designs/robots/puma560.toml"), ("rpr", "tests/data/ident/rpr_drives.toml")] {
         let text = format!(
@@ -53,5 +92,5 @@ fn bench_sim(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench_wls, bench_sim);
+criterion_group!(benches, bench_consistent, bench_wls, bench_sim);
 criterion_main!(benches);

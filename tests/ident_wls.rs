@@ -111,8 +111,30 @@ fn negative_masses_and_inertias_are_flagged() {
 fn one_repetition_and_missing_inputs() {
     let mut res = simulate(&rpr_fourier(1, 5, 11, 2, 1e-5));
     res.reps.truncate(1);
-    // one repetition: no sample variances; WLS weights from the per-joint OLS residual variance
-    let (id, _) = ident(&res, None, &IdentOptions::default());
+    // one repetition: no sample variances, so sample weights are an error (issue 12) ...
+    let robot0 = &res.setup.nominal;
+    let base0 = idexp::params::BaseParams::compute(robot0, &Default::default()).unwrap();
+    let e = idexp::ident::identify(
+        robot0,
+        &base0,
+        &run_of(&res),
+        None,
+        None,
+        &IdentOptions::default(),
+        &idexp::optim::Control::new(),
+    )
+    .expect_err("sample weights without variances must be refused")
+    .to_string();
+    assert!(e.contains("--weights joint"), "{e}");
+    // ... and --weights joint takes the per-joint OLS residual variance
+    let (id, _) = ident(
+        &res,
+        None,
+        &IdentOptions {
+            weights: idexp::ident::Weights::Joint,
+            ..Default::default()
+        },
+    );
     assert_eq!(id.estimate.n_reps, 1);
     assert!(id.estimate.theta.iter().all(|v| v.is_finite()));
     assert!(id.estimate.errors.noise_floor.is_none());

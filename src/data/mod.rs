@@ -15,5 +15,5 @@ pub mod run;
 pub mod truth;
 
 pub use motor::MotorRecord;
-pub use run::{expand, Repetition, Run};
+pub use run::{expand, Averaged, Coordinates, Repetition, Run};
 pub use truth::Truth;

@@ -8,6 +8,16 @@
 //! non-numbers, non-uniform time, and repetitions of different lengths or
 //! time grids. A run is a folder (every `*.csv` in it except `reference.csv`,
 //! in name order) or an explicit list of files.
+//!
+//! An **averaged run** is one CSV of the means over N_r repetitions with the
+//! per-sample variances of the individual measurements (paper 000 eq. 7,
+//! computed upstream): columns `var_tau1..var_taun` (required) and
+//! `var_q1..var_qn` (optional) next to the usual ones. N_r comes from the
+//! caller (`--repetitions`) or from `run.json` in the file's folder
+//! (`{"repetitions": 50}`). Variances must be finite and positive.
+//!
+//! Coordinates ([`Coordinates`]): runs logged on the motor side of a coupled
+//! wrist (θ = C q) are mapped to joint coordinates by [`Run::to_joint_coordinates`].
 
 use crate::error::{Error, Result};
 use crate::io::Table;
@@ -89,7 +99,7 @@ impl Repetition {
                     path: path.clone(),
                     row: 0,
                     column: c.clone(),
-                    msg: format!("unknown column; expected t, q1..q{n}, tau1..tau{n} and optionally r*, qd*, qdd* (for {n} joints)"),
+                    msg: format!("unknown column; expected t, q1..q{n}, tau1..tau{n} and optionally r*, qd*, qdd*, var_tau*, var_q* (for {n} joints)"),
                 });
             }
         }
@@ -149,7 +159,7 @@ fn known_column(c: &str, n: usize) -> bool {
     if c == "t" {
         return true;
     }
-    for p in ["qdd", "qd", "q", "tau", "r"] {
+    for p in ["var_tau", "var_q", "qdd", "qd", "q", "tau", "r"] {
         if let Some(rest) = c.strip_prefix(p) {
             if let Ok(i) = rest.parse::<usize>() {
                 // a number beyond n is reported by `numbered` with a clearer message
@@ -160,13 +170,74 @@ fn known_column(c: &str, n: usize) -> bool {
     false
 }
 
-/// A run: N_r repetitions on a common time grid.
+/// The per-sample variances of an averaged run (one CSV of means).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Averaged {
+    /// Number of repetitions N_r the means were taken over (≥ 2).
+    pub repetitions: usize,
+    /// Sample variance σ²_{j,p} of the individual torque measurements (eq. 7), per sample.
+    pub var_tau: Vec<Vec<f64>>,
+    /// Sample variance of the individual position measurements, if given.
+    pub var_q: Option<Vec<Vec<f64>>>,
+}
+
+/// Coordinates of the logged positions (`--coordinates`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Coordinates {
+    /// Joint coordinates q (idexp's own).
+    #[default]
+    Joint,
+    /// Motor-side coordinates θ = C q (C the robot's coupling matrix); torques already motor-side.
+    Motor,
+}
+
+impl Coordinates {
+    /// The name on the command line (`joint`, `motor`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Coordinates::Joint => "joint",
+            Coordinates::Motor => "motor",
+        }
+    }
+}
+
+impl std::fmt::Display for Coordinates {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Coordinates {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Coordinates> {
+        match s {
+            "joint" => Ok(Coordinates::Joint),
+            "motor" => Ok(Coordinates::Motor),
+            _ => Err(Error::invalid("--coordinates", "coordinates", format!("expected joint or motor, found `{s}`"))),
+        }
+    }
+}
+
+/// `run.json` next to an averaged run.
+#[derive(Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RunMeta {
+    repetitions: Option<usize>,
+    #[serde(default)]
+    source: Option<String>,
+}
+
+/// A run: N_r repetitions on a common time grid, or one averaged repetition
+/// with its per-sample variances ([`Averaged`]).
 #[derive(Debug, Clone)]
 pub struct Run {
     /// Where each repetition came from (for messages; empty paths for in-memory runs).
     pub files: Vec<PathBuf>,
-    /// The repetitions.
+    /// The repetitions (one for an averaged run: the means).
     pub reps: Vec<Repetition>,
+    /// Variances and N_r of an averaged run.
+    pub averaged: Option<Averaged>,
 }
 
 impl Run {
@@ -226,20 +297,156 @@ impl Run {
                 }
             }
         }
-        Ok(Run { files, reps })
+        Ok(Run { files, reps, averaged: None })
+    }
+
+    /// An averaged run: the means `mean` over `repetitions` repetitions with
+    /// the per-sample variances of the individual torque (and optionally
+    /// position) measurements. Variances must be finite and positive and
+    /// `repetitions` ≥ 2; errors name `file`, the row and the column.
+    pub fn averaged(file: PathBuf, mean: Repetition, var_tau: Vec<Vec<f64>>, var_q: Option<Vec<Vec<f64>>>, repetitions: usize) -> Result<Run> {
+        let n = mean.n_joints();
+        if repetitions < 2 {
+            return Err(Error::Data {
+                path: file,
+                row: 0,
+                column: "var_tau1".into(),
+                msg: format!(
+                    "variance columns with {repetitions} repetition(s): the sample variance (eq. 7) needs N_r ≥ 2; give the number the means were taken over (--repetitions N or \"repetitions\" in run.json)"
+                ),
+            });
+        }
+        for (prefix, v) in [("var_tau", Some(&var_tau)), ("var_q", var_q.as_ref())] {
+            let Some(v) = v else { continue };
+            if v.len() != mean.len() {
+                return Err(Error::dim(format!("rows of {prefix}* in {}", file.display()), mean.len(), v.len()));
+            }
+            for (k, row) in v.iter().enumerate() {
+                for j in 0..n {
+                    let x = row[j];
+                    if !(x.is_finite() && x > 0.0) {
+                        return Err(Error::Data {
+                            path: file,
+                            row: k + 1,
+                            column: format!("{prefix}{}", j + 1),
+                            msg: format!(
+                                "expected a positive finite variance, found {x} (a zero variance would give an infinite weight; use --weights joint if some are unknown)"
+                            ),
+                        });
+                    }
+                }
+            }
+        }
+        Ok(Run {
+            files: vec![file],
+            reps: vec![mean],
+            averaged: Some(Averaged { repetitions, var_tau, var_q }),
+        })
+    }
+
+    /// Maps motor-side positions, velocities, accelerations and references
+    /// θ = C q to joint coordinates q = C⁻¹ θ (torques are left as they are:
+    /// they are motor-side in both cases); position variances map as
+    /// var(q_j) = Σ_k (C⁻¹)²_{jk} var(θ_k) (independent motors).
+    pub fn to_joint_coordinates(&mut self, c: &nalgebra::DMatrix<f64>) -> Result<()> {
+        let n = self.n_joints();
+        if c.nrows() != n || c.ncols() != n {
+            return Err(Error::dim("coupling matrix for --coordinates motor", n, c.nrows()));
+        }
+        let ci = c
+            .clone()
+            .try_inverse()
+            .ok_or_else(|| Error::invalid("--coordinates motor", "coupling", "the robot's coupling matrix is singular"))?;
+        let map = |rows: &mut Vec<Vec<f64>>| {
+            for row in rows.iter_mut() {
+                let x = nalgebra::DVector::from_column_slice(row);
+                row.copy_from_slice((&ci * x).as_slice());
+            }
+        };
+        for rep in &mut self.reps {
+            map(&mut rep.q);
+            for v in [&mut rep.r, &mut rep.qd, &mut rep.qdd].into_iter().flatten() {
+                map(v);
+            }
+        }
+        if let Some(vq) = self.averaged.as_mut().and_then(|a| a.var_q.as_mut()) {
+            let c2 = ci.map(|x| x * x);
+            map_with(vq, &c2);
+        }
+        Ok(())
     }
 
     /// Reads a run: each path is a CSV file or a folder (all `*.csv` except
     /// `reference.csv`, sorted by name), for a robot with `n` joints.
     pub fn read(paths: &[PathBuf], n: usize) -> Result<Run> {
+        Run::read_with(paths, n, None)
+    }
+
+    /// [`Run::read`] with N_r for an averaged run (`--repetitions`; else
+    /// `run.json` in its folder). A file with `var_tau*` columns is an averaged
+    /// run and must be the only file; `repetitions` without variance columns
+    /// is an error (N_r of raw repetitions is the number of files).
+    pub fn read_with(paths: &[PathBuf], n: usize, repetitions: Option<usize>) -> Result<Run> {
         let files = expand(paths)?;
-        let reps = files.iter().map(|f| Repetition::read(f, n)).collect::<Result<Vec<_>>>()?;
+        let tables = files.iter().map(|f| Table::read(f)).collect::<Result<Vec<_>>>()?;
+        let has_var = |t: &Table| t.columns.iter().any(|c| c.starts_with("var_"));
+        if let Some(i) = tables.iter().position(has_var) {
+            let t = &tables[i];
+            if tables.len() > 1 {
+                return Err(Error::Data {
+                    path: t.path.clone(),
+                    row: 0,
+                    column: t.columns.iter().find(|c| c.starts_with("var_")).cloned().unwrap_or_default(),
+                    msg: format!(
+                        "variance columns make this file an averaged run (the means over N_r repetitions), but the run has {} files: give the averaged file alone",
+                        tables.len()
+                    ),
+                });
+            }
+            if t.index("var_tau1").is_none() {
+                return Err(Error::Data {
+                    path: t.path.clone(),
+                    row: 0,
+                    column: "var_tau1".into(),
+                    msg: format!("an averaged run needs the torque variances var_tau1..var_tau{n}"),
+                });
+            }
+            let mean = Repetition::from_table(t, n)?;
+            let pick = |idx: &[usize]| -> Vec<Vec<f64>> { t.rows.iter().map(|r| idx.iter().map(|&i| r[i]).collect()).collect() };
+            let var_tau = pick(&t.numbered("var_tau", n)?);
+            let var_q = if t.index("var_q1").is_some() || t.columns.iter().any(|c| c.starts_with("var_q")) {
+                Some(pick(&t.numbered("var_q", n)?))
+            } else {
+                None
+            };
+            let nr = match repetitions {
+                Some(r) => r,
+                None => read_meta(&t.path)?.ok_or_else(|| Error::Data {
+                    path: t.path.clone(),
+                    row: 0,
+                    column: "var_tau1".into(),
+                    msg: "an averaged run needs N_r, the number of repetitions the means were taken over (paper 000 eq. 13): pass --repetitions N or write {\"repetitions\": N} into run.json next to the file".into(),
+                })?,
+            };
+            return Run::averaged(t.path.clone(), mean, var_tau, var_q, nr);
+        }
+        if let Some(r) = repetitions {
+            return Err(Error::invalid(
+                files[0].display().to_string(),
+                "--repetitions",
+                format!(
+                    "--repetitions {r} is for an averaged run (one CSV with var_tau1..var_taun columns); this run has {} raw repetition file(s) and no variance columns",
+                    files.len()
+                ),
+            ));
+        }
+        let reps = tables.iter().map(|t| Repetition::from_table(t, n)).collect::<Result<Vec<_>>>()?;
         Run::new(files, reps)
     }
 
-    /// Number of repetitions N_r.
+    /// Number of repetitions N_r (for an averaged run: the number the means were taken over).
     pub fn n_reps(&self) -> usize {
-        self.reps.len()
+        self.averaged.as_ref().map_or(self.reps.len(), |a| a.repetitions)
     }
 
     /// Number of joints.
@@ -257,6 +464,27 @@ impl Run {
     pub fn folder(&self) -> Option<PathBuf> {
         self.files.first().and_then(|f| f.parent().map(|p| p.to_path_buf()))
     }
+}
+
+fn map_with(rows: &mut [Vec<f64>], m: &nalgebra::DMatrix<f64>) {
+    for row in rows.iter_mut() {
+        let x = nalgebra::DVector::from_column_slice(row);
+        row.copy_from_slice((m * x).as_slice());
+    }
+}
+
+/// N_r from `run.json` in the folder of `file`, if that file exists.
+fn read_meta(file: &Path) -> Result<Option<usize>> {
+    let Some(p) = file.parent().map(|d| d.join("run.json")) else {
+        return Ok(None);
+    };
+    if !p.exists() {
+        return Ok(None);
+    }
+    let text = crate::io::read_to_string(&p)?;
+    let m: RunMeta = serde_json::from_str(&text).map_err(|e| Error::parse(&p, e.to_string()))?;
+    let _ = m.source;
+    Ok(m.repetitions)
 }
 
 /// Expands folders into their CSV files (sorted; `reference.csv` skipped).

@@ -147,7 +147,7 @@ pub fn projection(ds: &Dataset, pr: &Processed, run: &Run, decimate: usize, opts
     }
     let (m1, m2, rule, cv) = match opts.lags {
         Some((a, b)) => (a, b, "given".to_string(), vec![]),
-        None if run.n_reps() >= 2 => {
+        None if run.reps.len() >= 2 => {
             let dec = decimate.max(1);
             let pick = |even: bool| -> Vec<Vec<f64>> {
                 let sel: Vec<&Vec<Vec<f64>>> = run.reps.iter().enumerate().filter(|(i, _)| (i % 2 == 0) == even).map(|(_, r)| &r.tau).collect();
@@ -175,6 +175,20 @@ pub fn projection(ds: &Dataset, pr: &Processed, run: &Run, decimate: usize, opts
         }
         None => (8, 8, "default M1 = M2 = 8 (one repetition: no cross-validation)".to_string(), vec![]),
     };
+    // n (M1 + M2 + 1) + 1 instruments must stay below the samples (bounded before allocating)
+    let instruments = m1
+        .checked_add(m2)
+        .and_then(|x| x.checked_add(1))
+        .and_then(|x| x.checked_mul(n))
+        .and_then(|x| x.checked_add(1));
+    if instruments.is_none_or(|k| k >= m) {
+        let max_sum = (m.saturating_sub(2) / n.max(1)).saturating_sub(1);
+        return Err(Error::invalid(
+            "projection method",
+            "--fir-lags",
+            format!("M1 = {m1}, M2 = {m2} give n·(M1 + M2 + 1) + 1 instruments for {n} joints, but the run has {m} samples: expected M1 + M2 ≤ {max_sum}"),
+        ));
+    }
     let u = orthonormal_instruments(r, m1, m2, periodic)?;
     let instrument_rank = u.ncols();
     // stage 1: û per joint; stage 2: projected regressor

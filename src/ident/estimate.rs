@@ -79,9 +79,38 @@ impl Dataset {
     /// vanish and the rank check of the reduction removes them).
     /// `slow_ratio = min_speed = 0` keeps every row.
     pub fn new(robot: &Robot, base: &BaseParams, pr: &super::Processed, slow_ratio: f64, min_speed: f64) -> Dataset {
+        Dataset::every_row(robot, base, pr).moving_rows(pr, slow_ratio, min_speed)
+    }
+
+    /// The dataset of every sample of a processed run (no row left out): the
+    /// rows paper 000's e_j, e*_j (eq. 11–12) are defined on.
+    pub fn every_row(robot: &Robot, base: &BaseParams, pr: &super::Processed) -> Dataset {
         let n = robot.dof();
         let m = pr.len();
         let c = base_design(robot, base, &pr.q, &pr.qd, &pr.qdd);
+        let y = DVector::from_iterator(n * m, (0..n * m).map(|r| pr.tau[r % m][r / m]));
+        let var = pr
+            .tau_var
+            .as_ref()
+            .map(|v| DVector::from_iterator(n * m, (0..n * m).map(|r| v[r % m][r / m] / pr.n_reps as f64)));
+        Dataset {
+            n,
+            n_samples: m,
+            c,
+            y,
+            var,
+            names: base.names.clone(),
+            joint: (0..n * m).map(|r| r / m).collect(),
+            sample: (0..n * m).map(|r| r % m).collect(),
+        }
+    }
+
+    /// The rows of a complete dataset ([`Dataset::every_row`] of `pr`) that
+    /// [`Dataset::new`] keeps: joint j at samples with |q̇_j| ≥
+    /// max(`slow_ratio` · max_p |q̇_j(p)|, `min_speed`).
+    pub fn moving_rows(&self, pr: &super::Processed, slow_ratio: f64, min_speed: f64) -> Dataset {
+        let n = self.n;
+        let m = self.n_samples;
         let vmax: Vec<f64> = (0..n).map(|j| pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max)).collect();
         let keep: Vec<usize> = (0..n * m)
             .filter(|&r| {
@@ -89,18 +118,16 @@ impl Dataset {
                 thr <= 0.0 || pr.qd[r % m][r / m].abs() >= thr
             })
             .collect();
-        let y = DVector::from_iterator(keep.len(), keep.iter().map(|&r| pr.tau[r % m][r / m]));
-        let var = pr
-            .tau_var
-            .as_ref()
-            .map(|v| DVector::from_iterator(keep.len(), keep.iter().map(|&r| v[r % m][r / m] / pr.n_reps as f64)));
+        if keep.len() == n * m {
+            return self.clone();
+        }
         Dataset {
             n,
             n_samples: m,
-            c: c.select_rows(keep.iter()),
-            y,
-            var,
-            names: base.names.clone(),
+            c: self.c.select_rows(keep.iter()),
+            y: DVector::from_iterator(keep.len(), keep.iter().map(|&r| self.y[r])),
+            var: self.var.as_ref().map(|v| DVector::from_iterator(keep.len(), keep.iter().map(|&r| v[r]))),
+            names: self.names.clone(),
             joint: keep.iter().map(|&r| r / m).collect(),
             sample: keep.iter().map(|&r| r % m).collect(),
         }
@@ -184,11 +211,63 @@ pub struct LsFit {
     pub chi2_dof: f64,
 }
 
+/// Rows per block of [`r_factor`].
+const QR_BLOCK: usize = 512;
+
+/// The triangular factor R (k × k, k = columns; fewer rows when `a` has fewer
+/// rows than columns) of the QR decomposition of `a`, computed blockwise
+/// (TSQR): fixed blocks of [`QR_BLOCK`] rows are factorised (in parallel),
+/// then their factors are stacked and re-factorised one after the other in
+/// block order. The floating-point operations do not depend on the number of
+/// threads, so neither do the results (RᵀR = aᵀa, and R has the singular
+/// values of `a`).
+pub fn r_factor(a: &DMatrix<f64>) -> DMatrix<f64> {
+    let (m, k) = a.shape();
+    let blocks: Vec<DMatrix<f64>> = (0..m.div_ceil(QR_BLOCK).max(1))
+        .into_par_iter()
+        .map(|b| {
+            let r0 = b * QR_BLOCK;
+            let r1 = (r0 + QR_BLOCK).min(m);
+            let blk = a.rows(r0, r1 - r0).into_owned();
+            if blk.nrows() == 0 {
+                DMatrix::zeros(0, k)
+            } else {
+                blk.qr().r()
+            }
+        })
+        .collect();
+    let mut r = DMatrix::zeros(0, k);
+    for blk in blocks {
+        if r.nrows() == 0 {
+            r = blk;
+            continue;
+        }
+        let mut st = DMatrix::zeros(r.nrows() + blk.nrows(), k);
+        st.rows_mut(0, r.nrows()).copy_from(&r);
+        st.rows_mut(r.nrows(), blk.nrows()).copy_from(&blk);
+        r = st.qr().r();
+    }
+    r
+}
+
+/// Singular values of a small matrix, decreasing (nalgebra's SVD, sequential).
+fn small_singular_values(r: &DMatrix<f64>) -> Result<Vec<f64>> {
+    if r.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Numerical("matrix has non-finite entries; cannot compute singular values".into()));
+    }
+    let mut s: Vec<f64> = r.singular_values().iter().copied().collect();
+    s.sort_by(|a, b| b.total_cmp(a));
+    Ok(s)
+}
+
 /// Condition number (σ_max/σ_min) of a matrix; ∞ if singular.
 pub fn cond(c: &DMatrix<f64>) -> Result<f64> {
-    let s = crate::linalg::singular_values(c)?;
+    if c.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Numerical("matrix has non-finite entries; cannot compute singular values".into()));
+    }
+    let s = small_singular_values(&r_factor(c))?;
     let (mx, mn) = (s[0], s[s.len() - 1]);
-    Ok(if mn > 0.0 { mx / mn } else { f64::INFINITY })
+    Ok(if s.len() < c.ncols() || mn <= 0.0 { f64::INFINITY } else { mx / mn })
 }
 
 /// Condition number of C with columns scaled to unit norm.
@@ -203,34 +282,48 @@ pub fn cond_normalized(c: &DMatrix<f64>) -> Result<f64> {
     cond(&cn)
 }
 
-/// (θ, (AᵀA)⁻¹, rank, A⁺) of [`weighted_svd_solve`].
-type SvdSolution = (DVector<f64>, DMatrix<f64>, usize, DMatrix<f64>);
+/// (θ, (AᵀA)⁺ = V S⁻² Vᵀ, rank) of [`weighted_svd_solve`].
+type SvdSolution = (DVector<f64>, DMatrix<f64>, usize);
 
-/// Solves min ‖√w ⊙ (y − C θ)‖² by thin SVD. Returns (θ, (AᵀA)⁻¹ = V S⁻² Vᵀ, rank,
-/// pseudo-inverse of A = √W C as V S⁻¹ Uᵀ).
+/// Solves min ‖√w ⊙ (y − C θ)‖² with A = √W C: the blockwise R factor of
+/// [A | √W y] ([`r_factor`], independent of the thread count), then the SVD of
+/// its k × k part R = U S Vᵀ; θ = V S⁻¹ Uᵀ (Qᵀ√W y) on the directions with
+/// singular values above 1e-10·σ_max (minimum-norm solution otherwise).
+/// Returns (θ, (AᵀA)⁺ = V S⁻² Vᵀ, rank).
 fn weighted_svd_solve(c: &DMatrix<f64>, y: &DVector<f64>, sw: &DVector<f64>) -> Result<SvdSolution> {
-    let mut a = c.clone();
+    let k = c.ncols();
+    let mut a = DMatrix::zeros(c.nrows(), k + 1);
+    a.columns_mut(0, k).copy_from(c);
+    a.set_column(k, y);
     for (i, mut row) in a.row_iter_mut().enumerate() {
         row *= sw[i];
     }
-    let b = y.component_mul(sw);
-    let (u, s, v) = crate::linalg::thin_svd(&a)?;
-    let smax = s[0];
-    let k = s.len();
+    if a.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Numerical("the weighted design matrix has non-finite entries".into()));
+    }
+    let ra = r_factor(&a);
+    let kr = ra.nrows().min(k);
+    let r = ra.view((0, 0), (kr, k)).into_owned();
+    let qtb = ra.view((0, k), (kr, 1)).into_owned();
+    let svd = r.svd(true, true);
+    let (u, vt) = match (svd.u, svd.v_t) {
+        (Some(u), Some(vt)) => (u, vt),
+        _ => return Err(Error::Numerical("SVD of the triangular factor failed".into())),
+    };
+    let s = svd.singular_values;
+    let smax = s.iter().cloned().fold(0.0, f64::max);
     let rank = s.iter().filter(|&&x| x > 1e-10 * smax).count();
-    let mut sinv = DVector::zeros(k);
-    for i in 0..rank {
-        sinv[i] = 1.0 / s[i];
+    let mut theta = DVector::zeros(k);
+    let mut cov = DMatrix::zeros(k, k);
+    for i in 0..s.len() {
+        if s[i] > 1e-10 * smax {
+            let vi = vt.row(i).transpose();
+            let coef = u.column(i).dot(&qtb.column(0)) / s[i];
+            theta.axpy(coef, &vi, 1.0);
+            cov += &vi * vi.transpose() / (s[i] * s[i]);
+        }
     }
-    // pinv = V diag(sinv) Uᵀ
-    let mut vs = v.clone();
-    for (j, mut col) in vs.column_iter_mut().enumerate() {
-        col *= sinv[j];
-    }
-    let pinv = &vs * u.transpose();
-    let theta = &pinv * b;
-    let cov = &vs * vs.transpose();
-    Ok((theta, cov, rank, pinv))
+    Ok((theta, cov, rank))
 }
 
 fn finish(theta: DVector<f64>, cov: DMatrix<f64>, rank: usize, c: &DMatrix<f64>, chi2_dof: f64) -> Result<LsFit> {
@@ -281,9 +374,16 @@ pub fn row_variances(ds: &Dataset, weights: Weights) -> Result<DVector<f64>> {
     let var = match (&ds.var, weights) {
         (Some(v), Weights::Sample) => v.clone(),
         (Some(v), Weights::Joint) => per_joint_mean(v),
-        (None, _) => {
+        (None, Weights::Sample) => {
+            return Err(Error::invalid(
+                "identify",
+                "--weights",
+                "sample weights (paper 000 eq. 7–9) need the per-sample torque variances: a run of N_r ≥ 2 repetitions, or an averaged run with var_tau columns; use --weights joint (per-joint residual variance of OLS) or --method ols",
+            ))
+        }
+        (None, Weights::Joint) => {
             let ones = DVector::from_element(ds.y.len(), 1.0);
-            let (th, _, _, _) = weighted_svd_solve(&ds.c, &ds.y, &ones)?;
+            let (th, _, _) = weighted_svd_solve(&ds.c, &ds.y, &ones)?;
             let r = &ds.y - &ds.c * th;
             let dof = (ds.y.len() - ds.c.ncols()).max(1) as f64 / ds.y.len() as f64;
             per_joint_mean(&r.map(|x| x * x / dof))
@@ -299,7 +399,7 @@ pub fn wls(ds: &Dataset, weights: Weights) -> Result<LsFit> {
     check(ds)?;
     let var = row_variances(ds, weights)?;
     let sw = var.map(|v| 1.0 / v.sqrt());
-    let (theta, cov, rank, _) = weighted_svd_solve(&ds.c, &ds.y, &sw)?;
+    let (theta, cov, rank) = weighted_svd_solve(&ds.c, &ds.y, &sw)?;
     let r = (&ds.y - &ds.c * &theta).component_mul(&sw);
     let chi2 = r.norm_squared() / (ds.y.len() - rank).max(1) as f64;
     finish(theta, cov, rank, &ds.c, chi2)
@@ -310,16 +410,19 @@ pub fn wls(ds: &Dataset, weights: Weights) -> Result<LsFit> {
 pub fn ols(ds: &Dataset) -> Result<LsFit> {
     check(ds)?;
     let ones = DVector::from_element(ds.y.len(), 1.0);
-    let (theta, cov0, rank, pinv) = weighted_svd_solve(&ds.c, &ds.y, &ones)?;
+    let (theta, cov0, rank) = weighted_svd_solve(&ds.c, &ds.y, &ones)?;
     let r = &ds.y - &ds.c * &theta;
     let (cov, chi2) = match &ds.var {
         Some(v) => {
-            let mut pw = pinv.clone();
-            for (j, mut col) in pw.column_iter_mut().enumerate() {
-                col *= v[j];
+            // C⁺ diag(v) C⁺ᵀ = (CᵀC)⁺ (Cᵀ diag(v) C) (CᵀC)⁺, with Cᵀ diag(v) C = R_vᵀ R_v
+            let mut cv = ds.c.clone();
+            for (i, mut row) in cv.row_iter_mut().enumerate() {
+                row *= v[i].max(0.0).sqrt();
             }
+            let rv = r_factor(&cv);
+            let g = rv.transpose() * &rv;
             let chi2 = r.iter().zip(v.iter()).map(|(e, s)| e * e / s).sum::<f64>() / (ds.y.len() - rank).max(1) as f64;
-            (pw * pinv.transpose(), chi2)
+            (&cov0 * g * &cov0, chi2)
         }
         None => {
             let s2 = r.norm_squared() / (ds.y.len() - rank).max(1) as f64;

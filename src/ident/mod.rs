@@ -14,14 +14,16 @@
 //! friction experiments of paper 002 §3.2 are in [`experiments`].
 
 pub mod closed_loop;
+pub mod consistent;
 pub mod estimate;
 pub mod experiments;
 pub mod output;
 pub mod process;
 pub mod reduce;
 
-pub use crate::data::{Repetition, Run};
+pub use crate::data::{Coordinates, Repetition, Run};
 pub use closed_loop::{MlOptions, ProjectionOptions};
+pub use consistent::{Consistent, ConsistentOptions};
 pub use estimate::{Dataset, Errors, LsFit, Weights};
 pub use process::{process, Filter, Processed};
 pub use reduce::{Essential, ReduceOptions, Reduction};
@@ -30,6 +32,7 @@ use crate::error::{Error, Result};
 use crate::params::BaseParams;
 use crate::robot::Robot;
 use crate::trajectory::FourierTrajectory;
+use nalgebra::DVector;
 use serde::Serialize;
 
 /// Estimator (`--method`: `ols`, `wls`, `projection`, `ml`).
@@ -129,6 +132,10 @@ pub struct IdentOptions {
     pub projection: ProjectionOptions,
     /// ML options.
     pub ml: MlOptions,
+    /// Coordinates of the runs' positions (motor-side runs are mapped through the coupling).
+    pub coordinates: Coordinates,
+    /// Physically consistent fit after WLS/OLS ([`consistent`]).
+    pub consistent: Option<ConsistentOptions>,
 }
 
 impl Default for IdentOptions {
@@ -144,6 +151,8 @@ impl Default for IdentOptions {
             reduce: None,
             projection: ProjectionOptions::default(),
             ml: MlOptions::default(),
+            coordinates: Coordinates::Joint,
+            consistent: None,
         }
     }
 }
@@ -201,10 +210,25 @@ pub struct Estimate {
     pub cond_normalized: f64,
     /// Weighted residual sum of squares per degree of freedom.
     pub chi2_dof: f64,
-    /// Errors on the identification run (eq. 11–12).
+    /// Errors (eq. 11–12) on the rows of the identification run used for the
+    /// estimate (fast enough for friction: `slow_ratio`, `min_speed`).
     pub errors: Errors,
-    /// Errors on the validation run.
+    /// Errors on the same kind of rows of the validation run.
     pub validation: Option<Errors>,
+    /// Errors on every sample of the identification run (paper 000's definition).
+    pub errors_all: Errors,
+    /// Errors on every sample of the validation run.
+    pub validation_all: Option<Errors>,
+    /// Names of the standard parameters (columns of `base_k`).
+    pub standard_names: Vec<String>,
+    /// K restricted to the estimated base parameters: θ_base = K θ_standard (rows: `names`).
+    pub base_k: Vec<Vec<f64>>,
+    /// Coordinates the run's positions were logged in.
+    pub coordinates: Coordinates,
+    /// True when the run was one averaged file with variance columns.
+    pub averaged: bool,
+    /// The physically consistent estimate, if asked for.
+    pub consistent: Option<Consistent>,
     /// Base parameters that must be positive but are negative.
     pub implausible: Vec<Implausible>,
     /// Repetitions averaged.
@@ -285,6 +309,23 @@ pub fn identify(
     if opts.decimate == 0 {
         return Err(Error::invalid("identify", "decimate", "expected ≥ 1"));
     }
+    if opts.consistent.is_some() && (opts.reduce.is_some() || !matches!(opts.method, Method::Wls | Method::Ols)) {
+        return Err(Error::invalid(
+            "identify",
+            "--consistent",
+            "the physically consistent fit uses the least-squares fit of every base parameter: run it with method wls or ols and without --reduce",
+        ));
+    }
+    let mapped;
+    let run = match opts.coordinates {
+        Coordinates::Joint => run,
+        Coordinates::Motor => {
+            let mut r = run.clone();
+            r.to_joint_coordinates(&robot.coupling_matrix())?;
+            mapped = r;
+            &mapped
+        }
+    };
     if opts.reduce.is_some() && !matches!(opts.method, Method::Wls) {
         return Err(Error::invalid(
             "identify",
@@ -305,7 +346,21 @@ pub fn identify(
     } else {
         (opts.slow_ratio, opts.min_speed)
     };
-    let full = Dataset::new(robot, base, &pr, slow, vmin);
+    let uses_sample_weights = matches!(opts.method, Method::Wls | Method::Ml) && opts.weights == Weights::Sample;
+    if uses_sample_weights && pr.tau_var.is_none() {
+        let file = run.files.first().map(|f| f.display().to_string()).unwrap_or_else(|| "run".into());
+        return Err(Error::invalid(
+            file,
+            "--weights",
+            format!(
+                "the run has {} repetition and no variance columns, so sample weights (paper 000 eq. 7–9) are not possible; use --weights joint (per-joint residual variance of an OLS fit), --method ols, more repetitions, or an averaged run with var_tau1..var_tau{} columns and --repetitions N",
+                run.reps.len(),
+                robot.dof()
+            ),
+        ));
+    }
+    let every = Dataset::every_row(robot, base, &pr);
+    let full = every.moving_rows(&pr, slow, vmin);
     let moving: Vec<bool> = (0..robot.dof())
         .map(|j| pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max) > opts.reduce.as_ref().map_or(0.05, |r| r.moving_speed))
         .collect();
@@ -349,22 +404,55 @@ pub fn identify(
     };
     let ds = full.columns(&cols);
     let errors = estimate::errors(&ds, &fit.theta);
+    let every_ds = every.columns(&cols);
+    let errors_all = estimate::errors(&every_ds, &fit.theta);
+    let mut val_every = None;
     let val_ds = match validation {
         Some((vrun, vtraj)) => {
             if vrun.n_joints() != robot.dof() {
                 return Err(Error::dim("joints in the validation run", robot.dof(), vrun.n_joints()));
             }
+            let vmapped;
+            let vrun = match opts.coordinates {
+                Coordinates::Joint => vrun,
+                Coordinates::Motor => {
+                    let mut r = vrun.clone();
+                    r.to_joint_coordinates(&robot.coupling_matrix())?;
+                    vmapped = r;
+                    &vmapped
+                }
+            };
             let vf = match (&opts.filter, vtraj) {
                 (FilterChoice::Given(f), _) if !matches!(f, Filter::Fourier { .. }) => f.clone(),
                 (_, Some(t)) => resolve_filter(&FilterChoice::Auto, Some(t), opts.harmonics),
                 (_, None) => resolve_filter(&FilterChoice::Auto, None, None),
             };
             let vp = process(vrun, &vf)?.decimated(opts.decimate);
-            Some(Dataset::new(robot, base, &vp, slow, vmin).columns(&cols))
+            let ve = Dataset::every_row(robot, base, &vp).columns(&cols);
+            let vd = ve.moving_rows(&vp, slow, vmin);
+            val_every = Some(ve);
+            Some(vd)
         }
         None => None,
     };
     let val_errors = val_ds.as_ref().map(|d| estimate::errors(d, &fit.theta));
+    let val_errors_all = val_every.as_ref().map(|d| estimate::errors(d, &fit.theta));
+    let consistent = match &opts.consistent {
+        None => None,
+        Some(co) => {
+            let sw = match opts.method {
+                Method::Wls => estimate::row_variances(&full, opts.weights)?.map(|v| 1.0 / v.sqrt()),
+                _ => DVector::from_element(full.y.len(), 1.0),
+            };
+            let (mut c, sol) = consistent::fit(robot, base, &full, &sw, &fit.theta, co)?;
+            let th = sol.base.as_slice();
+            c.errors = estimate::errors(&ds, th);
+            c.errors_all = estimate::errors(&every_ds, th);
+            c.validation = val_ds.as_ref().map(|d| estimate::errors(d, th));
+            c.validation_all = val_every.as_ref().map(|d| estimate::errors(d, th));
+            Some(c)
+        }
+    };
     let positive = estimate::must_be_positive(robot, base);
     let implausible = cols
         .iter()
@@ -399,10 +487,24 @@ pub fn identify(
         chi2_dof: fit.chi2_dof,
         errors,
         validation: val_errors,
+        errors_all,
+        validation_all: val_errors_all,
+        standard_names: robot.param_names(),
+        base_k: cols.iter().map(|&c| base.k.row(c).iter().copied().collect()).collect(),
+        coordinates: opts.coordinates,
+        averaged: run.averaged.is_some(),
+        consistent,
         implausible,
         n_reps: pr.n_reps,
         n_samples: pr.len(),
-        warnings: filter_warnings(&pr),
+        warnings: filter_warnings(&pr)
+            .into_iter()
+            .chain(
+                crate::robot::export::inertial_warnings(robot)
+                    .into_iter()
+                    .map(|w| format!("nominal model: {w}")),
+            )
+            .collect(),
         filter_residual: pr.filter_residual.clone(),
         filter,
         projection,
@@ -466,6 +568,75 @@ impl Estimate {
         Ok(())
     }
 
+    /// The consistent block of the text report.
+    fn consistent_text(&self, c: &Consistent) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "\nphysically consistent estimate (pseudo-inertias ⪰ {} I, drive signs; closest-to-nominal weight {}): {}",
+            c.options.margin, c.options.regularization, c.status
+        );
+        let _ = writeln!(
+            s,
+            "  Clarabel: {} iterations, {:.1} ms; weighted SSR + {:.4e} over {} ({:.3} %); χ²/dof {:.4} (unconstrained {:.4})",
+            c.iterations,
+            1e3 * c.solve_time,
+            c.extra_cost,
+            self.method,
+            100.0 * c.extra_cost_rel,
+            c.chi2_dof,
+            self.chi2_dof
+        );
+        let e_row = |s: &mut String, title: &str, a: &Errors, b: &Errors| {
+            let _ = writeln!(s, "  {title}");
+            let _ = writeln!(
+                s,
+                "  {:>5} {:>14} {:>14} {:>14} {:>14}",
+                "joint", "e*_j uncons.", "e*_j consist.", "e_j uncons.", "e_j consist."
+            );
+            for j in 0..a.e.len().min(b.e.len()) {
+                let _ = writeln!(
+                    s,
+                    "  {:>5} {:>13.3}% {:>13.3}% {:>14.4e} {:>14.4e}",
+                    j + 1,
+                    100.0 * a.e_rel[j],
+                    100.0 * b.e_rel[j],
+                    a.e[j],
+                    b.e[j]
+                );
+            }
+        };
+        e_row(&mut s, "every sample of the identification run:", &self.errors_all, &c.errors_all);
+        if let (Some(a), Some(b)) = (&self.validation_all, &c.validation_all) {
+            e_row(&mut s, "every sample of the validation run:", a, b);
+        }
+        if c.active.is_empty() {
+            let _ = writeln!(s, "  active constraints: none (the unconstrained estimate is consistent)");
+        } else {
+            let _ = writeln!(s, "  active constraints:");
+            for a in &c.active {
+                let what = if a.constraint == "pseudo_inertia" {
+                    format!("pseudo-inertia of link `{}` (smallest eigenvalue − margin {:.3e})", a.what, a.value)
+                } else {
+                    format!("{} = {:.3e} at its sign bound", a.what, a.value)
+                };
+                let _ = writeln!(s, "    {what}");
+            }
+        }
+        let _ = writeln!(
+            s,
+            "  smallest pseudo-inertia eigenvalues (kg·m²): [{}]",
+            c.min_eigenvalue.iter().map(|x| format!("{x:.3e}")).collect::<Vec<_>>().join(", ")
+        );
+        let _ = writeln!(s, "  {:<10} {:>14} {:>14} {:>10}", "base", "unconstrained", "consistent", "Δ/σ");
+        for i in 0..self.names.len() {
+            let d = (c.base[i] - self.theta[i]) / self.std[i].max(1e-300);
+            let _ = writeln!(s, "  {:<10} {:>14.6} {:>14.6} {:>10.2}", self.names[i], self.theta[i], c.base[i], d);
+        }
+        s
+    }
+
     /// The text report (`report.txt`).
     pub fn text(&self) -> String {
         use std::fmt::Write;
@@ -473,9 +644,15 @@ impl Estimate {
         let _ = writeln!(s, "identification: method {}, status {}", self.method.words(), self.status);
         let _ = writeln!(
             s,
-            "data: {} repetitions averaged, {} samples per joint, filter {}",
+            "data: {} repetitions {}, {} samples per joint, {} coordinates, filter {}",
             self.n_reps,
+            if self.averaged {
+                "(averaged upstream, per-sample variances given)"
+            } else {
+                "averaged"
+            },
             self.n_samples,
+            self.coordinates,
             match &self.filter {
                 Filter::Fourier { omega, n_h } => format!("Fourier (ω = {omega:.6} rad/s, {n_h} harmonics)"),
                 Filter::LowPass { cutoff } => format!("zero-phase low-pass {cutoff} Hz + central differences"),
@@ -538,9 +715,24 @@ impl Estimate {
                 let _ = writeln!(s, "{:>5} {:>12.4e} {:>9.3} {:>12.4e} {:>12}", j + 1, e.e[j], 100.0 * e.e_rel[j], e.rms[j], nf);
             }
         };
-        err_block(&mut s, "prediction errors on the identification run (eq. 11–12)", &self.errors);
+        err_block(
+            &mut s,
+            "prediction errors on every sample of the identification run (eq. 11–12)",
+            &self.errors_all,
+        );
+        err_block(
+            &mut s,
+            "prediction errors on the rows used for the estimate (identification run, rows slower than --slow-ratio/--min-speed left out)",
+            &self.errors,
+        );
+        if let Some(v) = &self.validation_all {
+            err_block(&mut s, "prediction errors on every sample of the validation run", v);
+        }
         if let Some(v) = &self.validation {
-            err_block(&mut s, "prediction errors on the validation run", v);
+            err_block(&mut s, "prediction errors on the validation run's rows selected like the estimate's", v);
+        }
+        if let Some(c) = &self.consistent {
+            s.push_str(&self.consistent_text(c));
         }
         if self.implausible.is_empty() {
             let _ = writeln!(s, "\nphysical plausibility: every base parameter that must be positive is positive");

@@ -93,3 +93,41 @@ pub fn write_friction(out: &Path, joint: usize, pr: &Processed, f: &FrictionFit,
     crate::io::write_atomic(&out.join("report.txt"), text.as_bytes())?;
     Ok(text)
 }
+
+/// `params.csv`: every base parameter (estimate, std, σ*, grouping; and the
+/// consistent value when present) and every standard parameter (the
+/// consistent value; std and σ* when it is a base parameter on its own, empty
+/// when the data only determine it in combination with others).
+pub fn params_csv(est: &super::Estimate) -> String {
+    let q = |s: &str| format!("\"{}\"", s.replace('"', "\"\""));
+    let mut s = String::from("kind,name,value,std,rel_std,consistent,grouping\n");
+    let cons = est.consistent.as_ref();
+    for i in 0..est.names.len() {
+        s.push_str(&format!(
+            "base,{},{},{},{},{},{}\n",
+            est.names[i],
+            est.theta[i],
+            est.std[i],
+            est.rel_std[i],
+            cons.map(|c| c.base[i].to_string()).unwrap_or_default(),
+            q(&est.groupings[i])
+        ));
+    }
+    for (j, nm) in est.standard_names.iter().enumerate() {
+        // a standard parameter that is a base parameter on its own (its row of K is a unit vector on it)
+        let alone = est
+            .base_k
+            .iter()
+            .position(|row| row[j] == 1.0 && row.iter().enumerate().all(|(c, &v)| c == j || v == 0.0));
+        let (sd, rs) = match alone {
+            Some(i) => (est.std[i].to_string(), est.rel_std[i].to_string()),
+            None => (String::new(), String::new()),
+        };
+        let v = cons.map(|c| c.standard[j].to_string()).unwrap_or_default();
+        s.push_str(&format!(
+            "standard,{nm},{v},{sd},{rs},{v},{}\n",
+            q(if alone.is_some() { "identifiable alone" } else { "in combination only" })
+        ));
+    }
+    s
+}

@@ -205,7 +205,9 @@ pub fn process(run: &Run, filter: &Filter) -> Result<Processed> {
         None
     };
     let m = t.len();
-    let tau_var = if nr >= 2 {
+    let tau_var = if let Some(av) = &run.averaged {
+        Some(av.var_tau.clone())
+    } else if nr >= 2 {
         let mut v = vec![vec![0.0; n]; m];
         for rep in reps {
             for p in 0..m {
@@ -228,17 +230,26 @@ pub fn process(run: &Run, filter: &Filter) -> Result<Processed> {
         let ((q, qd, qdd), f) = filter_positions(&t, &q_mean, filter)?;
         (q, qd, qdd, f)
     };
-    let q_noise: Option<Vec<f64>> = (nr >= 2).then(|| {
-        (0..n)
-            .map(|j| {
-                let v: f64 = reps
-                    .iter()
-                    .map(|rep| (0..m).map(|p| (rep.q[p][j] - q_mean[p][j]).powi(2)).sum::<f64>())
-                    .sum::<f64>()
-                    / ((nr - 1) * m) as f64;
-                (v / nr as f64).sqrt()
-            })
-            .collect()
+    let q_noise_avg: Option<Vec<f64>> = run.averaged.as_ref().and_then(|av| {
+        av.var_q.as_ref().map(|vq| {
+            (0..n)
+                .map(|j| (vq.iter().map(|v| v[j]).sum::<f64>() / m as f64 / av.repetitions as f64).sqrt())
+                .collect()
+        })
+    });
+    let q_noise: Option<Vec<f64>> = q_noise_avg.or_else(|| {
+        (nr >= 2).then(|| {
+            (0..n)
+                .map(|j| {
+                    let v: f64 = reps
+                        .iter()
+                        .map(|rep| (0..m).map(|p| (rep.q[p][j] - q_mean[p][j]).powi(2)).sum::<f64>())
+                        .sum::<f64>()
+                        / ((nr - 1) * m) as f64;
+                    (v / nr as f64).sqrt()
+                })
+                .collect()
+        })
     });
     let filter_residual = (0..n)
         .map(|j| {
@@ -286,7 +297,7 @@ pub fn process(run: &Run, filter: &Filter) -> Result<Processed> {
         tau_var,
         r,
         joint_cov,
-        n_reps: nr,
+        n_reps: run.n_reps(),
         filter: filter.clone(),
         fourier,
         filter_residual,

@@ -92,6 +92,13 @@ pub struct RobotInfo {
     pub base: BaseParams,
     /// Number of base parameters of the rigid-body (inertial) part alone.
     pub n_base_inertial: usize,
+    /// Base parameter names (rows of `k`).
+    pub base_names: Vec<String>,
+    /// K (rows: base parameters, columns: `standard_parameters`): θ_base = K θ_standard.
+    pub k: Vec<Vec<f64>>,
+    /// Physical-consistency warnings about the nominal inertials (triangle
+    /// inequalities, positive semi-definite pseudo-inertia, zero mass with inertia).
+    pub warnings: Vec<String>,
 }
 
 /// One joint in [`RobotInfo`].
@@ -160,6 +167,9 @@ impl RobotInfo {
             n_standard: r.n_params(),
             n_standard_inertial: 10 * r.dof(),
             n_base_inertial: inertial.n_base(),
+            base_names: base.names.clone(),
+            k: base.k.row_iter().map(|row| row.iter().copied().collect()).collect(),
+            warnings: crate::robot::export::inertial_warnings(r),
             base,
         })
     }
@@ -170,6 +180,9 @@ impl RobotInfo {
         let mut s = String::new();
         let _ = writeln!(s, "robot: {}", self.name);
         let _ = writeln!(s, "source: {}", self.source);
+        for w in &self.warnings {
+            let _ = writeln!(s, "WARNING: {w}");
+        }
         let _ = writeln!(s, "\njoints ({}):", self.joints.len());
         let _ = writeln!(
             s,

@@ -119,51 +119,7 @@ pub struct ConicResult {
     pub dual: Option<DMatrix<f64>>,
 }
 
-/// Sparse matrix assembly from (row, col, value) triplets; duplicates summed.
-struct Triplets {
-    rows: usize,
-    t: Vec<(usize, usize, f64)>,
-}
-
-impl Triplets {
-    fn new() -> Self {
-        Triplets { rows: 0, t: Vec::new() }
-    }
-    fn push(&mut self, r: usize, c: usize, v: f64) {
-        if v != 0.0 {
-            self.t.push((r, c, v));
-        }
-    }
-    /// Reserves `k` new rows and returns the first.
-    fn rows(&mut self, k: usize) -> usize {
-        let r = self.rows;
-        self.rows += k;
-        r
-    }
-    fn csc(mut self, ncols: usize) -> CscMatrix<f64> {
-        self.t.sort_by_key(|a| (a.1, a.0));
-        let mut colptr = vec![0usize; ncols + 1];
-        let mut rowval = Vec::with_capacity(self.t.len());
-        let mut nzval: Vec<f64> = Vec::with_capacity(self.t.len());
-        let mut last: Option<(usize, usize)> = None;
-        for &(r, c, v) in &self.t {
-            if last == Some((r, c)) {
-                if let Some(x) = nzval.last_mut() {
-                    *x += v;
-                }
-                continue;
-            }
-            rowval.push(r);
-            nzval.push(v);
-            colptr[c + 1] += 1;
-            last = Some((r, c));
-        }
-        for c in 0..ncols {
-            colptr[c + 1] += colptr[c];
-        }
-        CscMatrix::new(self.rows, ncols, colptr, rowval, nzval)
-    }
-}
+use crate::optim::sparse::Triplets;
 
 /// Index of (i, j), i ≤ j, in svec of an n×n matrix (upper triangle by columns).
 fn svec_index(i: usize, j: usize) -> usize {

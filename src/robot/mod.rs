@@ -9,6 +9,7 @@
 pub mod cartesian;
 pub mod collision;
 pub mod dynamics;
+pub mod export;
 pub mod file;
 pub mod kinematics;
 pub mod model;

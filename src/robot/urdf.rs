@@ -163,13 +163,9 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
                 format!("expected a non-negative mass, found {m}"),
             ));
         }
-        if m == 0.0 && owner.is_some() && ic != Matrix3::zeros() {
-            return Err(Error::invalid(
-                &ctx,
-                format!("link `{lname}` <mass>"),
-                "zero mass with a non-zero inertia tensor",
-            ));
-        }
+        // zero mass with a non-zero inertia (Robotics Toolbox's PUMA 560 link 1, a
+        // rotor-only body) is accepted as the TOML reader accepts it; the
+        // warning comes from `robot::export::inertial_warnings` (robot info, identify)
         let local = Inertial::from_com(m, Vector3::from(ine.origin.xyz.0), ic, rot);
         if let Some(o) = owner {
             let add = local.transformed(&placement);

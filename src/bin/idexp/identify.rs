@@ -5,7 +5,7 @@ use crate::Outcome;
 use anyhow::{anyhow, bail, Context};
 use idexp::ident::experiments::{friction_experiment, gravity_experiment, FrictionFit, GravityFit, GravityTerm};
 use idexp::ident::output::{write_friction, write_gravity};
-use idexp::ident::{identify, run_trajectory, Essential, Filter, FilterChoice, IdentOptions, Method, ReduceOptions, Run, Weights};
+use idexp::ident::{identify, run_trajectory, ConsistentOptions, Essential, Filter, FilterChoice, IdentOptions, Method, ReduceOptions, Run, Weights};
 use idexp::io::status::{fingerprint_of, write_status, RunState};
 use idexp::optim::Control;
 use idexp::params::{BaseOptions, BaseParams};
@@ -36,6 +36,18 @@ pub enum Experiment {
     Gravity,
     /// Bang-bang acceleration: fit inertia and asymmetric Coulomb + viscous friction (eq. 2).
     Friction,
+}
+
+/// What `--export` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ExportKind {
+    /// `robot.urdf`: the input URDF with the identified (consistent) inertials.
+    Urdf,
+    /// `robot.toml`: a robot file with the identified drive parameters (and, for DH robots, inertials).
+    Toml,
+    /// `params.csv`: every base and standard parameter with std and σ*.
+    Csv,
 }
 
 /// `idexp identify <robot> <run>...`
@@ -109,6 +121,24 @@ pub struct IdentifyArgs {
     /// Speed below which rows are left out: of the identification (default 0.01) and of the friction experiment (default 0.05) (rad/s or m/s).
     #[arg(long)]
     pub min_speed: Option<f64>,
+    /// N_r of an averaged run (one CSV with var_tau1..var_taun columns); default: `repetitions` in run.json next to it.
+    #[arg(long)]
+    pub repetitions: Option<usize>,
+    /// Coordinates of the logged positions: joint, or motor (θ = C q, mapped through the robot's coupling).
+    #[arg(long, default_value_t = idexp::ident::Coordinates::Joint)]
+    pub coordinates: idexp::ident::Coordinates,
+    /// Physically consistent standard parameters after WLS/OLS (semidefinite program, Clarabel).
+    #[arg(long)]
+    pub consistent: bool,
+    /// Margin ε of the consistent fit: every pseudo-inertia ⪰ ε I (kg·m²).
+    #[arg(long, default_value_t = 0.0)]
+    pub margin: f64,
+    /// Weight of the closest-to-nominal (CAD) term of the consistent fit.
+    #[arg(long, default_value_t = 1e-6)]
+    pub regularization: f64,
+    /// Write the identified model: urdf, toml, csv (comma-separated; urdf and toml imply --consistent).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub export: Vec<ExportKind>,
     /// Output folder (default: out/identify_<run folder name>).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -182,7 +212,7 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         .iter()
         .chain(&a.validate)
         .try_for_each(|r| idexp::io::status::require_complete(r, a.allow_incomplete))?;
-    let run = Run::read(&a.run, robot.dof())?;
+    let run = Run::read_with(&a.run, robot.dof(), a.repetitions)?;
     let traj = match &a.trajectory {
         Some(p) => Some(FourierTrajectory::load(p)?),
         None => run_trajectory(&run)?,
@@ -213,7 +243,26 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
             weights: a.weights,
             ..Default::default()
         }),
+        coordinates: a.coordinates,
+        consistent: (a.consistent || a.export.iter().any(|e| *e != ExportKind::Csv)).then_some(ConsistentOptions {
+            margin: a.margin,
+            regularization: a.regularization,
+        }),
         ..Default::default()
+    };
+    let export_src = if a.export.is_empty() {
+        None
+    } else {
+        let src = idexp::robot::export::source_of(&a.robot)?;
+        if a.export.contains(&ExportKind::Urdf) {
+            if let idexp::robot::export::Source::Dh { toml } = &src {
+                bail!(
+                    "{}: --export urdf: this robot is a DH table, not a URDF: there is no URDF to copy the kinematics from; use --export toml,csv (robot.toml: the DH table with the identified inertials and drive parameters)",
+                    toml.display()
+                );
+            }
+        }
+        Some(src)
     };
     if let Some(l) = &a.fir_lags {
         opts.projection.lags = Some(parse_lags(l)?);
@@ -221,7 +270,7 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let vrun = if a.validate.is_empty() {
         None
     } else {
-        Some(Run::read(&a.validate, robot.dof())?)
+        Some(Run::read_with(&a.validate, robot.dof(), None)?)
     };
     let vtraj = match (&a.validate_trajectory, &vrun) {
         (Some(p), _) => Some(FourierTrajectory::load(p)?),
@@ -241,10 +290,18 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let out = a.out.clone().unwrap_or_else(|| default_out(&a.run, ""));
     idexp::io::folder::begin(&out, "identify", "")?;
     id.write(&out)?;
+    let exported = export(a, export_src.as_ref(), &robot, &id.estimate, &out)?;
     let options = serde_json::json!({ "arguments": a, "options": opts });
     idexp::io::write_json(&out.join("options.json"), &options)?;
     let st = &id.estimate.status;
-    let state = if crate::interrupted(ctl) { RunState::Interrupted } else { estimate_state(st) };
+    let consistent_failed = id.estimate.consistent.as_ref().is_some_and(|c| c.status != "ok");
+    let state = if crate::interrupted(ctl) {
+        RunState::Interrupted
+    } else if consistent_failed {
+        RunState::Failed
+    } else {
+        estimate_state(st)
+    };
     let detail = format!("{}: {}", id.estimate.method.words(), st);
     let summary = serde_json::json!({ "method": id.estimate.method, "estimate_status": st });
     write_status(&out, "identify", state, detail, Some(started), fingerprint_of(&options)?, summary)?;
@@ -252,13 +309,62 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         crate::print_json(&id.estimate)?;
     } else {
         print!("{}", id.estimate.text());
+        for f in &exported {
+            println!("exported {}", f.display());
+        }
         println!("\nwritten to {}", out.display());
     }
     Ok(match state {
         RunState::Interrupted => Outcome::Interrupted,
+        RunState::Failed if consistent_failed => Outcome::Unusable(format!(
+            "the consistent fit ended with status `{}`",
+            id.estimate.consistent.as_ref().map(|c| c.status.as_str()).unwrap_or("")
+        )),
         RunState::Failed => Outcome::Unusable(format!("the {} estimate ended with status `{st}`", id.estimate.method.words())),
         _ => Outcome::Done,
     })
+}
+
+/// Writes what `--export` asks for into `out`; returns the files written.
+fn export(
+    a: &IdentifyArgs,
+    src: Option<&idexp::robot::export::Source>,
+    robot: &idexp::robot::Robot,
+    est: &idexp::ident::Estimate,
+    out: &Path,
+) -> anyhow::Result<Vec<PathBuf>> {
+    let Some(src) = src else { return Ok(vec![]) };
+    let mut files = Vec::new();
+    if a.export.contains(&ExportKind::Csv) {
+        let p = out.join("params.csv");
+        idexp::io::write_atomic(&p, idexp::ident::output::params_csv(est).as_bytes())?;
+        files.push(p);
+    }
+    let model = match &est.consistent {
+        Some(c) if c.status == "ok" => Some(robot.with_params(&c.standard)?),
+        _ => None,
+    };
+    let wants = a.export.iter().any(|e| *e != ExportKind::Csv);
+    match model {
+        Some(m) => {
+            let mut urdf_name = None;
+            if a.export.contains(&ExportKind::Urdf) {
+                files.push(idexp::robot::export::write_urdf(src, &m, out)?);
+                urdf_name = Some("robot.urdf");
+            }
+            if a.export.contains(&ExportKind::Toml) {
+                let urdf_ref = match (urdf_name, src) {
+                    (Some(n), _) => Some(n.to_string()),
+                    (None, idexp::robot::export::Source::Urdf { urdf, .. }) => Some(std::path::absolute(urdf)?.display().to_string()),
+                    _ => None,
+                };
+                files.push(idexp::robot::export::write_robot_toml(src, &m, out, urdf_ref.as_deref())?);
+            }
+        }
+        None if wants => eprintln!("identify: --export urdf/toml skipped: the consistent fit has no usable result"),
+        None => {}
+    }
+    Ok(files)
 }
 
 fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run, started: SystemTime) -> anyhow::Result<Outcome> {
