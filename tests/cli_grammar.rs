@@ -106,7 +106,10 @@ fn exit_codes_are_the_documented_ones() {
     let text = std::fs::read_to_string(root("designs/excite_ur5.toml"))
         .unwrap()
         .replace("robots/ur5.toml", root("designs/robots/ur5.toml").to_str().unwrap())
-        .replace("q0 = [0.0, -1.5707963267948966, 0.0, -1.5707963267948966, 0.0, 0.0]", "q0 = [0.0, -1.5707963267948966, 2.9, -1.5707963267948966, 0.0, 0.0]")
+        .replace(
+            "q0 = [0.0, -1.5707963267948966, 0.0, -1.5707963267948966, 0.0, 0.0]",
+            "q0 = [0.0, -1.5707963267948966, 2.9, -1.5707963267948966, 0.0, 0.0]",
+        )
         .replace("population = 32", "population = 8")
         .replace("generations = 20", "generations = 2")
         .replace("algorithm = \"slsqp\"", "algorithm = \"none\"");
