@@ -167,7 +167,14 @@ fn a_limit_class_missing_in_the_robot_is_a_named_error_or_an_explicit_skip() {
     assert!(acc.iter().all(|a| a.source.contains("not imposed") && a.source.contains("skip")));
     // the shipped robot file states them: 36 constraints, sources named
     let p = shipped("excite_ur5", true);
-    assert_eq!(p.constraints.len(), 36);
+    use idexp::excitation::constraints::ConstraintKind as K;
+    let joint = p
+        .constraints
+        .info
+        .iter()
+        .filter(|i| matches!(i.kind, K::Position | K::Velocity | K::Acceleration | K::Torque))
+        .count();
+    assert_eq!(joint, 36, "every joint limit class imposed (collision constraints come on top)");
     let a = p
         .applied_limits
         .iter()
@@ -235,7 +242,14 @@ fn excite_export_and_idexp_export_write_the_same_files_holding_the_trajectory_ro
     let last = t.rows.last().unwrap();
     assert_eq!(first[seg], 0.0);
     assert_eq!(last[seg], -1.0);
-    assert!(first[1..seg].iter().chain(&last[1..seg]).all(|v| *v == 0.0), "at rest at home q0 = 0");
+    // at rest at home (the design's q0: UR's upright pose) at both ends
+    let home = ExciteDesign::load(&root("designs/excite_ur5.toml")).unwrap().trajectory.q0.clone().unwrap();
+    for row in [first, last] {
+        for j in 0..6 {
+            assert!((row[1 + j] - home[j]).abs() < 1e-12, "q{} = {} at an end, home {}", j + 1, row[1 + j], home[j]);
+        }
+        assert!(row[7..seg].iter().all(|v| *v == 0.0), "at rest at both ends");
+    }
     assert_eq!(idexp::io::States::read(&out.join("periodic.csv"), 6).unwrap().len(), 10_000);
     // the CSV export at 1 kHz holds exactly trajectory.csv's q, q̇, q̈
     let e = idexp::io::Table::read(&out.join("excite_ur5_export.csv")).unwrap();

@@ -280,7 +280,18 @@ fn exported_urdf_and_toml_reproduce_the_identified_torques() {
     robot::export::write_urdf(&src, &ident, d.path()).unwrap();
     robot::export::write_robot_toml(&src, &ident, d.path(), Some("robot.urdf")).unwrap();
     let back = robot::load(&d.path().join("robot.toml")).unwrap();
-    let urdf_only = robot::load(&d.path().join("robot.urdf")).unwrap();
+    // the exported URDF on its own (its package:// meshes found through the
+    // shipped mesh folder, as for any URDF whose meshes live elsewhere)
+    let wrapper = d.path().join("urdf_only.toml");
+    std::fs::write(
+        &wrapper,
+        format!(
+            "name = \"ur5-identified\"\nurdf = \"robot.urdf\"\nmesh_path = [\"{}\"]\n",
+            ident_util::root("designs/robots/meshes/ur5").display()
+        ),
+    )
+    .unwrap();
+    let urdf_only = robot::load(&wrapper).unwrap();
     let n = robot.dof();
     let (tb, tu) = (back.nominal_params(), urdf_only.nominal_params());
     let mut ws = Workspace::new(&robot);

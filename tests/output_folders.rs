@@ -81,7 +81,11 @@ fn signal(child: &Child, sig: &str) {
 fn assert_whole_sim(dir: &Path, reference: &[PathBuf]) {
     let st = state(dir);
     assert!(st == "complete" || st == "interrupted", "{}: status {st}", dir.display());
-    assert_eq!(files(dir), reference, "{}", dir.display());
+    // a temporary file of the process killed a moment before may still be
+    // there: the next run removes such files only once they are 2 s old
+    // (io::folder), so they are not part of the result set compared here
+    let listed: Vec<PathBuf> = files(dir).into_iter().filter(|p| !p.to_string_lossy().ends_with(".tmp")).collect();
+    assert_eq!(listed, reference, "{}", dir.display());
 }
 
 #[test]

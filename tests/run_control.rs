@@ -32,7 +32,7 @@ fn two_controls_in_one_process_stop_independently() {
     assert_eq!(b.status, Status::Optimal);
 }
 
-/// A simulation long enough to take many seconds (rate 20 kHz, 200
+/// A simulation long enough to take many seconds (rate 20 kHz, 100
 /// repetitions), stopped from another thread after 0.3 s: it returns the
 /// repetitions finished so far, marked interrupted.
 #[test]
@@ -42,7 +42,7 @@ fn a_stop_from_another_thread_interrupts_a_simulation() {
     assert!(text.contains("rate = 1000.0") && text.contains("repetitions = 50 "));
     let text = text
         .replace("rate = 1000.0", "rate = 20000.0")
-        .replace("repetitions = 50 ", "repetitions = 200 ");
+        .replace("repetitions = 50 ", "repetitions = 100 ");
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("sim.toml");
     std::fs::write(&p, text).unwrap();
@@ -59,7 +59,7 @@ fn a_stop_from_another_thread_interrupts_a_simulation() {
     match r {
         Ok(res) => {
             assert_eq!(res.status.status, idexp::sim::RunStatus::Interrupted);
-            assert!(res.status.repetitions < 200);
+            assert!(res.status.repetitions < 100);
             assert_eq!(res.reps.len(), res.status.repetitions);
         }
         // stopped during the lead-in period: nothing to return

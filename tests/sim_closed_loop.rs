@@ -232,7 +232,7 @@ fn design_errors_name_the_field() {
     assert!(r.unwrap_err().to_string().contains("zz"));
     // a period that is not a whole number of controller steps
     let d = design(
-        "robot = \"tests/data/ident/rpr_drives.toml\"\nrate = 7.0\n[controller]\nbandwidth = 0.5\n[reference]\nkind = \"random_fourier\"\nfrequency = 0.3\n",
+        "robot = \"tests/data/ident/rpr_drives.toml\"\nrate = 7.0\n[controller]\nbandwidth = 0.5\nvelocity_filter = 0.0\n[reference]\nkind = \"random_fourier\"\nfrequency = 0.3\n",
     );
     let e = SimSetup::from_design(&d, &root(""), "d.toml").unwrap_err().to_string();
     assert!(e.contains("rate"), "{e}");

@@ -257,6 +257,32 @@ pub fn robot_toml(src: &Source, robot: &Robot, urdf: Option<&str>) -> Result<Str
         "source".into(),
         format!("identified by idexp identify from {}", robot.source.replace('\n', " ")).into(),
     );
+    // paths the input resolved against its own folder (collision meshes,
+    // SRDF) are written absolute, so the exported file loads from anywhere
+    let src_dir = match src {
+        Source::Urdf { toml: Some(p), .. } | Source::Dh { toml: p } => p.parent().map(Path::to_path_buf),
+        Source::Urdf { toml: None, .. } => None,
+    };
+    if let Some(dir) = src_dir {
+        let abs = |v: &str| {
+            let p = Path::new(v);
+            if p.is_absolute() {
+                v.to_string()
+            } else {
+                dir.join(p).display().to_string()
+            }
+        };
+        if let Some(toml::Value::Array(a)) = t.get_mut("mesh_path") {
+            for v in a.iter_mut() {
+                if let Some(x) = v.as_str() {
+                    *v = abs(x).into();
+                }
+            }
+        }
+        if let Some(toml::Value::String(x)) = t.get_mut("srdf") {
+            *x = abs(x);
+        }
+    }
     if let Source::Urdf { .. } = src {
         let u = urdf.ok_or_else(|| Error::invalid("export", "urdf", "a URDF robot's TOML needs the exported URDF's name"))?;
         t.insert("urdf".into(), u.into());
