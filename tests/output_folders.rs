@@ -125,7 +125,9 @@ fn a_killed_simulate_leaves_the_previous_set_aside_and_is_refused_as_input() {
         }
     }
     assert!(caught > 0, "no kill landed in the write phase");
-    // the next run removes the killed run's temporary files and .previous
+    // the next run removes the killed run's temporary files (once older than
+    // 2 s, so that a live writer's file is never taken: io::folder) and .previous
+    std::thread::sleep(Duration::from_millis(2500));
     run_ok(&["simulate", "designs/sim_rpr_fourier.toml", "--out", d]);
     assert_whole_sim(&dir, &reference);
     assert!(temps(&dir).is_empty(), "{:?}", temps(&dir));
