@@ -172,7 +172,7 @@ impl ExciteResult {
         self.robot_path.clone()
     }
     /// The trajectory sampled at the design's controller rate (the rows of
-    /// trajectory.csv): dict with t (N,), q, qd, qdd (N, n).
+    /// periodic.csv; trajectory.csv holds the delivered lead-in, periods and lead-out): dict with t (N,), q, qd, qdd (N, n).
     #[getter]
     fn trajectory<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         self.sample(py, self.problem.design.trajectory.controller_rate)

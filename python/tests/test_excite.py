@@ -64,10 +64,11 @@ def test_equal_to_cli_files(designed, cli, tmp_path):
     np.testing.assert_array_equal(r.x, coeff_cli["x"])
     np.testing.assert_array_equal(r.coefficients["a"], coeff_cli["trajectory"]["a"])
     assert r.cond == coeff_cli["cond"]
-    for f in ("trajectory.csv", "design.json", "singular_values.svg", "joints.svg"):
+    for f in ("trajectory.csv", "periodic.csv", "design.json", "singular_values.svg", "joints.svg"):
         assert (out_py / f).read_bytes() == (out_cli / f).read_bytes(), f
-    # the arrays are the rows of trajectory.csv
-    csv = np.genfromtxt(out_cli / "trajectory.csv", delimiter=",", names=True)
+    # the arrays are the designed period: the rows of periodic.csv
+    # (trajectory.csv holds the delivered lead-in, periods and lead-out)
+    csv = np.genfromtxt(out_cli / "periodic.csv", delimiter=",", names=True)
     np.testing.assert_allclose(r.trajectory["q"][:, 0], csv["q1"], rtol=1e-12, atol=1e-12)
     status = json.loads((out_py / "status.json").read_text())
     assert status["command"] == "excite" and status["status"] == "complete"
