@@ -120,22 +120,28 @@ pub fn random_stack(robot: &Robot, samples: usize, seed: u64) -> DMatrix<f64> {
     w
 }
 
+/// The regressor stack of `opts.samples` random states, after checking that
+/// there are enough states for the robot's parameters.
+fn checked_stack(robot: &Robot, opts: &BaseOptions) -> Result<DMatrix<f64>> {
+    let p = robot.n_params();
+    let min_samples = p.div_ceil(robot.dof()) + 1;
+    if opts.samples < min_samples {
+        return Err(Error::invalid(
+            "base parameters",
+            "samples",
+            format!("expected at least {min_samples} states for {p} parameters"),
+        ));
+    }
+    Ok(random_stack(robot, opts.samples, opts.seed))
+}
+
 impl BaseParams {
     /// Computes the base parameters of `robot`.
     pub fn compute(robot: &Robot, opts: &BaseOptions) -> Result<BaseParams> {
         if !(opts.tol > 0.0 && opts.tol < 1.0) {
             return Err(Error::invalid("base parameters", "tol", format!("expected 0 < tol < 1, found {}", opts.tol)));
         }
-        let p = robot.n_params();
-        let min_samples = p.div_ceil(robot.dof()) + 1;
-        if opts.samples < min_samples {
-            return Err(Error::invalid(
-                "base parameters",
-                "samples",
-                format!("expected at least {min_samples} states for {p} parameters"),
-            ));
-        }
-        let w = random_stack(robot, opts.samples, opts.seed);
+        let w = checked_stack(robot, opts)?;
         Self::from_stack(robot, &w, opts)
     }
 
@@ -171,16 +177,7 @@ impl BaseParams {
             }
             forced.push(c);
         }
-        let p = robot.n_params();
-        let min_samples = p.div_ceil(robot.dof()) + 1;
-        if opts.samples < min_samples {
-            return Err(Error::invalid(
-                "base parameters",
-                "samples",
-                format!("expected at least {min_samples} states for {p} parameters"),
-            ));
-        }
-        let w = random_stack(robot, opts.samples, opts.seed);
+        let w = checked_stack(robot, opts)?;
         let b = Self::from_stack_ordered(robot, &w, opts, &forced)?;
         let no_effect: Vec<String> = forced.iter().filter(|c| b.unidentifiable.contains(c)).map(|&c| info[c].name.clone()).collect();
         if !no_effect.is_empty() {
