@@ -79,7 +79,7 @@ fn mass_matrix_is_spd_and_consistent_with_rnea() {
             robot::rnea(&r, &mut ws, &q, &qd, &qdd, &mut tau);
             let lhs = c.transpose() * DVector::from_vec(tau);
             let w = &c * DVector::from_column_slice(&qd);
-            let fr = DVector::from_fn(n, |j, _| robot::friction_torque(&r.drives[j].friction, w[j]));
+            let fr = DVector::from_fn(n, |j, _| robot::friction_torque(&r.drives[j], w[j]));
             let rhs = &m * DVector::from_column_slice(&qdd) + robot::bias_forces(&r, &mut ws, &q, &qd) + c.transpose() * fr;
             assert!((&lhs - &rhs).amax() < 1e-9 * lhs.amax().max(1.0), "{}: {lhs} vs {rhs}", r.name);
             // forward dynamics inverts inverse dynamics
@@ -141,7 +141,7 @@ fn power_balance_holds_along_a_trajectory() {
             let mut tau = vec![0.0; n];
             robot::rnea(&r, &mut ws, &q, &qd, &qdd, &mut tau);
             let w = &c * DVector::from_column_slice(&qd);
-            let power: f64 = (0..n).map(|j| w[j] * (tau[j] - robot::friction_torque(&r.drives[j].friction, w[j]))).sum();
+            let power: f64 = (0..n).map(|j| w[j] * (tau[j] - robot::friction_torque(&r.drives[j], w[j]))).sum();
             assert!(
                 (de - power).abs() < 1e-5 * (1.0 + power.abs()),
                 "{} at t={t}: dE/dt = {de}, power = {power}",

@@ -364,6 +364,7 @@ fn extended_chain(rigid: &Robot, spec: &ElasticSpec, hosts: &[Option<usize>]) ->
             rotor_inertia: None,
             gear_ratio: 1.0,
             friction: Friction::None,
+            ..Drive::default()
         };
         nx
     ];

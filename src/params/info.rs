@@ -210,6 +210,21 @@ impl RobotInfo {
                     )
                 }
             };
+            let fr = match d.coulomb {
+                crate::robot::Coulomb::Sign => fr,
+                crate::robot::Coulomb::Stribeck { fs, .. } if !matches!(d.friction, crate::robot::Friction::None) => {
+                    let fs = match d.friction {
+                        crate::robot::Friction::Asymmetric { .. } => format!("Fs+={} Fs-={}", fs[0], fs[1]),
+                        _ => format!("Fs={}", fs[0]),
+                    };
+                    format!("{fr} {fs} coulomb={}", d.coulomb.describe())
+                }
+                c => format!("{fr} coulomb={}", c.describe()),
+            };
+            let fr = match d.torque_constant {
+                Some(kt) => format!("{fr} kt={kt} N={} sign={}", d.gear_ratio, d.current_sign),
+                None => fr,
+            };
             let ia = d.rotor_inertia.map(|v| format!("Ia={v} ")).unwrap_or_default();
             let kind = match j.kind {
                 JointKind::Revolute => "revolute",

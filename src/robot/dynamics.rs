@@ -12,7 +12,8 @@
 //! τ = C⁻ᵀ τ_rb(q, q̇, q̈) + Ia ⊙ (C q̈) + f(C q̇),
 //!
 //! τ_rb the rigid-body joint torques, Ia the reflected rotor inertias and f
-//! the friction model of each drive. The regressor Y (n × p) satisfies
+//! the friction model of each drive ([`friction_columns`]: the Coulomb term
+//! switches by sign, tanh or tanh with a Stribeck column, [`Coulomb`]). The regressor Y (n × p) satisfies
 //! τ = Y(q, q̇, q̈) θ for the standard parameter vector θ in the layout of
 //! [`Robot::params`].
 //!
@@ -21,7 +22,7 @@
 //! mass M). Gravity enters as a base acceleration −g.
 
 use super::kinematics::{joint_transform, joint_transforms, lift3, Kin, Real};
-use super::model::{Friction, Inertial, Robot};
+use super::model::{Coulomb, Drive, Friction, Inertial, Robot};
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Vector3};
 use num_dual::Dual64;
 
@@ -226,26 +227,10 @@ pub(crate) fn inverse_dynamics_generic<T: Real>(
                 out[j] += s1[j] * T::c(theta[k]);
                 k += 1;
             }
-            let w = s2[j];
-            match d.friction {
-                Friction::None => {}
-                Friction::Symmetric { offset, .. } => {
-                    out[j] += sgn(w) * T::c(theta[k]) + w * T::c(theta[k + 1]);
-                    if offset.is_some() {
-                        out[j] += T::c(theta[k + 2]);
-                    }
-                }
-                Friction::Asymmetric { offset, .. } => {
-                    let r = w.re_();
-                    if r > 0.0 {
-                        out[j] += T::c(theta[k]) + w * T::c(theta[k + 2]);
-                    } else if r < 0.0 {
-                        out[j] += T::c(theta[k + 1]) + w * T::c(theta[k + 3]);
-                    }
-                    if offset.is_some() {
-                        out[j] += T::c(theta[k + 4]);
-                    }
-                }
+            let mut cols = [T::zero(); MAX_FRICTION_COLUMNS];
+            let m = friction_columns(d, s2[j], &mut cols);
+            for (c, th) in cols[..m].iter().zip(&theta[k..k + m]) {
+                out[j] += *c * T::c(*th);
             }
         }
     }
@@ -288,17 +273,35 @@ pub fn rnea(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64], qdd: &[f64
         if let Some(ia) = d.rotor_inertia {
             tau[j] += ia * s1[j];
         }
-        tau[j] += friction_torque(&d.friction, s2[j]);
+        tau[j] += friction_torque(d, s2[j]);
     }
     ws.kin.s1 = s1;
     ws.kin.s2 = s2;
 }
 
-/// Friction torque of a drive at motor velocity `w` (joint-side units).
-pub fn friction_torque(f: &Friction, w: f64) -> f64 {
-    match *f {
-        Friction::None => 0.0,
-        Friction::Symmetric { fc, fv, offset } => fc * sgn(w) + fv * w + offset.unwrap_or(0.0),
+/// Friction torque of a drive at motor velocity `w` (joint-side units), with
+/// its nominal coefficients: Σ_k θ_k φ_k(w) over [`friction_columns`].
+pub fn friction_torque(d: &Drive, w: f64) -> f64 {
+    let mut cols = [0.0; MAX_FRICTION_COLUMNS];
+    let m = friction_columns(d, w, &mut cols);
+    let mut coef = [0.0; MAX_FRICTION_COLUMNS];
+    let mut k = 0;
+    let mut push = |v: f64| {
+        coef[k] = v;
+        k += 1;
+    };
+    match d.friction {
+        Friction::None => {}
+        Friction::Symmetric { fc, fv, offset } => {
+            push(fc);
+            push(fv);
+            if let Some(o) = offset {
+                push(o);
+            }
+            if let Coulomb::Stribeck { fs, .. } = d.coulomb {
+                push(fs[0]);
+            }
+        }
         Friction::Asymmetric {
             fc_pos,
             fc_neg,
@@ -306,16 +309,95 @@ pub fn friction_torque(f: &Friction, w: f64) -> f64 {
             fv_neg,
             offset,
         } => {
-            offset.unwrap_or(0.0)
-                + if w > 0.0 {
-                    fc_pos + fv_pos * w
-                } else if w < 0.0 {
-                    fc_neg + fv_neg * w
-                } else {
-                    0.0
-                }
+            for v in [fc_pos, fc_neg, fv_pos, fv_neg] {
+                push(v);
+            }
+            if let Some(o) = offset {
+                push(o);
+            }
+            if let Coulomb::Stribeck { fs, .. } = d.coulomb {
+                push(fs[0]);
+                push(fs[1]);
+            }
         }
     }
+    debug_assert_eq!(k, m);
+    cols[..m].iter().zip(&coef[..m]).map(|(c, v)| c * v).sum()
+}
+
+/// Most friction columns of one drive (asymmetric: Fc±, Fv±, F0, Fs±).
+pub const MAX_FRICTION_COLUMNS: usize = 7;
+
+/// The friction regressor columns φ(w) of drive `d` at motor velocity `w`
+/// (joint-side units), in the parameter layout order after Ia; returns
+/// how many were written into `out`. τ_f = Σ_k θ_k φ_k(w).
+///
+/// With s(w) the Coulomb switch of [`Coulomb`] (sign(w), or tanh(w/v_s)) and
+/// e(w) = exp(−(w/v_st)²) for the Stribeck shape:
+///
+/// * symmetric: [s, w, (1 if F0), (s·e if Stribeck)] for [Fc, Fv, F0, Fs];
+/// * asymmetric: [σ⁺, σ⁻, σ⁺w, σ⁻w, (1), (σ⁺e, σ⁻e)] for
+///   [Fc⁺, Fc⁻, Fv⁺, Fv⁻, F0, Fs⁺, Fs⁻], σ± the indicators of ±w > 0 for the
+///   sign shape (paper 002 eq. 2) and (1 ± tanh(w/v_s))/2 for the smooth ones.
+///
+/// Generic in the scalar so that dual numbers carry ∂φ/∂w (zero for sign
+/// away from 0, (1 − tanh²)/v_s for tanh).
+pub fn friction_columns<T: Real>(d: &Drive, w: T, out: &mut [T]) -> usize {
+    let (s, e) = match d.coulomb {
+        Coulomb::Sign => (sgn(w), T::zero()),
+        Coulomb::Tanh { velocity_scale } => ((w / T::c(velocity_scale)).tanh(), T::zero()),
+        Coulomb::Stribeck {
+            velocity_scale,
+            stribeck_velocity,
+            ..
+        } => {
+            let x = w / T::c(stribeck_velocity);
+            ((w / T::c(velocity_scale)).tanh(), (-(x * x)).exp())
+        }
+    };
+    let stribeck = matches!(d.coulomb, Coulomb::Stribeck { .. });
+    let mut k = 0;
+    let mut push = |v: T| {
+        out[k] = v;
+        k += 1;
+    };
+    match d.friction {
+        Friction::None => {}
+        Friction::Symmetric { offset, .. } => {
+            push(s);
+            push(w);
+            if offset.is_some() {
+                push(T::one());
+            }
+            if stribeck {
+                push(s * e);
+            }
+        }
+        Friction::Asymmetric { offset, .. } => {
+            let (sp, sn) = if d.coulomb.is_sign() {
+                let r = w.re_();
+                (
+                    if r > 0.0 { T::one() } else { T::zero() },
+                    if r < 0.0 { T::one() } else { T::zero() },
+                )
+            } else {
+                let h = T::c(0.5);
+                (h * (T::one() + s), h * (T::one() - s))
+            };
+            push(sp);
+            push(sn);
+            push(sp * w);
+            push(sn * w);
+            if offset.is_some() {
+                push(T::one());
+            }
+            if stribeck {
+                push(sp * e);
+                push(sn * e);
+            }
+        }
+    }
+    k
 }
 
 /// Rigid-body regressor (link side, inertial columns only) into the row-major
@@ -425,30 +507,9 @@ fn regressor_inner<T: Real>(robot: &Robot, q: &[T], qd: &[T], qdd: &[T], terms: 
                 y[row + k] = s1[j];
                 k += 1;
             }
-            let w = s2[j];
-            match d.friction {
-                Friction::None => {}
-                Friction::Symmetric { offset, .. } => {
-                    y[row + k] = sgn(w);
-                    y[row + k + 1] = w;
-                    if offset.is_some() {
-                        y[row + k + 2] = T::one();
-                    }
-                }
-                Friction::Asymmetric { offset, .. } => {
-                    let r = w.re_();
-                    if r > 0.0 {
-                        y[row + k] = T::one();
-                        y[row + k + 2] = w;
-                    } else if r < 0.0 {
-                        y[row + k + 1] = T::one();
-                        y[row + k + 3] = w;
-                    }
-                    if offset.is_some() {
-                        y[row + k + 4] = T::one();
-                    }
-                }
-            }
+            let mut cols = [T::zero(); MAX_FRICTION_COLUMNS];
+            let m = friction_columns(d, s2[j], &mut cols);
+            y[row + k..row + k + m].copy_from_slice(&cols[..m]);
         }
         kin.s1 = s1;
         kin.s2 = s2;
@@ -791,7 +852,7 @@ pub fn forward_dynamics_into(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &
     // motor velocities w = C q̇ (tmp), then tmp ← τ_m − f(w)
     couple(robot, qd, &mut tmp);
     for j in 0..n {
-        tmp[j] = tau_motor[j] - friction_torque(&robot.drives[j].friction, tmp[j]);
+        tmp[j] = tau_motor[j] - friction_torque(&robot.drives[j], tmp[j]);
     }
     // rhs = Cᵀ tmp
     if robot.coupling.is_none() {

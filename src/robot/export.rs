@@ -197,7 +197,7 @@ fn drive_tables(robot: &Robot, old: Option<&toml::value::Array>) -> toml::value:
             .and_then(|v| v.as_table().cloned())
             .unwrap_or_default();
         t.insert("joint".into(), jn.clone().into());
-        for k in ["ia", "fc", "fv", "f0", "fc_pos", "fc_neg", "fv_pos", "fv_neg", "friction"] {
+        for k in ["ia", "fc", "fv", "f0", "fc_pos", "fc_neg", "fv_pos", "fv_neg", "friction", "fs", "fs_pos", "fs_neg"] {
             t.remove(k);
         }
         if let Some(ia) = d.rotor_inertia {
@@ -229,6 +229,18 @@ fn drive_tables(robot: &Robot, old: Option<&toml::value::Array>) -> toml::value:
                 if let Some(o) = offset {
                     t.insert("f0".into(), o.into());
                 }
+            }
+        }
+        if let crate::robot::Coulomb::Stribeck { fs, .. } = d.coulomb {
+            match d.friction {
+                Friction::Symmetric { .. } => {
+                    t.insert("fs".into(), fs[0].into());
+                }
+                Friction::Asymmetric { .. } => {
+                    t.insert("fs_pos".into(), fs[0].into());
+                    t.insert("fs_neg".into(), fs[1].into());
+                }
+                Friction::None => {}
             }
         }
         out.push(toml::Value::Table(t));

@@ -4,7 +4,7 @@
 //! acceleration limits), a joint coupling matrix and named frames.
 //! The format is documented in the README ("Robot files").
 
-use super::model::{Drive, Frame, Friction, Inertial, Joint, JointKind, JointLimits, Link, Robot, RobotParts};
+use super::model::{Coulomb, Drive, Frame, Friction, Inertial, Joint, JointKind, JointLimits, Link, Robot, RobotParts};
 use super::urdf::{load_urdf, pose_to_iso};
 use crate::error::{Error, Result};
 use nalgebra::{DMatrix, Isometry3, Matrix3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
@@ -21,6 +21,26 @@ pub enum FrictionName {
     Symmetric,
     /// Paper 002 eq. 2.
     Asymmetric,
+}
+
+/// Coulomb shape names in robot files (`coulomb = ...`, see [`Coulomb`]).
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum CoulombName {
+    /// sign(q̇) (default).
+    Sign,
+    /// tanh(q̇ / velocity_scale).
+    Tanh,
+    /// tanh(q̇ / velocity_scale) plus a Stribeck column with a fixed `stribeck_velocity`.
+    Stribeck,
+}
+
+/// File-level defaults of the Coulomb shape (`coulomb`, `velocity_scale`, `stribeck_velocity`).
+#[derive(Debug, Clone, Copy)]
+struct CoulombDefaults {
+    name: Option<CoulombName>,
+    velocity_scale: Option<f64>,
+    stribeck_velocity: Option<f64>,
 }
 
 /// DH conventions.
@@ -40,6 +60,12 @@ struct RobotFile {
     source: Option<String>,
     gravity: Option<[f64; 3]>,
     friction: Option<FrictionName>,
+    /// Default Coulomb shape of every drive: sign (default) | tanh | stribeck.
+    coulomb: Option<CoulombName>,
+    /// Default v_s of the tanh switch (rad/s or m/s).
+    velocity_scale: Option<f64>,
+    /// Default fixed Stribeck velocity v_st.
+    stribeck_velocity: Option<f64>,
     urdf: Option<String>,
     base_link: Option<String>,
     tip_link: Option<String>,
@@ -152,6 +178,14 @@ struct DriveSpec {
     fc_neg: Option<f64>,
     fv_pos: Option<f64>,
     fv_neg: Option<f64>,
+    coulomb: Option<CoulombName>,
+    velocity_scale: Option<f64>,
+    stribeck_velocity: Option<f64>,
+    fs: Option<f64>,
+    fs_pos: Option<f64>,
+    fs_neg: Option<f64>,
+    torque_constant: Option<f64>,
+    current_sign: Option<f64>,
     lower: Option<f64>,
     upper: Option<f64>,
     velocity: Option<f64>,
@@ -216,9 +250,19 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
     let (name, mut joints, links, mut drives, mut frames) = structure(path, &f, &ctx)?;
     let n = joints.len();
     apply_default_friction(&mut drives, default_friction);
+    let cdef = CoulombDefaults {
+        name: f.coulomb,
+        velocity_scale: f.velocity_scale,
+        stribeck_velocity: f.stribeck_velocity,
+    };
     let mut seen = vec![false; n];
     for (k, ds) in f.drive.iter().enumerate() {
         apply_drive(&ctx, k, ds, default_friction, &mut joints, &mut drives, &mut seen)?;
+        let j = joints.iter().position(|j| j.name == ds.joint).expect("checked by apply_drive");
+        apply_drive_electrics(&ctx, k, ds, &cdef, &mut drives[j])?;
+    }
+    for j in (0..n).filter(|&j| !seen[j]) {
+        drives[j].coulomb = coulomb_shape(&ctx, "", None, &cdef, &drives[j].friction)?;
     }
     let coupling = coupling_matrix(&ctx, f.coupling.as_deref(), n)?;
     add_frames(&ctx, &f.frame, &links, &mut frames)?;
@@ -523,6 +567,116 @@ fn drive_friction(ctx: &str, k: usize, ds: &DriveSpec, current: Friction, defaul
             }
         }
     })
+}
+
+/// A positive finite value of `field`, or an error naming it.
+fn positive(ctx: &str, field: &str, v: f64, what: &str) -> Result<f64> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(Error::invalid(ctx, field, format!("expected {what} > 0 and finite, found {v}")))
+    }
+}
+
+/// The Coulomb shape of one drive from its entry `ds` (if any; `prefix`
+/// names it in messages, empty for the file-level defaults) and the file
+/// defaults; Stribeck coefficients from `fs` / `fs_pos`, `fs_neg`.
+fn coulomb_shape(ctx: &str, prefix: &str, ds: Option<&DriveSpec>, def: &CoulombDefaults, friction: &Friction) -> Result<Coulomb> {
+    let field = |s: &str| format!("{prefix}{s}");
+    let name = ds.and_then(|d| d.coulomb).or(def.name).unwrap_or(CoulombName::Sign);
+    let vs = ds.and_then(|d| d.velocity_scale).map(|v| (v, field("velocity_scale"))).or(def.velocity_scale.map(|v| (v, "velocity_scale".to_string())));
+    let vst = ds
+        .and_then(|d| d.stribeck_velocity)
+        .map(|v| (v, field("stribeck_velocity")))
+        .or(def.stribeck_velocity.map(|v| (v, "stribeck_velocity".to_string())));
+    let fs_given = ds.is_some_and(|d| d.fs.is_some() || d.fs_pos.is_some() || d.fs_neg.is_some());
+    if matches!(friction, Friction::None) && name != CoulombName::Sign && ds.is_some_and(|d| d.coulomb.is_some()) {
+        return Err(Error::invalid(ctx, field("coulomb"), "friction = \"none\": there is no Coulomb term to shape"));
+    }
+    let need_vs = |vs: Option<(f64, String)>| -> Result<f64> {
+        match vs {
+            Some((v, f)) => positive(ctx, &f, v, "the velocity scale v_s (rad/s or m/s)"),
+            None => Err(Error::invalid(
+                ctx,
+                field("velocity_scale"),
+                format!(
+                    "coulomb = \"{}\" needs velocity_scale = v_s > 0 (rad/s; paper 000's tanh(1000 q̇) is 0.001), on the drive or at the top of the file",
+                    if name == CoulombName::Tanh { "tanh" } else { "stribeck" }
+                ),
+            )),
+        }
+    };
+    Ok(match name {
+        CoulombName::Sign => {
+            if let Some(d) = ds {
+                if d.velocity_scale.is_some() || d.stribeck_velocity.is_some() {
+                    return Err(Error::invalid(ctx, field("velocity_scale"), "velocity_scale/stribeck_velocity need coulomb = \"tanh\" or \"stribeck\""));
+                }
+            }
+            if fs_given {
+                return Err(Error::invalid(ctx, field("fs"), "Stribeck coefficients need coulomb = \"stribeck\""));
+            }
+            Coulomb::Sign
+        }
+        CoulombName::Tanh => {
+            if fs_given {
+                return Err(Error::invalid(ctx, field("fs"), "Stribeck coefficients need coulomb = \"stribeck\""));
+            }
+            if ds.is_some_and(|d| d.stribeck_velocity.is_some()) {
+                return Err(Error::invalid(ctx, field("stribeck_velocity"), "stribeck_velocity needs coulomb = \"stribeck\""));
+            }
+            Coulomb::Tanh { velocity_scale: need_vs(vs)? }
+        }
+        CoulombName::Stribeck => {
+            let velocity_scale = need_vs(vs)?;
+            let stribeck_velocity = match vst {
+                Some((v, f)) => positive(ctx, &f, v, "the Stribeck velocity v_st (rad/s or m/s)")?,
+                None => {
+                    return Err(Error::invalid(
+                        ctx,
+                        field("stribeck_velocity"),
+                        "coulomb = \"stribeck\" needs stribeck_velocity = v_st > 0 (fixed, not identified), on the drive or at the top of the file",
+                    ))
+                }
+            };
+            let val = |v: Option<f64>, s: &str| -> Result<f64> { finite(ctx, &field(s), v.unwrap_or(0.0)) };
+            let fs = match friction {
+                Friction::Asymmetric { .. } => {
+                    if ds.is_some_and(|d| d.fs.is_some()) {
+                        return Err(Error::invalid(ctx, field("fs"), "the asymmetric model takes fs_pos and fs_neg"));
+                    }
+                    [val(ds.and_then(|d| d.fs_pos), "fs_pos")?, val(ds.and_then(|d| d.fs_neg), "fs_neg")?]
+                }
+                _ => {
+                    if ds.is_some_and(|d| d.fs_pos.is_some() || d.fs_neg.is_some()) {
+                        return Err(Error::invalid(ctx, field("fs_pos"), "fs_pos/fs_neg need friction = \"asymmetric\"; the symmetric model takes fs"));
+                    }
+                    [val(ds.and_then(|d| d.fs), "fs")?, 0.0]
+                }
+            };
+            Coulomb::Stribeck {
+                velocity_scale,
+                stribeck_velocity,
+                fs,
+            }
+        }
+    })
+}
+
+/// The Coulomb shape, torque constant and current sign of a `[[drive]]` entry (k-th).
+fn apply_drive_electrics(ctx: &str, k: usize, ds: &DriveSpec, def: &CoulombDefaults, d: &mut Drive) -> Result<()> {
+    let prefix = format!("drive[{k}] (joint `{}`).", ds.joint);
+    d.coulomb = coulomb_shape(ctx, &prefix, Some(ds), def, &d.friction)?;
+    if let Some(kt) = ds.torque_constant {
+        d.torque_constant = Some(positive(ctx, &format!("{prefix}torque_constant"), kt, "the motor torque constant k_t (N·m/A)")?);
+    }
+    if let Some(sg) = ds.current_sign {
+        if sg != 1.0 && sg != -1.0 {
+            return Err(Error::invalid(ctx, format!("{prefix}current_sign"), format!("expected 1 or -1, found {sg}")));
+        }
+        d.current_sign = sg;
+    }
+    Ok(())
 }
 
 /// Joint limits of a `[[drive]]` entry (lower/upper finite; velocity,

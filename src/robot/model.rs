@@ -189,15 +189,117 @@ pub enum Friction {
     },
 }
 
+/// Shape of the Coulomb (velocity-sign) part of a drive's friction: how the
+/// Coulomb coefficients Fc (or Fc⁺, Fc⁻) switch with the motor velocity w.
+///
+/// Every shape keeps the friction model linear in its parameters: the
+/// velocity scale and the Stribeck velocity are fixed (robot file), not
+/// identified.
+///
+/// * [`Coulomb::Sign`] (default): s(w) = sign(w) (paper 000 eq. 2); at rest
+///   s = 0, but measured velocities at standstill are encoder noise and the
+///   sign flips, so identification drops slow rows of such a joint.
+/// * [`Coulomb::Tanh`]: s(w) = tanh(w / v_s) (paper 000 §IV, "tanh(1000 q̇)",
+///   i.e. v_s = 1 mrad/s): smooth and ≈ 0 at rest, so slow rows may stay in
+///   the estimate and a feedforward does not chatter.
+/// * [`Coulomb::Stribeck`]: s(w) = tanh(w / v_s) plus one Stribeck column per
+///   side, s(w)·exp(−(w/v_st)²), with coefficient Fs (parameter `Fs`, or
+///   `Fsp`/`Fsn` for the asymmetric model): the static friction in excess of
+///   Fc, decaying with speed.
+///
+/// For the asymmetric model (paper 002 eq. 2) the sides are weighted by
+/// σ⁺(w), σ⁻(w): for `Sign` the indicators of w > 0 and w < 0 (as before),
+/// for the smooth shapes σ± = (1 ± tanh(w/v_s))/2, so
+/// τ_f = σ⁺(Fc⁺ + Fv⁺ w) + σ⁻(Fc⁻ + Fv⁻ w) (+ F0).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
+#[serde(tag = "shape", rename_all = "snake_case")]
+pub enum Coulomb {
+    /// sign(w).
+    #[default]
+    Sign,
+    /// tanh(w / velocity_scale).
+    Tanh {
+        /// v_s > 0 (rad/s or m/s, motor velocity referred to the joint side).
+        velocity_scale: f64,
+    },
+    /// tanh(w / velocity_scale) and a Stribeck column exp(−(w/stribeck_velocity)²)·tanh(w/v_s).
+    Stribeck {
+        /// v_s > 0.
+        velocity_scale: f64,
+        /// v_st > 0, fixed (not identified).
+        stribeck_velocity: f64,
+        /// Nominal Stribeck coefficients: [Fs] (symmetric model, second entry
+        /// unused) or [Fs⁺, Fs⁻] (asymmetric model; Fs⁻ ≤ 0 for the usual sign).
+        fs: [f64; 2],
+    },
+}
+
+impl Coulomb {
+    /// The name in robot files (`sign`, `tanh`, `stribeck`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Coulomb::Sign => "sign",
+            Coulomb::Tanh { .. } => "tanh",
+            Coulomb::Stribeck { .. } => "stribeck",
+        }
+    }
+
+    /// True for the discontinuous sign shape (slow rows are dropped in identification).
+    pub fn is_sign(&self) -> bool {
+        matches!(self, Coulomb::Sign)
+    }
+
+    /// A one-line description with the scales (`tanh(w/0.001)`).
+    pub fn describe(&self) -> String {
+        match *self {
+            Coulomb::Sign => "sign(w)".into(),
+            Coulomb::Tanh { velocity_scale } => format!("tanh(w/{velocity_scale})"),
+            Coulomb::Stribeck {
+                velocity_scale,
+                stribeck_velocity,
+                ..
+            } => format!("tanh(w/{velocity_scale}), Stribeck exp(-(w/{stribeck_velocity})^2)"),
+        }
+    }
+}
+
 /// Drive-side data of one joint.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Drive {
     /// Reflected rotor inertia Ia (kg·m², joint side); `None`: not modelled.
     pub rotor_inertia: Option<f64>,
-    /// Gear ratio (motor turns per joint turn); informative (Ia is already reflected).
+    /// Gear ratio N (motor turns per joint turn). Ia is already reflected;
+    /// N converts motor currents to joint torques (τ = sign·k_t·N·i).
     pub gear_ratio: f64,
     /// Friction model and nominal coefficients.
     pub friction: Friction,
+    /// Shape of the Coulomb term (default: sign).
+    #[serde(skip_serializing_if = "Coulomb::is_sign")]
+    pub coulomb: Coulomb,
+    /// Motor torque constant k_t (N·m/A, motor side; N/A for linear motors), if known.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub torque_constant: Option<f64>,
+    /// Sign of the logged current relative to the joint torque (+1 or −1).
+    #[serde(skip_serializing_if = "is_plus_one")]
+    pub current_sign: f64,
+}
+
+fn is_plus_one(x: &f64) -> bool {
+    *x == 1.0
+}
+
+impl Drive {
+    /// Joint-side torque per ampere of logged current, sign·k_t·N, if k_t is known.
+    pub fn torque_per_ampere(&self) -> Option<f64> {
+        self.torque_constant.map(|k| self.current_sign * k * self.gear_ratio)
+    }
+
+    /// True when the friction torque is discontinuous at rest (a Coulomb or
+    /// asymmetric term with the sign shape): identification then drops the
+    /// joint's slow rows.
+    pub fn discontinuous_at_rest(&self) -> bool {
+        !matches!(self.friction, Friction::None) && self.coulomb.is_sign()
+    }
 }
 
 impl Default for Drive {
@@ -210,6 +312,9 @@ impl Default for Drive {
                 fv: 0.0,
                 offset: None,
             },
+            coulomb: Coulomb::Sign,
+            torque_constant: None,
+            current_sign: 1.0,
         }
     }
 }
@@ -265,6 +370,12 @@ pub enum ParamKind {
     FvPos,
     /// Viscous friction, negative velocity.
     FvNeg,
+    /// Stribeck coefficient (symmetric model, [`Coulomb::Stribeck`]).
+    Fs,
+    /// Stribeck coefficient, positive velocity (asymmetric model).
+    FsPos,
+    /// Stribeck coefficient, negative velocity (asymmetric model).
+    FsNeg,
 }
 
 impl ParamKind {
@@ -290,6 +401,9 @@ impl ParamKind {
             FcNeg => "Fcn",
             FvPos => "Fvp",
             FvNeg => "Fvn",
+            Fs => "Fs",
+            FsPos => "Fsp",
+            FsNeg => "Fsn",
         }
     }
     /// True for the 10 rigid-body inertial parameters.
@@ -299,7 +413,7 @@ impl ParamKind {
     /// True for friction parameters.
     pub fn is_friction(self) -> bool {
         use ParamKind::*;
-        matches!(self, Fc | Fv | F0 | FcPos | FcNeg | FvPos | FvNeg)
+        matches!(self, Fc | Fv | F0 | FcPos | FcNeg | FvPos | FvNeg | Fs | FsPos | FsNeg)
     }
     /// The 10 inertial kinds in the standard order.
     pub const INERTIAL: [ParamKind; 10] = [
@@ -496,6 +610,9 @@ fn param_layout(drives: &[Drive]) -> (Vec<ParamInfo>, Vec<usize>) {
                 if offset.is_some() {
                     push(ParamKind::F0);
                 }
+                if matches!(d.coulomb, Coulomb::Stribeck { .. }) {
+                    push(ParamKind::Fs);
+                }
             }
             Friction::Asymmetric { offset, .. } => {
                 push(ParamKind::FcPos);
@@ -505,10 +622,53 @@ fn param_layout(drives: &[Drive]) -> (Vec<ParamInfo>, Vec<usize>) {
                 if offset.is_some() {
                     push(ParamKind::F0);
                 }
+                if matches!(d.coulomb, Coulomb::Stribeck { .. }) {
+                    push(ParamKind::FsPos);
+                    push(ParamKind::FsNeg);
+                }
             }
         }
     }
     (params, drive_offset)
+}
+
+/// Checks the drive data a robot file cannot express wrongly but a library
+/// caller can: velocity scales and Stribeck velocities positive and finite,
+/// torque constants positive and finite, current signs ±1.
+fn check_drives(name: &str, joints: &[Joint], drives: &[Drive]) -> crate::Result<()> {
+    let ctx = || format!("robot `{name}`");
+    for (j, d) in drives.iter().enumerate() {
+        let field = |s: &str| format!("drive of joint `{}`.{s}", joints[j].name);
+        let positive = |s: &str, v: f64| -> crate::Result<()> {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(crate::Error::invalid(ctx(), field(s), format!("expected a positive finite number, found {v}")))
+            }
+        };
+        match d.coulomb {
+            Coulomb::Sign => {}
+            Coulomb::Tanh { velocity_scale } => positive("velocity_scale", velocity_scale)?,
+            Coulomb::Stribeck {
+                velocity_scale,
+                stribeck_velocity,
+                fs,
+            } => {
+                positive("velocity_scale", velocity_scale)?;
+                positive("stribeck_velocity", stribeck_velocity)?;
+                if fs.iter().any(|v| !v.is_finite()) {
+                    return Err(crate::Error::invalid(ctx(), field("fs"), "expected finite Stribeck coefficients"));
+                }
+            }
+        }
+        if let Some(k) = d.torque_constant {
+            positive("torque_constant", k)?;
+        }
+        if d.current_sign != 1.0 && d.current_sign != -1.0 {
+            return Err(crate::Error::invalid(ctx(), field("current_sign"), format!("expected 1 or -1, found {}", d.current_sign)));
+        }
+    }
+    Ok(())
 }
 
 /// Entries (row, column, value) of the non-zero elements of `m`.
@@ -586,6 +746,7 @@ impl Robot {
         }
         check_joints(&name, &joints)?;
         check_links(&name, &links)?;
+        check_drives(&name, &joints, &drives)?;
         let coupling_inv_t = coupling_inverse_transpose(&name, coupling.as_ref(), n)?;
         let (params, drive_offset) = param_layout(&drives);
         let geo = joints.iter().map(JointGeometry::of).collect();
@@ -662,6 +823,9 @@ impl Robot {
                     if let Some(o) = offset {
                         v.push(o);
                     }
+                    if let Coulomb::Stribeck { fs, .. } = d.coulomb {
+                        v.push(fs[0]);
+                    }
                 }
                 Friction::Asymmetric {
                     fc_pos,
@@ -673,6 +837,9 @@ impl Robot {
                     v.extend([fc_pos, fc_neg, fv_pos, fv_neg]);
                     if let Some(o) = offset {
                         v.push(o);
+                    }
+                    if let Coulomb::Stribeck { fs, .. } = d.coulomb {
+                        v.extend(fs);
                     }
                 }
             }
@@ -771,21 +938,35 @@ impl Robot {
                 d.rotor_inertia = Some(theta[k]);
                 k += 1;
             }
-            d.friction = match d.friction {
-                Friction::None => Friction::None,
-                Friction::Symmetric { offset, .. } => Friction::Symmetric {
-                    fc: theta[k],
-                    fv: theta[k + 1],
-                    offset: offset.map(|_| theta[k + 2]),
-                },
-                Friction::Asymmetric { offset, .. } => Friction::Asymmetric {
-                    fc_pos: theta[k],
-                    fc_neg: theta[k + 1],
-                    fv_pos: theta[k + 2],
-                    fv_neg: theta[k + 3],
-                    offset: offset.map(|_| theta[k + 4]),
-                },
+            let (friction, next) = match d.friction {
+                Friction::None => (Friction::None, k),
+                Friction::Symmetric { offset, .. } => (
+                    Friction::Symmetric {
+                        fc: theta[k],
+                        fv: theta[k + 1],
+                        offset: offset.map(|_| theta[k + 2]),
+                    },
+                    k + 2 + usize::from(offset.is_some()),
+                ),
+                Friction::Asymmetric { offset, .. } => (
+                    Friction::Asymmetric {
+                        fc_pos: theta[k],
+                        fc_neg: theta[k + 1],
+                        fv_pos: theta[k + 2],
+                        fv_neg: theta[k + 3],
+                        offset: offset.map(|_| theta[k + 4]),
+                    },
+                    k + 4 + usize::from(offset.is_some()),
+                ),
             };
+            if let Coulomb::Stribeck { ref mut fs, .. } = d.coulomb {
+                match friction {
+                    Friction::None => {}
+                    Friction::Symmetric { .. } => fs[0] = theta[next],
+                    Friction::Asymmetric { .. } => *fs = [theta[next], theta[next + 1]],
+                }
+            }
+            d.friction = friction;
         }
         Ok(r)
     }

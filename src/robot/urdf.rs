@@ -243,6 +243,7 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
                         rotor_inertia: None,
                         gear_ratio: 1.0,
                         friction: Friction::Symmetric { fc, fv, offset: None },
+                        ..Drive::default()
                     });
                     stack.push((j.child.link.clone(), Some(idx), Isometry3::identity()));
                 }

@@ -1,0 +1,229 @@
+//! The drive side (issue 16): friction models per drive (sign, tanh,
+//! Stribeck; symmetric and asymmetric), standstill rows in identification,
+//! motor currents in runs, and the bad inputs of each.
+
+mod common;
+use common::{random_state, rng, root};
+use idexp::excitation::objective::{BaseColumns, Criterion, Objective, Scaling, Scoring};
+use idexp::params::{BaseOptions, BaseParams};
+use idexp::robot::{self, Coulomb, Friction, Robot, Workspace};
+use idexp::trajectory::{period_grid, FourierLayout};
+use nalgebra::{DMatrix, DVector};
+use rand::{RngExt, SeedableRng};
+use std::path::Path;
+
+/// The RPR test arm (tests/data/ident/rpr_drives.toml) with its `[[drive]]`
+/// entries replaced by `drives` and `top` inserted at the top of the file.
+pub fn rpr_with(top: &str, drives: &str) -> String {
+    let text = std::fs::read_to_string(root("tests/data/ident/rpr_drives.toml")).unwrap();
+    let cut = text.find("[[drive]]").unwrap();
+    format!("{top}\n{}\n{drives}", &text[..cut])
+}
+
+fn parse(text: &str) -> idexp::Result<Robot> {
+    robot::file::parse_robot_toml(Path::new("drive_test.toml"), text)
+}
+
+/// One robot per friction model: {sign, tanh, stribeck} × {symmetric, asymmetric},
+/// with offsets on some drives.
+fn model_robots() -> Vec<(String, Robot)> {
+    let mut out = Vec::new();
+    for shape in ["sign", "tanh", "stribeck"] {
+        let extra = match shape {
+            "sign" => "",
+            "tanh" => "velocity_scale = 0.05\n",
+            _ => "velocity_scale = 0.05\nstribeck_velocity = 0.2\n",
+        };
+        let (fs_sym, fs_asym) = if shape == "stribeck" { ("fs = 0.7\n", "fs_pos = 0.4\nfs_neg = -0.3\n") } else { ("", "") };
+        let sym = format!(
+            "[[drive]]\njoint = \"base\"\nia = 0.2\nfc = 1.5\nfv = 0.8\nf0 = 0.1\ncoulomb = \"{shape}\"\n{extra}{fs_sym}\n\
+             [[drive]]\njoint = \"slide\"\nia = 1.0\nfc = 4.0\nfv = 10.0\ncoulomb = \"{shape}\"\n{extra}{fs_sym}\n\
+             [[drive]]\njoint = \"wrist\"\nfc = 0.3\nfv = 0.05\ncoulomb = \"{shape}\"\n{extra}{fs_sym}\n"
+        );
+        let asym = format!(
+            "[[drive]]\njoint = \"base\"\nia = 0.2\nfriction = \"asymmetric\"\nfc_pos = 1.5\nfc_neg = -1.2\nfv_pos = 0.8\nfv_neg = 0.7\nf0 = -0.2\ncoulomb = \"{shape}\"\n{extra}{fs_asym}\n\
+             [[drive]]\njoint = \"slide\"\nfriction = \"asymmetric\"\nfc_pos = 4.0\nfc_neg = -3.0\nfv_pos = 10.0\nfv_neg = 9.0\ncoulomb = \"{shape}\"\n{extra}{fs_asym}\n\
+             [[drive]]\njoint = \"wrist\"\nfc = 0.3\nfv = 0.05\n"
+        );
+        out.push((format!("{shape}/symmetric"), parse(&rpr_with("", &sym)).unwrap()));
+        out.push((format!("{shape}/asymmetric"), parse(&rpr_with("", &asym)).unwrap()));
+    }
+    out
+}
+
+/// The friction torque of drive `d` at velocity `w`, written out from the
+/// model's formulas (independent of the library's column code).
+fn friction_by_hand(r: &Robot, j: usize, w: f64) -> f64 {
+    let d = &r.drives[j];
+    let (s, e) = match d.coulomb {
+        Coulomb::Sign => (w.signum() * f64::from(w != 0.0), 0.0),
+        Coulomb::Tanh { velocity_scale } => ((w / velocity_scale).tanh(), 0.0),
+        Coulomb::Stribeck {
+            velocity_scale,
+            stribeck_velocity,
+            ..
+        } => ((w / velocity_scale).tanh(), (-(w / stribeck_velocity).powi(2)).exp()),
+    };
+    let fs = match d.coulomb {
+        Coulomb::Stribeck { fs, .. } => fs,
+        _ => [0.0, 0.0],
+    };
+    match d.friction {
+        Friction::None => 0.0,
+        Friction::Symmetric { fc, fv, offset } => (fc + fs[0] * e) * s + fv * w + offset.unwrap_or(0.0),
+        Friction::Asymmetric {
+            fc_pos,
+            fc_neg,
+            fv_pos,
+            fv_neg,
+            offset,
+        } => {
+            let (sp, sn) = match d.coulomb {
+                Coulomb::Sign => (f64::from(w > 0.0), f64::from(w < 0.0)),
+                _ => ((1.0 + s) / 2.0, (1.0 - s) / 2.0),
+            };
+            sp * (fc_pos + fv_pos * w + fs[0] * e) + sn * (fc_neg + fv_neg * w + fs[1] * e) + offset.unwrap_or(0.0)
+        }
+    }
+}
+
+#[test]
+fn regressor_times_parameters_equals_inverse_dynamics_for_every_friction_model() {
+    for (name, r) in model_robots() {
+        let (n, p) = (r.dof(), r.n_params());
+        // the rigid part alone: the same arm without drives
+        let mut rigid = r.clone();
+        for d in rigid.drives.iter_mut() {
+            d.rotor_inertia = None;
+            d.friction = Friction::None;
+        }
+        let rigid = Robot::new(idexp::robot::RobotParts {
+            name: rigid.name.clone(),
+            joints: rigid.joints.clone(),
+            links: rigid.links.clone(),
+            drives: rigid.drives.clone(),
+            coupling: None,
+            frames: rigid.frames.clone(),
+            gravity: rigid.gravity,
+            source: "rigid".into(),
+        })
+        .unwrap();
+        let mut ws = Workspace::new(&r);
+        let mut wr = Workspace::new(&rigid);
+        let theta = r.nominal_params();
+        let mut y = DMatrix::zeros(n, p);
+        let (mut tau, mut tau_id, mut tau_rb) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        let mut g = rng(16);
+        for k in 0..600 {
+            let (q, mut qd, qdd) = random_state(&r, &mut g);
+            // a third of the states near or at rest, where the models differ most
+            if k % 3 == 0 {
+                for v in qd.iter_mut() {
+                    *v *= 1e-2 * g.random_range(0.0..1.0);
+                }
+            }
+            if k % 50 == 0 {
+                qd.iter_mut().for_each(|v| *v = 0.0);
+            }
+            robot::regressor(&r, &mut ws, &q, &qd, &qdd, &mut y);
+            robot::rnea(&r, &mut ws, &q, &qd, &qdd, &mut tau);
+            robot::inverse_dynamics(&r, &mut ws, theta.as_slice(), &q, &qd, &qdd, &mut tau_id);
+            robot::rnea(&rigid, &mut wr, &q, &qd, &qdd, &mut tau_rb);
+            let yt = &y * &theta;
+            for j in 0..n {
+                let ia = r.drives[j].rotor_inertia.unwrap_or(0.0) * qdd[j];
+                let want = tau_rb[j] + ia + friction_by_hand(&r, j, qd[j]);
+                let scale = want.abs().max(1.0);
+                assert!((yt[j] - want).abs() < 1e-9 * scale, "{name} joint {j}: Yθ = {} vs rigid + Ia q̈ + f = {want}", yt[j]);
+                assert!((tau[j] - want).abs() < 1e-9 * scale, "{name} joint {j}: rnea {} vs {want}", tau[j]);
+                assert!((tau_id[j] - want).abs() < 1e-9 * scale, "{name} joint {j}: inverse_dynamics {} vs {want}", tau_id[j]);
+            }
+        }
+        // and for an arbitrary parameter vector (linearity)
+        for _ in 0..20 {
+            let th = DVector::from_fn(p, |_, _| g.random_range(-1.0..1.0));
+            let (q, qd, qdd) = random_state(&r, &mut g);
+            robot::regressor(&r, &mut ws, &q, &qd, &qdd, &mut y);
+            robot::inverse_dynamics(&r, &mut ws, th.as_slice(), &q, &qd, &qdd, &mut tau_id);
+            let yt = &y * &th;
+            for j in 0..n {
+                assert!((yt[j] - tau_id[j]).abs() < 1e-9 * yt.amax().max(1.0), "{name}: Yθ ≠ inverse_dynamics(θ)");
+            }
+        }
+    }
+}
+
+#[test]
+fn stribeck_parameters_are_in_the_layout_and_round_trip_through_with_params() {
+    let robots = model_robots();
+    let (_, r) = robots.iter().find(|(n, _)| n == "stribeck/asymmetric").unwrap();
+    let names = r.param_names();
+    for want in ["Fs1", "Fsp1", "Fsn1", "Fsp2", "Fsn2"] {
+        assert_eq!(names.iter().any(|n| n == want), want != "Fs1", "{want} in {names:?}");
+    }
+    let th = r.nominal_params();
+    let th2: Vec<f64> = th.iter().map(|v| 2.0 * v).collect();
+    let r2 = r.with_params(&th2).unwrap();
+    assert_eq!(r2.nominal_params().as_slice(), th2.as_slice());
+    match r2.drives[0].coulomb {
+        Coulomb::Stribeck { fs, .. } => assert_eq!(fs, [0.8, -0.6]),
+        c => panic!("{c:?}"),
+    }
+}
+
+#[test]
+fn excitation_gradient_equals_finite_differences_with_a_tanh_friction_column() {
+    // a velocity scale of 0.2 rad/s: the tanh columns bend where the
+    // trajectory crosses zero velocity, so their derivative matters
+    let top = "coulomb = \"tanh\"\nvelocity_scale = 0.2\n";
+    let drives = "[[drive]]\njoint = \"base\"\nia = 0.2\nfc = 1.5\nfv = 0.8\n\
+                  [[drive]]\njoint = \"slide\"\nia = 1.0\nfc = 4.0\nfv = 10.0\ncoulomb = \"stribeck\"\nstribeck_velocity = 0.1\nfs = 0.5\n\
+                  [[drive]]\njoint = \"wrist\"\nia = 0.01\nfriction = \"asymmetric\"\nfc_pos = 0.3\nfc_neg = -0.25\nfv_pos = 0.05\nfv_neg = 0.04\n";
+    let r = parse(&rpr_with(top, drives)).unwrap();
+    let b = BaseParams::compute(&r, &BaseOptions::default()).unwrap();
+    assert!(b.names.iter().any(|n| n.starts_with("Fc1")), "{:?}", b.names);
+    let nom: Vec<f64> = b.base_values(r.nominal_params().as_slice()).iter().copied().collect();
+    let w = std::f64::consts::TAU * 0.2;
+    let lay = FourierLayout::new(vec![0.0, 0.25, 0.0], 3, w, false, false).unwrap();
+    let times = period_grid(std::f64::consts::TAU / w, 10.0).unwrap();
+    for crit in [Criterion::Cond, Criterion::LogDet] {
+        let o = Objective::new(
+            r.clone(),
+            lay.clone(),
+            BaseColumns {
+                indices: b.independent.clone(),
+                names: b.names.clone(),
+                nominal: nom.clone(),
+            },
+            times.clone(),
+            Scoring {
+                criterion: crit,
+                scaling: Scaling::UnitColumn,
+                noise: vec![1.0; 3],
+            },
+        )
+        .unwrap();
+        let mut ws = o.workspace();
+        let mut g = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let x: Vec<f64> = (0..lay.n_vars()).map(|_| g.random_range(-0.1..0.1)).collect();
+        let mut grad = vec![0.0; x.len()];
+        let f = o.value_grad(&x, &mut ws, &mut grad);
+        assert!(f.is_finite());
+        let h = 1e-6;
+        let gmax = grad.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(gmax > 0.0);
+        for i in 0..x.len() {
+            let (mut xp, mut xm) = (x.clone(), x.clone());
+            xp[i] += h;
+            xm[i] -= h;
+            let fd = (o.value(&xp, &mut ws) - o.value(&xm, &mut ws)) / (2.0 * h);
+            assert!((fd - grad[i]).abs() <= 1e-5 * gmax + 1e-6 * grad[i].abs(), "{crit:?} var {i}: analytic {} vs fd {fd}", grad[i]);
+        }
+        // the tanh columns' derivative is in the gradient: dropping it (a
+        // sign-like constant column) would not match; check the columns bend
+        let tr = lay.trajectory(&x);
+        let s = tr.sample(10.0).unwrap();
+        let crossing = s.qd.iter().any(|v| v[0].abs() < 0.2);
+        assert!(crossing, "the trajectory never comes near zero velocity: the tanh curvature would not be tested");
+    }
+}
