@@ -4,7 +4,8 @@
 //!
 //! - [`Run`] / [`Repetition`]: a measured (or simulated) rigid-body
 //!   identification run, N_r repetitions of one experiment on a common time
-//!   grid, one CSV per repetition (`t, q1..qn, tau1..taun[, r.., qd.., qdd..]`).
+//!   grid, one CSV per repetition (`t, q1..qn, tau1..taun[, r.., qd.., qdd..]`),
+//!   or with motor currents `cur1..curn` converted by the robot's drives.
 //! - [`MotorRecord`]: one recorded FRF experiment, motor torques u and motor
 //!   positions y per sample (`t, tau1..taun, qm1..qmn`).
 //! - [`Truth`]: the true parameters written next to a simulated run
@@ -15,5 +16,5 @@ pub mod run;
 pub mod truth;
 
 pub use motor::MotorRecord;
-pub use run::{expand, Averaged, Coordinates, Repetition, Run};
+pub use run::{expand, Averaged, Coordinates, Repetition, Run, TorqueFrom, TorqueSource, CURRENT_TOLERANCE};
 pub use truth::Truth;

@@ -109,13 +109,20 @@ impl Dataset {
     /// [`Dataset::new`] keeps: joint j at samples with |q̇_j| ≥
     /// max(`slow_ratio` · max_p |q̇_j(p)|, `min_speed`).
     pub fn moving_rows(&self, pr: &super::Processed, slow_ratio: f64, min_speed: f64) -> Dataset {
+        self.moving_rows_of(pr, slow_ratio, min_speed, &vec![true; self.n])
+    }
+
+    /// [`Dataset::moving_rows`] applied only to the joints with `drop[j]`
+    /// (the joints whose friction is discontinuous at rest); the other
+    /// joints keep every row.
+    pub fn moving_rows_of(&self, pr: &super::Processed, slow_ratio: f64, min_speed: f64, drop: &[bool]) -> Dataset {
         let n = self.n;
         let m = self.n_samples;
         let vmax: Vec<f64> = (0..n).map(|j| pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max)).collect();
         let keep: Vec<usize> = (0..n * m)
             .filter(|&r| {
                 let thr = (slow_ratio * vmax[r / m]).max(min_speed);
-                thr <= 0.0 || pr.qd[r % m][r / m].abs() >= thr
+                !drop[r / m] || thr <= 0.0 || pr.qd[r % m][r / m].abs() >= thr
             })
             .collect();
         if keep.len() == n * m {

@@ -21,7 +21,7 @@ pub mod output;
 pub mod process;
 pub mod reduce;
 
-pub use crate::data::{Coordinates, Repetition, Run};
+pub use crate::data::{Coordinates, Repetition, Run, TorqueFrom, TorqueSource, CURRENT_TOLERANCE};
 pub use closed_loop::{MlOptions, ProjectionOptions};
 pub use consistent::{Consistent, ConsistentOptions};
 pub use estimate::{Dataset, Errors, LsFit, Weights};
@@ -104,6 +104,61 @@ pub enum FilterChoice {
     Given(Filter),
 }
 
+/// Which slow rows (standstill, |q̇_j| below `slow_ratio`·max|q̇_j| or
+/// `min_speed`) identification leaves out (`--standstill`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Standstill {
+    /// Follow the model: drop the slow rows of joints whose friction is
+    /// discontinuous at rest (Coulomb shape `sign`: the measured velocity at
+    /// standstill is encoder noise and sign(q̇) flips between ±Fc), keep them
+    /// for smooth shapes (`tanh`, `stribeck`) and joints without friction.
+    #[default]
+    Auto,
+    /// Drop the slow rows of every joint (the rule before issue 16).
+    Drop,
+    /// Keep every row of every joint.
+    Keep,
+}
+
+impl Standstill {
+    /// The name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Standstill::Auto => "auto",
+            Standstill::Drop => "drop",
+            Standstill::Keep => "keep",
+        }
+    }
+}
+
+impl std::str::FromStr for Standstill {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Standstill> {
+        match s {
+            "auto" => Ok(Standstill::Auto),
+            "drop" => Ok(Standstill::Drop),
+            "keep" => Ok(Standstill::Keep),
+            _ => Err(Error::invalid("--standstill", "standstill", format!("expected auto, drop or keep, found `{s}`"))),
+        }
+    }
+}
+
+/// The rows of one joint used for the estimate and why.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RowsUsed {
+    /// Joint name.
+    pub joint: String,
+    /// Rows of this joint in the estimate.
+    pub used: usize,
+    /// Rows of this joint in the run (after decimation).
+    pub total: usize,
+    /// True when slow rows were left out.
+    pub slow_dropped: bool,
+    /// The rule in words.
+    pub reason: String,
+}
+
 /// Options of [`identify`].
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct IdentOptions {
@@ -126,6 +181,9 @@ pub struct IdentOptions {
     pub slow_ratio: f64,
     /// Rows of a joint slower than this speed are left out too (rad/s or m/s).
     pub min_speed: f64,
+    /// Which joints the slow-row rule applies to ([`Standstill`]; default:
+    /// those with a `sign` Coulomb term).
+    pub standstill: Standstill,
     /// Model reduction (WLS only).
     pub reduce: Option<ReduceOptions>,
     /// Projection-method options.
@@ -148,6 +206,7 @@ impl Default for IdentOptions {
             decimate: 1,
             slow_ratio: 0.1,
             min_speed: 0.01,
+            standstill: Standstill::Auto,
             reduce: None,
             projection: ProjectionOptions::default(),
             ml: MlOptions::default(),
@@ -215,8 +274,15 @@ pub struct Estimate {
     pub errors: Errors,
     /// Errors on the same kind of rows of the validation run.
     pub validation: Option<Errors>,
-    /// Errors on every sample of the identification run (paper 000's definition).
+    /// Errors on every sample of the identification run (paper 000's
+    /// definition), with the same model (friction shape) as the estimate.
     pub errors_all: Errors,
+    /// Per joint: the rows used for the estimate and the standstill rule applied.
+    pub rows_used: Vec<RowsUsed>,
+    /// How the joint torques were obtained when the run logged motor
+    /// currents ([`crate::data::Run::read_drives`]); set by the caller.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub torque_source: Option<crate::data::TorqueSource>,
     /// Errors on every sample of the validation run.
     pub validation_all: Option<Errors>,
     /// Names of the standard parameters (columns of `base_k`).
@@ -359,8 +425,18 @@ pub fn identify(
             ),
         ));
     }
+    let drop: Vec<bool> = robot
+        .drives
+        .iter()
+        .map(|d| match opts.standstill {
+            Standstill::Auto => d.discontinuous_at_rest(),
+            Standstill::Drop => true,
+            Standstill::Keep => false,
+        })
+        .collect();
     let every = Dataset::every_row(robot, base, &pr);
-    let full = every.moving_rows(&pr, slow, vmin);
+    let full = every.moving_rows_of(&pr, slow, vmin, &drop);
+    let rows_used = rows_used(robot, &full, pr.len(), &drop, slow, vmin, opts);
     let moving: Vec<bool> = (0..robot.dof())
         .map(|j| pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max) > opts.reduce.as_ref().map_or(0.05, |r| r.moving_speed))
         .collect();
@@ -429,7 +505,7 @@ pub fn identify(
             };
             let vp = process(vrun, &vf)?.decimated(opts.decimate);
             let ve = Dataset::every_row(robot, base, &vp).columns(&cols);
-            let vd = ve.moving_rows(&vp, slow, vmin);
+            let vd = ve.moving_rows_of(&vp, slow, vmin, &drop);
             val_every = Some(ve);
             Some(vd)
         }
@@ -488,6 +564,8 @@ pub fn identify(
         errors,
         validation: val_errors,
         errors_all,
+        rows_used,
+        torque_source: None,
         validation_all: val_errors_all,
         standard_names: robot.param_names(),
         base_k: cols.iter().map(|&c| base.k.row(c).iter().copied().collect()).collect(),
@@ -518,6 +596,45 @@ pub fn identify(
         dataset: ds,
         validation: val_ds,
     })
+}
+
+/// The rows of each joint in `full` and the standstill rule that chose them.
+fn rows_used(robot: &Robot, full: &Dataset, total: usize, drop: &[bool], slow: f64, vmin: f64, opts: &IdentOptions) -> Vec<RowsUsed> {
+    (0..robot.dof())
+        .map(|j| {
+            let used = full.joint.iter().filter(|&&k| k == j).count();
+            let d = &robot.drives[j];
+            let shape = if matches!(d.friction, crate::robot::Friction::None) {
+                "no friction".to_string()
+            } else {
+                format!("Coulomb {}", d.coulomb.describe())
+            };
+            let reason = if matches!(opts.method, Method::Projection) {
+                "every row kept: the projection method needs every sample".to_string()
+            } else if slow <= 0.0 && vmin <= 0.0 {
+                "every row kept: --slow-ratio 0 and --min-speed 0".to_string()
+            } else if drop[j] {
+                let why = match opts.standstill {
+                    Standstill::Drop => "--standstill drop".to_string(),
+                    _ => format!("{shape} is discontinuous at rest"),
+                };
+                format!("rows with |q̇| < max({slow}·max|q̇|, {vmin}) left out: {why}")
+            } else {
+                let why = match opts.standstill {
+                    Standstill::Keep => "--standstill keep".to_string(),
+                    _ => format!("{shape} is continuous at rest"),
+                };
+                format!("every row kept, standstill included: {why}")
+            };
+            RowsUsed {
+                joint: robot.joints[j].name.clone(),
+                used,
+                total,
+                slow_dropped: used < total,
+                reason,
+            }
+        })
+        .collect()
 }
 
 /// Joints whose filter residual exceeds 3× the noise of the averaged positions.
@@ -662,6 +779,13 @@ impl Estimate {
         for w in &self.warnings {
             let _ = writeln!(s, "WARNING: {w}");
         }
+        if let Some(t) = &self.torque_source {
+            let _ = writeln!(s, "{}", t.text());
+        }
+        let _ = writeln!(s, "rows used for the estimate (standstill rule):");
+        for r in &self.rows_used {
+            let _ = writeln!(s, "  {:<12} {:>7} of {:>7}  {}", r.joint, r.used, r.total, r.reason);
+        }
         let _ = writeln!(
             s,
             "design matrix: {} parameters, rank {}, cond {:.4e} (unit-norm columns {:.4}), χ²/dof {:.4}",
@@ -722,7 +846,7 @@ impl Estimate {
         );
         err_block(
             &mut s,
-            "prediction errors on the rows used for the estimate (identification run, rows slower than --slow-ratio/--min-speed left out)",
+            "prediction errors on the rows used for the estimate (identification run, rows chosen by the standstill rule above)",
             &self.errors,
         );
         if let Some(v) = &self.validation_all {

@@ -210,6 +210,30 @@ pub struct SimDesign {
     pub seed: u64,
     /// The reference motion.
     pub reference: ReferenceSpec,
+    /// What the run files log of the drive input: `torque` (default,
+    /// `tau*`), `current` (`cur*` only, i = τ/(s·k_t·N) with the robot
+    /// file's torque_constant, gear_ratio and current_sign) or `both`.
+    #[serde(default, skip_serializing_if = "Record::is_torque")]
+    pub record: Record,
+}
+
+/// What a simulated run logs of the drive input (design key `record`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Record {
+    /// Joint torques `tau1..taun` (with the torque noise).
+    #[default]
+    Torque,
+    /// Motor currents `cur1..curn` (A): the noisy torque divided by s·k_t·N.
+    Current,
+    /// Both, consistent with each other.
+    Both,
+}
+
+impl Record {
+    fn is_torque(&self) -> bool {
+        *self == Record::Torque
+    }
 }
 
 fn default_rate() -> f64 {
@@ -469,6 +493,19 @@ impl SimSetup {
     pub fn from_design(d: &SimDesign, base: &Path, ctx: &str) -> Result<SimSetup> {
         let nominal = crate::robot::load(&resolve(base, &d.robot))?;
         let n = nominal.dof();
+        if d.record != Record::Torque {
+            if let Some(j) = nominal.drives.iter().position(|dr| dr.torque_constant.is_none()) {
+                return Err(Error::invalid(
+                    ctx,
+                    "record",
+                    format!(
+                        "logging currents needs the torque constant of every drive, but joint `{}` of the robot file {} has none: add torque_constant = k_t (N·m/A) to its [[drive]] entry, or record = \"torque\"",
+                        nominal.joints[j].name,
+                        resolve(base, &d.robot).display()
+                    ),
+                ));
+            }
+        }
         let theta = perturb_params(&nominal, d.truth.perturbation, d.truth.seed.unwrap_or(d.seed));
         let truth = nominal.with_params(&theta)?;
         let reference = d.reference.build(&nominal, base, d.rate, ctx)?;
@@ -818,8 +855,17 @@ impl SimResult {
     /// references), `truth.json`, `design.json` (the resolved design) and `status.json`.
     pub fn write(&self, dir: &Path, design: &SimDesign) -> Result<()> {
         crate::io::folder::begin(dir, "simulate", &crate::io::status::fingerprint_of(design)?)?;
+        let scale: Option<Vec<f64>> = match design.record {
+            Record::Torque => None,
+            _ => self.setup.nominal.drives.iter().map(|d| d.torque_per_ampere()).collect(),
+        };
         for (i, rep) in self.reps.iter().enumerate() {
-            rep.write(&dir.join(format!("rep_{:03}.csv", i + 1)))?;
+            let path = dir.join(format!("rep_{:03}.csv", i + 1));
+            match (&scale, design.record) {
+                (Some(k), Record::Current) => rep.write_drive(&path, Some(k), false)?,
+                (Some(k), Record::Both) => rep.write_drive(&path, Some(k), true)?,
+                _ => rep.write(&path)?,
+            }
         }
         let rate = self.setup.rate / self.setup.decimate as f64;
         self.setup.reference.sample(rate).write(&dir.join("reference.csv"))?;

@@ -121,6 +121,15 @@ pub struct IdentifyArgs {
     /// Speed below which rows are left out: of the identification (default 0.01) and of the friction experiment (default 0.05) (rad/s or m/s).
     #[arg(long)]
     pub min_speed: Option<f64>,
+    /// Which slow rows to leave out: auto (those of joints with a `sign` Coulomb term; smooth tanh/stribeck joints keep their standstill rows), drop (every joint), keep (none).
+    #[arg(long, default_value = "auto")]
+    pub standstill: idexp::ident::Standstill,
+    /// Joint torques from the torque columns tau*, the motor currents cur* (τ = current_sign·k_t·N·i with the robot file's drives), or auto (currents when the run logs no torques).
+    #[arg(long, default_value_t = idexp::ident::TorqueFrom::Auto)]
+    pub torque_from: idexp::ident::TorqueFrom,
+    /// Largest relative RMS difference per file and joint between logged torques and the torques of logged currents.
+    #[arg(long, default_value_t = idexp::ident::CURRENT_TOLERANCE)]
+    pub current_tolerance: f64,
     /// N_r of an averaged run (one CSV with var_tau1..var_taun columns); default: `repetitions` in run.json next to it.
     #[arg(long)]
     pub repetitions: Option<usize>,
@@ -212,7 +221,8 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         .iter()
         .chain(&a.validate)
         .try_for_each(|r| idexp::io::status::require_complete(r, a.allow_incomplete))?;
-    let run = Run::read_with(&a.run, robot.dof(), a.repetitions)?;
+    let (run, torque_source) = Run::read_drives(&a.run, &robot, a.repetitions, a.torque_from, a.current_tolerance)?;
+    let logged_currents = torque_source.from == "current" || torque_source.agreement.is_some() || !torque_source.note.is_empty();
     let traj = match &a.trajectory {
         Some(p) => Some(FourierTrajectory::load(p)?),
         None => run_trajectory(&run)?,
@@ -237,6 +247,7 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         decimate: a.decimate,
         slow_ratio: a.slow_ratio,
         min_speed: a.min_speed.unwrap_or(0.01),
+        standstill: a.standstill,
         reduce: a.reduce.then(|| ReduceOptions {
             tol: a.reduce_tol,
             essential,
@@ -270,7 +281,7 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let vrun = if a.validate.is_empty() {
         None
     } else {
-        Some(Run::read_with(&a.validate, robot.dof(), None)?)
+        Some(Run::read_drives(&a.validate, &robot, None, a.torque_from, a.current_tolerance)?.0)
     };
     let vtraj = match (&a.validate_trajectory, &vrun) {
         (Some(p), _) => Some(FourierTrajectory::load(p)?),
@@ -283,6 +294,9 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         BaseParams::with_columns(&robot, &a.base_columns, &BaseOptions::default())?
     };
     let mut id = identify(&robot, &base, &run, traj.as_ref(), vrun.as_ref().map(|v| (v, vtraj.as_ref())), &opts, ctl)?;
+    if logged_currents {
+        id.estimate.torque_source = Some(torque_source);
+    }
     if let Some(t) = &a.truth {
         let truth = idexp::sim::Truth::read(t)?;
         id.estimate.compare_truth(&truth.base_names, &truth.base)?;
