@@ -316,3 +316,149 @@ fn pick_and_place_with_dwell_tanh_model_beats_sign_model_at_standstill() {
         assert!(rt[j] < rs[j] && rt[j] < rk[j], "joint {j}: standstill RMS tanh {} vs sign {} / {}", rt[j], rs[j], rk[j]);
     }
 }
+
+/// A small simulated run on the tanh RPR arm, written to `dir` with `record`.
+fn write_sim(dir: &Path, record: &str) -> idexp::sim::SimResult {
+    let text = format!(
+        r#"
+robot = "{}"
+rate = 1000.0
+substeps = 10
+decimate = 5
+repetitions = 4
+seed = 3
+record = "{record}"
+[truth]
+perturbation = 0.1
+[noise]
+torque = 0.05
+position = 1e-5
+[reference]
+kind = "random_fourier"
+n_h = 5
+frequency = 0.2
+amplitude = 0.5
+seed = 2
+"#,
+        root("tests/data/ident/rpr_drives_tanh.toml").display()
+    );
+    let d: idexp::sim::SimDesign = idexp::io::parse_toml(Path::new("currents.toml"), &text).unwrap();
+    d.validate("currents.toml").unwrap();
+    let setup = idexp::sim::SimSetup::from_design(&d, &root(""), "currents.toml").unwrap();
+    let res = setup.run(&idexp::optim::Control::new()).unwrap();
+    res.write(dir, &d).unwrap();
+    res
+}
+
+#[test]
+fn a_run_of_currents_gives_the_same_estimate_as_the_run_of_torques() {
+    use idexp::ident::{identify, IdentOptions, Run, TorqueFrom, CURRENT_TOLERANCE};
+    let tmp = tempfile::tempdir().unwrap();
+    let (dt, dc, db) = (tmp.path().join("tau"), tmp.path().join("cur"), tmp.path().join("both"));
+    write_sim(&dt, "torque");
+    write_sim(&dc, "current");
+    write_sim(&db, "both");
+    let r = robot::load(&root("tests/data/ident/rpr_drives_tanh.toml")).unwrap();
+    let head = std::fs::read_to_string(dc.join("rep_001.csv")).unwrap();
+    let header = head.lines().next().unwrap();
+    assert!(header.contains("cur1") && !header.contains("tau1"), "{header}");
+    // the current of the wrist has the opposite sign (current_sign = -1) and is τ/(k_t N)
+    let (rt, st) = Run::read_drives(&[dt.clone()], &r, None, TorqueFrom::Auto, CURRENT_TOLERANCE).unwrap();
+    let (rc, sc) = Run::read_drives(&[dc.clone()], &r, None, TorqueFrom::Auto, CURRENT_TOLERANCE).unwrap();
+    let (rb, sb) = Run::read_drives(&[db.clone()], &r, None, TorqueFrom::Current, CURRENT_TOLERANCE).unwrap();
+    assert_eq!((st.from.as_str(), sc.from.as_str(), sb.from.as_str()), ("torque", "current", "current"));
+    assert_eq!(sc.torque_per_ampere.as_deref(), Some(&[0.12 * 50.0, 0.2 * 1000.0, -0.05 * 30.0][..]));
+    let ag = sb.agreement.as_ref().unwrap();
+    assert!(ag.iter().all(|&a| a < 1e-12), "{ag:?}");
+    let t0 = &rt.reps[0].tau[7];
+    let c0 = &rc.reps[0].tau[7];
+    for j in 0..3 {
+        assert!((t0[j] - c0[j]).abs() <= 1e-12 * t0[j].abs().max(1.0), "{t0:?} vs {c0:?}");
+    }
+    let base = BaseParams::compute(&r, &BaseOptions::default()).unwrap();
+    let ctl = idexp::optim::Control::new();
+    let opts = IdentOptions::default();
+    let et = identify(&r, &base, &rt, None, None, &opts, &ctl).unwrap().estimate;
+    let ec = identify(&r, &base, &rc, None, None, &opts, &ctl).unwrap().estimate;
+    let eb = identify(&r, &base, &rb, None, None, &opts, &ctl).unwrap().estimate;
+    for i in 0..et.theta.len() {
+        for e in [&ec, &eb] {
+            assert!(
+                (et.theta[i] - e.theta[i]).abs() <= 1e-9 * et.std[i].max(1e-12) + 1e-12 * et.theta[i].abs(),
+                "{}: {} vs {}",
+                et.names[i],
+                et.theta[i],
+                e.theta[i]
+            );
+        }
+    }
+}
+
+fn err_text<T: std::fmt::Debug>(r: idexp::Result<T>) -> String {
+    r.unwrap_err().to_string()
+}
+
+#[test]
+fn bad_drive_inputs_are_errors_naming_file_and_joint() {
+    use idexp::ident::{Run, TorqueFrom, CURRENT_TOLERANCE};
+    // v_s ≤ 0, non-finite, missing
+    for (vs, what) in [("0.0", "found 0"), ("-0.001", "found -0.001"), ("nan", "found NaN"), ("inf", "found inf")] {
+        let t = rpr_with("", &format!("[[drive]]\njoint = \"slide\"\nfc = 4.0\ncoulomb = \"tanh\"\nvelocity_scale = {vs}\n"));
+        let e = err_text(parse(&t));
+        assert!(e.contains("drive_test.toml") && e.contains("joint `slide`") && e.contains("velocity_scale") && e.contains(what), "{e}");
+    }
+    let e = err_text(parse(&rpr_with("coulomb = \"tanh\"", "")));
+    assert!(e.contains("drive_test.toml") && e.contains("velocity_scale") && e.contains("0.001"), "{e}");
+    let e = err_text(parse(&rpr_with("", "[[drive]]\njoint = \"base\"\ncoulomb = \"stribeck\"\nvelocity_scale = 0.01\n")));
+    assert!(e.contains("joint `base`") && e.contains("stribeck_velocity"), "{e}");
+    let e = err_text(parse(&rpr_with("", "[[drive]]\njoint = \"base\"\nfs = 0.3\n")));
+    assert!(e.contains("joint `base`") && e.contains("fs") && e.contains("stribeck"), "{e}");
+    let e = err_text(parse(&rpr_with("", "[[drive]]\njoint = \"wrist\"\ntorque_constant = -0.1\n")));
+    assert!(e.contains("joint `wrist`") && e.contains("torque_constant") && e.contains("-0.1"), "{e}");
+    let e = err_text(parse(&rpr_with("", "[[drive]]\njoint = \"wrist\"\ncurrent_sign = 2\n")));
+    assert!(e.contains("joint `wrist`") && e.contains("current_sign") && e.contains("1 or -1"), "{e}");
+
+    let tmp = tempfile::tempdir().unwrap();
+    // a current column without a torque constant
+    let dc = tmp.path().join("cur");
+    write_sim(&dc, "current");
+    let plain = robot::load(&root("tests/data/ident/rpr_drives.toml")).unwrap();
+    let e = err_text(Run::read_drives(&[dc.clone()], &plain, None, TorqueFrom::Auto, CURRENT_TOLERANCE));
+    assert!(e.contains("rep_001.csv") && e.contains("cur1") && e.contains("joint `base`") && e.contains("torque_constant"), "{e}");
+    // without a robot the run is an error that points to the currents
+    let e = err_text(Run::read(&[dc.clone()], 3));
+    assert!(e.contains("rep_001.csv") && e.contains("currents"), "{e}");
+    // --torque-from torque on a current-only run
+    let r = robot::load(&root("tests/data/ident/rpr_drives_tanh.toml")).unwrap();
+    let e = err_text(Run::read_drives(&[dc.clone()], &r, None, TorqueFrom::Torque, CURRENT_TOLERANCE));
+    assert!(e.contains("tau1") && e.contains("--torque-from current"), "{e}");
+    // torques and currents disagreeing: the slide's current scaled by 1.2
+    let db = tmp.path().join("both");
+    write_sim(&db, "both");
+    let f = db.join("rep_002.csv");
+    let text = std::fs::read_to_string(&f).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let c2 = header.iter().position(|c| *c == "cur2").unwrap();
+    let mut out = vec![header.join(",")];
+    for l in lines {
+        let mut v: Vec<String> = l.split(',').map(String::from).collect();
+        v[c2] = format!("{}", 1.2 * v[c2].parse::<f64>().unwrap());
+        out.push(v.join(","));
+    }
+    std::fs::write(&f, out.join("\n") + "\n").unwrap();
+    for from in [TorqueFrom::Auto, TorqueFrom::Torque, TorqueFrom::Current] {
+        let e = err_text(Run::read_drives(&[db.clone()], &r, None, from, CURRENT_TOLERANCE));
+        assert!(e.contains("rep_002.csv") && e.contains("cur2") && e.contains("joint `slide`") && e.contains("tolerance 5.00 %"), "{e}");
+    }
+    // a 25 % tolerance accepts the 20 % scale error
+    assert!(Run::read_drives(&[db.clone()], &r, None, TorqueFrom::Auto, 0.25).is_ok());
+    // simulate: record = "current" on a robot without torque constants
+    let text = format!(
+        "robot = \"{}\"\nrecord = \"current\"\n[reference]\nkind = \"random_fourier\"\nn_h = 3\nfrequency = 0.2\namplitude = 0.3\nseed = 1\n",
+        root("tests/data/ident/rpr_drives.toml").display()
+    );
+    let d: idexp::sim::SimDesign = idexp::io::parse_toml(Path::new("rec.toml"), &text).unwrap();
+    let e = err_text(idexp::sim::SimSetup::from_design(&d, &root(""), "rec.toml"));
+    assert!(e.contains("rec.toml") && e.contains("record") && e.contains("joint `base`") && e.contains("torque_constant"), "{e}");
+}
