@@ -52,10 +52,10 @@ fn refused(args: &[&str], needles: &[&str]) {
 fn sim_variant(dir: &Path, name: &str, from: &str, to: &str) -> String {
     let text = std::fs::read_to_string(root("designs/sim_rpr_pick_place.toml")).unwrap();
     assert!(text.contains(from), "{from}");
-    let robot = root("tests/data/ident/rpr_drives.toml");
+    let robot = root("tests/data/ident/rpr_drives_tanh.toml");
     let text = text
         .replace(from, to)
-        .replace("\"../tests/data/ident/rpr_drives.toml\"", &format!("{:?}", robot.to_str().unwrap()));
+        .replace("\"../tests/data/ident/rpr_drives_tanh.toml\"", &format!("{:?}", robot.to_str().unwrap()));
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
     p.to_str().unwrap().to_string()

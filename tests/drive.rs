@@ -34,7 +34,11 @@ fn model_robots() -> Vec<(String, Robot)> {
             "tanh" => "velocity_scale = 0.05\n",
             _ => "velocity_scale = 0.05\nstribeck_velocity = 0.2\n",
         };
-        let (fs_sym, fs_asym) = if shape == "stribeck" { ("fs = 0.7\n", "fs_pos = 0.4\nfs_neg = -0.3\n") } else { ("", "") };
+        let (fs_sym, fs_asym) = if shape == "stribeck" {
+            ("fs = 0.7\n", "fs_pos = 0.4\nfs_neg = -0.3\n")
+        } else {
+            ("", "")
+        };
         let sym = format!(
             "[[drive]]\njoint = \"base\"\nia = 0.2\nfc = 1.5\nfv = 0.8\nf0 = 0.1\ncoulomb = \"{shape}\"\n{extra}{fs_sym}\n\
              [[drive]]\njoint = \"slide\"\nia = 1.0\nfc = 4.0\nfv = 10.0\ncoulomb = \"{shape}\"\n{extra}{fs_sym}\n\
@@ -134,9 +138,17 @@ fn regressor_times_parameters_equals_inverse_dynamics_for_every_friction_model()
                 let ia = r.drives[j].rotor_inertia.unwrap_or(0.0) * qdd[j];
                 let want = tau_rb[j] + ia + friction_by_hand(&r, j, qd[j]);
                 let scale = want.abs().max(1.0);
-                assert!((yt[j] - want).abs() < 1e-9 * scale, "{name} joint {j}: Yθ = {} vs rigid + Ia q̈ + f = {want}", yt[j]);
+                assert!(
+                    (yt[j] - want).abs() < 1e-9 * scale,
+                    "{name} joint {j}: Yθ = {} vs rigid + Ia q̈ + f = {want}",
+                    yt[j]
+                );
                 assert!((tau[j] - want).abs() < 1e-9 * scale, "{name} joint {j}: rnea {} vs {want}", tau[j]);
-                assert!((tau_id[j] - want).abs() < 1e-9 * scale, "{name} joint {j}: inverse_dynamics {} vs {want}", tau_id[j]);
+                assert!(
+                    (tau_id[j] - want).abs() < 1e-9 * scale,
+                    "{name} joint {j}: inverse_dynamics {} vs {want}",
+                    tau_id[j]
+                );
             }
         }
         // and for an arbitrary parameter vector (linearity)
@@ -217,14 +229,21 @@ fn excitation_gradient_equals_finite_differences_with_a_tanh_friction_column() {
             xp[i] += h;
             xm[i] -= h;
             let fd = (o.value(&xp, &mut ws) - o.value(&xm, &mut ws)) / (2.0 * h);
-            assert!((fd - grad[i]).abs() <= 1e-5 * gmax + 1e-6 * grad[i].abs(), "{crit:?} var {i}: analytic {} vs fd {fd}", grad[i]);
+            assert!(
+                (fd - grad[i]).abs() <= 1e-5 * gmax + 1e-6 * grad[i].abs(),
+                "{crit:?} var {i}: analytic {} vs fd {fd}",
+                grad[i]
+            );
         }
         // the tanh columns' derivative is in the gradient: dropping it (a
         // sign-like constant column) would not match; check the columns bend
         let tr = lay.trajectory(&x);
         let s = tr.sample(10.0).unwrap();
         let crossing = s.qd.iter().any(|v| v[0].abs() < 0.2);
-        assert!(crossing, "the trajectory never comes near zero velocity: the tanh curvature would not be tested");
+        assert!(
+            crossing,
+            "the trajectory never comes near zero velocity: the tanh curvature would not be tested"
+        );
     }
 }
 
@@ -301,7 +320,11 @@ fn pick_and_place_with_dwell_tanh_model_beats_sign_model_at_standstill() {
     let pct = |v: &[f64]| v.iter().map(|x| format!("{:.2}", 100.0 * x)).collect::<Vec<_>>().join(", ");
     let num = |v: &[f64]| v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", ");
     println!("noise floor at standstill (σ of the averaged torque, N·m): [{}]", num(&ft));
-    for (name, id, rms, z) in [("tanh, every row", &it, &rt, zt), ("sign, slow rows dropped", &is, &rs, zs), ("sign, every row", &ik, &rk, zk)] {
+    for (name, id, rms, z) in [
+        ("tanh, every row", &it, &rt, zt),
+        ("sign, slow rows dropped", &is, &rs, zs),
+        ("sign, every row", &ik, &rk, zk),
+    ] {
         println!(
             "{name:<24} e*_j all rows [{}] %, validation all rows [{}] %, standstill RMS [{}] N·m, max|z| {z:.2}",
             pct(&id.estimate.errors_all.e_rel),
@@ -313,7 +336,13 @@ fn pick_and_place_with_dwell_tanh_model_beats_sign_model_at_standstill() {
         // over the whole motion and at standstill, the tanh model predicts better
         assert!(it.estimate.errors_all.e_rel[j] < is.estimate.errors_all.e_rel[j], "joint {j}");
         assert!(it.estimate.errors_all.e_rel[j] < ik.estimate.errors_all.e_rel[j], "joint {j}");
-        assert!(rt[j] < rs[j] && rt[j] < rk[j], "joint {j}: standstill RMS tanh {} vs sign {} / {}", rt[j], rs[j], rk[j]);
+        assert!(
+            rt[j] < rs[j] && rt[j] < rk[j],
+            "joint {j}: standstill RMS tanh {} vs sign {} / {}",
+            rt[j],
+            rs[j],
+            rk[j]
+        );
     }
 }
 
@@ -363,9 +392,9 @@ fn a_run_of_currents_gives_the_same_estimate_as_the_run_of_torques() {
     let header = head.lines().next().unwrap();
     assert!(header.contains("cur1") && !header.contains("tau1"), "{header}");
     // the current of the wrist has the opposite sign (current_sign = -1) and is τ/(k_t N)
-    let (rt, st) = Run::read_drives(&[dt.clone()], &r, None, TorqueFrom::Auto, CURRENT_TOLERANCE).unwrap();
-    let (rc, sc) = Run::read_drives(&[dc.clone()], &r, None, TorqueFrom::Auto, CURRENT_TOLERANCE).unwrap();
-    let (rb, sb) = Run::read_drives(&[db.clone()], &r, None, TorqueFrom::Current, CURRENT_TOLERANCE).unwrap();
+    let (rt, st) = Run::read_drives(std::slice::from_ref(&dt), &r, None, TorqueFrom::Auto, CURRENT_TOLERANCE).unwrap();
+    let (rc, sc) = Run::read_drives(std::slice::from_ref(&dc), &r, None, TorqueFrom::Auto, CURRENT_TOLERANCE).unwrap();
+    let (rb, sb) = Run::read_drives(std::slice::from_ref(&db), &r, None, TorqueFrom::Current, CURRENT_TOLERANCE).unwrap();
     assert_eq!((st.from.as_str(), sc.from.as_str(), sb.from.as_str()), ("torque", "current", "current"));
     assert_eq!(sc.torque_per_ampere.as_deref(), Some(&[0.12 * 50.0, 0.2 * 1000.0, -0.05 * 30.0][..]));
     let ag = sb.agreement.as_ref().unwrap();
@@ -403,13 +432,22 @@ fn bad_drive_inputs_are_errors_naming_file_and_joint() {
     use idexp::ident::{Run, TorqueFrom, CURRENT_TOLERANCE};
     // v_s ≤ 0, non-finite, missing
     for (vs, what) in [("0.0", "found 0"), ("-0.001", "found -0.001"), ("nan", "found NaN"), ("inf", "found inf")] {
-        let t = rpr_with("", &format!("[[drive]]\njoint = \"slide\"\nfc = 4.0\ncoulomb = \"tanh\"\nvelocity_scale = {vs}\n"));
+        let t = rpr_with(
+            "",
+            &format!("[[drive]]\njoint = \"slide\"\nfc = 4.0\ncoulomb = \"tanh\"\nvelocity_scale = {vs}\n"),
+        );
         let e = err_text(parse(&t));
-        assert!(e.contains("drive_test.toml") && e.contains("joint `slide`") && e.contains("velocity_scale") && e.contains(what), "{e}");
+        assert!(
+            e.contains("drive_test.toml") && e.contains("joint `slide`") && e.contains("velocity_scale") && e.contains(what),
+            "{e}"
+        );
     }
     let e = err_text(parse(&rpr_with("coulomb = \"tanh\"", "")));
     assert!(e.contains("drive_test.toml") && e.contains("velocity_scale") && e.contains("0.001"), "{e}");
-    let e = err_text(parse(&rpr_with("", "[[drive]]\njoint = \"base\"\ncoulomb = \"stribeck\"\nvelocity_scale = 0.01\n")));
+    let e = err_text(parse(&rpr_with(
+        "",
+        "[[drive]]\njoint = \"base\"\ncoulomb = \"stribeck\"\nvelocity_scale = 0.01\n",
+    )));
     assert!(e.contains("joint `base`") && e.contains("stribeck_velocity"), "{e}");
     let e = err_text(parse(&rpr_with("", "[[drive]]\njoint = \"base\"\nfs = 0.3\n")));
     assert!(e.contains("joint `base`") && e.contains("fs") && e.contains("stribeck"), "{e}");
@@ -423,14 +461,17 @@ fn bad_drive_inputs_are_errors_naming_file_and_joint() {
     let dc = tmp.path().join("cur");
     write_sim(&dc, "current");
     let plain = robot::load(&root("tests/data/ident/rpr_drives.toml")).unwrap();
-    let e = err_text(Run::read_drives(&[dc.clone()], &plain, None, TorqueFrom::Auto, CURRENT_TOLERANCE));
-    assert!(e.contains("rep_001.csv") && e.contains("cur1") && e.contains("joint `base`") && e.contains("torque_constant"), "{e}");
+    let e = err_text(Run::read_drives(std::slice::from_ref(&dc), &plain, None, TorqueFrom::Auto, CURRENT_TOLERANCE));
+    assert!(
+        e.contains("rep_001.csv") && e.contains("cur1") && e.contains("joint `base`") && e.contains("torque_constant"),
+        "{e}"
+    );
     // without a robot the run is an error that points to the currents
-    let e = err_text(Run::read(&[dc.clone()], 3));
+    let e = err_text(Run::read(std::slice::from_ref(&dc), 3));
     assert!(e.contains("rep_001.csv") && e.contains("currents"), "{e}");
     // --torque-from torque on a current-only run
     let r = robot::load(&root("tests/data/ident/rpr_drives_tanh.toml")).unwrap();
-    let e = err_text(Run::read_drives(&[dc.clone()], &r, None, TorqueFrom::Torque, CURRENT_TOLERANCE));
+    let e = err_text(Run::read_drives(std::slice::from_ref(&dc), &r, None, TorqueFrom::Torque, CURRENT_TOLERANCE));
     assert!(e.contains("tau1") && e.contains("--torque-from current"), "{e}");
     // torques and currents disagreeing: the slide's current scaled by 1.2
     let db = tmp.path().join("both");
@@ -448,11 +489,14 @@ fn bad_drive_inputs_are_errors_naming_file_and_joint() {
     }
     std::fs::write(&f, out.join("\n") + "\n").unwrap();
     for from in [TorqueFrom::Auto, TorqueFrom::Torque, TorqueFrom::Current] {
-        let e = err_text(Run::read_drives(&[db.clone()], &r, None, from, CURRENT_TOLERANCE));
-        assert!(e.contains("rep_002.csv") && e.contains("cur2") && e.contains("joint `slide`") && e.contains("tolerance 5.00 %"), "{e}");
+        let e = err_text(Run::read_drives(std::slice::from_ref(&db), &r, None, from, CURRENT_TOLERANCE));
+        assert!(
+            e.contains("rep_002.csv") && e.contains("cur2") && e.contains("joint `slide`") && e.contains("tolerance 5.00 %"),
+            "{e}"
+        );
     }
     // a 25 % tolerance accepts the 20 % scale error
-    assert!(Run::read_drives(&[db.clone()], &r, None, TorqueFrom::Auto, 0.25).is_ok());
+    assert!(Run::read_drives(std::slice::from_ref(&db), &r, None, TorqueFrom::Auto, 0.25).is_ok());
     // simulate: record = "current" on a robot without torque constants
     let text = format!(
         "robot = \"{}\"\nrecord = \"current\"\n[reference]\nkind = \"random_fourier\"\nn_h = 3\nfrequency = 0.2\namplitude = 0.3\nseed = 1\n",
@@ -460,5 +504,8 @@ fn bad_drive_inputs_are_errors_naming_file_and_joint() {
     );
     let d: idexp::sim::SimDesign = idexp::io::parse_toml(Path::new("rec.toml"), &text).unwrap();
     let e = err_text(idexp::sim::SimSetup::from_design(&d, &root(""), "rec.toml"));
-    assert!(e.contains("rec.toml") && e.contains("record") && e.contains("joint `base`") && e.contains("torque_constant"), "{e}");
+    assert!(
+        e.contains("rec.toml") && e.contains("record") && e.contains("joint `base`") && e.contains("torque_constant"),
+        "{e}"
+    );
 }

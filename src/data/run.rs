@@ -437,7 +437,11 @@ impl Run {
     /// Returns the run and what was done.
     pub fn read_drives(paths: &[PathBuf], robot: &Robot, repetitions: Option<usize>, from: TorqueFrom, tolerance: f64) -> Result<(Run, TorqueSource)> {
         if !(tolerance.is_finite() && tolerance > 0.0) {
-            return Err(Error::invalid("identify", "--current-tolerance", format!("expected a positive relative tolerance, found {tolerance}")));
+            return Err(Error::invalid(
+                "identify",
+                "--current-tolerance",
+                format!("expected a positive relative tolerance, found {tolerance}"),
+            ));
         }
         let n = robot.dof();
         let files = expand(paths)?;
@@ -516,7 +520,13 @@ impl Run {
                         }
                         let m = t.rows.len() as f64;
                         let (drms, trms) = ((d2 / m).sqrt(), (t2 / m).sqrt());
-                        let rel = if trms > 0.0 { drms / trms } else if drms > 0.0 { f64::INFINITY } else { 0.0 };
+                        let rel = if trms > 0.0 {
+                            drms / trms
+                        } else if drms > 0.0 {
+                            f64::INFINITY
+                        } else {
+                            0.0
+                        };
                         if rel > tolerance {
                             return Err(Error::Data {
                                 path: t.path.clone(),
@@ -688,7 +698,11 @@ impl std::str::FromStr for TorqueFrom {
             "auto" => Ok(TorqueFrom::Auto),
             "torque" => Ok(TorqueFrom::Torque),
             "current" => Ok(TorqueFrom::Current),
-            _ => Err(Error::invalid("--torque-from", "torque_from", format!("expected auto, torque or current, found `{s}`"))),
+            _ => Err(Error::invalid(
+                "--torque-from",
+                "torque_from",
+                format!("expected auto, torque or current, found `{s}`"),
+            )),
         }
     }
 }
@@ -726,9 +740,15 @@ pub struct TorqueSource {
 impl TorqueSource {
     /// One line for reports.
     pub fn text(&self) -> String {
-        let mut s = format!("joint torques from the {} columns", if self.from == "current" { "current (cur*)" } else { "torque (tau*)" });
+        let mut s = format!(
+            "joint torques from the {} columns",
+            if self.from == "current" { "current (cur*)" } else { "torque (tau*)" }
+        );
         if let (Some(k), true) = (&self.torque_per_ampere, self.from == "current") {
-            s += &format!(", τ = s·k_t·N·i with s·k_t·N = [{}] N·m/A", k.iter().map(|v| format!("{v}")).collect::<Vec<_>>().join(", "));
+            s += &format!(
+                ", τ = s·k_t·N·i with s·k_t·N = [{}] N·m/A",
+                k.iter().map(|v| format!("{v}")).collect::<Vec<_>>().join(", ")
+            );
         }
         if let Some(a) = &self.agreement {
             s += &format!(

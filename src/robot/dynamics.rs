@@ -376,10 +376,7 @@ pub fn friction_columns<T: Real>(d: &Drive, w: T, out: &mut [T]) -> usize {
         Friction::Asymmetric { offset, .. } => {
             let (sp, sn) = if d.coulomb.is_sign() {
                 let r = w.re_();
-                (
-                    if r > 0.0 { T::one() } else { T::zero() },
-                    if r < 0.0 { T::one() } else { T::zero() },
-                )
+                (if r > 0.0 { T::one() } else { T::zero() }, if r < 0.0 { T::one() } else { T::zero() })
             } else {
                 let h = T::c(0.5);
                 (h * (T::one() + s), h * (T::one() - s))

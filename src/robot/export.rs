@@ -197,7 +197,9 @@ fn drive_tables(robot: &Robot, old: Option<&toml::value::Array>) -> toml::value:
             .and_then(|v| v.as_table().cloned())
             .unwrap_or_default();
         t.insert("joint".into(), jn.clone().into());
-        for k in ["ia", "fc", "fv", "f0", "fc_pos", "fc_neg", "fv_pos", "fv_neg", "friction", "fs", "fs_pos", "fs_neg"] {
+        for k in [
+            "ia", "fc", "fv", "f0", "fc_pos", "fc_neg", "fv_pos", "fv_neg", "friction", "fs", "fs_pos", "fs_neg",
+        ] {
             t.remove(k);
         }
         if let Some(ia) = d.rotor_inertia {

@@ -584,7 +584,10 @@ fn positive(ctx: &str, field: &str, v: f64, what: &str) -> Result<f64> {
 fn coulomb_shape(ctx: &str, prefix: &str, ds: Option<&DriveSpec>, def: &CoulombDefaults, friction: &Friction) -> Result<Coulomb> {
     let field = |s: &str| format!("{prefix}{s}");
     let name = ds.and_then(|d| d.coulomb).or(def.name).unwrap_or(CoulombName::Sign);
-    let vs = ds.and_then(|d| d.velocity_scale).map(|v| (v, field("velocity_scale"))).or(def.velocity_scale.map(|v| (v, "velocity_scale".to_string())));
+    let vs = ds
+        .and_then(|d| d.velocity_scale)
+        .map(|v| (v, field("velocity_scale")))
+        .or(def.velocity_scale.map(|v| (v, "velocity_scale".to_string())));
     let vst = ds
         .and_then(|d| d.stribeck_velocity)
         .map(|v| (v, field("stribeck_velocity")))
@@ -610,7 +613,11 @@ fn coulomb_shape(ctx: &str, prefix: &str, ds: Option<&DriveSpec>, def: &CoulombD
         CoulombName::Sign => {
             if let Some(d) = ds {
                 if d.velocity_scale.is_some() || d.stribeck_velocity.is_some() {
-                    return Err(Error::invalid(ctx, field("velocity_scale"), "velocity_scale/stribeck_velocity need coulomb = \"tanh\" or \"stribeck\""));
+                    return Err(Error::invalid(
+                        ctx,
+                        field("velocity_scale"),
+                        "velocity_scale/stribeck_velocity need coulomb = \"tanh\" or \"stribeck\"",
+                    ));
                 }
             }
             if fs_given {
@@ -623,7 +630,11 @@ fn coulomb_shape(ctx: &str, prefix: &str, ds: Option<&DriveSpec>, def: &CoulombD
                 return Err(Error::invalid(ctx, field("fs"), "Stribeck coefficients need coulomb = \"stribeck\""));
             }
             if ds.is_some_and(|d| d.stribeck_velocity.is_some()) {
-                return Err(Error::invalid(ctx, field("stribeck_velocity"), "stribeck_velocity needs coulomb = \"stribeck\""));
+                return Err(Error::invalid(
+                    ctx,
+                    field("stribeck_velocity"),
+                    "stribeck_velocity needs coulomb = \"stribeck\"",
+                ));
             }
             Coulomb::Tanh { velocity_scale: need_vs(vs)? }
         }
@@ -649,7 +660,11 @@ fn coulomb_shape(ctx: &str, prefix: &str, ds: Option<&DriveSpec>, def: &CoulombD
                 }
                 _ => {
                     if ds.is_some_and(|d| d.fs_pos.is_some() || d.fs_neg.is_some()) {
-                        return Err(Error::invalid(ctx, field("fs_pos"), "fs_pos/fs_neg need friction = \"asymmetric\"; the symmetric model takes fs"));
+                        return Err(Error::invalid(
+                            ctx,
+                            field("fs_pos"),
+                            "fs_pos/fs_neg need friction = \"asymmetric\"; the symmetric model takes fs",
+                        ));
                     }
                     [val(ds.and_then(|d| d.fs), "fs")?, 0.0]
                 }

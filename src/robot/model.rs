@@ -665,7 +665,11 @@ fn check_drives(name: &str, joints: &[Joint], drives: &[Drive]) -> crate::Result
             positive("torque_constant", k)?;
         }
         if d.current_sign != 1.0 && d.current_sign != -1.0 {
-            return Err(crate::Error::invalid(ctx(), field("current_sign"), format!("expected 1 or -1, found {}", d.current_sign)));
+            return Err(crate::Error::invalid(
+                ctx(),
+                field("current_sign"),
+                format!("expected 1 or -1, found {}", d.current_sign),
+            ));
         }
     }
     Ok(())
