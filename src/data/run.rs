@@ -23,7 +23,10 @@
 //! gives `var_cur*` (A²), scaled by (s k_t N)². When both torques and
 //! currents are logged they must agree: per file and joint, the RMS of
 //! s k_t N i − τ at most `tolerance` (default [`CURRENT_TOLERANCE`] = 5 %)
-//! of the RMS of τ.
+//! of the RMS of τ. The torque constants are taken as known: a scale of
+//! k_t is not identified, because one common factor on every torque trades
+//! off exactly against the inertial and friction parameters (θ and the
+//! scale appear only as a product) unless a known payload fixes it.
 //!
 //! Coordinates ([`Coordinates`]): runs logged on the motor side of a coupled
 //! wrist (θ = C q) are mapped to joint coordinates by [`Run::to_joint_coordinates`].

@@ -229,8 +229,23 @@ pub(crate) fn inverse_dynamics_generic<T: Real>(
             }
             let mut cols = [T::zero(); MAX_FRICTION_COLUMNS];
             let m = friction_columns(d, s2[j], &mut cols);
-            for (c, th) in cols[..m].iter().zip(&theta[k..k + m]) {
-                out[j] += *c * T::c(*th);
+            // the Coulomb + viscous group is summed first, then added (then
+            // offset and Stribeck terms one by one): the rounding of the
+            // kernel before the smooth shapes, so sign-model results stay bit-identical
+            let group = match d.friction {
+                Friction::None => 0,
+                Friction::Symmetric { .. } => 2,
+                Friction::Asymmetric { .. } => 4,
+            };
+            if group > 0 {
+                let mut f = cols[0] * T::c(theta[k]);
+                for i in 1..group {
+                    f += cols[i] * T::c(theta[k + i]);
+                }
+                out[j] += f;
+            }
+            for i in group..m {
+                out[j] += cols[i] * T::c(theta[k + i]);
             }
         }
     }
