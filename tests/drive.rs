@@ -317,6 +317,11 @@ fn pick_and_place_with_dwell_tanh_model_beats_sign_model_at_standstill() {
         ..Default::default()
     };
     let (ik, rk, _, zk) = ident_with(&sign, &res, &val, &keep);
+    let drop = IdentOptions {
+        standstill: Standstill::Drop,
+        ..Default::default()
+    };
+    let (id_, rd, _, zd) = ident_with(&tanh, &res, &val, &drop);
     let pct = |v: &[f64]| v.iter().map(|x| format!("{:.2}", 100.0 * x)).collect::<Vec<_>>().join(", ");
     let num = |v: &[f64]| v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", ");
     println!("noise floor at standstill (σ of the averaged torque, N·m): [{}]", num(&ft));
@@ -324,6 +329,7 @@ fn pick_and_place_with_dwell_tanh_model_beats_sign_model_at_standstill() {
         ("tanh, every row", &it, &rt, zt),
         ("sign, slow rows dropped", &is, &rs, zs),
         ("sign, every row", &ik, &rk, zk),
+        ("tanh, slow rows dropped", &id_, &rd, zd),
     ] {
         println!(
             "{name:<24} e*_j all rows [{}] %, validation all rows [{}] %, standstill RMS [{}] N·m, max|z| {z:.2}",
