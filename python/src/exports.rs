@@ -21,7 +21,10 @@ use std::path::{Path, PathBuf};
 pub fn names(arg: &Bound<'_, PyAny>, what: &str, allowed: &str) -> PyResult<Vec<String>> {
     let list: Vec<String> = if arg.is_instance_of::<PyString>() {
         arg.extract::<String>()?
-            .split(',').map(|x| x.trim().to_string()).filter(|x| !x.is_empty()).collect()
+            .split(',')
+            .map(|x| x.trim().to_string())
+            .filter(|x| !x.is_empty())
+            .collect()
     } else if let Ok(v) = arg.extract::<Vec<String>>() {
         v
     } else {
@@ -37,9 +40,7 @@ pub fn names(arg: &Bound<'_, PyAny>, what: &str, allowed: &str) -> PyResult<Vec<
 pub fn formats(arg: &Bound<'_, PyAny>) -> PyResult<Vec<Format>> {
     names(arg, "formats", "ur, ros2, csv")?
         .iter()
-        .map(|s| {
-            Format::parse(s).map_err(|_| value(format!("formats: `{s}`: expected ur, ros2 or csv")))
-        })
+        .map(|s| Format::parse(s).map_err(|_| value(format!("formats: `{s}`: expected ur, ros2 or csv"))))
         .collect()
 }
 

@@ -194,7 +194,12 @@ impl ExciteResult {
     #[getter]
     fn delivered<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
         match &self.result.execution.delivered {
-            Some(d) => Ok(Some(crate::exports::delivered_dict(py, d, self.problem.design.trajectory.controller_rate, self.problem.robot.dof())?)),
+            Some(d) => Ok(Some(crate::exports::delivered_dict(
+                py,
+                d,
+                self.problem.design.trajectory.controller_rate,
+                self.problem.robot.dof(),
+            )?)),
             None => Ok(None),
         }
     }
@@ -562,7 +567,9 @@ impl Identification {
                 "export: the consistent fit ended with status `{}`: no identified model to write",
                 c.status
             ))),
-            None => Err(value("formats: \"urdf\" and \"toml\" write the physically consistent model: identify with consistent=True")),
+            None => Err(value(
+                "formats: \"urdf\" and \"toml\" write the physically consistent model: identify with consistent=True",
+            )),
         }
     }
 }
@@ -862,7 +869,9 @@ pub fn identify(
         return Err(value(format!("margin: expected ε ≥ 0 (kg·m²; every pseudo-inertia ⪰ ε I), got {margin}")));
     }
     if !(regularization.is_finite() && regularization >= 0.0) {
-        return Err(value(format!("regularization: expected a weight ≥ 0 of the closest-to-nominal term, got {regularization}")));
+        return Err(value(format!(
+            "regularization: expected a weight ≥ 0 of the closest-to-nominal term, got {regularization}"
+        )));
     }
     let opts = IdentOptions {
         method,
@@ -998,7 +1007,15 @@ impl PositionsResult {
     /// start) and "csv" (`<design>_poses.csv`: the poses and their
     /// measurement counts). `formats`: a list or a comma-separated string.
     #[pyo3(signature = (folder, formats, dwell = 2.0, move_speed = 0.5, move_acceleration = 1.0))]
-    fn export(&self, py: Python<'_>, folder: PathBuf, formats: &Bound<'_, PyAny>, dwell: f64, move_speed: f64, move_acceleration: f64) -> PyResult<Vec<PathBuf>> {
+    fn export(
+        &self,
+        py: Python<'_>,
+        folder: PathBuf,
+        formats: &Bound<'_, PyAny>,
+        dwell: f64,
+        move_speed: f64,
+        move_acceleration: f64,
+    ) -> PyResult<Vec<PathBuf>> {
         let f = crate::exports::formats(formats)?;
         for (name, v) in [("move_speed", move_speed), ("move_acceleration", move_acceleration)] {
             if !(v.is_finite() && v > 0.0) {
@@ -1014,7 +1031,8 @@ impl PositionsResult {
             dwell,
             approach: 5.0,
         };
-        py.detach(|| idexp::positions::output::write_plan_exports(&self.inner, &folder, &f, &motion)).py()
+        py.detach(|| idexp::positions::output::write_plan_exports(&self.inner, &folder, &f, &motion))
+            .py()
     }
     /// write(folder): the command line's output folder.
     fn write(&self, py: Python<'_>, folder: PathBuf) -> PyResult<PathBuf> {
@@ -1199,5 +1217,6 @@ pub fn export_trajectory(
     let des = idexp::trajectory::export::Designed::load(&coefficients).py()?;
     let o = a.options(f, des.controller_rate, &des.design)?;
     let dir = out.unwrap_or_else(|| coefficients.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from(".")));
-    py.detach(|| idexp::trajectory::export::write_exports(&dir, &des.names, &des.revolute, &des.delivered, &o)).py()
+    py.detach(|| idexp::trajectory::export::write_exports(&dir, &des.names, &des.revolute, &des.delivered, &o))
+        .py()
 }
