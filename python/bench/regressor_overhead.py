@@ -7,7 +7,8 @@ Run from the repository root, with the package installed
 
     target/python-venv/bin/python python/bench/regressor_overhead.py
 
-It prints the median of 20 calls (and of 20 calls on one state); with
+It prints the median of 20 calls (C order, then the same states in Fortran
+order; and of 200 calls on one state); with
 `--rust SECONDS` (criterion's median for 10000_states) also the overhead in %.
 """
 
@@ -46,8 +47,11 @@ def main():
     robot = idexp.Robot.load(ROOT / "designs/robots/ur5.toml")
     q, qd, qdd = states(robot.dof, 10_000)
     t_batch = median_time(lambda: robot.regressor(q, qd, qdd), a.repeats)
+    qf, qdf, qddf = (np.asfortranarray(a) for a in (q, qd, qdd))
+    t_fortran = median_time(lambda: robot.regressor(qf, qdf, qddf), a.repeats)
     t_one = median_time(lambda: robot.regressor(q[0], qd[0], qdd[0]), 200)
     print(f"robot.regressor, 10000 states → (60000, {robot.n_params}): median {t_batch * 1e3:.2f} ms")
+    print(f"robot.regressor, the same states in Fortran order: median {t_fortran * 1e3:.2f} ms")
     print(f"robot.regressor, one state → (6, {robot.n_params}): median {t_one * 1e6:.1f} µs")
     if a.rust:
         print(f"Rust (criterion) {a.rust * 1e3:.2f} ms: overhead {100 * (t_batch / a.rust - 1):+.1f} %")

@@ -11,6 +11,7 @@ from ._idexp import (
     __version__ as __version__,
     assess as assess,
     excite as excite,
+    export_trajectory as export_trajectory,
     fit as fit,
     frf as frf,
     multisine as multisine,

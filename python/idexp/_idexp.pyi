@@ -11,6 +11,7 @@ F64 = npt.NDArray[np.float64]
 PathLike = Union[str, "os.PathLike[str]"]
 Progress = Optional[Callable[[str, int, Optional[int], str], Any]]
 RunLike = Union[PathLike, Sequence[PathLike], "SimRun", dict, Sequence[dict]]
+Formats = Union[str, Sequence[str]]  # a list of names or a comma-separated string
 
 __version__: str
 
@@ -69,6 +70,15 @@ class Robot:
         [m, mcx, mcy, mcz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz] per body (inertia about the body frame origin)."""
     def from_pinocchio(self, pi: ArrayLike, theta: Optional[ArrayLike] = None) -> F64:
         """Inverse of to_pinocchio: (10·n,) → θ (p,), drive parameters from theta (default nominal)."""
+    def with_params(self, theta: ArrayLike) -> "Robot":
+        """A copy with standard parameters θ (p,): inertials and drives replaced; same source file."""
+    def export(self, folder: PathLike, formats: Optional[Formats] = None) -> list[str]:
+        """robot.urdf (the source URDF with this model's inertials; not for a DH robot) and
+        robot.toml (the source robot file with this model's drives, and inertials for a DH
+        table), as `idexp identify --export urdf,toml` writes them; default: both (toml for DH)."""
+    @property
+    def inertial_warnings(self) -> list[str]:
+        """Physical-consistency warnings (pseudo-inertia not PSD, inertia without mass); [] if none."""
 
 class BaseParameters:
     names: list[str]
@@ -105,8 +115,46 @@ class ExciteResult:
     report: dict
     def sample(self, rate: float) -> dict[str, F64]:
         """One period sampled at rate Hz: t (N,), q, qd, qdd (N, n)."""
+    @property
+    def delivered(self) -> Optional[dict[str, Any]]:
+        """The delivered trajectory (trajectory.csv): home at rest → lead-in → periods → lead-out →
+        home at rest, at the controller rate: t (N,), q, qd, qdd (N, n), segment (N,) int64
+        (0 lead-in, k period k, −1 lead-out), labels {code: label}, phases [(label, start, end)],
+        home, periods, period, lead_in_duration, lead_out_duration, duration, rate.
+        None when the design is not playable rest to rest."""
+    def delivered_sample(self, rate: float) -> Optional[dict[str, Any]]:
+        """The delivered trajectory at rate Hz (keys as delivered)."""
+    def export(
+        self,
+        folder: PathLike,
+        formats: Formats,
+        rate: Optional[float] = None,
+        ur: str = "e-series",
+        csv_units: str = "rad",
+        csv_derivatives: bool = False,
+        approach_speed: float = 0.5,
+        approach_acceleration: float = 1.0,
+    ) -> list[str]:
+        """The delivered trajectory for the controller (`idexp excite --export`): "ur"
+        (<design>.script, servoj; ur "e-series" 500 Hz or "cb3" 125 Hz), "ros2"
+        (<design>_ros2.yaml, <design>_ros2_goal.yaml), "csv" (<design>_export.csv, csv_units
+        "rad" or "deg"); ROS 2 and CSV at rate Hz (default: the controller rate)."""
     def write(self, folder: PathLike) -> str:
         """The command line's output folder (coefficients.json, trajectory.csv, reports, SVGs)."""
+
+def export_trajectory(
+    coefficients: PathLike,
+    formats: Formats,
+    out: Optional[PathLike] = None,
+    rate: Optional[float] = None,
+    ur: str = "e-series",
+    csv_units: str = "rad",
+    csv_derivatives: bool = False,
+    approach_speed: float = 0.5,
+    approach_acceleration: float = 1.0,
+) -> list[str]:
+    """`idexp export`: a coefficients.json written earlier in controller formats (options as
+    ExciteResult.export), into out (default: its folder)."""
 
 def excite(
     design: Union[PathLike, dict],
@@ -169,6 +217,15 @@ class Identification:
     truth: Optional[list[dict]]
     report: dict
     torques: dict[str, F64]
+    consistent: Optional[dict]
+    """The physically consistent estimate (consistent=True): estimate.json's `consistent` block."""
+    consistent_theta: Optional[F64]
+    """Consistent standard parameters θ (p,), or None."""
+    def model(self) -> Robot:
+        """The robot with the consistent standard parameters (needs consistent=True)."""
+    def export(self, folder: PathLike, formats: Optional[Formats] = None) -> list[str]:
+        """`idexp identify --export`: "csv" (params.csv), "urdf" (robot.urdf), "toml" (robot.toml);
+        urdf and toml need consistent=True; default all three."""
     def text(self) -> str: ...
     def write(self, folder: PathLike) -> str: ...
 
@@ -184,11 +241,16 @@ def identify(
     decimate: int = 1,
     validate: Optional[RunLike] = None,
     truth: Optional[Union[PathLike, SimRun]] = None,
+    consistent: bool = False,
+    margin: float = 0.0,
+    regularization: float = 1e-6,
     time_limit: Optional[float] = None,
     progress: Progress = None,
 ) -> Identification:
     """Identifies the base parameters (the command line's `idexp identify`).
-    method: ols, wls, projection or ml."""
+    method: ols, wls, projection or ml. consistent=True: physically consistent standard
+    parameters after the fit (semidefinite program: every pseudo-inertia ⪰ margin·I,
+    drive parameters signed; regularization weighs closeness to the nominal values)."""
 
 class PositionsResult:
     param_names: list[str]
@@ -202,6 +264,14 @@ class PositionsResult:
     certificate: dict
     relaxed: dict
     status: Any
+    plan_poses: dict[str, Any]
+    """The rounded plan's poses: joint_names, q (k, n), m (k,) measurements per pose."""
+    def export(
+        self, folder: PathLike, formats: Formats, dwell: float = 2.0, move_speed: float = 0.5,
+        move_acceleration: float = 1.0,
+    ) -> list[str]:
+        """`idexp positions --export`: "ur" (<design>_poses.script, movej + m_i·dwell s),
+        "ros2" (<design>_poses_ros2.yaml waypoints), "csv" (<design>_poses.csv)."""
     def text(self) -> str: ...
     def write(self, folder: PathLike) -> str: ...
 

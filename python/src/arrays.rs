@@ -3,7 +3,7 @@
 //! `ValueError`s naming the argument and the expected shape.
 
 use crate::err::value;
-use numpy::ndarray::{Array1, Array2, ArrayViewD};
+use numpy::ndarray::{Array1, Array2, ArrayViewD, Ix1, Ix2};
 use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLikeDyn};
 use pyo3::prelude::*;
 
@@ -19,11 +19,42 @@ fn shape_str(v: &ArrayViewD<f64>) -> String {
     }
 }
 
-fn check_finite(name: &str, v: &ArrayViewD<f64>) -> PyResult<()> {
+fn check_finite(name: &str, v: &[f64]) -> PyResult<()> {
     if let Some((i, x)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
         return Err(value(format!("{name}: element {i} (in C order) is {x}: expected finite numbers")));
     }
     Ok(())
+}
+
+/// The values of `v` in C (row-major) order, checked finite. A C-contiguous
+/// array is one `memcpy`; Fortran-ordered and strided 1-D/2-D arrays are
+/// gathered through fixed-dimension views (the dynamic-dimension iterator
+/// costs ~0.2 µs per element: 20 ms for a (10,000 × 6) Fortran array).
+fn c_order(name: &str, v: &ArrayViewD<f64>) -> PyResult<Vec<f64>> {
+    let data: Vec<f64> = if let Some(s) = v.as_slice() {
+        s.to_vec()
+    } else {
+        match v.ndim() {
+            1 => v.view().into_dimensionality::<Ix1>().expect("1-D").iter().copied().collect(),
+            2 => {
+                let m = v.view().into_dimensionality::<Ix2>().expect("2-D");
+                let mut out = Vec::with_capacity(m.len());
+                // rows of a Fortran array are strided, its columns contiguous:
+                // write column by column into the row-major buffer
+                let (r, c) = m.dim();
+                out.resize(r * c, 0.0);
+                for (j, col) in m.columns().into_iter().enumerate() {
+                    for (i, x) in col.iter().enumerate() {
+                        out[i * c + j] = *x;
+                    }
+                }
+                out
+            }
+            _ => v.iter().copied().collect(),
+        }
+    };
+    check_finite(name, &data)?;
+    Ok(data)
 }
 
 /// Joint-space states: shape (n,) (one state) or (N, n) (a batch).
@@ -52,9 +83,8 @@ pub fn states(name: &str, arg: &Arg, n: usize) -> PyResult<States> {
         [r, k] if *k == n => (*r, true),
         _ => return Err(bad()),
     };
-    check_finite(name, &v)?;
     Ok(States {
-        data: v.iter().copied().collect(),
+        data: c_order(name, &v)?,
         rows,
         batch,
     })
@@ -81,8 +111,7 @@ pub fn vector(name: &str, arg: &Arg, len: usize, what: &str) -> PyResult<Vec<f64
         [k] if *k == len => {}
         _ => return Err(value(format!("{name}: expected shape ({len},) ({what}), got {}", shape_str(&v)))),
     }
-    check_finite(name, &v)?;
-    Ok(v.iter().copied().collect())
+    c_order(name, &v)
 }
 
 /// A vector of any length ≥ 1.
@@ -91,8 +120,7 @@ pub fn any_vector(name: &str, arg: &Arg) -> PyResult<Vec<f64>> {
     if v.ndim() != 1 || v.is_empty() {
         return Err(value(format!("{name}: expected shape (N,) with N ≥ 1, got {}", shape_str(&v))));
     }
-    check_finite(name, &v)?;
-    Ok(v.iter().copied().collect())
+    c_order(name, &v)
 }
 
 /// A matrix (rows, n) as row vectors; `rows`: the required row count, if any.
@@ -103,8 +131,7 @@ pub fn matrix_rows(name: &str, arg: &Arg, rows: Option<usize>, n: usize) -> PyRe
         let r = rows.map(|r| r.to_string()).unwrap_or_else(|| "N".into());
         return Err(value(format!("{name}: expected shape ({r}, {n}), got {}", shape_str(&v))));
     }
-    check_finite(name, &v)?;
-    let data: Vec<f64> = v.iter().copied().collect();
+    let data = c_order(name, &v)?;
     Ok(data.chunks(n).map(<[f64]>::to_vec).collect())
 }
 

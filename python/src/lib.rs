@@ -23,6 +23,7 @@ use pyo3::prelude::*;
 
 mod arrays;
 mod err;
+mod exports;
 mod long;
 mod problems;
 mod robot;
@@ -47,6 +48,7 @@ fn _idexp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(problems::fit, m)?)?;
     m.add_function(wrap_pyfunction!(problems::multisine, m)?)?;
     m.add_function(wrap_pyfunction!(problems::frf, m)?)?;
+    m.add_function(wrap_pyfunction!(problems::export_trajectory, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

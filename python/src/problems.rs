@@ -182,6 +182,88 @@ impl ExciteResult {
         let s = self.result.trajectory.sample(rate).py()?;
         states_dict(py, &s, self.problem.robot.dof())
     }
+    /// The delivered trajectory, what trajectory.csv and the controller
+    /// exports hold: from the home pose at rest through the lead-in, the
+    /// `periods` periods and the lead-out back to home at rest, sampled at
+    /// the design's controller rate. A dict with t (N,), q, qd, qdd (N, n),
+    /// segment (N,) int64 (0 lead-in, k period k, −1 lead-out, trajectory.csv's
+    /// column), labels ({code: "lead_in" | "period k" | "lead_out"}), phases
+    /// (list of (label, start s, end s)), home (n,), periods, period,
+    /// lead_in_duration, lead_out_duration, duration (s) and rate (Hz).
+    /// None when the design is not playable rest to rest (see `report`).
+    #[getter]
+    fn delivered<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        match &self.result.execution.delivered {
+            Some(d) => Ok(Some(crate::exports::delivered_dict(
+                py,
+                d,
+                self.problem.design.trajectory.controller_rate,
+                self.problem.robot.dof(),
+            )?)),
+            None => Ok(None),
+        }
+    }
+    /// result.delivered_sample(rate) -> dict | None: the delivered trajectory
+    /// sampled at `rate` Hz (keys as `delivered`).
+    fn delivered_sample<'py>(&self, py: Python<'py>, rate: f64) -> PyResult<Option<Bound<'py, PyDict>>> {
+        match &self.result.execution.delivered {
+            Some(d) => Ok(Some(crate::exports::delivered_dict(py, d, rate, self.problem.robot.dof())?)),
+            None => Ok(None),
+        }
+    }
+    /// result.export(folder, formats, rate=None, ur="e-series", csv_units="rad",
+    /// csv_derivatives=False, approach_speed=0.5, approach_acceleration=1.0) -> list of paths
+    ///
+    /// The delivered trajectory in controller formats, the files of `idexp
+    /// excite --export`: "ur" (`<design>.script`, URScript servoj at the
+    /// controller's rate: 500 Hz e-series, 125 Hz CB3, after a movej to the
+    /// start with `approach_speed` rad/s and `approach_acceleration` rad/s²),
+    /// "ros2" (`<design>_ros2.yaml`, a JointTrajectory, and
+    /// `<design>_ros2_goal.yaml`, its FollowJointTrajectory goal), "csv"
+    /// (`<design>_export.csv`, positions in `csv_units`, with velocities and
+    /// accelerations if `csv_derivatives`). ROS 2 and CSV are sampled at
+    /// `rate` Hz (default: the design's controller rate). `formats`: a list or
+    /// a comma-separated string. An infeasible design has nothing safe to
+    /// play: IdexpError.
+    #[pyo3(signature = (folder, formats, rate = None, ur = "e-series", csv_units = "rad", csv_derivatives = false,
+                        approach_speed = 0.5, approach_acceleration = 1.0))]
+    #[allow(clippy::too_many_arguments)] // the Python signature mirrors `idexp excite --export`'s options
+    fn export(
+        &self,
+        py: Python<'_>,
+        folder: PathBuf,
+        formats: &Bound<'_, PyAny>,
+        rate: Option<f64>,
+        ur: &str,
+        csv_units: &str,
+        csv_derivatives: bool,
+        approach_speed: f64,
+        approach_acceleration: f64,
+    ) -> PyResult<Vec<PathBuf>> {
+        let f = crate::exports::formats(formats)?;
+        let a = crate::exports::TrajectoryArgs {
+            rate,
+            ur,
+            csv_units,
+            csv_derivatives,
+            approach_speed,
+            approach_acceleration,
+        };
+        let p = &self.problem;
+        let o = a.options(f, p.design.trajectory.controller_rate, &p.design.name)?;
+        let d = match (&self.result.execution.delivered, self.result.status) {
+            (Some(d), idexp::excitation::Status::Feasible) => d,
+            _ => {
+                return Err(IdexpError::new_err(format!(
+                    "export: design `{}` is INFEASIBLE or not playable rest to rest: nothing safe to play (see result.violated and result.report)",
+                    p.design.name
+                )))
+            }
+        };
+        let names: Vec<String> = p.robot.joints.iter().map(|j| j.name.clone()).collect();
+        let revolute: Vec<bool> = p.robot.joints.iter().map(|j| j.kind == idexp::robot::JointKind::Revolute).collect();
+        py.detach(|| idexp::trajectory::export::write_exports(&folder, &names, &revolute, d, &o)).py()
+    }
     /// The whole result as the library serialises it (report.json's "result").
     #[getter]
     fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
@@ -473,6 +555,23 @@ pub fn simulate(
 pub struct Identification {
     inner: Arc<ident::Identification>,
     options: serde_json::Value,
+    robot: Arc<idexp::robot::Robot>,
+    robot_path: PathBuf,
+}
+
+impl Identification {
+    fn identified_model(&self) -> PyResult<idexp::robot::Robot> {
+        match &self.inner.estimate.consistent {
+            Some(c) if c.status == "ok" => self.robot.with_params(&c.standard).py(),
+            Some(c) => Err(IdexpError::new_err(format!(
+                "export: the consistent fit ended with status `{}`: no identified model to write",
+                c.status
+            ))),
+            None => Err(value(
+                "formats: \"urdf\" and \"toml\" write the physically consistent model: identify with consistent=True",
+            )),
+        }
+    }
 }
 
 #[pymethods]
@@ -557,6 +656,63 @@ impl Identification {
         d.set_item("predicted", out2(py, ns, n, p))?;
         Ok(d)
     }
+    /// The physically consistent estimate (`consistent=True`), as the
+    /// `consistent` block of estimate.json: status, standard_names, standard
+    /// (θ, p), base (K θ), extra_cost, extra_cost_rel, chi2_dof,
+    /// min_eigenvalue per link, active constraints, errors, pinocchio
+    /// (per body, Pinocchio's order), lambda, iterations. None without
+    /// `consistent=True`.
+    #[getter]
+    fn consistent<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_dict(py, &self.inner.estimate.consistent)
+    }
+    /// The consistent standard parameters θ (p,) (`robot.param_names`
+    /// order), or None (no consistent fit, or it failed).
+    #[getter]
+    fn consistent_theta<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        self.inner
+            .estimate
+            .consistent
+            .as_ref()
+            .filter(|c| c.status == "ok")
+            .map(|c| out1(py, c.standard.clone()))
+    }
+    /// The identified model: the robot with the consistent standard
+    /// parameters (`consistent=True`); IdexpError otherwise.
+    fn model(&self) -> PyResult<Robot> {
+        Ok(Robot::new(self.identified_model()?, self.robot_path.clone()))
+    }
+    /// export(folder, formats=("urdf", "toml", "csv")) -> list of paths
+    ///
+    /// The files of `idexp identify --export`: "csv" (`params.csv`: every
+    /// base and standard parameter with std and σ*), "urdf" (`robot.urdf`:
+    /// the robot's URDF with the consistent inertials; a DH robot has none:
+    /// ValueError) and "toml" (`robot.toml`: the robot file with the
+    /// consistent drive parameters and, for a DH table, inertials). urdf and
+    /// toml need `identify(..., consistent=True)`. `formats`: a list or a
+    /// comma-separated string.
+    #[pyo3(signature = (folder, formats = None))]
+    fn export(&self, py: Python<'_>, folder: PathBuf, formats: Option<Bound<'_, PyAny>>) -> PyResult<Vec<PathBuf>> {
+        let kinds = match &formats {
+            Some(f) => crate::exports::model_kinds(f, &["urdf", "toml", "csv"])?,
+            None => ["urdf", "toml", "csv"].map(String::from).to_vec(),
+        };
+        let model_kinds: Vec<String> = kinds.iter().filter(|k| *k != "csv").cloned().collect();
+        let model = if model_kinds.is_empty() { None } else { Some(self.identified_model()?) };
+        py.detach(|| -> PyResult<Vec<PathBuf>> {
+            std::fs::create_dir_all(&folder).map_err(|e| crate::err::to_py(idexp::Error::io(&folder, e)))?;
+            let mut files = Vec::new();
+            if kinds.iter().any(|k| k == "csv") {
+                let p = folder.join("params.csv");
+                idexp::io::write_atomic(&p, idexp::ident::output::params_csv(&self.inner.estimate).as_bytes()).py()?;
+                files.push(p);
+            }
+            if let Some(m) = &model {
+                files.extend(crate::exports::write_model(&self.robot_path, m, &folder, &model_kinds)?);
+            }
+            Ok(files)
+        })
+    }
     /// The text report (`idexp identify` prints it).
     fn text(&self) -> String {
         self.inner.estimate.text()
@@ -568,7 +724,9 @@ impl Identification {
             self.inner.write(&folder)?;
             idexp::io::write_json(&folder.join("options.json"), &self.options)?;
             let st = &self.inner.estimate.status;
+            let consistent_failed = self.inner.estimate.consistent.as_ref().is_some_and(|c| c.status != "ok");
             let state = match st.as_str() {
+                _ if consistent_failed => RunState::Failed,
                 "rank_deficient" | "Failure" | "InvalidArgs" | "OutOfMemory" | "RoundoffLimited" => RunState::Failed,
                 _ => RunState::Complete,
             };
@@ -659,7 +817,8 @@ fn read_trajectory(obj: &Bound<'_, PyAny>) -> PyResult<FourierTrajectory> {
 /// identify(robot, run, method="wls", ...) -> Identification
 #[pyfunction]
 #[pyo3(signature = (robot, run, method = "wls", weights = "sample", filter = "auto", cutoff = 10.0, trajectory = None,
-                    harmonics = None, decimate = 1, validate = None, truth = None, time_limit = None, progress = None))]
+                    harmonics = None, decimate = 1, validate = None, truth = None, consistent = false, margin = 0.0,
+                    regularization = 1e-6, time_limit = None, progress = None))]
 #[allow(clippy::too_many_arguments)] // the Python signature mirrors `idexp identify`'s options
 pub fn identify(
     py: Python<'_>,
@@ -674,6 +833,9 @@ pub fn identify(
     decimate: usize,
     validate: Option<Bound<'_, PyAny>>,
     truth: Option<Bound<'_, PyAny>>,
+    consistent: bool,
+    margin: f64,
+    regularization: f64,
     time_limit: Option<f64>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<Identification> {
@@ -703,12 +865,21 @@ pub fn identify(
         "none" => FilterChoice::Given(ident::Filter::None),
         f => return Err(value(format!("filter: expected \"auto\", \"fourier\", \"lowpass\" or \"none\", got {f:?}"))),
     };
+    if !(margin.is_finite() && margin >= 0.0) {
+        return Err(value(format!("margin: expected ε ≥ 0 (kg·m²; every pseudo-inertia ⪰ ε I), got {margin}")));
+    }
+    if !(regularization.is_finite() && regularization >= 0.0) {
+        return Err(value(format!(
+            "regularization: expected a weight ≥ 0 of the closest-to-nominal term, got {regularization}"
+        )));
+    }
     let opts = IdentOptions {
         method,
         weights,
         filter,
         harmonics,
         decimate,
+        consistent: consistent.then_some(idexp::ident::consistent::ConsistentOptions { margin, regularization }),
         ..Default::default()
     };
     let val = validate.as_ref().map(|v| read_run(py, v, n, "validate")).transpose()?;
@@ -729,7 +900,12 @@ pub fn identify(
         id.estimate.compare_truth(&t.base_names, &t.base).py()?;
     }
     let options = serde_json::json!({ "robot": robot.path.display().to_string(), "options": opts, "source": "python" });
-    Ok(Identification { inner: Arc::new(id), options })
+    Ok(Identification {
+        inner: Arc::new(id),
+        options,
+        robot: robot.inner.clone(),
+        robot_path: robot.path.clone(),
+    })
 }
 
 // ───────────────────────────── positions ─────────────────────────────
@@ -808,6 +984,55 @@ impl PositionsResult {
     /// The text report (`idexp positions` prints it).
     fn text(&self) -> String {
         idexp::positions::output::report_text(&self.inner)
+    }
+    /// The poses of the rounded plan (candidates with m_i > 0, in candidate
+    /// order): dict with joint_names, q (k, n) and m (k,) measurements per
+    /// pose. IdexpError when the candidates are not robot poses.
+    #[getter]
+    fn plan_poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let (names, poses, m) = idexp::positions::output::plan_poses(&self.inner).py()?;
+        let d = PyDict::new(py);
+        d.set_item("q", out_rows(py, &poses, names.len()))?;
+        d.set_item("joint_names", names)?;
+        d.set_item("m", m)?;
+        Ok(d)
+    }
+    /// export(folder, formats, dwell=2.0, move_speed=0.5, move_acceleration=1.0) -> list of paths
+    ///
+    /// The plan's poses for the controller, the files of `idexp positions
+    /// --export`: "ur" (`<design>_poses.script`: one movej per pose at
+    /// `move_speed` rad/s and `move_acceleration` rad/s², held m_i · `dwell`
+    /// s) and "ros2" (`<design>_poses_ros2.yaml`: JointTrajectory waypoints,
+    /// each pose reached at rest and held; the first reached 5 s after the
+    /// start) and "csv" (`<design>_poses.csv`: the poses and their
+    /// measurement counts). `formats`: a list or a comma-separated string.
+    #[pyo3(signature = (folder, formats, dwell = 2.0, move_speed = 0.5, move_acceleration = 1.0))]
+    fn export(
+        &self,
+        py: Python<'_>,
+        folder: PathBuf,
+        formats: &Bound<'_, PyAny>,
+        dwell: f64,
+        move_speed: f64,
+        move_acceleration: f64,
+    ) -> PyResult<Vec<PathBuf>> {
+        let f = crate::exports::formats(formats)?;
+        for (name, v) in [("move_speed", move_speed), ("move_acceleration", move_acceleration)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(value(format!("{name}: expected a positive value, got {v}")));
+            }
+        }
+        if !(dwell.is_finite() && dwell >= 0.0) {
+            return Err(value(format!("dwell: expected a time ≥ 0 s per measurement, got {dwell}")));
+        }
+        let motion = idexp::positions::output::PlanMotion {
+            speed: move_speed,
+            acceleration: move_acceleration,
+            dwell,
+            approach: 5.0,
+        };
+        py.detach(|| idexp::positions::output::write_plan_exports(&self.inner, &folder, &f, &motion))
+            .py()
     }
     /// write(folder): the command line's output folder.
     fn write(&self, py: Python<'_>, folder: PathBuf) -> PyResult<PathBuf> {
@@ -956,4 +1181,42 @@ pub fn multisine<'py>(py: Python<'py>, design: PathBuf, out: Option<PathBuf>) ->
 pub fn frf(py: Python<'_>, input: PathBuf, out: Option<PathBuf>, progress: Option<Bound<'_, PyAny>>) -> PyResult<PathBuf> {
     let (_, dir) = run_long(py, None, progress.as_ref(), |ctl| idexp::frf::pipeline::frf(&input, out.as_deref(), ctl))?;
     Ok(dir.join("frf.json"))
+}
+
+/// export_trajectory(coefficients, formats, out=None, rate=None, ur="e-series", csv_units="rad",
+/// csv_derivatives=False, approach_speed=0.5, approach_acceleration=1.0) -> list of paths
+///
+/// `idexp export`: the delivered trajectory of a design written earlier
+/// (its `coefficients.json`) in controller formats, into `out` (default: the
+/// folder of coefficients.json); options as `ExciteResult.export`.
+#[pyfunction]
+#[pyo3(signature = (coefficients, formats, out = None, rate = None, ur = "e-series", csv_units = "rad",
+                    csv_derivatives = false, approach_speed = 0.5, approach_acceleration = 1.0))]
+#[allow(clippy::too_many_arguments)] // the Python signature mirrors `idexp export`'s options
+pub fn export_trajectory(
+    py: Python<'_>,
+    coefficients: PathBuf,
+    formats: &Bound<'_, PyAny>,
+    out: Option<PathBuf>,
+    rate: Option<f64>,
+    ur: &str,
+    csv_units: &str,
+    csv_derivatives: bool,
+    approach_speed: f64,
+    approach_acceleration: f64,
+) -> PyResult<Vec<PathBuf>> {
+    let f = crate::exports::formats(formats)?;
+    let a = crate::exports::TrajectoryArgs {
+        rate,
+        ur,
+        csv_units,
+        csv_derivatives,
+        approach_speed,
+        approach_acceleration,
+    };
+    let des = idexp::trajectory::export::Designed::load(&coefficients).py()?;
+    let o = a.options(f, des.controller_rate, &des.design)?;
+    let dir = out.unwrap_or_else(|| coefficients.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from(".")));
+    py.detach(|| idexp::trajectory::export::write_exports(&dir, &des.names, &des.revolute, &des.delivered, &o))
+        .py()
 }

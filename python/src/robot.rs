@@ -322,6 +322,47 @@ impl Robot {
         Ok(out1(py, th))
     }
 
+    /// robot.with_params(theta) -> Robot
+    ///
+    /// A copy of the model with the standard parameters θ (p,): the link
+    /// inertials and the drive parameters (Ia, friction) replaced; the file it
+    /// came from (`path`) stays, as the source of the kinematics for `export`.
+    fn with_params(&self, py: Python<'_>, theta: Arg) -> PyResult<Robot> {
+        let th = self.theta_arg(Some(&theta))?;
+        let r = py.detach(|| self.inner.with_params(&th)).py()?;
+        Ok(Robot::new(r, self.path.clone()))
+    }
+
+    /// robot.export(folder, formats=("urdf", "toml")) -> list of paths
+    ///
+    /// Writes the model with its current parameters the way `idexp identify
+    /// --export urdf,toml` writes the identified one: `robot.urdf` (the
+    /// source URDF with this model's inertials, everything else copied byte
+    /// for byte; a DH robot has none: ValueError) and `robot.toml` (the
+    /// source robot file with this model's drive parameters and, for a DH
+    /// table, inertials; it points at the exported URDF, else at the source
+    /// URDF). `formats`: a list or a comma-separated string. Both files load
+    /// back with `Robot.load`.
+    #[pyo3(signature = (folder, formats = None))]
+    fn export(&self, py: Python<'_>, folder: PathBuf, formats: Option<Bound<'_, PyAny>>) -> PyResult<Vec<PathBuf>> {
+        let kinds = match &formats {
+            Some(f) => crate::exports::model_kinds(f, &["urdf", "toml"])?,
+            None => match idexp::robot::export::source_of(&self.path).py()? {
+                idexp::robot::export::Source::Dh { .. } => vec!["toml".to_string()],
+                _ => vec!["urdf".to_string(), "toml".to_string()],
+            },
+        };
+        py.detach(|| crate::exports::write_model(&self.path, &self.inner, &folder, &kinds))
+    }
+
+    /// Physical-consistency warnings about the model's inertials (a
+    /// pseudo-inertia that is not positive semidefinite, inertia without
+    /// mass); empty when every link is consistent.
+    #[getter]
+    fn inertial_warnings(&self) -> Vec<String> {
+        idexp::robot::export::inertial_warnings(&self.inner)
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "Robot({:?}, dof={}, params={}, path={:?})",

@@ -1,5 +1,6 @@
 """Shared fixtures: the repository root, the shipped robots, the CLI binary."""
 
+import os
 import pathlib
 import subprocess
 
@@ -25,8 +26,12 @@ def cli():
         pytest.fail(f"{IDEXP} is missing: build it with `cargo build --release` (scripts/python-test.sh does)")
 
     def run(*args, cwd=ROOT):
-        p = subprocess.run([str(IDEXP), *map(str, args)], cwd=cwd, capture_output=True, text=True,
-                           env={"IDEXP_NO_PROGRESS": "1", "PATH": "/usr/bin:/bin"})
+        # the BLAS settings of this process (OPENBLAS_CORETYPE picks OpenBLAS's
+        # kernels, and the consistent fit's last digits depend on them): the
+        # command line must compute with the same kernels as the package
+        env = {k: v for k, v in os.environ.items() if k.startswith(("OPENBLAS_", "OMP_"))}
+        env.update({"IDEXP_NO_PROGRESS": "1", "PATH": "/usr/bin:/bin"})
+        p = subprocess.run([str(IDEXP), *map(str, args)], cwd=cwd, capture_output=True, text=True, env=env)
         assert p.returncode == 0, f"idexp {' '.join(map(str, args))} failed ({p.returncode}): {p.stderr}"
         return p.stdout
 
