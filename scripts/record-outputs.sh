@@ -32,6 +32,7 @@ done
 R=tests/data/ident/rpr_drives.toml
 run ident_fourier identify $R "$O/sim_rpr_fourier" --validate "$O/sim_rpr_fourier_validate" --harmonics 20 --truth "$O/sim_rpr_fourier/truth.json" --out "$O/ident_fourier"
 run ident_pick identify $R "$O/sim_rpr_pick_place" --validate "$O/sim_rpr_pick_place_validate" --reduce --out "$O/ident_pick"
+run ident_pick_tanh identify tests/data/ident/rpr_drives_tanh.toml "$O/sim_rpr_pick_place" --validate "$O/sim_rpr_pick_place_validate" --reduce --out "$O/ident_pick_tanh"
 run ident_square identify $R "$O/sim_rpr_square" --reduce --out "$O/ident_square"
 run ident_proj identify $R "$O/sim_rpr_closed_loop" --method projection --harmonics 20 --truth "$O/sim_rpr_closed_loop/truth.json" --out "$O/ident_proj"
 run ident_ml identify $R "$O/sim_rpr_closed_loop" --method ml --harmonics 20 --truth "$O/sim_rpr_closed_loop/truth.json" --out "$O/ident_ml"
