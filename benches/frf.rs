@@ -1,7 +1,10 @@
 //! FRF fitting kernels on the shipped 6-axis, 26-unknown design
 //! (designs/elastic_industrial6.toml: 5 positions × 74 lines, n = 6, N = 19):
-//! one FRF + Jacobian evaluation at one line, the LLS cost, and the cost with
+//! one FRF + Jacobian evaluation at one line (the elastic module's kernel and
+//! the fit's kernel, idexp::frf::kernel), the LLS cost, and the cost with
 //! gradient and Gauss–Newton matrix (one LM iteration's Jacobian pass).
+//!
+//! `cargo bench --bench frf -- --warm-up-time 1 --measurement-time 3`
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use idexp::elastic::{Estimator, FrfKernel, Output};
@@ -28,6 +31,20 @@ fn bench(c: &mut Criterion) {
                 ker.eval(&lin, &op, 2.0 * std::f64::consts::PI * 37.0, Output::Acceleration, true, &mut dg)
                     .expect("eval"),
             )
+        })
+    });
+    let fk = idexp::frf::kernel::FitKernel::new(&m, Output::Acceleration);
+    let sys = fk.system(&lin, &op).expect("system");
+    let mut sc = idexp::frf::kernel::Scratch::default();
+    let mut wbuf = vec![idexp::elastic::C64::new(0.0, 0.0); fk.w_len(&sys)];
+    let mut gbuf = vec![idexp::elastic::C64::new(0.0, 0.0); 36];
+    let mut lj = idexp::frf::kernel::LineJac::default();
+    g.bench_function("fit_kernel_solve_frf_jacobian_one_line_26_params", |b| {
+        b.iter(|| {
+            let w = 2.0 * std::f64::consts::PI * 37.0;
+            sys.solve(w, &mut sc, &mut wbuf).expect("solve");
+            fk.frf(&sys, w, &wbuf, &mut gbuf, Some(&mut lj));
+            black_box(lj.dg(3, 1, 2))
         })
     });
     g.bench_function("lls_cost_5pos_74lines", |b| b.iter(|| black_box(prob.cost(&theta).expect("cost"))));
