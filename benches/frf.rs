@@ -51,6 +51,16 @@ fn bench(c: &mut Criterion) {
     g.bench_function("lls_cost_gradient_gn_5pos_74lines", |b| {
         b.iter(|| black_box(prob.normal_equations(&theta, true).expect("ne")))
     });
+    // one accepted LM step: the cost at the trial point, then the normal
+    // equations there reusing its line solves
+    let mut cache = idexp::frf::kernel::SolveCache::default();
+    g.bench_function("lls_accepted_step_cost_then_gn_5pos_74lines", |b| {
+        b.iter(|| {
+            cache = Default::default();
+            let v = prob.cost_cached(&theta, &mut cache).expect("cost");
+            black_box((v, prob.normal_equations_cached(&theta, true, &mut cache).expect("ne")))
+        })
+    });
     g.finish();
 }
 

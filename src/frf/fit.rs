@@ -435,8 +435,9 @@ impl FitProblem {
         self.cost_cached(theta, &mut SolveCache::default())
     }
 
-    /// V(θ), reusing (or leaving) the line solves at θ in `cache`.
-    fn cost_cached(&self, theta: &[f64], cache: &mut SolveCache) -> Result<f64> {
+    /// V(θ), reusing the line solves in `cache` if they were made at this θ
+    /// (bit for bit), and leaving this θ's solves there.
+    pub fn cost_cached(&self, theta: &[f64], cache: &mut SolveCache) -> Result<f64> {
         let mut v = 0.0;
         self.for_each_weighted(theta, false, cache, |e| v += e.w * self.residual(e).norm_sqr())?;
         if !v.is_finite() {
@@ -451,8 +452,10 @@ impl FitProblem {
         self.normal_equations_cached(theta, in_z, &mut SolveCache::default())
     }
 
-    /// [`Self::normal_equations`], reusing (or leaving) the line solves at θ in `cache`.
-    fn normal_equations_cached(&self, theta: &[f64], in_z: bool, cache: &mut SolveCache) -> Result<(f64, DVector<f64>, DMatrix<f64>)> {
+    /// [`Self::normal_equations`], reusing the line solves in `cache` if they
+    /// were made at this θ (as Levenberg–Marquardt does after the cost at an
+    /// accepted trial point), and leaving this θ's solves there.
+    pub fn normal_equations_cached(&self, theta: &[f64], in_z: bool, cache: &mut SolveCache) -> Result<(f64, DVector<f64>, DMatrix<f64>)> {
         let np = self.n_params();
         let mut v = 0.0;
         let mut grad: DVector<f64> = DVector::zeros(np);

@@ -378,7 +378,8 @@ impl PosSystem<'_> {
                 let a = at3(s, s2, e);
                 let scale = (s2 * e[0]).norm() + (s * e[1]).norm() + e[2].abs();
                 sc.am.push(a);
-                if !(a.norm() > 1e-6 * scale) {
+                let ok = a.norm() > 1e-6 * scale; // false for NaN too
+                if !ok {
                     schur = false;
                     break;
                 }
