@@ -56,7 +56,9 @@ fn bench(c: &mut Criterion) {
         let opts = SolverOptions::default();
         let r = solve_relaxed(&pb, crit, &opts, &idexp::optim::Control::new()).expect("solve");
         assert_eq!(r.status, Status::Optimal, "benchmark instance must certify");
-        g.bench_function(name, |b| b.iter(|| black_box(solve_relaxed(&pb, crit, &opts, &idexp::optim::Control::new()).expect("solve"))));
+        g.bench_function(name, |b| {
+            b.iter(|| black_box(solve_relaxed(&pb, crit, &opts, &idexp::optim::Control::new()).expect("solve")))
+        });
     }
     g.finish();
 }

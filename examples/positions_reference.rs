@@ -37,9 +37,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "first_order_s": r.log.first_order_time,
             "clarabel_s": r.log.clarabel_time,
             "wall_s": secs,
+            "pruned_to": r.log.pruned_to,
+            "rounds": r.log.rounds.iter().map(|x| serde_json::json!({"working_set": x.working_set, "iterations": x.iterations, "added": x.added, "seconds": x.solve_time})).collect::<Vec<_>>(),
         });
         std::fs::write(out.join(format!("{name}.idexp.json")), res.to_string())?;
-        println!("{name}: {} = {:.10} ({:?}, efficiency >= {:.9}), {secs:.3} s", crit.value_label(), r.value, r.status, r.certificate.efficiency_bound);
+        println!(
+            "{name}: {} = {:.10} ({:?}, efficiency >= {:.9}), {secs:.3} s (first order {:.3} s, Clarabel {:.3} s, working sets {:?})",
+            crit.value_label(),
+            r.value,
+            r.status,
+            r.certificate.efficiency_bound,
+            r.log.first_order_time,
+            r.log.clarabel_time,
+            r.log.rounds.iter().map(|x| x.working_set).collect::<Vec<_>>()
+        );
     }
     Ok(())
 }
