@@ -6,7 +6,13 @@
 //! r_i uniform in 1..=3, standard normal entries, and parameter j scaled by
 //! 10^{u_j}, u_j ~ U[−2, 2] (badly scaled on purpose).
 //!
-//! Run: `cargo bench --bench positions -- --warm-up-time 1 --measurement-time 3`.
+//! The group `issue13_unscaled` solves the instances of issue 13 that
+//! scripts/cvxpy-reference.sh gives CVXPY + Clarabel (benches/common/instances.rs:
+//! D-optimal p = 26 with 1,000 candidates, A-optimal p = 8 with 5,000, F_i =
+//! J_iᵀJ_i with J_i 3 × p standard normal, no scaling).
+//!
+//! Run: `cargo bench --bench positions -- --warm-up-time 1 --measurement-time 3`
+//! (only the issue's instances: append `issue13`).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use idexp::positions::{solve_relaxed, Criterion as Crit, Problem, SolverOptions, Status};
@@ -14,6 +20,9 @@ use nalgebra::DMatrix;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use std::hint::black_box;
+
+#[path = "common/instances.rs"]
+mod instances;
 
 fn instance(n: usize, p: usize) -> Problem {
     let mut g = rand_chacha::ChaCha8Rng::seed_from_u64(7);
@@ -37,6 +46,18 @@ fn bench(c: &mut Criterion) {
         assert_eq!(r.status, Status::Optimal, "benchmark instance must certify");
         g.bench_function(format!("{n}_candidates"), |b| {
             b.iter(|| black_box(solve_relaxed(&pb, Crit::D, &opts, &idexp::optim::Control::new()).expect("solve")))
+        });
+    }
+    g.finish();
+    let mut g = c.benchmark_group("issue13_unscaled");
+    g.sample_size(10);
+    for ((name, seed, n, p), crit) in [(instances::D_INSTANCE, Crit::D), (instances::A_INSTANCE, Crit::A)] {
+        let pb = instances::problem(&instances::jacobians(seed, n, p));
+        let opts = SolverOptions::default();
+        let r = solve_relaxed(&pb, crit, &opts, &idexp::optim::Control::new()).expect("solve");
+        assert_eq!(r.status, Status::Optimal, "benchmark instance must certify");
+        g.bench_function(name, |b| {
+            b.iter(|| black_box(solve_relaxed(&pb, crit, &opts, &idexp::optim::Control::new()).expect("solve")))
         });
     }
     g.finish();

@@ -28,7 +28,8 @@
 
 use super::design::{Design, FitSpec, UserWeights, WeightKind};
 use super::estimate::FrfData;
-use crate::elastic::{ElasticModel, Estimator, FrfKernel, OperatingPoint, Output, C64};
+use super::kernel::{FitKernel, LineJac, SolveCache};
+use crate::elastic::{ElasticModel, Estimator, OperatingPoint, Output, C64};
 use crate::error::{Error, Result};
 use crate::optim::lm::{self, LmProblem, LmStatus, LmTolerances};
 use crate::optim::Control;
@@ -47,12 +48,14 @@ pub struct PosData {
     pub g: Vec<DMatrix<C64>>,
     /// Element variances of Ĝ per line.
     pub var: Vec<DMatrix<f64>>,
+    /// ln Ĝ per line and element (principal branch: ln|Ĝ| + i arg Ĝ), computed once.
+    pub ln_g: Vec<DMatrix<C64>>,
 }
 
 /// One weighted element of the estimator's sum, as visited by
 /// `FitProblem::for_each_weighted`: position `p`, line `k`, FRF element (a, b),
 /// its weight `w`, the model value `g` = G_ab(ω_k, θ) and the derivatives of
-/// the whole model FRF (`dg[j]` = ∂G/∂θ_j, only when asked for).
+/// the model FRF at the line (only when asked for).
 struct Element<'a> {
     p: &'a PosData,
     k: usize,
@@ -60,18 +63,24 @@ struct Element<'a> {
     b: usize,
     w: f64,
     g: C64,
-    dg: &'a [DMatrix<C64>],
+    jac: &'a LineJac,
 }
 
 impl Element<'_> {
+    /// ln Ĝ_ab(ω_k).
+    fn ln_ghat(&self) -> C64 {
+        self.p.ln_g[self.k][(self.a, self.b)]
+    }
+
     /// The measured Ĝ_ab(ω_k).
     fn ghat(&self) -> C64 {
         self.p.g[self.k][(self.a, self.b)]
     }
 
     /// ∂G_ab/∂θ_j.
+    #[inline]
     fn dg(&self, j: usize) -> C64 {
-        self.dg[j][(self.a, self.b)]
+        self.jac.dg(j, self.a, self.b)
     }
 }
 
@@ -96,21 +105,23 @@ pub struct FitProblem {
     pub theta_nom: Vec<f64>,
     /// Log-space flags.
     pub positive: Vec<bool>,
-    kernel: FrfKernel,
+    kernel: FitKernel,
 }
 
-/// A [`FitProblem`] seen by the Levenberg–Marquardt solver, in z.
-struct InZ<'a>(&'a FitProblem);
+/// A [`FitProblem`] seen by the Levenberg–Marquardt solver, in z, with the
+/// line solves of the last point kept: an accepted trial point's cost and
+/// the normal equations there share them.
+struct InZ<'a>(&'a FitProblem, std::cell::RefCell<SolveCache>);
 
 impl LmProblem for InZ<'_> {
     fn dim(&self) -> usize {
         self.0.n_params()
     }
     fn normal_equations(&self, z: &[f64]) -> Result<(f64, DVector<f64>, DMatrix<f64>)> {
-        self.0.normal_equations(&self.0.to_theta(z), true)
+        self.0.normal_equations_cached(&self.0.to_theta(z), true, &mut self.1.borrow_mut())
     }
     fn cost(&self, z: &[f64]) -> f64 {
-        self.0.cost(&self.0.to_theta(z)).unwrap_or(f64::INFINITY)
+        self.0.cost_cached(&self.0.to_theta(z), &mut self.1.borrow_mut()).unwrap_or(f64::INFINITY)
     }
     fn clamp(&self, i: usize, zi: f64) -> f64 {
         self.0.clamp(i, zi)
@@ -208,15 +219,17 @@ impl FitProblem {
             .positions
             .iter()
             .map(|p| {
+                let g: Vec<DMatrix<C64>> = p.g.iter().map(|c| c.to_mat(n)).collect();
                 Ok(PosData {
                     op: model.operating_point(&p.q0, &vals)?,
-                    g: p.g.iter().map(|c| c.to_mat(n)).collect(),
+                    ln_g: g.iter().map(|m| m.map(|v| v.ln())).collect(),
+                    g,
                     var: p.var.iter().map(|v| DMatrix::from_fn(n, n, |a, b| v[a * n + b])).collect(),
                 })
             })
             .collect::<Result<Vec<_>>>()?;
         Ok(FitProblem {
-            kernel: FrfKernel::new(model),
+            kernel: FitKernel::new(model, data.output),
             model: model.clone(),
             output: data.output,
             omegas: data.freqs_hz.iter().map(|f| std::f64::consts::TAU * f).collect(),
@@ -291,24 +304,47 @@ impl FitProblem {
     /// Model FRFs G^{(i)}(ω_k, θ) at every position.
     pub fn model_frfs(&self, theta: &[f64]) -> Result<Vec<Vec<DMatrix<C64>>>> {
         let vals = self.model.full_values(theta)?;
-        let mut dg = Vec::new();
+        let n = self.model.n_motors();
+        let mut sc = SolveCache::default().scratch;
+        let mut g = vec![C64::new(0.0, 0.0); n * n];
         self.pos
             .iter()
             .map(|p| {
                 let lin = self.model.linear_model(&p.op, &vals);
+                let sys = self.kernel.system(&lin, &p.op)?;
+                let mut w = vec![C64::new(0.0, 0.0); self.kernel.w_len(&sys)];
                 self.omegas
                     .iter()
-                    .map(|&w| self.kernel.eval(&lin, &p.op, w, self.output, false, &mut dg))
+                    .map(|&om| {
+                        sys.solve(om, &mut sc, &mut w)?;
+                        self.kernel.frf(&sys, om, &w, &mut g, None);
+                        Ok(DMatrix::from_fn(n, n, |a, b| g[a * n + b]))
+                    })
                     .collect()
             })
             .collect()
     }
 
-    fn residual(&self, ghat: C64, g: C64) -> C64 {
+    /// E of element `el` at the model value `el.g`. For the log estimators
+    /// ln(Ĝ/G) = ln Ĝ − ln G with ln Ĝ computed once per problem, ln|G| =
+    /// ½ ln |G|² and the phase difference taken to (−π, π] (the principal
+    /// branch of ln(Ĝ/G)).
+    #[inline]
+    fn residual(&self, el: &Element<'_>) -> C64 {
+        let g = el.g;
         match self.estimator {
-            Estimator::Nls => ghat - g,
-            Estimator::Lls => (ghat / g).ln(),
-            Estimator::LlsMagnitude => C64::new((ghat.norm() / g.norm()).ln(), 0.0),
+            Estimator::Nls => el.ghat() - g,
+            Estimator::Lls => {
+                let l = el.ln_ghat();
+                let mut ph = l.im - g.im.atan2(g.re);
+                if ph > std::f64::consts::PI {
+                    ph -= std::f64::consts::TAU;
+                } else if ph <= -std::f64::consts::PI {
+                    ph += std::f64::consts::TAU;
+                }
+                C64::new(l.re - 0.5 * g.norm_sqr().ln(), ph)
+            }
+            Estimator::LlsMagnitude => C64::new(el.ln_ghat().re - 0.5 * g.norm_sqr().ln(), 0.0),
         }
     }
 
@@ -324,43 +360,86 @@ impl FitProblem {
     /// for each position, each line ω_k whose weight matrix is not all zero,
     /// and each element (a, b) with weight w ≠ 0, calls `f` with the model FRF
     /// G_ab(ω_k, θ) and, when `jac`, its derivatives ∂G_ab/∂θ_j. Serves the
-    /// cost, the normal equations and the covariance alike.
-    fn for_each_weighted(&self, theta: &[f64], jac: bool, mut f: impl FnMut(&Element<'_>)) -> Result<()> {
+    /// cost and the covariance.
+    fn for_each_weighted(&self, theta: &[f64], jac: bool, cache: &mut SolveCache, mut f: impl FnMut(&Element<'_>)) -> Result<()> {
+        self.visit(theta, jac, cache, false, |e, _| f(e))
+    }
+
+    /// The visitor behind [`Self::for_each_weighted`]. With `pairs`, the
+    /// elements (a, b) and (b, a) of a line come together, `f(first, second)`
+    /// with the first one of weight ≠ 0 of the two and the other one if its
+    /// weight is ≠ 0 too: G(θ) is symmetric (A(s) is complex symmetric and
+    /// B = [I; 0]), so both have the same model value and derivatives, and
+    /// the normal equations take one Jacobian row for the pair.
+    fn visit(&self, theta: &[f64], jac: bool, cache: &mut SolveCache, pairs: bool, mut f: impl FnMut(&Element<'_>, Option<&Element<'_>>)) -> Result<()> {
         let vals = self.model.full_values(theta)?;
-        let mut dg = Vec::new();
+        let n = self.model.n_motors();
+        let nl = self.omegas.len();
+        let hit = !cache.theta.is_empty() && cache.theta.len() == theta.len() && cache.theta.iter().zip(theta).all(|(a, b)| a.to_bits() == b.to_bits());
+        cache.theta.clear();
+        let mut g = vec![C64::new(0.0, 0.0); n * n];
+        let mut lj = LineJac::default();
         for (pi, p) in self.pos.iter().enumerate() {
             let lin = self.model.linear_model(&p.op, &vals);
-            for (k, &w) in self.omegas.iter().enumerate() {
+            let sys = self.kernel.system(&lin, &p.op)?;
+            let wl = self.kernel.w_len(&sys);
+            if cache.w.len() != self.pos.len() * nl * wl {
+                cache.w.resize(self.pos.len() * nl * wl, C64::new(0.0, 0.0));
+            }
+            for (k, &om) in self.omegas.iter().enumerate() {
                 let wk = &self.weights[pi][k];
                 if wk.iter().all(|x| *x == 0.0) {
                     continue;
                 }
-                let g = self.kernel.eval(&lin, &p.op, w, self.output, jac, &mut dg)?;
-                for a in 0..g.nrows() {
-                    for b in 0..g.ncols() {
-                        let w = wk[(a, b)];
-                        if w != 0.0 {
-                            f(&Element {
-                                p,
-                                k,
-                                a,
-                                b,
-                                w,
-                                g: g[(a, b)],
-                                dg: &dg,
-                            });
+                let w = &mut cache.w[(pi * nl + k) * wl..(pi * nl + k + 1) * wl];
+                if !hit {
+                    sys.solve(om, &mut cache.scratch, w)?;
+                }
+                self.kernel.frf(&sys, om, w, &mut g, if jac { Some(&mut lj) } else { None });
+                let el = |a: usize, b: usize| Element {
+                    p,
+                    k,
+                    a,
+                    b,
+                    w: wk[(a, b)],
+                    g: g[a * n + b],
+                    jac: &lj,
+                };
+                for a in 0..n {
+                    if !pairs {
+                        for b in 0..n {
+                            if wk[(a, b)] != 0.0 {
+                                f(&el(a, b), None);
+                            }
+                        }
+                        continue;
+                    }
+                    for b in a..n {
+                        let (w1, w2) = (wk[(a, b)], if a == b { 0.0 } else { wk[(b, a)] });
+                        match (w1 != 0.0, w2 != 0.0) {
+                            (true, true) => f(&el(a, b), Some(&el(b, a))),
+                            (true, false) => f(&el(a, b), None),
+                            (false, true) => f(&el(b, a), None),
+                            (false, false) => {}
                         }
                     }
                 }
             }
         }
+        cache.theta.extend_from_slice(theta);
         Ok(())
     }
 
     /// V(θ).
     pub fn cost(&self, theta: &[f64]) -> Result<f64> {
+        self.cost_cached(theta, &mut SolveCache::default())
+    }
+
+    /// V(θ), reusing the line solves in `cache` if they were made at this θ
+    /// (bit for bit), and leaving this θ's solves there.
+    pub fn cost_cached(&self, theta: &[f64], cache: &mut SolveCache) -> Result<f64> {
         let mut v = 0.0;
-        self.for_each_weighted(theta, false, |e| v += e.w * self.residual(e.ghat(), e.g).norm_sqr())?;
+        self.for_each_weighted(theta, false, cache, |e| v += e.w * self.residual(e).norm_sqr())?;
         if !v.is_finite() {
             return Err(Error::Numerical("non-finite cost (a model FRF element is zero or infinite)".into()));
         }
@@ -370,6 +449,13 @@ impl FitProblem {
     /// V, g = Σ w Re(ψ̄E) and H = Σ w Re(ψ̄ψᵀ), derivatives with respect to z
     /// (`in_z`) or to θ.
     pub fn normal_equations(&self, theta: &[f64], in_z: bool) -> Result<(f64, DVector<f64>, DMatrix<f64>)> {
+        self.normal_equations_cached(theta, in_z, &mut SolveCache::default())
+    }
+
+    /// [`Self::normal_equations`], reusing the line solves in `cache` if they
+    /// were made at this θ (as Levenberg–Marquardt does after the cost at an
+    /// accepted trial point), and leaving this θ's solves there.
+    pub fn normal_equations_cached(&self, theta: &[f64], in_z: bool, cache: &mut SolveCache) -> Result<(f64, DVector<f64>, DMatrix<f64>)> {
         let np = self.n_params();
         let mut v = 0.0;
         let mut grad: DVector<f64> = DVector::zeros(np);
@@ -389,10 +475,19 @@ impl FitProblem {
                 rows.clear();
             }
         };
-        self.for_each_weighted(theta, true, |el| {
-            let ww = el.w;
-            let e = self.residual(el.ghat(), el.g);
-            v += ww * e.norm_sqr();
+        self.visit(theta, true, cache, true, |el, mirror| {
+            // the pair (a, b), (b, a) shares ψ: one row of weight w_ab + w_ba
+            // and the weighted residual w_ab E_ab + w_ba E_ba
+            let e = self.residual(el);
+            v += el.w * e.norm_sqr();
+            let mut ew = e * el.w;
+            let mut ww = el.w;
+            if let Some(m) = mirror {
+                let e2 = self.residual(m);
+                v += m.w * e2.norm_sqr();
+                ew += e2 * m.w;
+                ww += m.w;
+            }
             // ∂E/∂θ_i with one reciprocal of G per element instead of a
             // complex division per parameter
             let ginv = C64::new(1.0, 0.0) / el.g;
@@ -406,7 +501,7 @@ impl FitProblem {
             }
             for i in 0..np {
                 let pr = psi[i];
-                grad[i] += ww * (pr.re * e.re + pr.im * e.im);
+                grad[i] += pr.re * ew.re + pr.im * ew.im;
             }
             let sw = ww.sqrt();
             rows.extend(psi.iter().map(|p| sw * p.re));
@@ -441,7 +536,7 @@ impl FitProblem {
             iterations: 0,
             evaluations: evals,
         };
-        let o = match lm::run(InZ(self), self.to_z(theta0), spec.max_iter, tol, ctl) {
+        let o = match lm::run(InZ(self, Default::default()), self.to_z(theta0), spec.max_iter, tol, ctl) {
             Ok(o) => o,
             Err(_) => return fail(0),
         };
@@ -466,7 +561,7 @@ impl FitProblem {
         let mut h: DMatrix<f64> = DMatrix::zeros(np, np);
         let mut s: DMatrix<f64> = DMatrix::zeros(np, np);
         let mut psi = vec![C64::new(0.0, 0.0); np];
-        self.for_each_weighted(theta, true, |el| {
+        self.for_each_weighted(theta, true, &mut SolveCache::default(), |el| {
             let ww = el.w;
             let var = match self.estimator {
                 Estimator::Nls => el.p.var[el.k][(el.a, el.b)],

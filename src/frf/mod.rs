@@ -13,6 +13,7 @@
 pub mod design;
 pub mod estimate;
 pub mod fit;
+pub mod kernel;
 pub mod multisine;
 pub mod multistart;
 pub mod pipeline;

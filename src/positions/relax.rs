@@ -397,6 +397,13 @@ fn scaled_problem(pb: &Problem) -> Result<Problem> {
     Ok(pb.scaled(p as f64 / tr))
 }
 
+/// Multiplicative iterations of the A-optimal warm start: at most this many,
+/// in chunks of `A_CHUNK`, stopping once at most `A_SMALL_SET`·p candidates
+/// keep a weight above 1e-4 of the largest (the first working set).
+const A_FIRST_ORDER_ITERS: usize = 300;
+const A_CHUNK: usize = 10;
+const A_SMALL_SET: usize = 6;
+
 /// First-order warm start on the scaled problem `pbs` and the first working
 /// set (candidate indices, their warm-start weights).
 fn initial_working_set(pbs: &Problem, crit: Criterion, opts: &SolverOptions, ctl: &Control, log: &mut SolveLog) -> Result<(Vec<usize>, Vec<f64>)> {
@@ -425,8 +432,26 @@ fn initial_working_set(pbs: &Problem, crit: Criterion, opts: &SolverOptions, ctl
         }
         Criterion::A | Criterion::E => {
             let mut w = uniform.clone();
-            let lg = firstorder::multiplicative_a(pbs, &mut w, opts.first_order_iters.min(50), ctl)?;
-            log.first_order_iterations = lg.iterations;
+            // A: enough multiplicative steps that the weights off the support
+            // have decayed (they shrink geometrically), so the first working
+            // set is small; E keeps its short A warm start
+            let iters = if crit == Criterion::A {
+                opts.first_order_iters.min(A_FIRST_ORDER_ITERS)
+            } else {
+                opts.first_order_iters.min(50)
+            };
+            let mut done = 0;
+            let mut lg = firstorder::FirstOrderLog::default();
+            while done < iters {
+                let step = A_CHUNK.min(iters - done);
+                lg = firstorder::multiplicative_a(pbs, &mut w, step, ctl)?;
+                done += step;
+                let wmax = w.iter().cloned().fold(0.0, f64::max);
+                if crit == Criterion::A && w.iter().filter(|&&v| v > 1e-4 * wmax).count() <= A_SMALL_SET * p {
+                    break;
+                }
+            }
+            log.first_order_iterations = done;
             log.first_order_eps = lg.eps;
             let ev = pbs.evaluate(crit, &w)?;
             let wmax = w.iter().cloned().fold(0.0, f64::max);
