@@ -121,3 +121,211 @@ fn json_inputs_with_a_byte_order_mark_are_read() {
     let v: serde_json::Value = serde_json::from_str(&text).unwrap();
     assert!(!v.is_null());
 }
+
+/// `src` (relative to the repository) with each `(from, to)` replaced, written
+/// to `dir/name`; every `from` must occur.
+fn variant(dir: &Path, src: &str, name: &str, edits: &[(&str, &str)]) -> String {
+    let mut text = std::fs::read_to_string(root(src)).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{from} not in {src}");
+        text = text.replacen(from, to, 1);
+    }
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p.to_str().unwrap().to_string()
+}
+
+/// `robot info` on a variant of `src` is refused with exit 1 and a message
+/// holding the file name and every needle.
+fn robot_refused(src: &str, name: &str, edits: &[(&str, &str)], needles: &[&str]) {
+    let tmp = tempfile::tempdir().unwrap();
+    let p = variant(tmp.path(), src, name, edits);
+    let mut all = vec![name];
+    all.extend_from_slice(needles);
+    refused(&["robot", "info", &p], &all);
+}
+
+const TREE: &str = "tests/data/tree.urdf";
+
+#[test]
+fn urdf_non_finite_joint_origins_are_refused() {
+    for v in ["nan", "inf", "-inf"] {
+        let to = format!("<origin xyz=\"{v} 0.2 0.4\" rpy=\"0.3 0 0.2\"/>");
+        robot_refused(
+            TREE,
+            "origin.urdf",
+            &[("<origin xyz=\"0.1 0.2 0.4\" rpy=\"0.3 0 0.2\"/>", &to)],
+            &["joint `shoulder_a` <origin>", "finite"],
+        );
+    }
+    robot_refused(
+        TREE,
+        "origin_rpy.urdf",
+        &[("<origin xyz=\"0 0 0.1\"/><axis xyz=\"1 0 0\"/>", "<origin xyz=\"0 0 0.1\" rpy=\"0 NaN 0\"/><axis xyz=\"1 0 0\"/>")],
+        &["joint `elbow_b` <origin>", "finite"],
+    );
+}
+
+#[test]
+fn urdf_negative_or_impossible_inertia_is_refused() {
+    let arm = "<inertia ixx=\"0.01\" ixy=\"0\" ixz=\"0\" iyy=\"0.05\"";
+    robot_refused(
+        TREE,
+        "neg.urdf",
+        &[(arm, "<inertia ixx=\"-0.01\" ixy=\"0\" ixz=\"0\" iyy=\"0.05\"")],
+        &["link `arm_a` <inertia>", "not positive semidefinite"],
+    );
+    // 0.2 > 0.05 + 0.05: positive but no rigid body has it
+    robot_refused(
+        TREE,
+        "triangle.urdf",
+        &[(arm, "<inertia ixx=\"0.2\" ixy=\"0\" ixz=\"0\" iyy=\"0.05\"")],
+        &["link `arm_a` <inertia>", "triangle inequality"],
+    );
+}
+
+#[test]
+fn urdf_duplicate_joint_names_are_refused() {
+    robot_refused(
+        TREE,
+        "dup.urdf",
+        &[("<joint name=\"elbow_b\"", "<joint name=\"shoulder_a\"")],
+        &["line 30, column 3: joint `shoulder_a` is defined twice", "first at line 18"],
+    );
+}
+
+#[test]
+fn urdf_mimic_joints_are_refused_with_the_reason() {
+    robot_refused(
+        TREE,
+        "mimic.urdf",
+        &[("effort=\"50\" velocity=\"3\"/>", "effort=\"50\" velocity=\"3\"/><mimic joint=\"shoulder_a\" multiplier=\"2\"/>")],
+        &["joint `elbow_b` <mimic> (line 30, column 191)", "not supported", "independent"],
+    );
+}
+
+#[test]
+fn urdf_zero_velocity_is_not_read_as_no_limit() {
+    robot_refused(
+        TREE,
+        "vel0.urdf",
+        &[("effort=\"50\" velocity=\"3\"", "effort=\"50\" velocity=\"0\"")],
+        &["joint `elbow_b` <limit velocity>", "positive", "found 0", "not \"no limit\""],
+    );
+}
+
+#[test]
+fn urdf_negative_effort_or_damping_is_refused() {
+    robot_refused(
+        TREE,
+        "effort.urdf",
+        &[("effort=\"50\"", "effort=\"-50\"")],
+        &["joint `elbow_b` <limit effort>", "found -50"],
+    );
+    robot_refused(
+        TREE,
+        "damping.urdf",
+        &[("damping=\"0.5\"", "damping=\"-0.5\"")],
+        &["joint `shoulder_a` <dynamics damping>", "≥ 0", "found -0.5"],
+    );
+}
+
+#[test]
+fn urdf_unclosed_tags_are_located_by_line_and_column() {
+    robot_refused(TREE, "unclosed.urdf", &[("</robot>", "")], &["<robot> opened at line 5, column 1", "never closed"]);
+    robot_refused(
+        TREE,
+        "mismatch.urdf",
+        &[("<link name=\"hand_a\">", "<link name=\"hand_a\"><visual>")],
+        &["malformed URDF at line 21, column 3", "expected `</visual>`"],
+    );
+}
+
+const RPR: &str = "tests/data/rpr_standard.toml";
+
+#[test]
+fn robot_toml_non_psd_inertia_is_refused() {
+    robot_refused(
+        RPR,
+        "psd.toml",
+        &[("inertia = [0.001, 0.0, 0.0, 0.004", "inertia = [-0.001, 0.0, 0.0, 0.004")],
+        &["link `link3` inertia", "not positive semidefinite"],
+    );
+}
+
+#[test]
+fn robot_toml_degenerate_or_half_open_limits_are_refused() {
+    robot_refused(
+        RPR,
+        "equal.toml",
+        &[("lower = -2.0\nupper = 2.0", "lower = 2.0\nupper = 2.0")],
+        &["joint `wrist` limits", "lower 2 ≥ upper 2"],
+    );
+    robot_refused(
+        RPR,
+        "inf.toml",
+        &[("lower = -2.0\nupper = 2.0", "lower = -2.0\nupper = inf")],
+        &["joint `wrist` limits", "upper inf", "both position limits"],
+    );
+}
+
+#[test]
+fn robot_toml_negative_friction_is_refused() {
+    robot_refused(
+        "tests/data/ident/rpr_drives.toml",
+        "fc.toml",
+        &[("fc = 1.5", "fc = -1.5")],
+        &["drive of joint `base` fc", "≥ 0", "found -1.5"],
+    );
+}
+
+#[test]
+fn robot_toml_bad_frames_are_refused() {
+    let frame = |name: &str, xyz: &str| format!("\n[[frame]]\nname = \"{name}\"\nlink = \"link3\"\nxyz = {xyz}\n");
+    let nan = format!("{}{}", "inertia = [0.001, 0.0, 0.0, 0.004, 0.0, 0.004] }", frame("tool", "[nan, 0.0, 0.0]"));
+    robot_refused(
+        RPR,
+        "nan_frame.toml",
+        &[("inertia = [0.001, 0.0, 0.0, 0.004, 0.0, 0.004] }", &nan)],
+        &["frame `tool` xyz/rpy", "finite"],
+    );
+    let dup = format!(
+        "{}{}{}",
+        "inertia = [0.001, 0.0, 0.0, 0.004, 0.0, 0.004] }",
+        frame("tool", "[0.1, 0.0, 0.0]"),
+        frame("tool", "[0.2, 0.0, 0.0]")
+    );
+    robot_refused(
+        RPR,
+        "dup_frame.toml",
+        &[("inertia = [0.001, 0.0, 0.0, 0.004, 0.0, 0.004] }", &dup)],
+        &["frame `tool`", "duplicate frame name"],
+    );
+}
+
+#[test]
+fn robot_toml_near_singular_coupling_is_refused_with_its_condition_number() {
+    robot_refused(
+        RPR,
+        "coupling.toml",
+        &[("dh = \"standard\"", "dh = \"standard\"\ncoupling = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1e-15]]")],
+        &["field `coupling`", "condition number 1.000e15", "≤ 1e8"],
+    );
+    // exactly singular: the file is named (not only the robot)
+    robot_refused(
+        RPR,
+        "singular.toml",
+        &[("dh = \"standard\"", "dh = \"standard\"\ncoupling = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.0]]")],
+        &["field `coupling`", "singular"],
+    );
+}
+
+#[test]
+fn robot_toml_absurd_gravity_is_refused() {
+    robot_refused(
+        RPR,
+        "gravity.toml",
+        &[("dh = \"standard\"", "dh = \"standard\"\ngravity = [0.0, 0.0, 1e308]")],
+        &["field `gravity`", "1e308", "≤ 981"],
+    );
+}

@@ -185,7 +185,7 @@ pub fn load(path: &Path) -> Result<Robot> {
     match ext.as_str() {
         "urdf" | "xml" => {
             let parts = load_urdf(path, None, None)?;
-            Robot::new(RobotParts {
+            super::validate::checked(path, RobotParts {
                 name: parts.name,
                 joints: parts.joints,
                 links: parts.links,
@@ -229,7 +229,7 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
         name
     });
     let source = f.source.clone().unwrap_or_else(|| path.display().to_string());
-    let robot = Robot::new(RobotParts {
+    let robot = super::validate::checked(path, RobotParts {
         name,
         joints,
         links,
