@@ -217,7 +217,15 @@ pub fn check(file: &Path, p: &RobotParts) -> Result<()> {
             return Err(Error::invalid(ctx, "coupling", "expected finite numbers"));
         }
         if c.is_square() && c.nrows() == p.joints.len() {
-            let s = crate::linalg::singular_values(c)?;
+            // the condition number does not change with scale; scaling by the
+            // largest entry keeps the SVD away from overflow (entries of 1e308)
+            let scale = c.amax();
+            let s = if scale > 0.0 {
+                crate::linalg::singular_values(&(c / scale))
+                    .map_err(|e| Error::invalid(ctx, "coupling", format!("cannot take the singular values of the coupling matrix: {e}")))?
+            } else {
+                vec![0.0]
+            };
             let (smax, smin) = (s[0], *s.last().unwrap_or(&0.0));
             let cond = if smin > 0.0 { smax / smin } else { f64::INFINITY };
             if !(cond <= MAX_COUPLING_CONDITION) {
