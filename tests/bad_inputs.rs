@@ -330,3 +330,54 @@ fn robot_toml_absurd_gravity_is_refused() {
         &["field `gravity`", "1e308", "≤ 981"],
     );
 }
+
+/// designs/elastic_industrial6.toml with `(from, to)` edits and the robot path made absolute.
+fn elastic_variant(dir: &Path, name: &str, edits: &[(&str, &str)]) -> String {
+    let robot = root("designs/robots/industrial6.toml");
+    let abs = format!("robot = {:?}", robot.to_str().unwrap());
+    let mut all: Vec<(&str, &str)> = vec![("robot = \"robots/industrial6.toml\"", abs.as_str())];
+    all.extend_from_slice(edits);
+    variant(dir, "designs/elastic_industrial6.toml", name, &all)
+}
+
+fn fit_refused(name: &str, edits: &[(&str, &str)], needles: &[&str]) {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = elastic_variant(tmp.path(), name, edits);
+    let out = tmp.path().join("o");
+    let mut all = vec![name];
+    all.extend_from_slice(needles);
+    refused(&["fit", &d, "--out", out.to_str().unwrap(), "--starts", "2"], &all);
+}
+
+#[test]
+fn elastic_unknown_damper_at_zero_is_refused() {
+    fit_refused(
+        "d0.toml",
+        &[("k = 3.0e5\nd = 120.0", "k = 3.0e5\nd = 0.0")],
+        &["unknown `d_a1`", "nominal value is 0", "log space"],
+    );
+}
+
+#[test]
+fn elastic_non_psd_payload_inertia_is_refused() {
+    fit_refused(
+        "payload.toml",
+        &[("inertia = [0.08, 0.0, 0.0, 0.08, 0.0, 0.05]", "inertia = [-0.08, 0.0, 0.0, 0.08, 0.0, 0.05]")],
+        &["payload.inertia", "not positive semidefinite"],
+    );
+}
+
+#[test]
+fn arrays_longer_than_their_field_are_refused() {
+    fit_refused(
+        "band.toml",
+        &[("band = [3.0, 150.0]", "band = [2.0, 40.0, 60.0]")],
+        &["`fit.user.band`", "3 elements", "more than the field takes"],
+    );
+    robot_refused(
+        RPR,
+        "gravity4.toml",
+        &[("dh = \"standard\"", "dh = \"standard\"\ngravity = [0.0, 0.0, -9.81, 5.0]")],
+        &["line 4: `gravity`", "4 elements"],
+    );
+}
