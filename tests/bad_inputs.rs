@@ -381,3 +381,63 @@ fn arrays_longer_than_their_field_are_refused() {
         &["line 4: `gravity`", "4 elements"],
     );
 }
+
+/// designs/positions_file_d.toml with edits, next to a copy of its
+/// information file (or `info`, when given) and the robots.
+fn positions_refused(name: &str, edits: &[(&str, &str)], info: Option<&str>, needles: &[&str]) {
+    let tmp = tempfile::tempdir().unwrap();
+    std::os::unix::fs::symlink(root("designs/robots"), tmp.path().join("robots")).unwrap();
+    let json = match info {
+        Some(t) => t.to_string(),
+        None => std::fs::read_to_string(root("designs/positions_example_information.json")).unwrap(),
+    };
+    std::fs::write(tmp.path().join("positions_example_information.json"), json).unwrap();
+    let d = variant(tmp.path(), "designs/positions_file_d.toml", name, edits);
+    let out = tmp.path().join("o");
+    refused(&["positions", &d, "--out", out.to_str().unwrap()], needles);
+    assert!(!out.join("positions_file_d").join("plan.csv").exists());
+}
+
+#[test]
+fn positions_sdp_with_criterion_a_is_refused() {
+    positions_refused(
+        "sdp.toml",
+        &[
+            ("criterion = \"d\"", "criterion = \"a\""),
+            ("path = \"positions_example_information.json\"", "path = \"positions_example_information.json\"\n\n[solver]\nformulation = \"sdp\""),
+        ],
+        None,
+        &["sdp.toml", "solver.formulation", "criterion = \"a\""],
+    );
+}
+
+#[test]
+fn positions_too_few_experiments_are_refused_not_reported_optimal() {
+    // 300 candidates of rank 3, p = 8: one experiment reaches rank 3 at most
+    positions_refused(
+        "one.toml",
+        &[("experiments = 10", "experiments = 1")],
+        None,
+        &["field `experiments`", "rank ≤ 3 < p = 8", "expected experiments ≥ 3"],
+    );
+}
+
+#[test]
+fn positions_candidates_without_full_joint_rank_are_refused_with_the_cause() {
+    // two candidates of rank 6 spanning the same 6 of p = 8 directions (rows
+    // e_i + e_7/2 + e_8/2: every parameter has information, jointly rank 6)
+    let row = |i: usize| (0..8).map(|j| if j == i { "1.0" } else if j >= 6 { "0.5" } else { "0.0" }).collect::<Vec<_>>().join(", ");
+    let jac = (0..6).map(|i| format!("[{}]", row(i))).collect::<Vec<_>>().join(", ");
+    let cand = |q: f64| format!("{{\"q\": [{q}, -1.2, 0.2, 0.0, 0.5, 0.0], \"jacobian\": [{jac}]}}");
+    let info = format!(
+        "{{\"parameters\": [\"k1\", \"k2\", \"k3\", \"k4\", \"d1\", \"d2\", \"d3\", \"d4\"], \"candidates\": [{}, {}]}}",
+        cand(0.0),
+        cand(0.5)
+    );
+    positions_refused(
+        "rank.toml",
+        &[],
+        Some(&info),
+        &["field `candidates`", "all 2 candidates together has rank 6 < p = 8", "6 ×2"],
+    );
+}
