@@ -95,7 +95,15 @@ pub fn col_piv_qr_diag(m: &DMatrix<f64>) -> (Vec<f64>, Vec<usize>) {
     let mut fwd = vec![0usize; c];
     let mut bwd = vec![0usize; c];
     let mut buf = MemBuffer::new(qr_in_place_scratch::<usize, f64>(r, c, bs, par(), Default::default()));
-    qr_in_place(a.as_mut(), q_coeff.as_mut(), &mut fwd, &mut bwd, par(), MemStack::new(&mut buf), Default::default());
+    qr_in_place(
+        a.as_mut(),
+        q_coeff.as_mut(),
+        &mut fwd,
+        &mut bwd,
+        par(),
+        MemStack::new(&mut buf),
+        Default::default(),
+    );
     let d = (0..k).map(|i| a[(i, i)].abs()).collect();
     (d, fwd)
 }

@@ -161,7 +161,10 @@ fn urdf_non_finite_joint_origins_are_refused() {
     robot_refused(
         TREE,
         "origin_rpy.urdf",
-        &[("<origin xyz=\"0 0 0.1\"/><axis xyz=\"1 0 0\"/>", "<origin xyz=\"0 0 0.1\" rpy=\"0 NaN 0\"/><axis xyz=\"1 0 0\"/>")],
+        &[(
+            "<origin xyz=\"0 0 0.1\"/><axis xyz=\"1 0 0\"/>",
+            "<origin xyz=\"0 0 0.1\" rpy=\"0 NaN 0\"/><axis xyz=\"1 0 0\"/>",
+        )],
         &["joint `elbow_b` <origin>", "finite"],
     );
 }
@@ -178,7 +181,12 @@ fn urdf_negative_or_impossible_inertia_is_refused() {
     // 0.2 > 0.05 + 0.05: positive, but no rigid body has it; published lumped
     // models (the PUMA 560's link 3) do, so it is read with a warning
     let tmp = tempfile::tempdir().unwrap();
-    let p = variant(tmp.path(), TREE, "triangle.urdf", &[(arm, "<inertia ixx=\"0.2\" ixy=\"0\" ixz=\"0\" iyy=\"0.05\"")]);
+    let p = variant(
+        tmp.path(),
+        TREE,
+        "triangle.urdf",
+        &[(arm, "<inertia ixx=\"0.2\" ixy=\"0\" ixz=\"0\" iyy=\"0.05\"")],
+    );
     let out = Command::new(env!("CARGO_BIN_EXE_idexp")).args(["robot", "info", &p]).output().unwrap();
     let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
     assert!(out.status.success(), "{text}");
@@ -200,7 +208,10 @@ fn urdf_mimic_joints_are_refused_with_the_reason() {
     robot_refused(
         TREE,
         "mimic.urdf",
-        &[("effort=\"50\" velocity=\"3\"/>", "effort=\"50\" velocity=\"3\"/><mimic joint=\"shoulder_a\" multiplier=\"2\"/>")],
+        &[(
+            "effort=\"50\" velocity=\"3\"/>",
+            "effort=\"50\" velocity=\"3\"/><mimic joint=\"shoulder_a\" multiplier=\"2\"/>",
+        )],
         &["joint `elbow_b` <mimic> (line 30, column 191)", "not supported", "independent"],
     );
 }
@@ -233,7 +244,12 @@ fn urdf_negative_effort_or_damping_is_refused() {
 
 #[test]
 fn urdf_unclosed_tags_are_located_by_line_and_column() {
-    robot_refused(TREE, "unclosed.urdf", &[("</robot>", "")], &["<robot> opened at line 5, column 1", "never closed"]);
+    robot_refused(
+        TREE,
+        "unclosed.urdf",
+        &[("</robot>", "")],
+        &["<robot> opened at line 5, column 1", "never closed"],
+    );
     robot_refused(
         TREE,
         "mismatch.urdf",
@@ -309,14 +325,20 @@ fn robot_toml_near_singular_coupling_is_refused_with_its_condition_number() {
     robot_refused(
         RPR,
         "coupling.toml",
-        &[("dh = \"standard\"", "dh = \"standard\"\ncoupling = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1e-15]]")],
+        &[(
+            "dh = \"standard\"",
+            "dh = \"standard\"\ncoupling = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1e-15]]",
+        )],
         &["field `coupling`", "condition number 1.000e15", "≤ 1e8"],
     );
     // exactly singular: the file is named (not only the robot)
     robot_refused(
         RPR,
         "singular.toml",
-        &[("dh = \"standard\"", "dh = \"standard\"\ncoupling = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.0]]")],
+        &[(
+            "dh = \"standard\"",
+            "dh = \"standard\"\ncoupling = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.0]]",
+        )],
         &["field `coupling`", "singular"],
     );
 }
@@ -404,7 +426,10 @@ fn positions_sdp_with_criterion_a_is_refused() {
         "sdp.toml",
         &[
             ("criterion = \"d\"", "criterion = \"a\""),
-            ("path = \"positions_example_information.json\"", "path = \"positions_example_information.json\"\n\n[solver]\nformulation = \"sdp\""),
+            (
+                "path = \"positions_example_information.json\"",
+                "path = \"positions_example_information.json\"\n\n[solver]\nformulation = \"sdp\"",
+            ),
         ],
         None,
         &["sdp.toml", "solver.formulation", "criterion = \"a\""],
@@ -426,7 +451,20 @@ fn positions_too_few_experiments_are_refused_not_reported_optimal() {
 fn positions_candidates_without_full_joint_rank_are_refused_with_the_cause() {
     // two candidates of rank 6 spanning the same 6 of p = 8 directions (rows
     // e_i + e_7/2 + e_8/2: every parameter has information, jointly rank 6)
-    let row = |i: usize| (0..8).map(|j| if j == i { "1.0" } else if j >= 6 { "0.5" } else { "0.0" }).collect::<Vec<_>>().join(", ");
+    let row = |i: usize| {
+        (0..8)
+            .map(|j| {
+                if j == i {
+                    "1.0"
+                } else if j >= 6 {
+                    "0.5"
+                } else {
+                    "0.0"
+                }
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
     let jac = (0..6).map(|i| format!("[{}]", row(i))).collect::<Vec<_>>().join(", ");
     let cand = |q: f64| format!("{{\"q\": [{q}, -1.2, 0.2, 0.0, 0.5, 0.0], \"jacobian\": [{jac}]}}");
     let info = format!(
@@ -439,5 +477,65 @@ fn positions_candidates_without_full_joint_rank_are_refused_with_the_cause() {
         &[],
         Some(&info),
         &["field `candidates`", "all 2 candidates together has rank 6 < p = 8", "6 ×2"],
+    );
+}
+
+/// A simulated run of designs/sim_rpr_fourier.toml in `dir` (its folder).
+fn rpr_run(dir: &Path) -> std::path::PathBuf {
+    let out = dir.join("run");
+    let st = Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .args([
+            "simulate",
+            root("designs/sim_rpr_fourier.toml").to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .env("IDEXP_NO_PROGRESS", "1")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .unwrap();
+    assert!(st.success());
+    out
+}
+
+#[test]
+fn identify_argument_mismatches_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = rpr_run(tmp.path());
+    let robot = root("tests/data/ident/rpr_drives.toml");
+    let (r, d) = (robot.to_str().unwrap(), run.to_str().unwrap());
+    // a trajectory of another robot (6 joints) on this 3-joint run
+    let mut t: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(run.join("trajectory.json")).unwrap()).unwrap();
+    for key in ["a", "b", "q0"] {
+        let rows = t["trajectory"][key].as_array().unwrap().clone();
+        t["trajectory"][key] = serde_json::Value::Array(rows.iter().chain(rows.iter()).cloned().collect());
+    }
+    let six = tmp.path().join("six.json");
+    std::fs::write(&six, serde_json::to_string(&t).unwrap()).unwrap();
+    refused(
+        &[
+            "identify",
+            r,
+            d,
+            "--trajectory",
+            six.to_str().unwrap(),
+            "--out",
+            tmp.path().join("o").to_str().unwrap(),
+        ],
+        &["--trajectory", "six.json", "6 joints", "have 3"],
+    );
+    refused(
+        &[
+            "identify",
+            r,
+            d,
+            "--reduce",
+            "--essential",
+            "Fc1,Fc1",
+            "--out",
+            tmp.path().join("o").to_str().unwrap(),
+        ],
+        &["--essential", "`Fc1` is listed twice"],
     );
 }

@@ -67,7 +67,10 @@ fn mutate(text: &str, rng: &mut ChaCha8Rng) -> (String, String) {
             }
             let (s, e) = spans[rng.random_range(0..spans.len())];
             let v = ["nan", "NaN", "1e308", "-1", "0", "-0.0", "inf", "1e-300", "-1e308"][rng.random_range(0..9usize)];
-            (format!("{}{v}{}", &text[..s], &text[e..]), format!("number `{}` at byte {s} → {v}", &text[s..e]))
+            (
+                format!("{}{v}{}", &text[..s], &text[e..]),
+                format!("number `{}` at byte {s} → {v}", &text[s..e]),
+            )
         }
         3 => {
             let mut cut = rng.random_range(0..text.len().max(1));
@@ -176,7 +179,12 @@ fn corpus(tmp: &Path) -> Vec<(PathBuf, Reader, PathBuf)> {
     }
     let data = tmp.join("data");
     mirror(&root("tests/data"), &data);
-    for f in ["tests/data/rpr_standard.toml", "tests/data/coupled6_modified.toml", "tests/data/tree.urdf", "tests/data/ident/rpr_drives.toml"] {
+    for f in [
+        "tests/data/rpr_standard.toml",
+        "tests/data/coupled6_modified.toml",
+        "tests/data/tree.urdf",
+        "tests/data/ident/rpr_drives.toml",
+    ] {
         out.push((root(f), robot as Reader, data.clone()));
     }
     // CSV readers: a states file, a repetition written here (t, q, tau for 3
@@ -239,7 +247,11 @@ fn mutated_inputs_never_panic_and_errors_name_the_file() {
             let _ = std::fs::remove_file(&p);
         }
     }
-    eprintln!("{tried} mutants over {} files, {refused} refused, {:.1} s", corpus.len(), t0.elapsed().as_secs_f64());
+    eprintln!(
+        "{tried} mutants over {} files, {refused} refused, {:.1} s",
+        corpus.len(),
+        t0.elapsed().as_secs_f64()
+    );
     assert!(tried >= corpus.len(), "the time budget ran out before one round");
     assert!(failures.is_empty(), "{} of {tried} mutants:\n{}", failures.len(), failures.join("\n"));
 }

@@ -169,7 +169,12 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(path: &Path, text: &str) -> Re
         let value = toml::Value::Table(table);
         if value.clone().try_into::<T>().is_err() {
             if let Some((key, len)) = overlong_array::<T>(&value) {
-                let last = key.rsplit('.').next().unwrap_or(&key).trim_end_matches(|c: char| c == ']' || c.is_ascii_digit()).trim_end_matches('[');
+                let last = key
+                    .rsplit('.')
+                    .next()
+                    .unwrap_or(&key)
+                    .trim_end_matches(|c: char| c == ']' || c.is_ascii_digit())
+                    .trim_end_matches('[');
                 // the line, when only one line sets a key of that name
                 let lines: Vec<usize> = text
                     .lines()

@@ -550,7 +550,11 @@ fn identifiable(
         }
     }
     if g.iter().any(|v| !v.is_finite()) {
-        return Err(Error::invalid(ctx, "information", "the candidates' information matrices hold non-finite values"));
+        return Err(Error::invalid(
+            ctx,
+            "information",
+            "the candidates' information matrices hold non-finite values",
+        ));
     }
     let d: Vec<f64> = (0..p).map(|i| g[(i, i)]).collect();
     if let Some(i) = d.iter().position(|v| !(*v > 0.0)) {
@@ -585,12 +589,13 @@ fn identifiable(
         if reach < p {
             let need = {
                 let mut acc = 0;
-                r.iter().take_while(|&&x| {
-                    let before = acc;
-                    acc += x;
-                    before < p
-                })
-                .count()
+                r.iter()
+                    .take_while(|&&x| {
+                        let before = acc;
+                        acc += x;
+                        before < p
+                    })
+                    .count()
             };
             return Err(Error::invalid(
                 ctx,

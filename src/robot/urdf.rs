@@ -76,7 +76,10 @@ fn scan_urdf(path: &Path, text: &str) -> Result<RawUrdf> {
     // open elements: (name, start byte)
     let mut open: Vec<(String, usize)> = Vec::new();
     let attr = |e: &BytesStart, key: &str| -> Option<String> {
-        e.try_get_attribute(key).ok().flatten().and_then(|a| a.unescape_value().ok().map(|v| v.into_owned()))
+        e.try_get_attribute(key)
+            .ok()
+            .flatten()
+            .and_then(|a| a.unescape_value().ok().map(|v| v.into_owned()))
     };
     loop {
         let before = reader.buffer_position() as usize;
@@ -153,7 +156,10 @@ fn scan_urdf(path: &Path, text: &str) -> Result<RawUrdf> {
         if let Some((_, first)) = out.joints[..k].iter().find(|(o, _)| o == n) {
             return Err(Error::parse(
                 path,
-                format!("line {}, column {}: joint `{n}` is defined twice (first at line {})", j.at.0, j.at.1, first.at.0),
+                format!(
+                    "line {}, column {}: joint `{n}` is defined twice (first at line {})",
+                    j.at.0, j.at.1, first.at.0
+                ),
             ));
         }
     }
@@ -375,14 +381,21 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
                         return Err(Error::invalid(
                             &ctx,
                             format!("joint `{}` <limit> (line {line})", j.name),
-                            format!("lower {} ≥ upper {}: expected lower < upper (a joint that cannot move is a fixed joint)", l.lower, l.upper),
+                            format!(
+                                "lower {} ≥ upper {}: expected lower < upper (a joint that cannot move is a fixed joint)",
+                                l.lower, l.upper
+                            ),
                         ));
                     }
                     let limits = JointLimits {
                         lower: if continuous { f64::NEG_INFINITY } else { l.lower },
                         upper: if continuous { f64::INFINITY } else { l.upper },
                         velocity: positive("velocity", l.velocity)?,
-                        acceleration: if l.acceleration.is_infinite() { f64::INFINITY } else { positive("acceleration", l.acceleration)? },
+                        acceleration: if l.acceleration.is_infinite() {
+                            f64::INFINITY
+                        } else {
+                            positive("acceleration", l.acceleration)?
+                        },
                         effort: positive("effort", l.effort)?,
                     };
                     let idx = joints.len();

@@ -97,10 +97,7 @@ pub fn check(file: &Path, p: &RobotParts) -> Result<()> {
             return Err(Error::invalid(
                 ctx,
                 field("origin"),
-                format!(
-                    "expected a finite placement, found xyz {:?}",
-                    j.placement.translation.vector.as_slice()
-                ),
+                format!("expected a finite placement, found xyz {:?}", j.placement.translation.vector.as_slice()),
             ));
         }
         if j.axis.iter().any(|v| !v.is_finite()) {
@@ -123,20 +120,14 @@ pub fn check(file: &Path, p: &RobotParts) -> Result<()> {
             }
             (false, false) => {
                 if lo != f64::NEG_INFINITY || up != f64::INFINITY {
-                    return Err(Error::invalid(
-                        ctx,
-                        field("limits"),
-                        format!("lower {lo}, upper {up}: expected lower < upper"),
-                    ));
+                    return Err(Error::invalid(ctx, field("limits"), format!("lower {lo}, upper {up}: expected lower < upper")));
                 }
             }
             _ => {
                 return Err(Error::invalid(
                     ctx,
                     field("limits"),
-                    format!(
-                        "lower {lo}, upper {up}: give both position limits as finite numbers, or neither for an unbounded (continuous) joint"
-                    ),
+                    format!("lower {lo}, upper {up}: give both position limits as finite numbers, or neither for an unbounded (continuous) joint"),
                 ))
             }
         }
@@ -179,12 +170,21 @@ pub fn check(file: &Path, p: &RobotParts) -> Result<()> {
                 fv_pos,
                 fv_neg,
                 ..
-            } => vec![("fc_pos", fc_pos, true), ("fc_neg", fc_neg, false), ("fv_pos", fv_pos, true), ("fv_neg", fv_neg, true)],
+            } => vec![
+                ("fc_pos", fc_pos, true),
+                ("fc_neg", fc_neg, false),
+                ("fv_pos", fv_pos, true),
+                ("fv_neg", fv_neg, true),
+            ],
         };
         for (name, v, nonneg) in coeffs {
             let ok = v.is_finite() && if nonneg { v >= 0.0 } else { v <= 0.0 };
             if !ok {
-                let allowed = if nonneg { "≥ 0 (friction dissipates)" } else { "≤ 0 (the Coulomb term opposes negative velocity)" };
+                let allowed = if nonneg {
+                    "≥ 0 (friction dissipates)"
+                } else {
+                    "≤ 0 (the Coulomb term opposes negative velocity)"
+                };
                 return Err(Error::invalid(
                     ctx,
                     format!("drive of joint `{jn}` {name}"),
