@@ -28,10 +28,13 @@ pub fn par() -> faer::Par {
     faer::Par::rayon(FAER_SPLITS)
 }
 
+/// The thin U and V of an SVD.
+type SvdVectors = (faer::Mat<f64>, faer::Mat<f64>);
+
 /// SVD through faer's kernel with the crate's fixed parallelism: the
 /// singular values (unsorted, as faer returns them) and, when `vectors`,
 /// the thin U and V.
-fn svd_fixed(m: &DMatrix<f64>, vectors: bool) -> Result<(faer::diag::Diag<f64>, Option<(faer::Mat<f64>, faer::Mat<f64>)>)> {
+fn svd_fixed(m: &DMatrix<f64>, vectors: bool) -> Result<(faer::diag::Diag<f64>, Option<SvdVectors>)> {
     use faer::dyn_stack::{MemBuffer, MemStack};
     use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
     let f = to_faer(m);

@@ -539,3 +539,16 @@ fn identify_argument_mismatches_are_refused() {
         &["--essential", "`Fc1` is listed twice"],
     );
 }
+
+#[test]
+fn excite_into_an_existing_file_is_refused_before_the_search() {
+    let tmp = tempfile::tempdir().unwrap();
+    let f = tmp.path().join("file");
+    std::fs::write(&f, "keep").unwrap();
+    // the bench design searches for 10 s: a refusal within the 10 s bound is up front
+    refused(
+        &["excite", "designs/excite_ur5_bench.toml", "--out", f.to_str().unwrap()],
+        &["field `--out`", "exists and is not a folder"],
+    );
+    assert_eq!(std::fs::read_to_string(&f).unwrap(), "keep");
+}

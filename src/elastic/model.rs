@@ -530,7 +530,7 @@ fn select_unknowns(params: &[ModelParam], spec: &ElasticSpec, ctxm: &str) -> Res
     // starts: a nominal 0 would stay exactly 0 in every start
     for &i in &unknowns {
         let p = &params[i];
-        if p.positive && !(p.nominal > 0.0) {
+        if p.positive && (p.nominal.is_nan() || p.nominal <= 0.0) {
             return Err(Error::invalid(
                 ctxm,
                 format!("unknown `{}`", p.name),

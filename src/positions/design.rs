@@ -557,7 +557,7 @@ fn identifiable(
         ));
     }
     let d: Vec<f64> = (0..p).map(|i| g[(i, i)]).collect();
-    if let Some(i) = d.iter().position(|v| !(*v > 0.0)) {
+    if let Some(i) = d.iter().position(|v| v.is_nan() || *v <= 0.0) {
         return Err(Error::invalid(
             ctx,
             "information",

@@ -370,7 +370,7 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
                         }
                         Ok(v)
                     };
-                    if !continuous && !(l.lower.is_finite() && l.upper.is_finite()) {
+                    if !continuous && (!l.lower.is_finite() || !l.upper.is_finite()) {
                         return Err(Error::invalid(
                             &ctx,
                             format!("joint `{}` <limit> (line {line})", j.name),

@@ -228,7 +228,7 @@ pub fn check(file: &Path, p: &RobotParts) -> Result<()> {
             };
             let (smax, smin) = (s[0], *s.last().unwrap_or(&0.0));
             let cond = if smin > 0.0 { smax / smin } else { f64::INFINITY };
-            if !(cond <= MAX_COUPLING_CONDITION) {
+            if cond.is_nan() || cond > MAX_COUPLING_CONDITION {
                 return Err(Error::invalid(
                     ctx,
                     "coupling",
