@@ -121,3 +121,434 @@ fn json_inputs_with_a_byte_order_mark_are_read() {
     let v: serde_json::Value = serde_json::from_str(&text).unwrap();
     assert!(!v.is_null());
 }
+
+/// `src` (relative to the repository) with each `(from, to)` replaced, written
+/// to `dir/name`; every `from` must occur.
+fn variant(dir: &Path, src: &str, name: &str, edits: &[(&str, &str)]) -> String {
+    let mut text = std::fs::read_to_string(root(src)).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{from} not in {src}");
+        text = text.replacen(from, to, 1);
+    }
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p.to_str().unwrap().to_string()
+}
+
+/// `robot info` on a variant of `src` is refused with exit 1 and a message
+/// holding the file name and every needle.
+fn robot_refused(src: &str, name: &str, edits: &[(&str, &str)], needles: &[&str]) {
+    let tmp = tempfile::tempdir().unwrap();
+    let p = variant(tmp.path(), src, name, edits);
+    let mut all = vec![name];
+    all.extend_from_slice(needles);
+    refused(&["robot", "info", &p], &all);
+}
+
+const TREE: &str = "tests/data/tree.urdf";
+
+#[test]
+fn urdf_non_finite_joint_origins_are_refused() {
+    for v in ["nan", "inf", "-inf"] {
+        let to = format!("<origin xyz=\"{v} 0.2 0.4\" rpy=\"0.3 0 0.2\"/>");
+        robot_refused(
+            TREE,
+            "origin.urdf",
+            &[("<origin xyz=\"0.1 0.2 0.4\" rpy=\"0.3 0 0.2\"/>", &to)],
+            &["joint `shoulder_a` <origin>", "finite"],
+        );
+    }
+    robot_refused(
+        TREE,
+        "origin_rpy.urdf",
+        &[(
+            "<origin xyz=\"0 0 0.1\"/><axis xyz=\"1 0 0\"/>",
+            "<origin xyz=\"0 0 0.1\" rpy=\"0 NaN 0\"/><axis xyz=\"1 0 0\"/>",
+        )],
+        &["joint `elbow_b` <origin>", "finite"],
+    );
+}
+
+#[test]
+fn urdf_negative_or_impossible_inertia_is_refused() {
+    let arm = "<inertia ixx=\"0.01\" ixy=\"0\" ixz=\"0\" iyy=\"0.05\"";
+    robot_refused(
+        TREE,
+        "neg.urdf",
+        &[(arm, "<inertia ixx=\"-0.01\" ixy=\"0\" ixz=\"0\" iyy=\"0.05\"")],
+        &["link `arm_a` <inertia>", "not positive semidefinite"],
+    );
+    // 0.2 > 0.05 + 0.05: positive, but no rigid body has it; published lumped
+    // models (the PUMA 560's link 3) do, so it is read with a warning
+    let tmp = tempfile::tempdir().unwrap();
+    let p = variant(
+        tmp.path(),
+        TREE,
+        "triangle.urdf",
+        &[(arm, "<inertia ixx=\"0.2\" ixy=\"0\" ixz=\"0\" iyy=\"0.05\"")],
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_idexp")).args(["robot", "info", &p]).output().unwrap();
+    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "{text}");
+    assert!(text.contains("link `arm_a`: physically inconsistent inertia"), "{text}");
+}
+
+#[test]
+fn urdf_duplicate_joint_names_are_refused() {
+    robot_refused(
+        TREE,
+        "dup.urdf",
+        &[("<joint name=\"elbow_b\"", "<joint name=\"shoulder_a\"")],
+        &["line 30, column 3: joint `shoulder_a` is defined twice", "first at line 18"],
+    );
+}
+
+#[test]
+fn urdf_mimic_joints_are_refused_with_the_reason() {
+    robot_refused(
+        TREE,
+        "mimic.urdf",
+        &[(
+            "effort=\"50\" velocity=\"3\"/>",
+            "effort=\"50\" velocity=\"3\"/><mimic joint=\"shoulder_a\" multiplier=\"2\"/>",
+        )],
+        &["joint `elbow_b` <mimic> (line 30, column 191)", "not supported", "independent"],
+    );
+}
+
+#[test]
+fn urdf_zero_velocity_is_not_read_as_no_limit() {
+    robot_refused(
+        TREE,
+        "vel0.urdf",
+        &[("effort=\"50\" velocity=\"3\"", "effort=\"50\" velocity=\"0\"")],
+        &["joint `elbow_b` <limit velocity>", "positive", "found 0", "not \"no limit\""],
+    );
+}
+
+#[test]
+fn urdf_negative_effort_or_damping_is_refused() {
+    robot_refused(
+        TREE,
+        "effort.urdf",
+        &[("effort=\"50\"", "effort=\"-50\"")],
+        &["joint `elbow_b` <limit effort>", "found -50"],
+    );
+    robot_refused(
+        TREE,
+        "damping.urdf",
+        &[("damping=\"0.5\"", "damping=\"-0.5\"")],
+        &["joint `shoulder_a` <dynamics damping>", "≥ 0", "found -0.5"],
+    );
+}
+
+#[test]
+fn urdf_unclosed_tags_are_located_by_line_and_column() {
+    robot_refused(
+        TREE,
+        "unclosed.urdf",
+        &[("</robot>", "")],
+        &["<robot> opened at line 5, column 1", "never closed"],
+    );
+    robot_refused(
+        TREE,
+        "mismatch.urdf",
+        &[("<link name=\"hand_a\">", "<link name=\"hand_a\"><visual>")],
+        &["malformed URDF at line 21, column 3", "expected `</visual>`"],
+    );
+}
+
+const RPR: &str = "tests/data/rpr_standard.toml";
+
+#[test]
+fn robot_toml_non_psd_inertia_is_refused() {
+    robot_refused(
+        RPR,
+        "psd.toml",
+        &[("inertia = [0.001, 0.0, 0.0, 0.004", "inertia = [-0.001, 0.0, 0.0, 0.004")],
+        &["link `link3` inertia", "not positive semidefinite"],
+    );
+}
+
+#[test]
+fn robot_toml_degenerate_or_half_open_limits_are_refused() {
+    robot_refused(
+        RPR,
+        "equal.toml",
+        &[("lower = -2.0\nupper = 2.0", "lower = 2.0\nupper = 2.0")],
+        &["joint `wrist` limits", "lower 2 ≥ upper 2"],
+    );
+    robot_refused(
+        RPR,
+        "inf.toml",
+        &[("lower = -2.0\nupper = 2.0", "lower = -2.0\nupper = inf")],
+        &["joint `wrist` limits", "upper inf", "both position limits"],
+    );
+}
+
+#[test]
+fn robot_toml_negative_friction_is_refused() {
+    robot_refused(
+        "tests/data/ident/rpr_drives.toml",
+        "fc.toml",
+        &[("fc = 1.5", "fc = -1.5")],
+        &["drive of joint `base` fc", "≥ 0", "found -1.5"],
+    );
+}
+
+#[test]
+fn robot_toml_bad_frames_are_refused() {
+    let frame = |name: &str, xyz: &str| format!("\n[[frame]]\nname = \"{name}\"\nlink = \"link3\"\nxyz = {xyz}\n");
+    let nan = format!("{}{}", "inertia = [0.001, 0.0, 0.0, 0.004, 0.0, 0.004] }", frame("tool", "[nan, 0.0, 0.0]"));
+    robot_refused(
+        RPR,
+        "nan_frame.toml",
+        &[("inertia = [0.001, 0.0, 0.0, 0.004, 0.0, 0.004] }", &nan)],
+        &["frame `tool` xyz/rpy", "finite"],
+    );
+    let dup = format!(
+        "{}{}{}",
+        "inertia = [0.001, 0.0, 0.0, 0.004, 0.0, 0.004] }",
+        frame("tool", "[0.1, 0.0, 0.0]"),
+        frame("tool", "[0.2, 0.0, 0.0]")
+    );
+    robot_refused(
+        RPR,
+        "dup_frame.toml",
+        &[("inertia = [0.001, 0.0, 0.0, 0.004, 0.0, 0.004] }", &dup)],
+        &["frame `tool`", "duplicate frame name"],
+    );
+}
+
+#[test]
+fn robot_toml_near_singular_coupling_is_refused_with_its_condition_number() {
+    robot_refused(
+        RPR,
+        "coupling.toml",
+        &[(
+            "dh = \"standard\"",
+            "dh = \"standard\"\ncoupling = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1e-15]]",
+        )],
+        &["field `coupling`", "condition number 1.000e15", "≤ 1e8"],
+    );
+    // exactly singular: the file is named (not only the robot)
+    robot_refused(
+        RPR,
+        "singular.toml",
+        &[(
+            "dh = \"standard\"",
+            "dh = \"standard\"\ncoupling = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.0]]",
+        )],
+        &["field `coupling`", "singular"],
+    );
+}
+
+#[test]
+fn robot_toml_absurd_gravity_is_refused() {
+    robot_refused(
+        RPR,
+        "gravity.toml",
+        &[("dh = \"standard\"", "dh = \"standard\"\ngravity = [0.0, 0.0, 1e308]")],
+        &["field `gravity`", "1e308", "≤ 981"],
+    );
+}
+
+/// designs/elastic_industrial6.toml with `(from, to)` edits and the robot path made absolute.
+fn elastic_variant(dir: &Path, name: &str, edits: &[(&str, &str)]) -> String {
+    let robot = root("designs/robots/industrial6.toml");
+    let abs = format!("robot = {:?}", robot.to_str().unwrap());
+    let mut all: Vec<(&str, &str)> = vec![("robot = \"robots/industrial6.toml\"", abs.as_str())];
+    all.extend_from_slice(edits);
+    variant(dir, "designs/elastic_industrial6.toml", name, &all)
+}
+
+fn fit_refused(name: &str, edits: &[(&str, &str)], needles: &[&str]) {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = elastic_variant(tmp.path(), name, edits);
+    let out = tmp.path().join("o");
+    let mut all = vec![name];
+    all.extend_from_slice(needles);
+    refused(&["fit", &d, "--out", out.to_str().unwrap(), "--starts", "2"], &all);
+}
+
+#[test]
+fn elastic_unknown_damper_at_zero_is_refused() {
+    fit_refused(
+        "d0.toml",
+        &[("k = 3.0e5\nd = 120.0", "k = 3.0e5\nd = 0.0")],
+        &["unknown `d_a1`", "nominal value is 0", "log space"],
+    );
+}
+
+#[test]
+fn elastic_non_psd_payload_inertia_is_refused() {
+    fit_refused(
+        "payload.toml",
+        &[("inertia = [0.08, 0.0, 0.0, 0.08, 0.0, 0.05]", "inertia = [-0.08, 0.0, 0.0, 0.08, 0.0, 0.05]")],
+        &["payload.inertia", "not positive semidefinite"],
+    );
+}
+
+#[test]
+fn arrays_longer_than_their_field_are_refused() {
+    fit_refused(
+        "band.toml",
+        &[("band = [3.0, 150.0]", "band = [2.0, 40.0, 60.0]")],
+        &["`fit.user.band`", "3 elements", "more than the field takes"],
+    );
+    robot_refused(
+        RPR,
+        "gravity4.toml",
+        &[("dh = \"standard\"", "dh = \"standard\"\ngravity = [0.0, 0.0, -9.81, 5.0]")],
+        &["line 4: `gravity`", "4 elements"],
+    );
+}
+
+/// designs/positions_file_d.toml with edits, next to a copy of its
+/// information file (or `info`, when given) and the robots.
+fn positions_refused(name: &str, edits: &[(&str, &str)], info: Option<&str>, needles: &[&str]) {
+    let tmp = tempfile::tempdir().unwrap();
+    std::os::unix::fs::symlink(root("designs/robots"), tmp.path().join("robots")).unwrap();
+    let json = match info {
+        Some(t) => t.to_string(),
+        None => std::fs::read_to_string(root("designs/positions_example_information.json")).unwrap(),
+    };
+    std::fs::write(tmp.path().join("positions_example_information.json"), json).unwrap();
+    let d = variant(tmp.path(), "designs/positions_file_d.toml", name, edits);
+    let out = tmp.path().join("o");
+    refused(&["positions", &d, "--out", out.to_str().unwrap()], needles);
+    assert!(!out.join("positions_file_d").join("plan.csv").exists());
+}
+
+#[test]
+fn positions_sdp_with_criterion_a_is_refused() {
+    positions_refused(
+        "sdp.toml",
+        &[
+            ("criterion = \"d\"", "criterion = \"a\""),
+            (
+                "path = \"positions_example_information.json\"",
+                "path = \"positions_example_information.json\"\n\n[solver]\nformulation = \"sdp\"",
+            ),
+        ],
+        None,
+        &["sdp.toml", "solver.formulation", "criterion = \"a\""],
+    );
+}
+
+#[test]
+fn positions_too_few_experiments_are_refused_not_reported_optimal() {
+    // 300 candidates of rank 3, p = 8: one experiment reaches rank 3 at most
+    positions_refused(
+        "one.toml",
+        &[("experiments = 10", "experiments = 1")],
+        None,
+        &["field `experiments`", "rank ≤ 3 < p = 8", "expected experiments ≥ 3"],
+    );
+}
+
+#[test]
+fn positions_candidates_without_full_joint_rank_are_refused_with_the_cause() {
+    // two candidates of rank 6 spanning the same 6 of p = 8 directions (rows
+    // e_i + e_7/2 + e_8/2: every parameter has information, jointly rank 6)
+    let row = |i: usize| {
+        (0..8)
+            .map(|j| {
+                if j == i {
+                    "1.0"
+                } else if j >= 6 {
+                    "0.5"
+                } else {
+                    "0.0"
+                }
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let jac = (0..6).map(|i| format!("[{}]", row(i))).collect::<Vec<_>>().join(", ");
+    let cand = |q: f64| format!("{{\"q\": [{q}, -1.2, 0.2, 0.0, 0.5, 0.0], \"jacobian\": [{jac}]}}");
+    let info = format!(
+        "{{\"parameters\": [\"k1\", \"k2\", \"k3\", \"k4\", \"d1\", \"d2\", \"d3\", \"d4\"], \"candidates\": [{}, {}]}}",
+        cand(0.0),
+        cand(0.5)
+    );
+    positions_refused(
+        "rank.toml",
+        &[],
+        Some(&info),
+        &["field `candidates`", "all 2 candidates together has rank 6 < p = 8", "6 ×2"],
+    );
+}
+
+/// A simulated run of designs/sim_rpr_fourier.toml in `dir` (its folder).
+fn rpr_run(dir: &Path) -> std::path::PathBuf {
+    let out = dir.join("run");
+    let st = Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .args([
+            "simulate",
+            root("designs/sim_rpr_fourier.toml").to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .env("IDEXP_NO_PROGRESS", "1")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .unwrap();
+    assert!(st.success());
+    out
+}
+
+#[test]
+fn identify_argument_mismatches_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = rpr_run(tmp.path());
+    let robot = root("tests/data/ident/rpr_drives.toml");
+    let (r, d) = (robot.to_str().unwrap(), run.to_str().unwrap());
+    // a trajectory of another robot (6 joints) on this 3-joint run
+    let mut t: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(run.join("trajectory.json")).unwrap()).unwrap();
+    for key in ["a", "b", "q0"] {
+        let rows = t["trajectory"][key].as_array().unwrap().clone();
+        t["trajectory"][key] = serde_json::Value::Array(rows.iter().chain(rows.iter()).cloned().collect());
+    }
+    let six = tmp.path().join("six.json");
+    std::fs::write(&six, serde_json::to_string(&t).unwrap()).unwrap();
+    refused(
+        &[
+            "identify",
+            r,
+            d,
+            "--trajectory",
+            six.to_str().unwrap(),
+            "--out",
+            tmp.path().join("o").to_str().unwrap(),
+        ],
+        &["--trajectory", "six.json", "6 joints", "have 3"],
+    );
+    refused(
+        &[
+            "identify",
+            r,
+            d,
+            "--reduce",
+            "--essential",
+            "Fc1,Fc1",
+            "--out",
+            tmp.path().join("o").to_str().unwrap(),
+        ],
+        &["--essential", "`Fc1` is listed twice"],
+    );
+}
+
+#[test]
+fn excite_into_an_existing_file_is_refused_before_the_search() {
+    let tmp = tempfile::tempdir().unwrap();
+    let f = tmp.path().join("file");
+    std::fs::write(&f, "keep").unwrap();
+    // the bench design searches for 10 s: a refusal within the 10 s bound is up front
+    refused(
+        &["excite", "designs/excite_ur5_bench.toml", "--out", f.to_str().unwrap()],
+        &["field `--out`", "exists and is not a folder"],
+    );
+    assert_eq!(std::fs::read_to_string(&f).unwrap(), "keep");
+}

@@ -127,3 +127,18 @@ fn figures_of_shipped_designs_have_formatted_ticks_inside_the_canvas() {
         assert!(labels.iter().any(|l| l == want), "no tick `{want}` in {labels:?}");
     }
 }
+
+#[test]
+fn legends_go_to_the_corner_with_the_fewest_points() {
+    use idexp::io::plot::emptiest_corner;
+    // a rising line fills the lower-left and upper-right corners
+    let rising: Vec<(f64, f64)> = (0..=100).map(|i| (i as f64, i as f64)).collect();
+    let c = emptiest_corner(rising.iter().copied(), (0.0, 100.0, false), (0.0, 100.0, false));
+    assert!(c == 0 || c == 3, "{c}");
+    // a decaying singular-value spectrum on a log axis: the upper right is empty
+    let decay: Vec<(f64, f64)> = (1..=40).map(|i| (i as f64, 10f64.powf(-(i as f64) / 5.0))).collect();
+    assert_eq!(emptiest_corner(decay.iter().copied(), (1.0, 40.0, false), (1e-8, 1.0, true)), 1);
+    // data high everywhere: a lower corner
+    let high: Vec<(f64, f64)> = (0..=100).map(|i| (i as f64, 90.0 + (i % 7) as f64)).collect();
+    assert!(emptiest_corner(high.iter().copied(), (0.0, 100.0, false), (0.0, 100.0, false)) >= 2);
+}

@@ -195,6 +195,7 @@ fn add_payload(rigid: &mut Robot, payload: Option<&PayloadSpec>, rpath: &Path, c
             return Err(Error::invalid(ctxm, "payload", "com and inertia must be finite"));
         }
         let ic = Matrix3::new(ii[0], ii[1], ii[2], ii[1], ii[3], ii[4], ii[2], ii[4], ii[5]);
+        crate::robot::validate::check_com_inertia(ctxm, "payload.inertia", p.mass, &ic)?;
         let add = Inertial::from_com(p.mass, Vector3::new(c[0], c[1], c[2]), ic, Matrix3::identity());
         rigid.links[i].inertial = rigid.links[i].inertial.add(&add);
     }
@@ -526,6 +527,21 @@ fn select_unknowns(params: &[ModelParam], spec: &ElasticSpec, ctxm: &str) -> Res
     }
     // keep the model's canonical order (as in `params`)
     unknowns.sort_unstable();
+    // a positive unknown is fitted in log space from multiplicatively perturbed
+    // starts: a nominal 0 would stay exactly 0 in every start
+    for &i in &unknowns {
+        let p = &params[i];
+        if p.positive && (p.nominal.is_nan() || p.nominal <= 0.0) {
+            return Err(Error::invalid(
+                ctxm,
+                format!("unknown `{}`", p.name),
+                format!(
+                    "its nominal value is {}: an unknown spring, damper or inertia must start from a positive value (it is fitted in log space, so a start at 0 stays at 0); give it a positive nominal value (gearbox `d`, elastic `d`, or [model.nominal]) or remove it from `unknowns`",
+                    p.nominal
+                ),
+            ));
+        }
+    }
     Ok(unknowns)
 }
 

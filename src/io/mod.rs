@@ -153,15 +153,130 @@ pub fn read_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
 }
 
 /// Parses TOML text (from `path`, for messages) into `T`.
+///
+/// An array longer than a fixed-size field takes (`xyz = [1, 2, 3, 4]`,
+/// `band = [2, 40, 60]`) is refused naming the key: the toml crate's text
+/// reader drops the extra elements silently (its value reader does not), so
+/// the text is also read through [`toml::Value`] and, when only that read
+/// fails, the array whose trimming makes it succeed is named.
 pub fn parse_toml<T: serde::de::DeserializeOwned>(path: &Path, text: &str) -> Result<T> {
-    toml::from_str::<T>(text).map_err(|e| {
-        let loc = e
-            .span()
-            .map(|s| {
-                let line = text[..s.start.min(text.len())].matches('\n').count() + 1;
-                format!("line {line}: ")
-            })
-            .unwrap_or_default();
+    let line_of = |pos: usize| text[..pos.min(text.len())].matches('\n').count() + 1;
+    let v = toml::from_str::<T>(text).map_err(|e| {
+        let loc = e.span().map(|s| format!("line {}: ", line_of(s.start))).unwrap_or_default();
         Error::parse(path, format!("{loc}{}", e.message()))
-    })
+    })?;
+    if let Ok(table) = toml::from_str::<toml::Table>(text) {
+        let value = toml::Value::Table(table);
+        if value.clone().try_into::<T>().is_err() {
+            if let Some((key, len)) = overlong_array::<T>(&value) {
+                let last = key
+                    .rsplit('.')
+                    .next()
+                    .unwrap_or(&key)
+                    .trim_end_matches(|c: char| c == ']' || c.is_ascii_digit())
+                    .trim_end_matches('[');
+                // the line, when only one line sets a key of that name
+                let lines: Vec<usize> = text
+                    .lines()
+                    .enumerate()
+                    .filter(|(_, l)| {
+                        let l = l.trim_start();
+                        l.strip_prefix(last).is_some_and(|r| r.trim_start().starts_with('='))
+                    })
+                    .map(|(i, _)| i + 1)
+                    .collect();
+                let loc = if lines.len() == 1 { format!("line {}: ", lines[0]) } else { String::new() };
+                return Err(Error::parse(
+                    path,
+                    format!("{loc}`{key}`: the array has {len} elements, more than the field takes (extra elements are not ignored)"),
+                ));
+            }
+        }
+    }
+    Ok(v)
+}
+
+/// The key path and length of the first array (of numbers, strings, … — not
+/// of tables) whose trimming (last elements removed) lets `value`
+/// deserialize into `T`.
+fn overlong_array<T: serde::de::DeserializeOwned>(value: &toml::Value) -> Option<(String, usize)> {
+    // every array's path, as indices into tables and arrays
+    #[derive(Clone)]
+    enum Step {
+        Key(String),
+        Index(usize),
+    }
+    fn walk(v: &toml::Value, at: &mut Vec<Step>, out: &mut Vec<Vec<Step>>) {
+        match v {
+            toml::Value::Table(t) => {
+                for (k, x) in t {
+                    at.push(Step::Key(k.clone()));
+                    walk(x, at, out);
+                    at.pop();
+                }
+            }
+            toml::Value::Array(a) => {
+                if !a.is_empty() && !a.iter().all(|x| x.is_table()) {
+                    out.push(at.clone());
+                }
+                for (i, x) in a.iter().enumerate() {
+                    at.push(Step::Index(i));
+                    walk(x, at, out);
+                    at.pop();
+                }
+            }
+            _ => {}
+        }
+    }
+    fn get_mut<'a>(v: &'a mut toml::Value, path: &[Step]) -> Option<&'a mut toml::Value> {
+        let mut cur = v;
+        for s in path {
+            cur = match (s, cur) {
+                (Step::Key(k), toml::Value::Table(t)) => t.get_mut(k)?,
+                (Step::Index(i), toml::Value::Array(a)) => a.get_mut(*i)?,
+                _ => return None,
+            };
+        }
+        Some(cur)
+    }
+    let mut paths = Vec::new();
+    walk(value, &mut Vec::new(), &mut paths);
+    let mut tries = 0usize;
+    for p in &paths {
+        let mut trial = value.clone();
+        let len = match get_mut(&mut trial, p) {
+            Some(toml::Value::Array(a)) => a.len(),
+            _ => continue,
+        };
+        let mut fits = false;
+        for _ in 0..len {
+            tries += 1;
+            if tries > 5000 {
+                return None;
+            }
+            if let Some(toml::Value::Array(a)) = get_mut(&mut trial, p) {
+                a.pop();
+            }
+            if trial.clone().try_into::<T>().is_ok() {
+                fits = true;
+                break;
+            }
+        }
+        if fits {
+            let mut key = String::new();
+            for s in p {
+                match s {
+                    Step::Key(k) => {
+                        if !key.is_empty() {
+                            key.push('.');
+                        }
+                        key.push_str(k);
+                    }
+                    Step::Index(i) => key.push_str(&format!("[{i}]")),
+                }
+            }
+            return Some((key, len));
+        }
+    }
+    None
 }

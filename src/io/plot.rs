@@ -132,6 +132,36 @@ pub fn tick_label(v: f64) -> String {
     }
 }
 
+/// The corner of a panel where the legend covers the fewest data points:
+/// 0 upper left, 1 upper right, 2 lower left, 3 lower right (ties: the
+/// first). Each corner is the box of 40 % of the width and 35 % of the height
+/// in axis coordinates (log axes in decades); `x`, `y` are (lo, hi, log).
+pub fn emptiest_corner(pts: impl Iterator<Item = (f64, f64)>, x: (f64, f64, bool), y: (f64, f64, bool)) -> usize {
+    let unit = |v: f64, (lo, hi, log): (f64, f64, bool)| -> Option<f64> {
+        let (v, lo, hi) = if log {
+            if v <= 0.0 || lo <= 0.0 {
+                return None;
+            }
+            (v.log10(), lo.log10(), hi.log10())
+        } else {
+            (v, lo, hi)
+        };
+        let u = (v - lo) / (hi - lo);
+        u.is_finite().then_some(u)
+    };
+    let mut count = [0usize; 4];
+    for (a, b) in pts {
+        let (Some(u), Some(w)) = (unit(a, x), unit(b, y)) else { continue };
+        let (left, right, top, bottom) = (u <= 0.4, u >= 0.6, w >= 0.65, w <= 0.35);
+        for (k, inside) in [left && top, right && top, left && bottom, right && bottom].into_iter().enumerate() {
+            if inside {
+                count[k] += 1;
+            }
+        }
+    }
+    (0..4).min_by_key(|&k| count[k]).unwrap_or(1)
+}
+
 /// Tick positions of a log axis over [lo, hi] (lo > 0): the decades, with 2
 /// and 5 between them when the range spans at most two decades, every 1..9
 /// inside a single decade, and every k-th decade on ranges over 8 decades.
@@ -302,8 +332,16 @@ mod draw {
                     }
                 }
                 if any_label {
+                    let pts = p.series.iter().flat_map(|s| s.x.iter().copied().zip(s.y.iter().copied()));
+                    let corner = match super::emptiest_corner(pts, (x0, x1, p.log_x), (y0, y1, p.log_y)) {
+                        0 => SeriesLabelPosition::UpperLeft,
+                        1 => SeriesLabelPosition::UpperRight,
+                        2 => SeriesLabelPosition::LowerLeft,
+                        _ => SeriesLabelPosition::LowerRight,
+                    };
                     chart
                         .configure_series_labels()
+                        .position(corner)
                         .background_style(WHITE.mix(0.8))
                         .border_style(BLACK.mix(0.3))
                         .label_font(("sans-serif", 10))

@@ -227,6 +227,20 @@ impl PositionsDesign {
             }
         }
         self.solver.validate(ctx)?;
+        if self.solver.formulation == super::Formulation::Sdp && self.criterion != Criterion::D {
+            return Err(Error::invalid(
+                ctx,
+                "solver.formulation",
+                format!(
+                    "formulation = \"sdp\" is the lifted log-det cone of the D criterion; criterion = \"{}\" is solved by its own formulation: remove `formulation` or use criterion = \"d\"",
+                    match self.criterion {
+                        Criterion::D => "d",
+                        Criterion::A => "a",
+                        Criterion::E => "e",
+                    }
+                ),
+            ));
+        }
         match &self.information {
             InformationSpec::File { .. } => {
                 if self.candidates.is_some() {
@@ -339,7 +353,7 @@ fn read_prior(path: &Path, p: usize) -> Result<DMatrix<f64>> {
 /// Runs a design: candidates, information, relaxed design, rounding.
 /// `dir` is the folder of the design file (relative paths start there).
 pub fn run_design(design: &PositionsDesign, dir: &Path, ctl: &Control) -> Result<PositionsRun> {
-    let ctx = design.name.clone();
+    let ctx = format!("positions design `{}` (files relative to {})", design.name, dir.display());
     design.validate(&ctx)?;
     let mut robot = match &design.robot {
         Some(r) => Some(robot::load(&dir.join(r))?),
@@ -488,6 +502,7 @@ pub fn run_design(design: &PositionsDesign, dir: &Path, ctl: &Control) -> Result
         None => base,
     };
     let ranks: Vec<usize> = (0..pb.n()).map(|i| pb.rank(i)).collect();
+    identifiable(&ctx, &factors, prior_n.as_ref(), &names, &ranks, design.experiments, costs.is_some())?;
     let relaxed = solve_relaxed(&pb, design.criterion, &design.solver, ctl)?;
     let rounded = round_design(&pb, design.criterion, &relaxed, budget, costs.as_deref(), ctl)?;
     Ok(PositionsRun {
@@ -503,6 +518,107 @@ pub fn run_design(design: &PositionsDesign, dir: &Path, ctl: &Control) -> Result
         budget,
         information_time,
     })
+}
+
+/// Refuses, before any solve, a problem no design can identify: the
+/// information of all candidates together (Σ H_i H_iᵀ + prior, with the
+/// parameters scaled to unit diagonal) of rank r < p, or, without a prior,
+/// M experiments whose information can reach at most the sum of the M
+/// largest candidate ranks < p.
+fn identifiable(
+    ctx: &str,
+    factors: &[DMatrix<f64>],
+    prior: Option<&DMatrix<f64>>,
+    names: &[String],
+    ranks: &[usize],
+    experiments: usize,
+    has_costs: bool,
+) -> Result<()> {
+    let p = names.len();
+    if factors.is_empty() || p == 0 {
+        return Ok(());
+    }
+    let mut g = DMatrix::<f64>::zeros(p, p);
+    for h in factors {
+        if h.nrows() == p {
+            g += h * h.transpose();
+        }
+    }
+    if let Some(f0) = prior {
+        if f0.shape() == (p, p) {
+            g += f0;
+        }
+    }
+    if g.iter().any(|v| !v.is_finite()) {
+        return Err(Error::invalid(
+            ctx,
+            "information",
+            "the candidates' information matrices hold non-finite values",
+        ));
+    }
+    let d: Vec<f64> = (0..p).map(|i| g[(i, i)]).collect();
+    if let Some(i) = d.iter().position(|v| v.is_nan() || *v <= 0.0) {
+        return Err(Error::invalid(
+            ctx,
+            "information",
+            format!(
+                "no candidate carries information on parameter `{}`: no design can identify it (remove it, add candidates that excite it, or give a prior)",
+                names[i]
+            ),
+        ));
+    }
+    let gs = DMatrix::from_fn(p, p, |i, j| g[(i, j)] / (d[i] * d[j]).sqrt());
+    let ev = gs.symmetric_eigenvalues();
+    let emax = ev.max();
+    let rank = ev.iter().filter(|&&e| e > 1e-10 * emax).count();
+    if rank < p {
+        return Err(Error::invalid(
+            ctx,
+            "candidates",
+            format!(
+                "the information of all {} candidates together has rank {rank} < p = {p} parameters (candidate ranks {}): no design of them can identify every parameter; add candidates, a prior, or fewer parameters",
+                factors.len(),
+                summarize_ranks(ranks)
+            ),
+        ));
+    }
+    if prior.is_none() && !has_costs {
+        let mut r: Vec<usize> = ranks.to_vec();
+        r.sort_unstable_by(|a, b| b.cmp(a));
+        let reach: usize = r.iter().take(experiments).sum();
+        if reach < p {
+            let need = {
+                let mut acc = 0;
+                r.iter()
+                    .take_while(|&&x| {
+                        let before = acc;
+                        acc += x;
+                        before < p
+                    })
+                    .count()
+            };
+            return Err(Error::invalid(
+                ctx,
+                "experiments",
+                format!(
+                    "{experiments} experiment(s) at candidates of rank ≤ {} reach an information of rank ≤ {reach} < p = {p}: every whole design would be singular (efficiency 0); expected experiments ≥ {need}",
+                    r[0]
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// "6 ×2, 3 ×10": the distinct candidate ranks with their counts.
+fn summarize_ranks(ranks: &[usize]) -> String {
+    let mut r = ranks.to_vec();
+    r.sort_unstable_by(|a, b| b.cmp(a));
+    r.dedup();
+    r.iter()
+        .map(|v| format!("{v} ×{}", ranks.iter().filter(|x| *x == v).count()))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Convenience for library users: solve a relaxed design for matrices F_i.

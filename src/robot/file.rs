@@ -219,16 +219,19 @@ pub fn load(path: &Path) -> Result<Robot> {
     match ext.as_str() {
         "urdf" | "xml" => {
             let parts = load_urdf(path, None, None)?;
-            Robot::new(RobotParts {
-                name: parts.name,
-                joints: parts.joints,
-                links: parts.links,
-                drives: parts.drives,
-                coupling: None,
-                frames: parts.frames,
-                gravity: Vector3::new(0.0, 0.0, -9.81),
-                source: format!("URDF {}", path.display()),
-            })
+            super::validate::checked(
+                path,
+                RobotParts {
+                    name: parts.name,
+                    joints: parts.joints,
+                    links: parts.links,
+                    drives: parts.drives,
+                    coupling: None,
+                    frames: parts.frames,
+                    gravity: Vector3::new(0.0, 0.0, -9.81),
+                    source: format!("URDF {}", path.display()),
+                },
+            )
         }
         "toml" => {
             let text = crate::io::read_to_string(path)?;
@@ -273,16 +276,19 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
         name
     });
     let source = f.source.clone().unwrap_or_else(|| path.display().to_string());
-    let robot = Robot::new(RobotParts {
-        name,
-        joints,
-        links,
-        drives,
-        coupling,
-        frames,
-        gravity,
-        source,
-    })?;
+    let robot = super::validate::checked(
+        path,
+        RobotParts {
+            name,
+            joints,
+            links,
+            drives,
+            coupling,
+            frames,
+            gravity,
+            source,
+        },
+    )?;
     match collision_geometry(path, &f, &robot, &ctx)? {
         Some(g) => robot.with_collision(g),
         None => Ok(robot),

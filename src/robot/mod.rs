@@ -14,6 +14,7 @@ pub mod file;
 pub mod kinematics;
 pub mod model;
 pub mod urdf;
+pub mod validate;
 
 pub use dynamics::{
     bias_forces, forward_dynamics, forward_dynamics_into, friction_torque, gravity, id_derivatives, inverse_dynamics, mass_matrix, mass_matrix_into,

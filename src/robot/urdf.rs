@@ -28,33 +28,146 @@ pub(crate) fn pose_to_iso(xyz: [f64; 3], rpy: [f64; 3]) -> Isometry3<f64> {
     Isometry3::from_parts(Translation3::new(xyz[0], xyz[1], xyz[2]), UnitQuaternion::from_rotation_matrix(&rot))
 }
 
-/// Names of the links that have an `<inertial>` element (urdf-rs fills a
-/// default when it is missing, so this is read from the text).
-fn links_with_inertial(text: &str) -> Vec<String> {
-    let mut out = Vec::new();
-    let mut rest = text;
-    while let Some(pos) = rest.find("<link") {
-        rest = &rest[pos + 5..];
-        let head_end = rest.find('>').unwrap_or(rest.len());
-        let head = &rest[..head_end];
-        let name = head.split("name=").nth(1).and_then(|s| {
-            let q = s.chars().next()?;
-            let s = &s[1..];
-            s.find(q).map(|e| s[..e].to_string())
-        });
-        let self_closing = head.trim_end().ends_with('/');
-        let body = if self_closing {
-            ""
-        } else {
-            &rest[..rest.find("</link>").unwrap_or(rest.len())]
-        };
-        if let Some(n) = name {
-            if body.contains("<inertial") {
-                out.push(n);
+/// 1-based line and column (in characters) of byte `pos` of `text`.
+pub(crate) fn line_col(text: &str, pos: usize) -> (usize, usize) {
+    let pos = pos.min(text.len());
+    let mut p = pos;
+    while !text.is_char_boundary(p) {
+        p -= 1;
+    }
+    let before = &text[..p];
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, col)
+}
+
+/// A `<joint>` element as written (what urdf-rs fills with defaults).
+#[derive(Debug, Default)]
+struct RawJoint {
+    /// Where the element starts (line, column).
+    at: (usize, usize),
+    /// The `<limit>` element's attributes, if the element is present.
+    limit: Option<Vec<(String, String)>>,
+    /// Line and column of a `<mimic>` element.
+    mimic: Option<(usize, usize)>,
+}
+
+/// What urdf-rs does not tell from the URDF text: which links have an
+/// `<inertial>` element, which `<limit>` attributes and `<mimic>` elements
+/// a joint has, where each element is, and duplicate names. Malformed XML
+/// (an unclosed tag, mismatched end tags) is an error with line and column.
+#[derive(Debug, Default)]
+struct RawUrdf {
+    links_with_inertial: Vec<String>,
+    links: Vec<(String, (usize, usize))>,
+    joints: Vec<(String, RawJoint)>,
+}
+
+impl RawUrdf {
+    fn joint(&self, name: &str) -> Option<&RawJoint> {
+        self.joints.iter().find(|(n, _)| n == name).map(|(_, j)| j)
+    }
+}
+
+fn scan_urdf(path: &Path, text: &str) -> Result<RawUrdf> {
+    use quick_xml::events::{BytesStart, Event};
+    let mut reader = quick_xml::Reader::from_str(text);
+    let mut out = RawUrdf::default();
+    // open elements: (name, start byte)
+    let mut open: Vec<(String, usize)> = Vec::new();
+    let attr = |e: &BytesStart, key: &str| -> Option<String> {
+        e.try_get_attribute(key)
+            .ok()
+            .flatten()
+            .and_then(|a| a.unescape_value().ok().map(|v| v.into_owned()))
+    };
+    loop {
+        let before = reader.buffer_position() as usize;
+        let ev = match reader.read_event() {
+            Ok(ev) => ev,
+            Err(e) => {
+                let (l, c) = line_col(text, reader.error_position() as usize);
+                return Err(Error::parse(path, format!("malformed URDF at line {l}, column {c}: {e}")));
             }
+        };
+        let (start, empty) = match &ev {
+            Event::Start(e) => (Some(e.clone()), false),
+            Event::Empty(e) => (Some(e.clone()), true),
+            Event::End(_) => {
+                open.pop();
+                continue;
+            }
+            Event::Eof => break,
+            _ => continue,
+        };
+        let Some(e) = start else { continue };
+        let name = String::from_utf8_lossy(e.name().as_ref()).into_owned();
+        let parent = open.last().map(|(n, _)| n.as_str());
+        let at = line_col(text, before);
+        match (name.as_str(), parent) {
+            ("link", Some("robot")) => out.links.push((attr(&e, "name").unwrap_or_default(), at)),
+            ("inertial", Some("link")) => {
+                if let Some((n, _)) = out.links.last() {
+                    out.links_with_inertial.push(n.clone());
+                }
+            }
+            ("joint", Some("robot")) => out.joints.push((attr(&e, "name").unwrap_or_default(), RawJoint { at, ..Default::default() })),
+            ("limit", Some("joint")) => {
+                if let Some((_, j)) = out.joints.last_mut() {
+                    let attrs = e
+                        .attributes()
+                        .filter_map(|a| a.ok())
+                        .map(|a| {
+                            let k = String::from_utf8_lossy(a.key.as_ref()).into_owned();
+                            let v = a.unescape_value().map(|v| v.into_owned()).unwrap_or_default();
+                            (k, v)
+                        })
+                        .collect();
+                    j.limit = Some(attrs);
+                }
+            }
+            ("mimic", Some("joint")) => {
+                if let Some((_, j)) = out.joints.last_mut() {
+                    j.mimic = Some(at);
+                }
+            }
+            _ => {}
+        }
+        if !empty {
+            open.push((name, before));
         }
     }
-    out
+    if let Some((n, pos)) = open.last() {
+        let (l, c) = line_col(text, *pos);
+        return Err(Error::parse(
+            path,
+            format!("malformed URDF: element <{n}> opened at line {l}, column {c} is never closed"),
+        ));
+    }
+    for (k, (n, at)) in out.links.iter().enumerate() {
+        if let Some((_, first)) = out.links[..k].iter().find(|(o, _)| o == n) {
+            return Err(Error::parse(
+                path,
+                format!("line {}, column {}: link `{n}` is defined twice (first at line {})", at.0, at.1, first.0),
+            ));
+        }
+    }
+    for (k, (n, j)) in out.joints.iter().enumerate() {
+        if let Some((_, first)) = out.joints[..k].iter().find(|(o, _)| o == n) {
+            return Err(Error::parse(
+                path,
+                format!(
+                    "line {}, column {}: joint `{n}` is defined twice (first at line {})",
+                    j.at.0, j.at.1, first.at.0
+                ),
+            ));
+        }
+    }
+    Ok(out)
+}
+
+fn all_finite(v: &[f64]) -> bool {
+    v.iter().all(|x| x.is_finite())
 }
 
 /// Reads a URDF file. `base_link` and `tip_link` restrict the model to the
@@ -66,8 +179,9 @@ pub fn load_urdf(path: &Path, base_link: Option<&str>, tip_link: Option<&str>) -
 
 /// Parses URDF text (see [`load_urdf`]); `path` is used in messages.
 pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Option<&str>) -> Result<UrdfParts> {
+    let raw = scan_urdf(path, text)?;
     let u = urdf_rs::read_from_string(text).map_err(|e| Error::parse(path, format!("malformed URDF: {e}")))?;
-    let has_inertial = links_with_inertial(text);
+    let has_inertial = &raw.links_with_inertial;
     let link_idx: HashMap<&str, usize> = u.links.iter().enumerate().map(|(i, l)| (l.name.as_str(), i)).collect();
     let ctx = path.display().to_string();
     // children of each link
@@ -163,6 +277,14 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
                 format!("expected a non-negative mass, found {m}"),
             ));
         }
+        if !all_finite(&ine.origin.xyz.0) || !all_finite(&ine.origin.rpy.0) {
+            return Err(Error::invalid(
+                &ctx,
+                format!("link `{lname}` <inertial><origin>"),
+                format!("expected finite xyz and rpy, found xyz {:?} rpy {:?}", ine.origin.xyz.0, ine.origin.rpy.0),
+            ));
+        }
+        super::validate::check_com_inertia(&ctx, &format!("link `{lname}` <inertia>"), m, &ic)?;
         // zero mass with a non-zero inertia (Robotics Toolbox's PUMA 560 link 1, a
         // rotor-only body) is accepted as the TOML reader accepts it; the
         // warning comes from `robot::export::inertial_warnings` (robot info, identify)
@@ -177,6 +299,13 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
                 if !a.contains(&j.child.link) {
                     continue;
                 }
+            }
+            if !all_finite(&j.origin.xyz.0) || !all_finite(&j.origin.rpy.0) {
+                return Err(Error::invalid(
+                    &ctx,
+                    format!("joint `{}` <origin>", j.name),
+                    format!("expected finite xyz and rpy, found xyz {:?} rpy {:?}", j.origin.xyz.0, j.origin.rpy.0),
+                ));
             }
             let origin = pose_to_iso(j.origin.xyz.0, j.origin.rpy.0);
             let kind = match j.joint_type {
@@ -207,22 +336,68 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
                         return Err(Error::invalid(&ctx, format!("joint `{}` <axis>", j.name), "expected a non-zero axis"));
                     }
                     let continuous = j.joint_type == urdf_rs::JointType::Continuous;
+                    let rj = raw.joint(&j.name);
+                    let line = rj.map_or(0, |r| r.at.0);
+                    if let Some((ml, mc)) = rj.and_then(|r| r.mimic) {
+                        return Err(Error::invalid(
+                            &ctx,
+                            format!("joint `{}` <mimic> (line {ml}, column {mc})", j.name),
+                            "mimic joints are not supported: every revolute, continuous or prismatic joint is an independent coordinate with its own drive; make the mimicking joint fixed, or model it as an actuated joint without <mimic>",
+                        ));
+                    }
                     let l = &j.limit;
-                    let pos = |v: f64| if v > 0.0 && v.is_finite() { v } else { f64::INFINITY };
+                    let given = rj.and_then(|r| r.limit.as_ref());
+                    if given.is_none() && !continuous {
+                        return Err(Error::invalid(
+                            &ctx,
+                            format!("joint `{}` (line {line})", j.name),
+                            "a revolute or prismatic joint needs a <limit lower upper effort velocity> element (URDF requires it; use type=\"continuous\" for an unbounded revolute joint)",
+                        ));
+                    }
+                    let has = |k: &str| given.is_some_and(|a| a.iter().any(|(n, _)| n == k));
+                    // a limit that is written must be positive (0 is not "no limit");
+                    // one not written (or an infinite acceleration) is no limit
+                    let positive = |what: &str, v: f64| -> Result<f64> {
+                        if !has(what) && what != "acceleration" {
+                            return Ok(f64::INFINITY);
+                        }
+                        if v.is_nan() || v <= 0.0 {
+                            return Err(Error::invalid(
+                                &ctx,
+                                format!("joint `{}` <limit {what}> (line {line})", j.name),
+                                format!("expected a positive {what} limit, found {v} (omit the attribute where there is no limit; 0 is not \"no limit\")"),
+                            ));
+                        }
+                        Ok(v)
+                    };
+                    if !continuous && (!l.lower.is_finite() || !l.upper.is_finite()) {
+                        return Err(Error::invalid(
+                            &ctx,
+                            format!("joint `{}` <limit> (line {line})", j.name),
+                            format!("expected finite lower and upper, found lower {} upper {}", l.lower, l.upper),
+                        ));
+                    }
+                    if !continuous && l.lower >= l.upper {
+                        return Err(Error::invalid(
+                            &ctx,
+                            format!("joint `{}` <limit> (line {line})", j.name),
+                            format!(
+                                "lower {} ≥ upper {}: expected lower < upper (a joint that cannot move is a fixed joint)",
+                                l.lower, l.upper
+                            ),
+                        ));
+                    }
                     let limits = JointLimits {
                         lower: if continuous { f64::NEG_INFINITY } else { l.lower },
                         upper: if continuous { f64::INFINITY } else { l.upper },
-                        velocity: pos(l.velocity),
-                        acceleration: pos(l.acceleration),
-                        effort: pos(l.effort),
+                        velocity: positive("velocity", l.velocity)?,
+                        acceleration: if l.acceleration.is_infinite() {
+                            f64::INFINITY
+                        } else {
+                            positive("acceleration", l.acceleration)?
+                        },
+                        effort: positive("effort", l.effort)?,
                     };
-                    if limits.lower > limits.upper {
-                        return Err(Error::invalid(
-                            &ctx,
-                            format!("joint `{}` <limit>", j.name),
-                            format!("lower {} > upper {}", l.lower, l.upper),
-                        ));
-                    }
                     let idx = joints.len();
                     joints.push(Joint {
                         name: j.name.clone(),
@@ -239,6 +414,15 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
                         inertial: Inertial::zero(),
                     });
                     let (fv, fc) = j.dynamics.as_ref().map(|d| (d.damping, d.friction)).unwrap_or((0.0, 0.0));
+                    for (what, v) in [("damping", fv), ("friction", fc)] {
+                        if !(v.is_finite() && v >= 0.0) {
+                            return Err(Error::invalid(
+                                &ctx,
+                                format!("joint `{}` <dynamics {what}> (line {line})", j.name),
+                                format!("expected a finite coefficient ≥ 0 (friction dissipates), found {v}"),
+                            ));
+                        }
+                    }
                     drives.push(Drive {
                         rotor_inertia: None,
                         gear_ratio: 1.0,

@@ -224,7 +224,19 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let (run, torque_source) = Run::read_drives(&a.run, &robot, a.repetitions, a.torque_from, a.current_tolerance)?;
     let logged_currents = torque_source.from == "current" || torque_source.agreement.is_some() || !torque_source.note.is_empty();
     let traj = match &a.trajectory {
-        Some(p) => Some(FourierTrajectory::load(p)?),
+        Some(p) => {
+            let t = FourierTrajectory::load(p)?;
+            if t.n_joints() != robot.dof() {
+                bail!(
+                    "identify: --trajectory {}: the trajectory has {} joints, the robot {} and the run have {}: expected the run's own trajectory",
+                    p.display(),
+                    t.n_joints(),
+                    robot.name,
+                    robot.dof()
+                );
+            }
+            Some(t)
+        }
         None => run_trajectory(&run)?,
     };
     if let Some(exp) = a.experiment {
@@ -237,7 +249,19 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         "auto" => Essential::Auto,
         "none" => Essential::None,
         "friction" => Essential::Friction,
-        s => Essential::Names(s.split(',').map(|x| x.trim().to_string()).filter(|x| !x.is_empty()).collect()),
+        s => {
+            let names: Vec<String> = s.split(',').map(|x| x.trim().to_string()).filter(|x| !x.is_empty()).collect();
+            if let Some((i, n)) = names.iter().enumerate().find(|(i, n)| names[..*i].contains(n)) {
+                bail!(
+                    "identify: --essential {s}: `{n}` is listed twice (entry {}); expected each parameter name once",
+                    i + 1
+                );
+            }
+            if names.is_empty() {
+                bail!("identify: --essential {s:?}: expected auto, none, friction or a comma-separated list of parameter names");
+            }
+            Essential::Names(names)
+        }
     };
     let mut opts = IdentOptions {
         method: a.method,

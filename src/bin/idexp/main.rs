@@ -78,8 +78,6 @@ const EXIT_INPUT: i32 = 1;
 const EXIT_UNUSABLE: i32 = 3;
 /// Exit code of an interrupted run (128 + SIGINT).
 const EXIT_INTERRUPTED: i32 = 130;
-/// Parallel splits of faer's dense kernels, fixed so results do not depend on `--threads`.
-const FAER_SPLITS: usize = 4;
 
 fn main() {
     restore_default_sigpipe();
@@ -138,9 +136,9 @@ fn run(cli: Cli) -> anyhow::Result<Outcome> {
     if let Some(t) = cli.threads {
         rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global()?;
     }
-    // faer splits its parallel kernels (matmul, SVD) by this count, not by the
-    // pool's threads: results are bit-identical for any --threads
-    faer::set_global_parallelism(faer::Par::rayon(FAER_SPLITS));
+    // the library's faer calls use a fixed split count (idexp::linalg::par);
+    // the global setting covers any faer call made with faer's default
+    faer::set_global_parallelism(idexp::linalg::par());
     let stop = install_ctrlc();
     let ctl = Control::new().with_stop(stop).with_observer(Arc::new(progress::Bars::new()));
     match &cli.cmd {
