@@ -412,3 +412,99 @@ fn position_candidates_in_collision_are_dropped() {
     let c2 = off.generate(&r, &[0.0; 6], 1, &designs(), "test").unwrap();
     assert_eq!(c2.q.len(), c.q.len() + c.rejected_collision);
 }
+
+fn design_problem(design: &str) -> idexp::excitation::Problem {
+    idexp::excitation::Problem::from_file(&designs().join(design)).unwrap()
+}
+
+#[test]
+fn culled_constraints_equal_the_exhaustive_evaluation() {
+    // the broad phase (bounding spheres and capsules, a running minimum per
+    // pair) must give bit for bit the constraint values and Jacobian of
+    // querying every pair at every grid time, on random trajectories from
+    // gentle to wild (deep penetrations included)
+    for design in ["excite_ur5.toml", "excite_panda_table.toml"] {
+        let p = design_problem(design);
+        assert!(p.constraints.scene().is_some());
+        let nv = p.layout.n_vars();
+        let m = p.constraints.len();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
+        let mut culled = p.constraints.workspace();
+        let mut brute = p.constraints.workspace();
+        brute.set_exhaustive(true);
+        let (mut c1, mut c2) = (vec![0.0; m], vec![0.0; m]);
+        let (mut j1, mut j2) = (vec![0.0; m * nv], vec![0.0; m * nv]);
+        let (mut saved, mut total, mut violated) = (0usize, 0usize, 0usize);
+        for trial in 0..12 {
+            let amp = [0.05, 0.2, 0.5, 1.0][trial % 4];
+            let x: Vec<f64> = (0..nv).map(|i| rng.random_range(p.lower[i]..p.upper[i]) * amp).collect();
+            let with_jac = trial % 2 == 0;
+            p.constraints.eval(&x, &mut culled, &mut c1, with_jac.then_some(&mut j1[..]));
+            p.constraints.eval(&x, &mut brute, &mut c2, with_jac.then_some(&mut j2[..]));
+            for i in 0..m {
+                assert_eq!(c1[i].to_bits(), c2[i].to_bits(), "{design} trial {trial}: {}: {} vs {}", p.constraints.info[i].name, c1[i], c2[i]);
+            }
+            if with_jac {
+                for (k, (a, b)) in j1.iter().zip(&j2).enumerate() {
+                    assert_eq!(a.to_bits(), b.to_bits(), "{design} trial {trial}: jacobian entry {k}: {a} vs {b}");
+                }
+            }
+            saved += brute.distance_queries() - culled.distance_queries();
+            total += brute.distance_queries();
+            violated += c1.iter().zip(&p.constraints.info).filter(|(v, inf)| inf.unit == "m" && **v > 0.0).count();
+        }
+        // the culling does cut queries, and the trials do reach collisions
+        assert!(saved * 2 > total, "{design}: only {saved} of {total} queries saved");
+        assert!(violated > 0, "{design}: no trial violates a distance constraint");
+    }
+}
+
+#[test]
+fn culled_series_and_worst_pair_equal_the_exhaustive_ones() {
+    // the verification grid (cap margin + 1 m) and the per-pose check: the
+    // minimum over the sequence and its first index, the worst pair and its
+    // distance, all exactly as when every pair is queried
+    for name in ["ur5.toml", "panda.toml"] {
+        let r = robot(name);
+        let sc = scene(&r, &CollisionSpec::default());
+        let mut kin = Kin::new(r.dof());
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8);
+        // a random walk in joint space: neighbouring poses as on a time grid
+        let mut q = random_q(&r, &mut rng);
+        let mut poses: Vec<Vec<nalgebra::Isometry3<f64>>> = Vec::new();
+        for step in 0..400 {
+            for v in q.iter_mut() {
+                *v += rng.random_range(-0.05..0.05);
+            }
+            forward_kinematics(&r, &q, &mut kin);
+            let mut x = Vec::new();
+            sc.poses(&kin, &mut x);
+            poses.push(x);
+            let all = sc.distances(&r, &mut kin, &q, sc.cap);
+            let brute = all.iter().min_by(|a, b| a.distance.total_cmp(&b.distance)).unwrap();
+            let w = sc.worst_at(&r, &mut kin, &q, sc.cap).unwrap();
+            assert_eq!((w.pair, w.distance.to_bits()), (brute.pair, brute.distance.to_bits()), "{name} step {step}");
+        }
+        for cap in [sc.cap, sc.margin + 1.0] {
+            let mut culled = Default::default();
+            let mut brute = Default::default();
+            let mut queries = 0;
+            for k in 0..sc.len() {
+                sc.pair_series(k, &poses, cap, false, &mut culled);
+                sc.pair_series(k, &poses, cap, true, &mut brute);
+                let (a, b) = (culled.argmin().unwrap(), brute.argmin().unwrap());
+                assert_eq!((a.0, a.1.to_bits()), (b.0, b.1.to_bits()), "{name} pair {k} cap {cap}");
+                for (g, (v, e)) in culled.value.iter().zip(&culled.exact).enumerate() {
+                    if *e {
+                        assert_eq!(v.to_bits(), brute.value[g].to_bits());
+                    } else {
+                        // a lower bound, above the minimum
+                        assert!(*v <= brute.value[g] + 1e-7 && *v > b.1, "{name} pair {k} at {g}: {v} vs {}", brute.value[g]);
+                    }
+                }
+                queries += culled.queries;
+            }
+            assert!(queries < sc.len() * poses.len(), "{name}: no query saved");
+        }
+    }
+}
