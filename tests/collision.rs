@@ -144,46 +144,123 @@ fn distances_match_an_independent_socp_on_the_convex_hulls() {
 
 #[test]
 fn floor_and_attached_sphere_distances_are_exact() {
-    // a sphere of radius 0.05 on tool0: its floor distance is z(tool0 + offset) − r, also below the floor
-    let r = robot("ur5.toml");
+    // A robot without geometry of its own (the DH Puma 560) carrying a ball
+    // on link6, a ball on link2 and a box on link3, in a cell with a box
+    // pillar: every checked distance has a closed form from the frame poses
+    // (ball–floor z − r, box–floor the lowest corner, ball–ball centre
+    // distance − radii, ball–box the point–box distance − r, signed), so a
+    // wrong sign, offset, frame or cap shows.
+    let r = robot("puma560.toml");
     let spec: CollisionSpec = toml::from_str(
         r#"
-        self = false
+        margin = 0.0
         [[attached]]
         name = "ball"
         frame = "tool0"
         shape = { type = "sphere", radius = 0.05 }
         xyz = [0.0, 0.0, 0.1]
+        [[attached]]
+        name = "knob"
+        frame = "link2"
+        shape = { type = "sphere", radius = 0.04 }
+        xyz = [0.1, 0.0, 0.02]
+        [[attached]]
+        name = "block"
+        frame = "link3"
+        shape = { type = "box", size = [0.1, 0.2, 0.3] }
+        xyz = [0.0, 0.05, 0.2]
+        rpy = [0.3, -0.2, 0.7]
+        [[obstacle]]
+        name = "pillar"
+        shape = { type = "box", size = [0.2, 0.3, 1.0] }
+        xyz = [0.45, 0.1, 0.2]
+        rpy = [0.0, 0.0, 0.4]
         "#,
     )
     .unwrap();
     let sc = scene(&r, &spec);
+    let labels: Vec<String> = sc.pairs.iter().map(|p| p.label()).collect();
+    let mut expect = vec![
+        "self: link2 – link6",
+        "self: link3 – link6",
+        "world: link2 – floor",
+        "world: link3 – floor",
+        "world: link6 – floor",
+        "world: link2 – pillar",
+        "world: link3 – pillar",
+        "world: link6 – pillar",
+    ];
+    let mut got: Vec<&str> = labels.iter().map(|s| s.as_str()).collect();
+    expect.sort();
+    got.sort();
+    assert_eq!(got, expect, "checked pairs");
     let mut ws = idexp::robot::Workspace::new(&r);
     let mut kin = Kin::new(r.dof());
-    let tool = r.find_frame("tool0").unwrap();
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-    let mut below = 0;
-    for _ in 0..50 {
-        let q = random_q(&r, &mut rng);
-        let x = idexp::robot::frame_pose(&r, &mut ws, &q, &tool);
-        let c = x * Point3::new(0.0, 0.0, 0.1);
-        let d = sc
-            .distances(&r, &mut kin, &q, 10.0)
-            .into_iter()
-            .find(|d| d.label == "world: wrist_3_link – floor")
-            .unwrap()
-            .distance;
-        // the wrist_3 body holds its mesh hull and the ball: its floor distance is at most the ball's
-        assert!(d <= c.z - 0.05 + 1e-9, "{d} vs ball {}", c.z - 0.05);
-        if c.z < 0.0 {
-            below += 1;
+    let pose_of = |ws: &mut idexp::robot::Workspace, q: &[f64], frame: &str, xyz: [f64; 3], rpy: [f64; 3]| {
+        let f = r.find_frame(frame).unwrap();
+        idexp::robot::frame_pose(&r, ws, q, &f) * idexp::robot::collision::pose(xyz, rpy)
+    };
+    let pillar = idexp::robot::collision::pose([0.45, 0.1, 0.2], [0.0, 0.0, 0.4]);
+    let pillar_half = nalgebra::Vector3::new(0.1, 0.15, 0.5);
+    // signed distance of a point to a box (pose, half extents)
+    let to_box = |x: &nalgebra::Isometry3<f64>, half: &nalgebra::Vector3<f64>, p: &Point3<f64>| {
+        let l = x.inverse_transform_point(p).coords.abs() - half;
+        let out = l.map(|v| v.max(0.0)).norm();
+        if out > 0.0 {
+            out
+        } else {
+            l.max()
         }
+    };
+    let to_pillar = |p: &Point3<f64>| to_box(&pillar, &pillar_half, p);
+    let block_half = nalgebra::Vector3::new(0.05, 0.1, 0.15);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let (mut below, mut inside, mut near, mut far) = (0, 0, 0, 0);
+    let cap = 10.0;
+    for _ in 0..200 {
+        let q = random_q(&r, &mut rng);
+        let ball = pose_of(&mut ws, &q, "tool0", [0.0, 0.0, 0.1], [0.0; 3]) * Point3::origin();
+        let knob = pose_of(&mut ws, &q, "link2", [0.1, 0.0, 0.02], [0.0; 3]) * Point3::origin();
+        let block = pose_of(&mut ws, &q, "link3", [0.0, 0.05, 0.2], [0.3, -0.2, 0.7]);
+        let corners: Vec<Point3<f64>> = (0..8)
+            .map(|c| block * Point3::new(if c & 1 == 0 { -0.05 } else { 0.05 }, if c & 2 == 0 { -0.1 } else { 0.1 }, if c & 4 == 0 { -0.15 } else { 0.15 }))
+            .collect();
+        let lowest = corners.iter().map(|c| c.z).fold(f64::INFINITY, f64::min);
+        let truth = |label: &str| -> Option<f64> {
+            Some(match label {
+                "world: link6 – floor" => ball.z - 0.05,
+                "world: link2 – floor" => knob.z - 0.04,
+                "world: link3 – floor" => lowest,
+                "self: link2 – link6" => (ball - knob).norm() - 0.09,
+                "self: link3 – link6" => to_box(&block, &block_half, &ball) - 0.05,
+                "world: link6 – pillar" => to_pillar(&ball) - 0.05,
+                "world: link2 – pillar" => to_pillar(&knob) - 0.04,
+                _ => return None,
+            })
+        };
+        for d in sc.distances(&r, &mut kin, &q, cap) {
+            if let Some(t) = truth(&d.label) {
+                assert!((d.distance - t).abs() < 1e-9, "{} at {q:?}: {} vs exact {t}", d.label, d.distance);
+            }
+        }
+        // the cap: a pair farther than the cap reports the cap
+        for d in sc.distances(&r, &mut kin, &q, 0.05) {
+            if let Some(t) = truth(&d.label) {
+                if t > 0.05 {
+                    assert_eq!(d.distance, 0.05, "{} beyond the cap", d.label);
+                } else {
+                    assert!((d.distance - t).abs() < 1e-9, "{} below the cap: {} vs {t}", d.label, d.distance);
+                }
+            }
+        }
+        below += usize::from(ball.z < 0.05 || lowest < 0.0);
+        inside += usize::from(to_pillar(&ball) < 0.0 || to_pillar(&knob) < 0.0);
+        near += usize::from((ball - knob).norm() < 0.09 || to_box(&block, &block_half, &ball) < 0.05);
+        far += usize::from(to_pillar(&ball) > 0.05);
     }
-    assert!(below > 0, "no pose below the floor sampled");
-    // ball alone (a DH-free check of the half-space sign): on a robot whose wrist_3 has only the ball
-    let spec2: CollisionSpec = toml::from_str("self = false").unwrap();
-    let sc2 = scene(&r, &spec2);
-    assert!(!sc2.is_empty());
+    // the sample reaches every regime: through the floor, inside the pillar,
+    // balls overlapping, and clear
+    assert!(below > 0 && inside > 0 && near > 0 && far > 0, "below {below}, inside {inside}, near {near}, far {far}");
 }
 
 #[test]
@@ -441,8 +518,8 @@ fn culled_constraints_equal_the_exhaustive_evaluation() {
             let with_jac = trial % 2 == 0;
             p.constraints.eval(&x, &mut culled, &mut c1, with_jac.then_some(&mut j1[..]));
             p.constraints.eval(&x, &mut brute, &mut c2, with_jac.then_some(&mut j2[..]));
-            for i in 0..m {
-                assert_eq!(c1[i].to_bits(), c2[i].to_bits(), "{design} trial {trial}: {}: {} vs {}", p.constraints.info[i].name, c1[i], c2[i]);
+            for (inf, (a, b)) in p.constraints.info.iter().zip(c1.iter().zip(&c2)) {
+                assert_eq!(a.to_bits(), b.to_bits(), "{design} trial {trial}: {}: {a} vs {b}", inf.name);
             }
             if with_jac {
                 for (k, (a, b)) in j1.iter().zip(&j2).enumerate() {
@@ -507,4 +584,44 @@ fn culled_series_and_worst_pair_equal_the_exhaustive_ones() {
             assert!(queries < sc.len() * poses.len(), "{name}: no query saved");
         }
     }
+}
+
+#[test]
+fn fast_hull_support_is_the_linear_scan_vertex() {
+    // the accelerated support function returns exactly parry's linear-scan
+    // vertex (first of largest p·d), ties included: random directions, the
+    // axes and face-aligned directions, on every shipped mesh
+    use idexp::robot::collision::{read_stl, FastHull};
+    use parry3d_f64::shape::ConvexPolyhedron;
+    use parry3d_f64::utils::point_cloud_support_point_id;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+    let mut meshes = 0;
+    for robot in ["ur5", "panda"] {
+        let dir = designs().join("robots/meshes").join(robot).join("collision");
+        for e in std::fs::read_dir(&dir).unwrap() {
+            let path = e.unwrap().path();
+            let (pts, _) = read_stl(&path, [1.0; 3]).unwrap();
+            let hull = ConvexPolyhedron::from_convex_hull(&pts).unwrap();
+            let fast = FastHull::new(hull.clone());
+            let mut dirs: Vec<nalgebra::Vector3<f64>> = (0..2000)
+                .map(|_| nalgebra::Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)))
+                .collect();
+            for a in 0..3 {
+                for s in [-1.0, 1.0, 0.0] {
+                    let mut d = nalgebra::Vector3::zeros();
+                    d[a] = s;
+                    dirs.push(d);
+                    d[(a + 1) % 3] = s;
+                    dirs.push(d);
+                }
+            }
+            dirs.extend(hull.faces().iter().map(|f| f.normal.into_inner()));
+            dirs.extend(hull.faces().iter().map(|f| -f.normal.into_inner() * 3.0));
+            for d in &dirs {
+                assert_eq!(fast.support_index(d), point_cloud_support_point_id(d, hull.points()), "{} along {d:?}", path.display());
+            }
+            meshes += 1;
+        }
+    }
+    assert!(meshes >= 15, "{meshes} meshes");
 }
