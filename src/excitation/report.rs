@@ -699,11 +699,13 @@ fn joints_svg(p: &Problem, r: &ExciteResult, path: &Path) -> Result<()> {
         let name = &p.robot.joints[j].name;
         let mut hl = Vec::new();
         let [lo, hi] = p.limits.position[j];
+        // one legend in all (first panel): the phases and the limit lines
+        let lim = if j == 0 { "limit".to_string() } else { String::new() };
         if lo.is_finite() {
-            hl.push((lo, "lower".to_string()));
+            hl.push((lo, lim.clone()));
         }
         if hi.is_finite() {
-            hl.push((hi, "upper".to_string()));
+            hl.push((hi, if lo.is_finite() { String::new() } else { lim.clone() }));
         }
         panels.push(Panel {
             title: format!("q{} ({name})", j + 1),
@@ -716,8 +718,8 @@ fn joints_svg(p: &Problem, r: &ExciteResult, path: &Path) -> Result<()> {
         let mut hv = Vec::new();
         let v = p.limits.velocity[j];
         if v.is_finite() {
-            hv.push((v, "limit".to_string()));
-            hv.push((-v, "limit".to_string()));
+            hv.push((v, String::new()));
+            hv.push((-v, String::new()));
         }
         panels.push(Panel {
             title: format!("qd{} ({name})", j + 1),
@@ -729,9 +731,9 @@ fn joints_svg(p: &Problem, r: &ExciteResult, path: &Path) -> Result<()> {
         });
     }
     let what = if r.execution.delivered.is_some() {
-        "delivered joint trajectory (lead-in, periods, lead-out) and limits"
+        "delivered joint trajectory (lead-in, periods, lead-out), limits dashed red"
     } else {
-        "joint trajectory (one period) and limits"
+        "joint trajectory (one period), limits dashed red"
     };
     write_svg(path, &format!("{}: {what}", p.design.name), &panels, 2)
 }
@@ -741,20 +743,31 @@ fn ee_svg(p: &Problem, r: &ExciteResult, path: &Path) -> Result<()> {
         Some(c) => c.resolve(&p.robot, "design", "workspace[0]")?,
         None => p.robot.end_effector(),
     };
-    let ph = plot_phases(r, (200.0 * p.design.trajectory.frequency).max(20.0))?;
+    let mut ph = plot_phases(r, (200.0 * p.design.trajectory.frequency).max(20.0))?;
+    // the periods trace the same closed path: one series for all of them
+    let periods: Vec<usize> = (0..ph.names.len()).filter(|&k| ph.names[k].starts_with("period ")).collect();
+    if periods.len() > 1 {
+        let (k0, n) = (periods[0], periods.len());
+        ph.names[k0] = format!("periods 1–{n} (one closed path)");
+        for &k in periods[1..].iter().rev() {
+            ph.names.remove(k);
+            ph.t.remove(k);
+            ph.q.remove(k);
+            ph.qd.remove(k);
+        }
+    }
     let mut ws = Workspace::new(&p.robot);
-    let paths: Vec<Vec<[f64; 3]>> = ph
-        .q
-        .iter()
-        .map(|qs| {
-            qs.iter()
-                .map(|q| {
-                    let v = super::constraints::frame_point(&p.robot, &mut ws, q, &frame);
-                    [v.x, v.y, v.z]
-                })
-                .collect()
-        })
-        .collect();
+    let paths: Vec<Vec<[f64; 3]>> =
+        ph.q.iter()
+            .map(|qs| {
+                qs.iter()
+                    .map(|q| {
+                        let v = super::constraints::frame_point(&p.robot, &mut ws, q, &frame);
+                        [v.x, v.y, v.z]
+                    })
+                    .collect()
+            })
+            .collect();
     let all: Vec<[f64; 3]> = paths.iter().flatten().copied().collect();
     let ax = ["x", "y", "z"];
     let mut panels = Vec::new();
@@ -784,7 +797,15 @@ fn ee_svg(p: &Problem, r: &ExciteResult, path: &Path) -> Result<()> {
             ..Default::default()
         });
     }
-    write_svg(path, &format!("{}: {} path (delivered trajectory by phase) and workspace constraints", p.design.name, frame.name), &panels, 3)
+    write_svg(
+        path,
+        &format!(
+            "{}: {} path (delivered trajectory by phase) and workspace constraints",
+            p.design.name, frame.name
+        ),
+        &panels,
+        3,
+    )
 }
 
 fn bounds(pts: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {

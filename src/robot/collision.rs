@@ -29,13 +29,8 @@ use crate::error::{Error, Result};
 use crate::robot::kinematics::Kin;
 use crate::robot::model::Robot;
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
-use parry3d_f64::bounding_volume::{Aabb, BoundingSphere};
-use parry3d_f64::mass_properties::MassProperties;
 use parry3d_f64::query;
-use parry3d_f64::query::{PointProjection, PointQuery, Ray, RayCast, RayIntersection};
-use parry3d_f64::shape::{
-    ConvexPolyhedron, FeatureId, HalfSpace, PolygonalFeatureMap, Shape, ShapeType, SharedShape, SupportMap, TypedShape,
-};
+use parry3d_f64::shape::{HalfSpace, SharedShape};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -367,225 +362,7 @@ fn bound_capsule(shape: &SharedShape) -> Option<BoundCapsule> {
         }
         return BoundCapsule::enclosing(&v);
     }
-    convex_polyhedron(shape).and_then(|c| BoundCapsule::enclosing(c.points()))
-}
-
-/// The convex polyhedron of a hull part (plain or accelerated).
-fn convex_polyhedron(shape: &SharedShape) -> Option<&ConvexPolyhedron> {
-    shape.as_shape::<FastHull>().map(|h| &h.hull).or_else(|| shape.as_convex_polyhedron())
-}
-
-// ---------------------------------------------------------------------------
-// Convex hulls with a faster support function
-// ---------------------------------------------------------------------------
-
-/// Vertices of a hull per leaf of the median-split tree.
-const HULL_LEAF: usize = 8;
-
-/// A node of [`FastHull`]'s tree: the bounding box (centre, half extents) of
-/// its vertices; a leaf holds `order[a..b]`, an inner node its children `a`, `b`.
-#[derive(Debug, Clone, Copy)]
-struct HullNode {
-    centre: Vector3<f64>,
-    half: Vector3<f64>,
-    leaf: bool,
-    a: u32,
-    b: u32,
-}
-
-/// A convex hull (parry's [`ConvexPolyhedron`]) whose support function
-/// descends a bounding-box tree of the vertices instead of scanning them all,
-/// and returns **exactly** the vertex of parry's linear scan: the first vertex
-/// (in the hull's order) of largest `p · dir`, by the same expression. The
-/// tree splits the vertices at the median of the longest box side down to
-/// leaves of at most [`HULL_LEAF`]; a subtree is skipped only if its bound
-/// `c · dir + Σ h_i |dir_i|` (padded far above rounding) is below the best dot
-/// product found so far, so ties and rounding resolve as in the full scan.
-/// Everything else (point and ray queries, features, mass) is the hull's.
-/// GJK/EPA spend most of a distance query in the support function; the
-/// distances are bit-identical to those of the plain hull (tested).
-#[derive(Debug, Clone)]
-pub struct FastHull {
-    hull: ConvexPolyhedron,
-    nodes: Vec<HullNode>,
-    /// Vertex indices grouped by leaf.
-    order: Vec<u32>,
-}
-
-impl FastHull {
-    /// Builds the tree of the hull's vertices.
-    pub fn new(hull: ConvexPolyhedron) -> FastHull {
-        let mut order: Vec<u32> = (0..hull.points().len() as u32).collect();
-        let mut nodes = Vec::new();
-        Self::build(hull.points(), &mut order, 0, &mut nodes);
-        FastHull { hull, nodes, order }
-    }
-
-    fn build(pts: &[Point3<f64>], order: &mut [u32], offset: usize, nodes: &mut Vec<HullNode>) -> u32 {
-        let (lo, hi) = order.iter().fold(
-            (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)),
-            |(lo, hi), &i| (lo.inf(&pts[i as usize].coords), hi.sup(&pts[i as usize].coords)),
-        );
-        let id = nodes.len();
-        nodes.push(HullNode {
-            centre: (lo + hi) * 0.5,
-            half: (hi - lo) * 0.5,
-            leaf: true,
-            a: offset as u32,
-            b: (offset + order.len()) as u32,
-        });
-        if order.len() > HULL_LEAF {
-            let axis = (hi - lo).imax();
-            let m = order.len() / 2;
-            order.select_nth_unstable_by(m, |&i, &j| pts[i as usize][axis].total_cmp(&pts[j as usize][axis]).then(i.cmp(&j)));
-            let (left, right) = order.split_at_mut(m);
-            let l = Self::build(pts, left, offset, nodes);
-            let r = Self::build(pts, right, offset + m, nodes);
-            nodes[id].leaf = false;
-            nodes[id].a = l;
-            nodes[id].b = r;
-        }
-        id as u32
-    }
-
-    /// The hull.
-    pub fn hull(&self) -> &ConvexPolyhedron {
-        &self.hull
-    }
-
-    /// Upper bound of `p · dir` over the node's box, padded for rounding.
-    fn bound(n: &HullNode, dir: &Vector3<f64>, ad: &Vector3<f64>) -> f64 {
-        let spread = n.half.dot(ad);
-        n.centre.dot(dir) + spread + 1e-12 * (n.centre.abs().dot(ad) + spread) + 1e-300
-    }
-
-    /// Index of the support vertex: that of parry's linear scan.
-    pub fn support_index(&self, dir: &Vector3<f64>) -> usize {
-        let pts = self.hull.points();
-        let mut best = (0usize, pts[0].coords.dot(dir));
-        // NaN or infinite directions: the linear scan itself
-        if best.1.is_nan() || !(dir.x.is_finite() && dir.y.is_finite() && dir.z.is_finite()) {
-            return parry3d_f64::utils::point_cloud_support_point_id(dir, pts);
-        }
-        let ad = dir.abs();
-        let mut stack: [(u32, f64); 64] = [(0, 0.0); 64];
-        stack[0] = (0, Self::bound(&self.nodes[0], dir, &ad));
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let (id, ub) = stack[top];
-            if ub < best.1 {
-                continue;
-            }
-            let n = &self.nodes[id as usize];
-            if n.leaf {
-                for &i in &self.order[n.a as usize..n.b as usize] {
-                    let i = i as usize;
-                    let dot = pts[i].coords.dot(dir);
-                    if dot > best.1 || (dot == best.1 && i < best.0) {
-                        best = (i, dot);
-                    }
-                }
-            } else {
-                let (l, r) = (n.a, n.b);
-                let bl = Self::bound(&self.nodes[l as usize], dir, &ad);
-                let br = Self::bound(&self.nodes[r as usize], dir, &ad);
-                // the more promising child is popped first
-                let (first, second) = if bl >= br { ((l, bl), (r, br)) } else { ((r, br), (l, bl)) };
-                stack[top] = second;
-                stack[top + 1] = first;
-                top += 2;
-            }
-        }
-        best.0
-    }
-}
-
-impl SupportMap for FastHull {
-    #[inline]
-    fn local_support_point(&self, dir: &Vector3<f64>) -> Point3<f64> {
-        self.hull.points()[self.support_index(dir)]
-    }
-}
-
-impl PolygonalFeatureMap for FastHull {
-    fn local_support_feature(&self, dir: &Unit<Vector3<f64>>, out: &mut parry3d_f64::shape::PolygonalFeature) {
-        self.hull.local_support_feature(dir, out)
-    }
-}
-
-impl PointQuery for FastHull {
-    fn project_local_point(&self, point: &Point3<f64>, solid: bool) -> PointProjection {
-        self.hull.project_local_point(point, solid)
-    }
-
-    fn project_local_point_and_get_feature(&self, point: &Point3<f64>) -> (PointProjection, FeatureId) {
-        self.hull.project_local_point_and_get_feature(point)
-    }
-}
-
-impl RayCast for FastHull {
-    fn cast_local_ray_and_get_normal(&self, ray: &Ray, max_time_of_impact: f64, solid: bool) -> Option<RayIntersection> {
-        self.hull.cast_local_ray_and_get_normal(ray, max_time_of_impact, solid)
-    }
-}
-
-impl Shape for FastHull {
-    fn compute_local_aabb(&self) -> Aabb {
-        self.hull.compute_local_aabb()
-    }
-
-    fn compute_local_bounding_sphere(&self) -> BoundingSphere {
-        self.hull.compute_local_bounding_sphere()
-    }
-
-    fn compute_aabb(&self, position: &Isometry3<f64>) -> Aabb {
-        self.hull.compute_aabb(position)
-    }
-
-    fn clone_dyn(&self) -> Box<dyn Shape> {
-        Box::new(self.clone())
-    }
-
-    fn scale_dyn(&self, scale: &Vector3<f64>, _num_subdivisions: u32) -> Option<Box<dyn Shape>> {
-        Some(Box::new(FastHull::new(self.hull.clone().scaled(scale)?)))
-    }
-
-    fn mass_properties(&self, density: f64) -> MassProperties {
-        self.hull.mass_properties(density)
-    }
-
-    fn is_convex(&self) -> bool {
-        true
-    }
-
-    fn shape_type(&self) -> ShapeType {
-        ShapeType::Custom
-    }
-
-    fn as_typed_shape(&self) -> TypedShape<'_> {
-        TypedShape::Custom(self)
-    }
-
-    fn ccd_thickness(&self) -> f64 {
-        self.hull.ccd_thickness()
-    }
-
-    fn ccd_angular_thickness(&self) -> f64 {
-        self.hull.ccd_angular_thickness()
-    }
-
-    fn as_support_map(&self) -> Option<&dyn SupportMap> {
-        Some(self as &dyn SupportMap)
-    }
-
-    fn as_polygonal_feature_map(&self) -> Option<(&dyn PolygonalFeatureMap, f64)> {
-        Some((self as &dyn PolygonalFeatureMap, 0.0))
-    }
-
-    fn feature_normal_at_point(&self, feature: FeatureId, point: &Point3<f64>) -> Option<Unit<Vector3<f64>>> {
-        self.hull.feature_normal_at_point(feature, point)
-    }
+    shape.as_convex_polyhedron().and_then(|c| BoundCapsule::enclosing(c.points()))
 }
 
 fn positive(ctx: &str, what: &str, v: f64) -> Result<()> {
@@ -637,24 +414,20 @@ impl Body {
                     let (pts, tris) = read_stl(path, *scale).map_err(|e| Error::invalid(&here, "mesh", e.to_string()))?;
                     match mode {
                         MeshMode::Hull => {
-                            let hull = ConvexPolyhedron::from_convex_hull(&pts).ok_or_else(|| {
+                            let hull = SharedShape::convex_hull(&pts).ok_or_else(|| {
                                 Error::invalid(
                                     &here,
                                     "mesh",
                                     format!("{}: the vertices are flat or degenerate: no convex hull", path.display()),
                                 )
                             })?;
-                            parts.push(part(SharedShape::new(FastHull::new(hull)), o));
+                            parts.push(part(hull, o));
                         }
                         MeshMode::Decomposition => {
                             let dec = SharedShape::convex_decomposition(&pts, &tris);
                             let compound = dec.as_compound().ok_or_else(|| Error::invalid(&here, "mesh", "convex decomposition failed"))?;
                             for (iso, sh) in compound.shapes() {
-                                let shape = match sh.as_convex_polyhedron() {
-                                    Some(c) => SharedShape::new(FastHull::new(c.clone())),
-                                    None => sh.clone(),
-                                };
-                                parts.push(part(shape, o * iso));
+                                parts.push(part(sh.clone(), o * iso));
                             }
                         }
                     }
@@ -713,7 +486,7 @@ impl Body {
         self.parts
             .iter()
             .filter_map(|p| {
-                if let Some(c) = convex_polyhedron(&p.shape) {
+                if let Some(c) = p.shape.as_convex_polyhedron() {
                     Some(c.points().iter().map(|q| p.local * q).collect())
                 } else {
                     p.shape.as_cuboid().map(|c| {
