@@ -1138,17 +1138,26 @@ impl CollisionScene {
     /// tests (above `cap` the pair reports `cap` without an exact query), and
     /// `bound ≥ sphere` is the tighter bound of the spheres and the bounding
     /// capsules: the signed distance is at least `bound` (up to
-    /// [`CULL_TOL`]). +∞ when a body has no shape.
-    pub fn pair_bounds(&self, k: usize, poses: &[Isometry3<f64>]) -> (f64, f64) {
+    /// [`CULL_TOL`]). The capsules are only tried when the spheres do not
+    /// already put the pair beyond `cap` (then `bound = sphere`). +∞ when a
+    /// body has no shape.
+    pub fn pair_bounds(&self, k: usize, poses: &[Isometry3<f64>], cap: f64) -> (f64, f64) {
         let p = &self.pairs[k];
         let (a, b) = (&self.bodies[p.ia], &self.bodies[p.ib]);
         let (xa, xb) = (&poses[p.ia], &poses[p.ib]);
-        let (mut sphere, mut bound) = (f64::INFINITY, f64::INFINITY);
+        let mut sphere = f64::INFINITY;
         for pa in &a.parts {
             for pb in &b.parts {
-                let s = part_lower_bound(pa, xa, pb, xb);
-                sphere = sphere.min(s);
-                bound = bound.min(s.max(part_capsule_bound(pa, xa, pb, xb)));
+                sphere = sphere.min(part_lower_bound(pa, xa, pb, xb));
+            }
+        }
+        if sphere > cap {
+            return (sphere, sphere);
+        }
+        let mut bound = f64::INFINITY;
+        for pa in &a.parts {
+            for pb in &b.parts {
+                bound = bound.min(part_lower_bound(pa, xa, pb, xb).max(part_capsule_bound(pa, xa, pb, xb)));
             }
         }
         (sphere, bound)
@@ -1175,7 +1184,7 @@ impl CollisionScene {
         let mut best = f64::INFINITY;
         let mut first: Option<(usize, f64)> = None;
         for (g, x) in poses.iter().enumerate() {
-            let (sphere, bound) = self.pair_bounds(k, x);
+            let (sphere, bound) = self.pair_bounds(k, x, cap);
             // exactly what the exact query returns without querying: every
             // part pair fails its sphere test, or the true distance is above cap
             if sphere > cap || bound > cap + CULL_TOL {
@@ -1230,7 +1239,7 @@ impl CollisionScene {
         let mut best = f64::INFINITY;
         let mut first: Option<(usize, f64)> = None;
         for k in 0..np {
-            let (sphere, bound) = self.pair_bounds(k, &poses);
+            let (sphere, bound) = self.pair_bounds(k, &poses, cap);
             if sphere > cap || bound > cap + CULL_TOL {
                 value.push(cap);
                 exact.push(true);
