@@ -2,8 +2,9 @@
 //! designs/excite_ur5.toml (UR5 meshes, 21 pairs) and
 //! designs/excite_panda_table.toml (Panda meshes, 28 pairs) evaluated with
 //! and without collision checking, values only (one GA evaluation's
-//! constraints) and with the Jacobian (one refinement step); plus the
-//! distances of every pair at one configuration.
+//! constraints) and with the Jacobian (one refinement step), the latter also
+//! without the broad phase (every pair queried at every grid time: the cost
+//! before culling); plus the distances of every pair at one configuration.
 //!
 //! Run: `cargo bench --bench collision -- --warm-up-time 1 --measurement-time 3`.
 
@@ -48,6 +49,22 @@ fn bench(c: &mut Criterion) {
                 })
             });
             if on {
+                // the reference: every pair queried at every grid time (no broad phase)
+                let mut bw = p.constraints.workspace();
+                bw.set_exhaustive(true);
+                grp.bench_function("constraints_and_jacobian_with_collision_exhaustive", |b| {
+                    b.iter(|| {
+                        p.constraints.eval(black_box(&x), &mut bw, &mut cval, Some(&mut jac));
+                        black_box(&jac);
+                    })
+                });
+                p.constraints.eval(&x, &mut cw, &mut cval, None);
+                p.constraints.eval(&x, &mut bw, &mut cval, None);
+                eprintln!(
+                    "{label}: {} exact distance queries per evaluation with the broad phase, {} without",
+                    cw.distance_queries(),
+                    bw.distance_queries()
+                );
                 let sc = p.constraints.scene().expect("scene");
                 let mut kin = Kin::new(p.robot.dof());
                 let q = p.layout.trajectory(&x).q0.clone();

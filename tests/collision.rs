@@ -144,46 +144,133 @@ fn distances_match_an_independent_socp_on_the_convex_hulls() {
 
 #[test]
 fn floor_and_attached_sphere_distances_are_exact() {
-    // a sphere of radius 0.05 on tool0: its floor distance is z(tool0 + offset) − r, also below the floor
-    let r = robot("ur5.toml");
+    // A robot without geometry of its own (the DH Puma 560) carrying a ball
+    // on link6, a ball on link2 and a box on link3, in a cell with a box
+    // pillar: every checked distance has a closed form from the frame poses
+    // (ball–floor z − r, box–floor the lowest corner, ball–ball centre
+    // distance − radii, ball–box the point–box distance − r, signed), so a
+    // wrong sign, offset, frame or cap shows.
+    let r = robot("puma560.toml");
     let spec: CollisionSpec = toml::from_str(
         r#"
-        self = false
+        margin = 0.0
         [[attached]]
         name = "ball"
         frame = "tool0"
         shape = { type = "sphere", radius = 0.05 }
         xyz = [0.0, 0.0, 0.1]
+        [[attached]]
+        name = "knob"
+        frame = "link2"
+        shape = { type = "sphere", radius = 0.04 }
+        xyz = [0.1, 0.0, 0.02]
+        [[attached]]
+        name = "block"
+        frame = "link3"
+        shape = { type = "box", size = [0.1, 0.2, 0.3] }
+        xyz = [0.0, 0.05, 0.2]
+        rpy = [0.3, -0.2, 0.7]
+        [[obstacle]]
+        name = "pillar"
+        shape = { type = "box", size = [0.2, 0.3, 1.0] }
+        xyz = [0.45, 0.1, 0.2]
+        rpy = [0.0, 0.0, 0.4]
         "#,
     )
     .unwrap();
     let sc = scene(&r, &spec);
+    let labels: Vec<String> = sc.pairs.iter().map(|p| p.label()).collect();
+    let mut expect = vec![
+        "self: link2 – link6",
+        "self: link3 – link6",
+        "world: link2 – floor",
+        "world: link3 – floor",
+        "world: link6 – floor",
+        "world: link2 – pillar",
+        "world: link3 – pillar",
+        "world: link6 – pillar",
+    ];
+    let mut got: Vec<&str> = labels.iter().map(|s| s.as_str()).collect();
+    expect.sort();
+    got.sort();
+    assert_eq!(got, expect, "checked pairs");
     let mut ws = idexp::robot::Workspace::new(&r);
     let mut kin = Kin::new(r.dof());
-    let tool = r.find_frame("tool0").unwrap();
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-    let mut below = 0;
-    for _ in 0..50 {
-        let q = random_q(&r, &mut rng);
-        let x = idexp::robot::frame_pose(&r, &mut ws, &q, &tool);
-        let c = x * Point3::new(0.0, 0.0, 0.1);
-        let d = sc
-            .distances(&r, &mut kin, &q, 10.0)
-            .into_iter()
-            .find(|d| d.label == "world: wrist_3_link – floor")
-            .unwrap()
-            .distance;
-        // the wrist_3 body holds its mesh hull and the ball: its floor distance is at most the ball's
-        assert!(d <= c.z - 0.05 + 1e-9, "{d} vs ball {}", c.z - 0.05);
-        if c.z < 0.0 {
-            below += 1;
+    let pose_of = |ws: &mut idexp::robot::Workspace, q: &[f64], frame: &str, xyz: [f64; 3], rpy: [f64; 3]| {
+        let f = r.find_frame(frame).unwrap();
+        idexp::robot::frame_pose(&r, ws, q, &f) * idexp::robot::collision::pose(xyz, rpy)
+    };
+    let pillar = idexp::robot::collision::pose([0.45, 0.1, 0.2], [0.0, 0.0, 0.4]);
+    let pillar_half = nalgebra::Vector3::new(0.1, 0.15, 0.5);
+    // signed distance of a point to a box (pose, half extents)
+    let to_box = |x: &nalgebra::Isometry3<f64>, half: &nalgebra::Vector3<f64>, p: &Point3<f64>| {
+        let l = x.inverse_transform_point(p).coords.abs() - half;
+        let out = l.map(|v| v.max(0.0)).norm();
+        if out > 0.0 {
+            out
+        } else {
+            l.max()
         }
+    };
+    let to_pillar = |p: &Point3<f64>| to_box(&pillar, &pillar_half, p);
+    let block_half = nalgebra::Vector3::new(0.05, 0.1, 0.15);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let (mut below, mut inside, mut near, mut far) = (0, 0, 0, 0);
+    let cap = 10.0;
+    for _ in 0..200 {
+        let q = random_q(&r, &mut rng);
+        let ball = pose_of(&mut ws, &q, "tool0", [0.0, 0.0, 0.1], [0.0; 3]) * Point3::origin();
+        let knob = pose_of(&mut ws, &q, "link2", [0.1, 0.0, 0.02], [0.0; 3]) * Point3::origin();
+        let block = pose_of(&mut ws, &q, "link3", [0.0, 0.05, 0.2], [0.3, -0.2, 0.7]);
+        let corners: Vec<Point3<f64>> = (0..8)
+            .map(|c| {
+                block
+                    * Point3::new(
+                        if c & 1 == 0 { -0.05 } else { 0.05 },
+                        if c & 2 == 0 { -0.1 } else { 0.1 },
+                        if c & 4 == 0 { -0.15 } else { 0.15 },
+                    )
+            })
+            .collect();
+        let lowest = corners.iter().map(|c| c.z).fold(f64::INFINITY, f64::min);
+        let truth = |label: &str| -> Option<f64> {
+            Some(match label {
+                "world: link6 – floor" => ball.z - 0.05,
+                "world: link2 – floor" => knob.z - 0.04,
+                "world: link3 – floor" => lowest,
+                "self: link2 – link6" => (ball - knob).norm() - 0.09,
+                "self: link3 – link6" => to_box(&block, &block_half, &ball) - 0.05,
+                "world: link6 – pillar" => to_pillar(&ball) - 0.05,
+                "world: link2 – pillar" => to_pillar(&knob) - 0.04,
+                _ => return None,
+            })
+        };
+        for d in sc.distances(&r, &mut kin, &q, cap) {
+            if let Some(t) = truth(&d.label) {
+                assert!((d.distance - t).abs() < 1e-9, "{} at {q:?}: {} vs exact {t}", d.label, d.distance);
+            }
+        }
+        // the cap: a pair farther than the cap reports the cap
+        for d in sc.distances(&r, &mut kin, &q, 0.05) {
+            if let Some(t) = truth(&d.label) {
+                if t > 0.05 {
+                    assert_eq!(d.distance, 0.05, "{} beyond the cap", d.label);
+                } else {
+                    assert!((d.distance - t).abs() < 1e-9, "{} below the cap: {} vs {t}", d.label, d.distance);
+                }
+            }
+        }
+        below += usize::from(ball.z < 0.05 || lowest < 0.0);
+        inside += usize::from(to_pillar(&ball) < 0.0 || to_pillar(&knob) < 0.0);
+        near += usize::from((ball - knob).norm() < 0.09 || to_box(&block, &block_half, &ball) < 0.05);
+        far += usize::from(to_pillar(&ball) > 0.05);
     }
-    assert!(below > 0, "no pose below the floor sampled");
-    // ball alone (a DH-free check of the half-space sign): on a robot whose wrist_3 has only the ball
-    let spec2: CollisionSpec = toml::from_str("self = false").unwrap();
-    let sc2 = scene(&r, &spec2);
-    assert!(!sc2.is_empty());
+    // the sample reaches every regime: through the floor, inside the pillar,
+    // balls overlapping, and clear
+    assert!(
+        below > 0 && inside > 0 && near > 0 && far > 0,
+        "below {below}, inside {inside}, near {near}, far {far}"
+    );
 }
 
 #[test]
@@ -411,4 +498,100 @@ fn position_candidates_in_collision_are_dropped() {
     .unwrap();
     let c2 = off.generate(&r, &[0.0; 6], 1, &designs(), "test").unwrap();
     assert_eq!(c2.q.len(), c.q.len() + c.rejected_collision);
+}
+
+fn design_problem(design: &str) -> idexp::excitation::Problem {
+    idexp::excitation::Problem::from_file(&designs().join(design)).unwrap()
+}
+
+#[test]
+fn culled_constraints_equal_the_exhaustive_evaluation() {
+    // the broad phase (bounding spheres and capsules, a running minimum per
+    // pair) must give bit for bit the constraint values and Jacobian of
+    // querying every pair at every grid time, on random trajectories from
+    // gentle to wild (deep penetrations included)
+    for design in ["excite_ur5.toml", "excite_panda_table.toml"] {
+        let p = design_problem(design);
+        assert!(p.constraints.scene().is_some());
+        let nv = p.layout.n_vars();
+        let m = p.constraints.len();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
+        let mut culled = p.constraints.workspace();
+        let mut brute = p.constraints.workspace();
+        brute.set_exhaustive(true);
+        let (mut c1, mut c2) = (vec![0.0; m], vec![0.0; m]);
+        let (mut j1, mut j2) = (vec![0.0; m * nv], vec![0.0; m * nv]);
+        let (mut saved, mut total, mut violated) = (0usize, 0usize, 0usize);
+        for trial in 0..12 {
+            let amp = [0.05, 0.2, 0.5, 1.0][trial % 4];
+            let x: Vec<f64> = (0..nv).map(|i| rng.random_range(p.lower[i]..p.upper[i]) * amp).collect();
+            let with_jac = trial % 2 == 0;
+            p.constraints.eval(&x, &mut culled, &mut c1, with_jac.then_some(&mut j1[..]));
+            p.constraints.eval(&x, &mut brute, &mut c2, with_jac.then_some(&mut j2[..]));
+            for (inf, (a, b)) in p.constraints.info.iter().zip(c1.iter().zip(&c2)) {
+                assert_eq!(a.to_bits(), b.to_bits(), "{design} trial {trial}: {}: {a} vs {b}", inf.name);
+            }
+            if with_jac {
+                for (k, (a, b)) in j1.iter().zip(&j2).enumerate() {
+                    assert_eq!(a.to_bits(), b.to_bits(), "{design} trial {trial}: jacobian entry {k}: {a} vs {b}");
+                }
+            }
+            saved += brute.distance_queries() - culled.distance_queries();
+            total += brute.distance_queries();
+            violated += c1.iter().zip(&p.constraints.info).filter(|(v, inf)| inf.unit == "m" && **v > 0.0).count();
+        }
+        // the culling does cut queries, and the trials do reach collisions
+        assert!(saved * 2 > total, "{design}: only {saved} of {total} queries saved");
+        assert!(violated > 0, "{design}: no trial violates a distance constraint");
+    }
+}
+
+#[test]
+fn culled_series_and_worst_pair_equal_the_exhaustive_ones() {
+    // the verification grid (cap margin + 1 m) and the per-pose check: the
+    // minimum over the sequence and its first index, the worst pair and its
+    // distance, all exactly as when every pair is queried
+    for name in ["ur5.toml", "panda.toml"] {
+        let r = robot(name);
+        let sc = scene(&r, &CollisionSpec::default());
+        let mut kin = Kin::new(r.dof());
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8);
+        // a random walk in joint space: neighbouring poses as on a time grid
+        let mut q = random_q(&r, &mut rng);
+        let mut poses: Vec<Vec<nalgebra::Isometry3<f64>>> = Vec::new();
+        for step in 0..400 {
+            for v in q.iter_mut() {
+                *v += rng.random_range(-0.05..0.05);
+            }
+            forward_kinematics(&r, &q, &mut kin);
+            let mut x = Vec::new();
+            sc.poses(&kin, &mut x);
+            poses.push(x);
+            let all = sc.distances(&r, &mut kin, &q, sc.cap);
+            let brute = all.iter().min_by(|a, b| a.distance.total_cmp(&b.distance)).unwrap();
+            let w = sc.worst_at(&r, &mut kin, &q, sc.cap).unwrap();
+            assert_eq!((w.pair, w.distance.to_bits()), (brute.pair, brute.distance.to_bits()), "{name} step {step}");
+        }
+        for cap in [sc.cap, sc.margin + 1.0] {
+            let mut culled = Default::default();
+            let mut brute = Default::default();
+            let mut queries = 0;
+            for k in 0..sc.len() {
+                sc.pair_series(k, &poses, cap, false, &mut culled);
+                sc.pair_series(k, &poses, cap, true, &mut brute);
+                let (a, b) = (culled.argmin().unwrap(), brute.argmin().unwrap());
+                assert_eq!((a.0, a.1.to_bits()), (b.0, b.1.to_bits()), "{name} pair {k} cap {cap}");
+                for (g, (v, e)) in culled.value.iter().zip(&culled.exact).enumerate() {
+                    if *e {
+                        assert_eq!(v.to_bits(), brute.value[g].to_bits());
+                    } else {
+                        // a lower bound, above the minimum
+                        assert!(*v <= brute.value[g] + 1e-7 && *v > b.1, "{name} pair {k} at {g}: {v} vs {}", brute.value[g]);
+                    }
+                }
+                queries += culled.queries;
+            }
+            assert!(queries < sc.len() * poses.len(), "{name}: no query saved");
+        }
+    }
 }

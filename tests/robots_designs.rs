@@ -81,9 +81,24 @@ fn panda_loads_with_43_base_inertial_parameters() {
         assert_eq!(r.joints[j].limits.acceleration, *a);
     }
     assert_eq!(r.joints[4].limits.effort, 12.0);
-    // hand (0.73 kg) merged into link 7
-    let m7 = r.links[6].inertial.mass;
-    assert!((m7 - (0.735522 + 0.73)).abs() < 1e-9, "m7 = {m7}");
+    // The Panda as delivered: hand (0.73 kg) and both fingers, closed
+    // (0.015 kg each; their prismatic joints fixed at 0 since issue 11), are
+    // lumped on link 7. Mass, first moment and Izz about the link-7 origin
+    // recomputed here from the URDF values: link 7, then panda_link8 at
+    // z = 0.107, the hand yawed by -pi/4 with its COM at (-0.01, 0, 0.03), the
+    // finger frames 0.0584 above the hand with their COM at their origin.
+    let ir = &r.links[6].inertial;
+    let (m7, mh, mf) = (0.735522, 0.73, 0.015);
+    assert!((ir.mass - (m7 + mh + 2.0 * mf)).abs() < 1e-12, "m7 = {}", ir.mass);
+    let c7 = nalgebra::Vector3::new(1.0517e-2, -4.252e-3, 6.1597e-2);
+    let (sy, cy) = (-std::f64::consts::FRAC_PI_4).sin_cos();
+    let ch = nalgebra::Vector3::new(-0.01 * cy, -0.01 * sy, 0.107 + 0.03);
+    let cf = nalgebra::Vector3::new(0.0, 0.0, 0.107 + 0.0584);
+    let h = c7 * m7 + ch * mh + cf * (2.0 * mf);
+    assert!((ir.first_moment - h).norm() < 1e-12, "first moment {} vs {h}", ir.first_moment);
+    // Izz: own Izz about each COM (rotations about z keep it) + m (x^2 + y^2)
+    let izz = 0.004815 + m7 * (c7.x * c7.x + c7.y * c7.y) + 0.0017 + mh * (ch.x * ch.x + ch.y * ch.y) + 2.0 * 7.5e-7;
+    assert!((ir.inertia[(2, 2)] - izz).abs() < 1e-12, "Izz {} vs {izz}", ir.inertia[(2, 2)]);
     check_regressor(&r);
 }
 

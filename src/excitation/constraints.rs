@@ -27,7 +27,7 @@
 use super::grid::TrigGrid;
 use crate::error::{Error, Result};
 use crate::robot::cartesian::{CartesianConstraint, Shape};
-use crate::robot::collision::{CollisionScene, PairClass};
+use crate::robot::collision::{CollisionScene, DistanceSeries, PairClass};
 use crate::robot::kinematics::forward_kinematics;
 use crate::robot::{frame_jacobian, id_derivatives, inverse_dynamics, motor_inertia, Frame, Robot, Workspace};
 use crate::trajectory::{period_grid, Basis, FourierLayout, FourierTrajectory};
@@ -139,9 +139,28 @@ pub struct ConstraintWorkspace {
     g_q0: Vec<f64>,
     g_a: Vec<Vec<f64>>,
     g_b: Vec<Vec<f64>>,
-    dist_grid: Vec<Vec<f64>>,
+    /// Body poses at every grid time (computed once per evaluation, shared by the pairs).
+    pose_grid: Vec<Vec<nalgebra::Isometry3<f64>>>,
+    /// Per pair: the capped distance on the grid, exact where it can be the minimum.
+    series: Vec<DistanceSeries>,
     poses: Vec<nalgebra::Isometry3<f64>>,
     gq: Vec<f64>,
+    exhaustive: bool,
+}
+
+impl ConstraintWorkspace {
+    /// With `true`, the distance constraints query every checked pair at
+    /// every grid time (no broad-phase culling): the reference evaluation the
+    /// culled one is tested against (both give the same values).
+    pub fn set_exhaustive(&mut self, on: bool) {
+        self.exhaustive = on;
+    }
+
+    /// Number of exact (narrow-phase) distance queries of the last
+    /// evaluation's grid, over all pairs.
+    pub fn distance_queries(&self) -> usize {
+        self.series.iter().map(|s| s.queries).sum()
+    }
 }
 
 /// Which joint limits are imposed and how much of each is usable.
@@ -494,9 +513,11 @@ impl Constraints {
             g_q0: vec![0.0; n],
             g_a: vec![vec![0.0; nh]; n],
             g_b: vec![vec![0.0; nh]; n],
-            dist_grid: vec![Vec::new(); self.grid.len()],
+            pose_grid: vec![Vec::new(); self.grid.len()],
+            series: vec![DistanceSeries::default(); self.scene.as_deref().map_or(0, |s| s.len())],
             poses: Vec::new(),
             gq: vec![0.0; n],
+            exhaustive: false,
         }
     }
 
@@ -531,13 +552,15 @@ impl Constraints {
         }
         let mut last_cart = usize::MAX;
         if let Some(sc) = self.scene.as_deref() {
+            // body poses once per grid time, then per pair the exact
+            // distance only where it can be the pair's minimum over the grid
             for g in 0..self.grid.len() {
                 self.grid.state(tr, g, &mut cw.q, &mut cw.qd, &mut cw.qdd);
                 forward_kinematics(&self.robot, &cw.q, &mut cw.ws.kin);
-                sc.poses(&cw.ws.kin, &mut cw.poses);
-                let row = &mut cw.dist_grid[g];
-                row.clear();
-                row.extend((0..sc.len()).map(|k| sc.pair_proximity(k, &cw.poses, sc.cap).map_or(sc.cap, |p| p.distance)));
+                sc.poses(&cw.ws.kin, &mut cw.pose_grid[g]);
+            }
+            for k in 0..sc.len() {
+                sc.pair_series(k, &cw.pose_grid, sc.cap, cw.exhaustive, &mut cw.series[k]);
             }
         }
         for (i, item) in self.items.iter().enumerate() {
@@ -639,7 +662,14 @@ impl Constraints {
                 }
                 Item::Distance { pair } => {
                     let sc = self.scene.as_deref().expect("distance constraints have a scene");
-                    let vals: Vec<f64> = cw.dist_grid.iter().map(|r| -r[pair]).collect();
+                    // the parabola through the grid minimum needs its neighbours exact
+                    let ng = cw.pose_grid.len();
+                    if let Some((ib, _)) = cw.series[pair].argmin() {
+                        for g in [(ib + ng - 1) % ng, (ib + 1) % ng] {
+                            cw.series[pair].make_exact(sc, pair, g, &cw.pose_grid, sc.cap);
+                        }
+                    }
+                    let vals: Vec<f64> = cw.series[pair].value.iter().map(|v| -v).collect();
                     let (fv, t) = self.refine_grid(
                         &vals,
                         |t, cw: &mut ConstraintWorkspace| {
@@ -737,15 +767,20 @@ impl Constraints {
                 marg_all[ci].push(m.iter().map(|v| v.0).collect());
             }
         }
-        let mut dist_all: Vec<Vec<f64>> = Vec::new();
+        let mut dist_all: Vec<DistanceSeries> = Vec::new();
         if let Some(sc) = self.scene.as_deref() {
-            // distances up to 1 m above the margin (the report's worst values are exact below that)
+            // distances up to 1 m above the margin (the report's worst values
+            // are exact below that); per pair exact wherever it can be the
+            // minimum over the grid (the only value the margin reports)
             let cap = sc.margin + 1.0;
-            let mut poses = Vec::new();
-            for k in 0..s.len() {
+            let mut poses = vec![Vec::new(); s.len()];
+            for (k, x) in poses.iter_mut().enumerate() {
                 forward_kinematics(&self.robot, &s.q[k], &mut ws.kin);
-                sc.poses(&ws.kin, &mut poses);
-                dist_all.push((0..sc.len()).map(|p| sc.pair_proximity(p, &poses, cap).map_or(cap, |x| x.distance)).collect());
+                sc.poses(&ws.kin, x);
+            }
+            dist_all = vec![DistanceSeries::default(); sc.len()];
+            for (p, out) in dist_all.iter_mut().enumerate() {
+                sc.pair_series(p, &poses, cap, false, out);
             }
         }
         let mut out = Vec::with_capacity(self.len());
@@ -760,7 +795,7 @@ impl Constraints {
                     },
                     Item::Torque { j } => tau_all[k][j],
                     Item::Cart { idx, margin } => marg_all[idx][k][margin],
-                    Item::Distance { pair } => dist_all[k][pair],
+                    Item::Distance { pair } => dist_all[pair].value[k],
                 }
             };
             let (mut worst, mut at) = (if inf.upper { f64::NEG_INFINITY } else { f64::INFINITY }, 0.0);

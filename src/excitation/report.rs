@@ -629,46 +629,113 @@ pub fn excite_text(p: &Problem, r: &ExciteResult, ident: &Identifiability) -> St
     s
 }
 
+/// The trajectory the plots show: the delivered one (lead-in, periods,
+/// lead-out) when there is one, else one period. Samples at `rate` Hz with
+/// their phase names; each phase as its own run of samples, the first sample
+/// of the next phase repeated at its end so that the curve is continuous.
+struct PlotPhases {
+    names: Vec<String>,
+    t: Vec<Vec<f64>>,
+    q: Vec<Vec<Vec<f64>>>,
+    qd: Vec<Vec<Vec<f64>>>,
+}
+
+fn plot_phases(r: &ExciteResult, rate: f64) -> Result<PlotPhases> {
+    let mut out = PlotPhases {
+        names: Vec::new(),
+        t: Vec::new(),
+        q: Vec::new(),
+        qd: Vec::new(),
+    };
+    match &r.execution.delivered {
+        Some(d) => {
+            let s = d.sample(rate)?;
+            let mut k = 0;
+            while k < s.len() {
+                let seg = s.segment[k];
+                let mut e = k;
+                while e < s.len() && s.segment[e] == seg {
+                    e += 1;
+                }
+                let last = e.min(s.len() - 1);
+                out.names.push(match seg {
+                    0 => "lead-in".to_string(),
+                    -1 => "lead-out".to_string(),
+                    p => format!("period {p}"),
+                });
+                out.t.push(s.t[k..=last].to_vec());
+                out.q.push(s.q[k..=last].to_vec());
+                out.qd.push(s.qd[k..=last].to_vec());
+                k = e;
+            }
+        }
+        None => {
+            let s = r.trajectory.sample(rate)?;
+            out.names.push("one period (no delivered trajectory)".into());
+            out.t.push(s.t.clone().unwrap_or_default());
+            out.q.push(s.q.clone());
+            out.qd.push(s.qd.clone());
+        }
+    }
+    Ok(out)
+}
+
 fn joints_svg(p: &Problem, r: &ExciteResult, path: &Path) -> Result<()> {
     let n = p.robot.dof();
     let rate = (400.0 * p.design.trajectory.frequency).max(50.0 * p.design.trajectory.frequency * p.design.trajectory.harmonics as f64);
-    let s = r.trajectory.sample(rate)?;
-    let t = s.t.clone().unwrap_or_default();
+    let ph = plot_phases(r, rate)?;
+    let unit = |j: usize, d: &str| -> String {
+        let lin = p.robot.joints[j].kind == crate::robot::JointKind::Prismatic;
+        format!("{}{d}", if lin { "m" } else { "rad" })
+    };
+    // one legend (first panel) names the phases; the colours repeat in every panel
+    let series = |j: usize, first: bool, get: &dyn Fn(usize, usize) -> Vec<f64>| -> Vec<Series> {
+        (0..ph.names.len())
+            .map(|k| Series::line(if first { ph.names[k].clone() } else { String::new() }, ph.t[k].clone(), get(k, j)))
+            .collect()
+    };
     let mut panels = Vec::new();
     for j in 0..n {
         let name = &p.robot.joints[j].name;
         let mut hl = Vec::new();
         let [lo, hi] = p.limits.position[j];
+        // one legend in all (first panel): the phases and the limit lines
+        let lim = if j == 0 { "limit".to_string() } else { String::new() };
         if lo.is_finite() {
-            hl.push((lo, "lower".to_string()));
+            hl.push((lo, lim.clone()));
         }
         if hi.is_finite() {
-            hl.push((hi, "upper".to_string()));
+            hl.push((hi, if lo.is_finite() { String::new() } else { lim.clone() }));
         }
         panels.push(Panel {
             title: format!("q{} ({name})", j + 1),
             x_label: "t (s)".into(),
-            y_label: "rad".into(),
-            series: vec![Series::line("", t.clone(), s.q.iter().map(|v| v[j]).collect())],
+            y_label: unit(j, ""),
+            series: series(j, j == 0, &|k, j| ph.q[k].iter().map(|v| v[j]).collect()),
             hlines: hl,
             ..Default::default()
         });
         let mut hv = Vec::new();
         let v = p.limits.velocity[j];
         if v.is_finite() {
-            hv.push((v, "limit".to_string()));
-            hv.push((-v, "limit".to_string()));
+            hv.push((v, String::new()));
+            hv.push((-v, String::new()));
         }
         panels.push(Panel {
             title: format!("qd{} ({name})", j + 1),
             x_label: "t (s)".into(),
-            y_label: "rad/s".into(),
-            series: vec![Series::line("", t.clone(), s.qd.iter().map(|v| v[j]).collect())],
+            y_label: unit(j, "/s"),
+            series: series(j, false, &|k, j| ph.qd[k].iter().map(|v| v[j]).collect()),
             hlines: hv,
             ..Default::default()
         });
     }
-    write_svg(path, &format!("{}: joint trajectories and limits", p.design.name), &panels, 2)
+    let what = if r.execution.delivered.is_some() {
+        "delivered joint trajectory (lead-in, periods, lead-out), limits dashed red"
+    } else {
+        "joint trajectory (one period), limits dashed red"
+    };
+    write_svg(path, &format!("{}: {what}", p.design.name), &panels, 2)
 }
 
 fn ee_svg(p: &Problem, r: &ExciteResult, path: &Path) -> Result<()> {
@@ -676,24 +743,47 @@ fn ee_svg(p: &Problem, r: &ExciteResult, path: &Path) -> Result<()> {
         Some(c) => c.resolve(&p.robot, "design", "workspace[0]")?,
         None => p.robot.end_effector(),
     };
-    let s = r.trajectory.sample((200.0 * p.design.trajectory.frequency).max(20.0))?;
+    let mut ph = plot_phases(r, (200.0 * p.design.trajectory.frequency).max(20.0))?;
+    // the periods trace the same closed path: one series for all of them
+    let periods: Vec<usize> = (0..ph.names.len()).filter(|&k| ph.names[k].starts_with("period ")).collect();
+    if periods.len() > 1 {
+        let (k0, n) = (periods[0], periods.len());
+        ph.names[k0] = format!("periods 1–{n} (one closed path)");
+        for &k in periods[1..].iter().rev() {
+            ph.names.remove(k);
+            ph.t.remove(k);
+            ph.q.remove(k);
+            ph.qd.remove(k);
+        }
+    }
     let mut ws = Workspace::new(&p.robot);
-    let pts: Vec<[f64; 3]> =
-        s.q.iter()
-            .map(|q| {
-                let v = super::constraints::frame_point(&p.robot, &mut ws, q, &frame);
-                [v.x, v.y, v.z]
+    let paths: Vec<Vec<[f64; 3]>> =
+        ph.q.iter()
+            .map(|qs| {
+                qs.iter()
+                    .map(|q| {
+                        let v = super::constraints::frame_point(&p.robot, &mut ws, q, &frame);
+                        [v.x, v.y, v.z]
+                    })
+                    .collect()
             })
             .collect();
+    let all: Vec<[f64; 3]> = paths.iter().flatten().copied().collect();
     let ax = ["x", "y", "z"];
     let mut panels = Vec::new();
-    for (a, b) in [(0usize, 1usize), (0, 2), (1, 2)] {
-        let mut series = vec![Series::line(
-            format!("{} path", frame.name),
-            pts.iter().map(|v| v[a]).collect(),
-            pts.iter().map(|v| v[b]).collect(),
-        )];
-        let (lo, hi) = bounds(&pts);
+    for (pi, (a, b)) in [(0usize, 1usize), (0, 2), (1, 2)].into_iter().enumerate() {
+        let mut series: Vec<Series> = paths
+            .iter()
+            .enumerate()
+            .map(|(k, pts)| {
+                Series::line(
+                    if pi == 0 { ph.names[k].clone() } else { String::new() },
+                    pts.iter().map(|v| v[a]).collect(),
+                    pts.iter().map(|v| v[b]).collect(),
+                )
+            })
+            .collect();
+        let (lo, hi) = bounds(&all);
         for (ci, c) in p.design.workspace.iter().enumerate() {
             for (k, (xs, ys)) in outline(&c.shape, a, b, lo, hi).into_iter().enumerate() {
                 series.push(Series::line(if k == 0 { format!("constraint {}", ci + 1) } else { String::new() }, xs, ys));
@@ -707,7 +797,15 @@ fn ee_svg(p: &Problem, r: &ExciteResult, path: &Path) -> Result<()> {
             ..Default::default()
         });
     }
-    write_svg(path, &format!("{}: {} path and workspace constraints", p.design.name, frame.name), &panels, 3)
+    write_svg(
+        path,
+        &format!(
+            "{}: {} path (delivered trajectory by phase) and workspace constraints",
+            p.design.name, frame.name
+        ),
+        &panels,
+        3,
+    )
 }
 
 fn bounds(pts: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {

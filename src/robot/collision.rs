@@ -108,6 +108,117 @@ pub struct ConvexPart {
     centre: Point3<f64>,
     radius: f64,
     halfspace: Option<(Vector3<f64>, f64)>,
+    /// Bounding capsule (body frame) for the broad phase; `None` for half-spaces.
+    capsule: Option<BoundCapsule>,
+}
+
+/// A capsule enclosing a convex part: the points within `r` of the segment [a, b].
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct BoundCapsule {
+    a: Point3<f64>,
+    b: Point3<f64>,
+    r: f64,
+}
+
+impl BoundCapsule {
+    fn moved(&self, x: &Isometry3<f64>) -> BoundCapsule {
+        BoundCapsule {
+            a: x * self.a,
+            b: x * self.b,
+            r: self.r,
+        }
+    }
+
+    /// The tightest capsule about the principal axis of `pts` that holds every
+    /// point: radius the largest distance from the axis, the segment as short
+    /// as that radius allows (every point within r of it).
+    fn enclosing(pts: &[Point3<f64>]) -> Option<BoundCapsule> {
+        if pts.is_empty() {
+            return None;
+        }
+        let nf = pts.len() as f64;
+        let c = pts.iter().fold(Vector3::zeros(), |acc, p| acc + p.coords) / nf;
+        let mut cov = Matrix3::zeros();
+        for p in pts {
+            let d = p.coords - c;
+            cov += d * d.transpose();
+        }
+        let eig = nalgebra::SymmetricEigen::new(cov / nf);
+        let imax = eig.eigenvalues.imax();
+        let u: Vector3<f64> = eig.eigenvectors.column(imax).into_owned();
+        let un = u.norm();
+        if !(un.is_finite() && un > 0.0) {
+            return None;
+        }
+        let u = u / un;
+        let axial: Vec<(f64, f64)> = pts
+            .iter()
+            .map(|p| {
+                let d = p.coords - c;
+                let s = d.dot(&u);
+                (s, (d - u * s).norm())
+            })
+            .collect();
+        let rho = axial.iter().fold(0.0f64, |m, v| m.max(v.1));
+        let span = axial.iter().fold(0.0f64, |m, v| m.max(v.0.abs())) + rho;
+        // padded against rounding (the bound is used with the broad phase's tolerance)
+        let r = rho + 1e-12 * (1.0 + span);
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for (s, rh) in &axial {
+            let w = (r * r - rh * rh).max(0.0).sqrt();
+            hi = hi.max(s - w);
+            lo = lo.min(s + w);
+        }
+        if lo > hi {
+            // every point lies within r of any axial position in [hi, lo]
+            let m = 0.5 * (lo + hi);
+            lo = m;
+            hi = m;
+        }
+        let cp = Point3::from(c);
+        let cap = BoundCapsule {
+            a: cp + u * lo,
+            b: cp + u * hi,
+            r,
+        };
+        cap.r.is_finite().then_some(cap)
+    }
+}
+
+/// Closest distance between the segments [p1, q1] and [p2, q2] (Ericson,
+/// *Real-Time Collision Detection*, §5.1.9).
+fn segment_distance(p1: &Point3<f64>, q1: &Point3<f64>, p2: &Point3<f64>, q2: &Point3<f64>) -> f64 {
+    let d1 = q1 - p1;
+    let d2 = q2 - p2;
+    let r = p1 - p2;
+    let a = d1.norm_squared();
+    let e = d2.norm_squared();
+    let f = d2.dot(&r);
+    let tiny = 1e-300;
+    let (s, t) = if a <= tiny && e <= tiny {
+        (0.0, 0.0)
+    } else if a <= tiny {
+        (0.0, (f / e).clamp(0.0, 1.0))
+    } else {
+        let c = d1.dot(&r);
+        if e <= tiny {
+            ((-c / a).clamp(0.0, 1.0), 0.0)
+        } else {
+            let b = d1.dot(&d2);
+            let den = a * e - b * b;
+            let mut s = if den > 0.0 { ((b * f - c * e) / den).clamp(0.0, 1.0) } else { 0.0 };
+            let mut t = (b * s + f) / e;
+            if t < 0.0 {
+                t = 0.0;
+                s = (-c / a).clamp(0.0, 1.0);
+            } else if t > 1.0 {
+                t = 1.0;
+                s = ((b - c) / a).clamp(0.0, 1.0);
+            }
+            (s, t)
+        }
+    };
+    ((p1 + d1 * s) - (p2 + d2 * t)).norm()
 }
 
 impl std::fmt::Debug for ConvexPart {
@@ -135,6 +246,7 @@ impl Body {
             let mut q = p.clone();
             q.local = at * p.local;
             q.centre = at * p.centre;
+            q.capsule = p.capsule.map(|c| c.moved(at));
             if let Some((n, off)) = p.halfspace {
                 let nw = at.rotation * n;
                 q.halfspace = Some((nw, off + nw.dot(&at.translation.vector)));
@@ -203,13 +315,54 @@ fn rot_y_to_z() -> UnitQuaternion<f64> {
 
 fn part(shape: SharedShape, local: Isometry3<f64>) -> ConvexPart {
     let bs = shape.compute_local_bounding_sphere();
+    let capsule = bound_capsule(&shape).map(|c| c.moved(&local));
     ConvexPart {
         centre: local * bs.center(),
         radius: bs.radius(),
         shape,
         local,
         halfspace: None,
+        capsule,
     }
+}
+
+/// A capsule holding `shape` (shape frame): the shape itself for balls and
+/// capsules, the axis for cylinders, the principal-axis capsule of the
+/// vertices for boxes and convex hulls.
+fn bound_capsule(shape: &SharedShape) -> Option<BoundCapsule> {
+    if let Some(b) = shape.as_ball() {
+        let o = Point3::origin();
+        return Some(BoundCapsule { a: o, b: o, r: b.radius });
+    }
+    if let Some(c) = shape.as_capsule() {
+        return Some(BoundCapsule {
+            a: c.segment.a,
+            b: c.segment.b,
+            r: c.radius,
+        });
+    }
+    if let Some(c) = shape.as_cylinder() {
+        // parry's cylinders are along y: the rim is at distance `radius` from the axis' end points
+        let h = c.half_height;
+        return Some(BoundCapsule {
+            a: Point3::new(0.0, -h, 0.0),
+            b: Point3::new(0.0, h, 0.0),
+            r: c.radius * (1.0 + 1e-12),
+        });
+    }
+    if let Some(c) = shape.as_cuboid() {
+        let h = c.half_extents;
+        let mut v = Vec::with_capacity(8);
+        for sx in [-1.0, 1.0] {
+            for sy in [-1.0, 1.0] {
+                for sz in [-1.0, 1.0] {
+                    v.push(Point3::new(sx * h.x, sy * h.y, sz * h.z));
+                }
+            }
+        }
+        return BoundCapsule::enclosing(&v);
+    }
+    shape.as_convex_polyhedron().and_then(|c| BoundCapsule::enclosing(c.points()))
 }
 
 fn positive(ctx: &str, what: &str, v: f64) -> Result<()> {
@@ -301,6 +454,7 @@ impl Body {
                         centre: Point3::origin(),
                         radius: f64::INFINITY,
                         halfspace: Some((nw, offw)),
+                        capsule: None,
                     });
                 }
             }
@@ -367,6 +521,25 @@ fn part_lower_bound(a: &ConvexPart, xa: &Isometry3<f64>, b: &ConvexPart, xb: &Is
             n.dot(&(xa * a.centre).coords) - off - a.radius
         }
         (Some(_), Some(_)) => f64::NEG_INFINITY,
+    }
+}
+
+/// Lower bound on the signed distance between two parts from their bounding
+/// capsules (or the plane), in the world frame; −∞ when a part has none.
+fn part_capsule_bound(a: &ConvexPart, xa: &Isometry3<f64>, b: &ConvexPart, xb: &Isometry3<f64>) -> f64 {
+    let plane_bound = |hp: &ConvexPart, xh: &Isometry3<f64>, cp: &BoundCapsule, xc: &Isometry3<f64>| -> f64 {
+        let Some((n, off)) = &hp.halfspace else {
+            return f64::NEG_INFINITY;
+        };
+        let (n, off) = world_plane(xh, n, *off);
+        let (pa, pb) = (xc * cp.a, xc * cp.b);
+        n.dot(&pa.coords).min(n.dot(&pb.coords)) - off - cp.r
+    };
+    match (&a.capsule, &b.capsule) {
+        (Some(ca), Some(cb)) => segment_distance(&(xa * ca.a), &(xa * ca.b), &(xb * cb.a), &(xb * cb.b)) - ca.r - cb.r,
+        (None, Some(cb)) => plane_bound(a, xa, cb, xb),
+        (Some(ca), None) => plane_bound(b, xb, ca, xa),
+        (None, None) => f64::NEG_INFINITY,
     }
 }
 
@@ -705,6 +878,51 @@ pub struct CollisionScene {
     pub cap: f64,
 }
 
+/// Tolerance of the broad phase (m): a configuration (or pair) is left
+/// without an exact query only if its lower bound exceeds the minimum found so
+/// far by more than this, which covers the rounding of the bound and of the
+/// GJK/EPA distance; the minimum and the first configuration attaining it are
+/// therefore exactly those of the exhaustive evaluation.
+pub const CULL_TOL: f64 = 1e-7;
+
+/// The capped distance of one pair over a sequence of configurations
+/// ([`CollisionScene::pair_series`]): `value[g]` is the exact capped distance
+/// where `exact[g]`, elsewhere a lower bound that exceeds the minimum of the
+/// sequence by more than [`CULL_TOL`]. So the minimum of `value` and its first
+/// index are those of the exact distances.
+#[derive(Debug, Clone, Default)]
+pub struct DistanceSeries {
+    /// Exact capped distance or lower bound (m), per configuration.
+    pub value: Vec<f64>,
+    /// Whether `value[g]` is exact.
+    pub exact: Vec<bool>,
+    /// Number of exact (narrow-phase) queries made.
+    pub queries: usize,
+}
+
+impl DistanceSeries {
+    /// The first configuration of least distance and that distance (exact).
+    pub fn argmin(&self) -> Option<(usize, f64)> {
+        let mut best: Option<(usize, f64)> = None;
+        for (g, v) in self.value.iter().enumerate() {
+            if best.is_none_or(|(_, b)| *v < b) {
+                best = Some((g, *v));
+            }
+        }
+        best
+    }
+
+    /// Makes `value[g]` exact (one query if it is not yet) and returns it.
+    pub fn make_exact(&mut self, sc: &CollisionScene, k: usize, g: usize, poses: &[Vec<Isometry3<f64>>], cap: f64) -> f64 {
+        if !self.exact[g] {
+            self.value[g] = sc.pair_distance(k, &poses[g], cap);
+            self.exact[g] = true;
+            self.queries += 1;
+        }
+        self.value[g]
+    }
+}
+
 /// Distance of one pair at one configuration.
 #[derive(Debug, Clone, Serialize)]
 pub struct PairDistance {
@@ -909,6 +1127,89 @@ impl CollisionScene {
         }
     }
 
+    /// Capped distance of pair `k` at body poses `poses`: the signed
+    /// distance, or `cap` if the bodies are farther apart than `cap`.
+    pub fn pair_distance(&self, k: usize, poses: &[Isometry3<f64>], cap: f64) -> f64 {
+        self.pair_proximity(k, poses, cap).map_or(cap, |p| p.distance)
+    }
+
+    /// The broad phase of pair `k` at `poses`: `(sphere, bound)` where
+    /// `sphere` is the bounding-sphere bound [`Self::pair_distance`] itself
+    /// tests (above `cap` the pair reports `cap` without an exact query), and
+    /// `bound ≥ sphere` is the tighter bound of the spheres and the bounding
+    /// capsules: the signed distance is at least `bound` (up to
+    /// [`CULL_TOL`]). The capsules are only tried when the spheres do not
+    /// already put the pair beyond `cap` (then `bound = sphere`). +∞ when a
+    /// body has no shape.
+    pub fn pair_bounds(&self, k: usize, poses: &[Isometry3<f64>], cap: f64) -> (f64, f64) {
+        let p = &self.pairs[k];
+        let (a, b) = (&self.bodies[p.ia], &self.bodies[p.ib]);
+        let (xa, xb) = (&poses[p.ia], &poses[p.ib]);
+        let mut sphere = f64::INFINITY;
+        for pa in &a.parts {
+            for pb in &b.parts {
+                sphere = sphere.min(part_lower_bound(pa, xa, pb, xb));
+            }
+        }
+        if sphere > cap {
+            return (sphere, sphere);
+        }
+        let mut bound = f64::INFINITY;
+        for pa in &a.parts {
+            for pb in &b.parts {
+                bound = bound.min(part_lower_bound(pa, xa, pb, xb).max(part_capsule_bound(pa, xa, pb, xb)));
+            }
+        }
+        (sphere, bound)
+    }
+
+    /// The capped distance of pair `k` over a sequence of configurations
+    /// (`poses[g]`: the body poses of configuration g), computed exactly
+    /// wherever it can be the minimum over the sequence and bounded from
+    /// below elsewhere (see [`DistanceSeries`]). With `exhaustive` every
+    /// configuration gets the exact query (the reference the culling is
+    /// tested against).
+    pub fn pair_series(&self, k: usize, poses: &[Vec<Isometry3<f64>>], cap: f64, exhaustive: bool, out: &mut DistanceSeries) {
+        out.value.clear();
+        out.exact.clear();
+        out.queries = 0;
+        if exhaustive {
+            for x in poses {
+                out.value.push(self.pair_distance(k, x, cap));
+                out.exact.push(true);
+            }
+            out.queries = poses.len();
+            return;
+        }
+        let mut best = f64::INFINITY;
+        let mut first: Option<(usize, f64)> = None;
+        for (g, x) in poses.iter().enumerate() {
+            let (sphere, bound) = self.pair_bounds(k, x, cap);
+            // exactly what the exact query returns without querying: every
+            // part pair fails its sphere test, or the true distance is above cap
+            if sphere > cap || bound > cap + CULL_TOL {
+                out.value.push(cap);
+                out.exact.push(true);
+                best = best.min(cap);
+            } else {
+                out.value.push(bound);
+                out.exact.push(false);
+                if first.is_none_or(|(_, b)| bound < b) {
+                    first = Some((g, bound));
+                }
+            }
+        }
+        // the most promising configuration first: its distance prunes the rest
+        if let Some((g, _)) = first {
+            best = best.min(out.make_exact(self, k, g, poses, cap));
+        }
+        for g in 0..poses.len() {
+            if !out.exact[g] && out.value[g] <= best + CULL_TOL {
+                best = best.min(out.make_exact(self, k, g, poses, cap));
+            }
+        }
+    }
+
     /// Distances of every pair at configuration `q` (forward kinematics into
     /// `kin`), capped at `cap`.
     pub fn distances(&self, robot: &Robot, kin: &mut Kin<f64>, q: &[f64], cap: f64) -> Vec<PairDistance> {
@@ -924,9 +1225,53 @@ impl CollisionScene {
             .collect()
     }
 
-    /// The pair closest to violating the margin at `q` and its distance (capped at `cap`).
+    /// The pair closest to violating the margin at `q` and its distance
+    /// (capped at `cap`; the first such pair on ties): the minimum of
+    /// [`Self::distances`], with exact queries only for the pairs whose
+    /// broad-phase bound does not rule them out.
     pub fn worst_at(&self, robot: &Robot, kin: &mut Kin<f64>, q: &[f64], cap: f64) -> Option<PairDistance> {
-        self.distances(robot, kin, q, cap).into_iter().min_by(|a, b| a.distance.total_cmp(&b.distance))
+        crate::robot::kinematics::forward_kinematics(robot, q, kin);
+        let mut poses = Vec::with_capacity(self.bodies.len());
+        self.poses(kin, &mut poses);
+        let np = self.pairs.len();
+        let mut value = Vec::with_capacity(np);
+        let mut exact = Vec::with_capacity(np);
+        let mut best = f64::INFINITY;
+        let mut first: Option<(usize, f64)> = None;
+        for k in 0..np {
+            let (sphere, bound) = self.pair_bounds(k, &poses, cap);
+            if sphere > cap || bound > cap + CULL_TOL {
+                value.push(cap);
+                exact.push(true);
+                best = best.min(cap);
+            } else {
+                value.push(bound);
+                exact.push(false);
+                if first.is_none_or(|(_, b)| bound < b) {
+                    first = Some((k, bound));
+                }
+            }
+        }
+        let order = first.map(|(k, _)| k).into_iter().chain(0..np);
+        for k in order {
+            if !exact[k] && value[k] <= best + CULL_TOL {
+                value[k] = self.pair_distance(k, &poses, cap);
+                exact[k] = true;
+                best = best.min(value[k]);
+            }
+        }
+        // the first pair of least distance (the pairs not queried are farther)
+        let mut kb: Option<usize> = None;
+        for k in 0..np {
+            if kb.is_none_or(|b| value[k] < value[b]) {
+                kb = Some(k);
+            }
+        }
+        kb.map(|k| PairDistance {
+            pair: k,
+            label: self.pairs[k].label(),
+            distance: value[k],
+        })
     }
 
     /// The bodies (robot bodies first, index i + 1 for link i, then obstacles).
