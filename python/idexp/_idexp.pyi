@@ -244,13 +244,20 @@ def identify(
     consistent: bool = False,
     margin: float = 0.0,
     regularization: float = 1e-6,
+    standstill: str = "auto",
+    torque_from: str = "auto",
+    current_tolerance: float = 0.05,
     time_limit: Optional[float] = None,
     progress: Progress = None,
 ) -> Identification:
     """Identifies the base parameters (the command line's `idexp identify`).
     method: ols, wls, projection or ml. consistent=True: physically consistent standard
     parameters after the fit (semidefinite program: every pseudo-inertia ⪰ margin·I,
-    drive parameters signed; regularization weighs closeness to the nominal values)."""
+    drive parameters signed; regularization weighs closeness to the nominal values).
+    standstill: auto (drop the slow rows of joints with sign friction, keep those of
+    tanh/stribeck joints), drop or keep. torque_from: auto, torque or current (a run folder
+    or CSV logging cur1..curn: τ = current_sign·k_t·N·i from the robot file's drives);
+    current_tolerance: relative RMS by which logged torques and currents may disagree."""
 
 class PositionsResult:
     param_names: list[str]

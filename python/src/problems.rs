@@ -11,7 +11,7 @@ use crate::arrays::{self, out1, out2, out_rows, Arg};
 use crate::err::{value, IdexpError, IntoPy};
 use crate::long::run_long;
 use crate::robot::Robot;
-use idexp::data::{Repetition, Run};
+use idexp::data::{Repetition, Run, TorqueFrom};
 use idexp::excitation::design::ExciteDesign;
 use idexp::excitation::report as xr;
 use idexp::ident::{self, FilterChoice, IdentOptions, Method, Weights};
@@ -750,7 +750,16 @@ impl Identification {
 }
 
 /// A run argument: path(s), a SimRun, or dict(s) of arrays.
-fn read_run(py: Python<'_>, obj: &Bound<'_, PyAny>, n: usize, what: &str) -> PyResult<(Run, Option<FourierTrajectory>)> {
+/// How a run given by paths takes its joint torques (`torque_from`,
+/// `current_tolerance`: `idexp identify --torque-from --current-tolerance`).
+struct Drives<'a> {
+    robot: &'a idexp::robot::Robot,
+    from: TorqueFrom,
+    tolerance: f64,
+}
+
+fn read_run(py: Python<'_>, obj: &Bound<'_, PyAny>, drives: &Drives<'_>, what: &str) -> PyResult<(Run, Option<FourierTrajectory>)> {
+    let n = drives.robot.dof();
     if let Ok(s) = obj.cast::<SimRun>() {
         let s = s.get();
         let run = Run::new(Vec::new(), s.result.reps.clone()).py()?;
@@ -799,7 +808,10 @@ fn read_run(py: Python<'_>, obj: &Bound<'_, PyAny>, n: usize, what: &str) -> PyR
             "{what}: expected a run folder or CSV path, a list of paths, a SimRun, or a dict (list of dicts) with arrays t, q, tau"
         )));
     };
-    let run = py.detach(|| Run::read(&paths, n)).py()?;
+    let run = py
+        .detach(|| Run::read_drives(&paths, drives.robot, None, drives.from, drives.tolerance))
+        .py()?
+        .0;
     let traj = ident::run_trajectory(&run).py()?;
     Ok((run, traj))
 }
@@ -818,7 +830,8 @@ fn read_trajectory(obj: &Bound<'_, PyAny>) -> PyResult<FourierTrajectory> {
 #[pyfunction]
 #[pyo3(signature = (robot, run, method = "wls", weights = "sample", filter = "auto", cutoff = 10.0, trajectory = None,
                     harmonics = None, decimate = 1, validate = None, truth = None, consistent = false, margin = 0.0,
-                    regularization = 1e-6, time_limit = None, progress = None))]
+                    regularization = 1e-6, standstill = "auto", torque_from = "auto", current_tolerance = 0.05,
+                    time_limit = None, progress = None))]
 #[allow(clippy::too_many_arguments)] // the Python signature mirrors `idexp identify`'s options
 pub fn identify(
     py: Python<'_>,
@@ -836,17 +849,25 @@ pub fn identify(
     consistent: bool,
     margin: f64,
     regularization: f64,
+    standstill: &str,
+    torque_from: &str,
+    current_tolerance: f64,
     time_limit: Option<f64>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<Identification> {
     let r = &robot.inner;
-    let n = r.dof();
     let method: Method = method.parse().py()?;
     let weights: Weights = weights.parse().py()?;
     if !(cutoff.is_finite() && cutoff > 0.0) {
         return Err(value(format!("cutoff: expected a positive frequency in Hz, got {cutoff}")));
     }
-    let (run, run_traj) = read_run(py, run, n, "run")?;
+    let standstill: ident::Standstill = standstill.parse().py()?;
+    let drives = Drives {
+        robot: r,
+        from: torque_from.parse().py()?,
+        tolerance: current_tolerance,
+    };
+    let (run, run_traj) = read_run(py, run, &drives, "run")?;
     let traj = match &trajectory {
         Some(t) => Some(read_trajectory(t)?),
         None => run_traj,
@@ -880,9 +901,10 @@ pub fn identify(
         harmonics,
         decimate,
         consistent: consistent.then_some(idexp::ident::consistent::ConsistentOptions { margin, regularization }),
+        standstill,
         ..Default::default()
     };
-    let val = validate.as_ref().map(|v| read_run(py, v, n, "validate")).transpose()?;
+    let val = validate.as_ref().map(|v| read_run(py, v, &drives, "validate")).transpose()?;
     let truth = match &truth {
         None => None,
         Some(t) => Some(if let Ok(s) = t.cast::<SimRun>() {
