@@ -509,7 +509,7 @@ fn solve_w(lin: &LinearModel, s: C64, w: &mut [C64], full: bool) -> bool {
 
 /// Solves A X = B in place by Gaussian elimination with partial pivoting
 /// (A: n×n, B: n×m, both row-major); X overwrites B. False if A is singular.
-fn solve_in_place(a: &mut [C64], n: usize, b: &mut [C64], m: usize) -> bool {
+pub(crate) fn solve_in_place(a: &mut [C64], n: usize, b: &mut [C64], m: usize) -> bool {
     for k in 0..n {
         let mut p = k;
         let mut best = a[k * n + k].norm_sqr();
@@ -532,18 +532,21 @@ fn solve_in_place(a: &mut [C64], n: usize, b: &mut [C64], m: usize) -> bool {
             }
         }
         let inv = C64::new(1.0, 0.0) / a[k * n + k];
-        for i in k + 1..n {
-            let f = a[i * n + k] * inv;
+        let (top, rest) = a.split_at_mut((k + 1) * n);
+        let pivot_row = &top[k * n + k + 1..(k + 1) * n];
+        let (btop, brest) = b.split_at_mut((k + 1) * m);
+        let pivot_b = &btop[k * m..(k + 1) * m];
+        for i in 0..n - k - 1 {
+            let row = &mut rest[i * n..(i + 1) * n];
+            let f = row[k] * inv;
             if f.re == 0.0 && f.im == 0.0 {
                 continue;
             }
-            for j in k + 1..n {
-                let t = a[k * n + j];
-                a[i * n + j] -= f * t;
+            for (x, t) in row[k + 1..].iter_mut().zip(pivot_row) {
+                *x -= f * t;
             }
-            for j in 0..m {
-                let t = b[k * m + j];
-                b[i * m + j] -= f * t;
+            for (x, t) in brest[i * m..(i + 1) * m].iter_mut().zip(pivot_b) {
+                *x -= f * t;
             }
         }
     }

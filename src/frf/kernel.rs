@@ -21,6 +21,7 @@
 //!   ∂G_ab/∂θ_i = (f_i v_i[a]) v_i[b] is formed where the estimator needs it;
 //!   parameters sharing a direction b (a spring and its damper) share v.
 
+use crate::elastic::linear::solve_in_place;
 use crate::elastic::{ElasticModel, LinearModel, OperatingPoint, Output, ParamRole, C64};
 use crate::error::{Error, Result};
 
@@ -436,62 +437,6 @@ impl PosSystem<'_> {
         w[na * na..].copy_from_slice(&sc.rhs);
         true
     }
-}
-
-/// Solves A X = B in place by Gaussian elimination with partial pivoting
-/// (A: n×n, B: n×m, both row-major); X overwrites B. False if A is singular.
-fn solve_in_place(a: &mut [C64], n: usize, b: &mut [C64], m: usize) -> bool {
-    for k in 0..n {
-        let mut p = k;
-        let mut best = a[k * n + k].norm_sqr();
-        for i in k + 1..n {
-            let v = a[i * n + k].norm_sqr();
-            if v > best {
-                best = v;
-                p = i;
-            }
-        }
-        if best == 0.0 || !best.is_finite() {
-            return false;
-        }
-        if p != k {
-            for j in 0..n {
-                a.swap(k * n + j, p * n + j);
-            }
-            for j in 0..m {
-                b.swap(k * m + j, p * m + j);
-            }
-        }
-        let inv = ONE / a[k * n + k];
-        let (top, rest) = a.split_at_mut((k + 1) * n);
-        let pivot_row = &top[k * n + k + 1..(k + 1) * n];
-        let (btop, brest) = b.split_at_mut((k + 1) * m);
-        let pivot_b = &btop[k * m..(k + 1) * m];
-        for i in 0..n - k - 1 {
-            let row = &mut rest[i * n..(i + 1) * n];
-            let f = row[k] * inv;
-            if f.re == 0.0 && f.im == 0.0 {
-                continue;
-            }
-            for (x, t) in row[k + 1..].iter_mut().zip(pivot_row) {
-                *x -= f * t;
-            }
-            for (x, t) in brest[i * m..(i + 1) * m].iter_mut().zip(pivot_b) {
-                *x -= f * t;
-            }
-        }
-    }
-    for k in (0..n).rev() {
-        let inv = ONE / a[k * n + k];
-        for j in 0..m {
-            let mut acc = b[k * m + j];
-            for c in k + 1..n {
-                acc -= a[k * n + c] * b[c * m + j];
-            }
-            b[k * m + j] = acc * inv;
-        }
-    }
-    true
 }
 
 /// The W of every line of every position at the last parameter vector
