@@ -543,8 +543,10 @@ fn standstill_torque_error_of_the_tanh_model_comes_from_the_velocity_estimate() 
             .unwrap()
     };
     let noisy = sim(&d);
-    // the same process without noise, recorded at the 1 kHz controller rate: its
-    // central differences stand for the true states on the 200 Hz grid
+    // the same process without noise, recorded at the 1 kHz controller rate:
+    // the torque τ_k recorded at t_k is held over [t_k, t_k + h], so the true
+    // states it belongs to are those of the midpoint (differences of the 1 kHz
+    // record about t_k + h/2; about t_k the held torque's steps leave 0.03 N·m)
     let mut dc = d.clone();
     dc.noise.position = PerJoint::All(0.0);
     dc.noise.torque = PerJoint::All(0.0);
@@ -552,15 +554,16 @@ fn standstill_torque_error_of_the_tanh_model_comes_from_the_velocity_estimate() 
     let clean = sim(&dc);
     let c = &clean.reps[0];
     let (n, h, m) = (3, 1e-3, noisy.reps[0].len());
-    let k_of = |p: usize| (5 * p).clamp(1, c.len() - 2);
-    let qt: Vec<Vec<f64>> = (0..m).map(|p| c.q[k_of(p)].clone()).collect();
-    let vt: Vec<Vec<f64>> = (0..m)
-        .map(|p| (0..n).map(|j| (c.q[k_of(p) + 1][j] - c.q[k_of(p) - 1][j]) / (2.0 * h)).collect())
+    let k_of = |p: usize| (5 * p).clamp(1, c.len() - 3);
+    let qt: Vec<Vec<f64>> = (0..m)
+        .map(|p| (0..n).map(|j| 0.5 * (c.q[k_of(p)][j] + c.q[k_of(p) + 1][j])).collect())
         .collect();
+    let vt: Vec<Vec<f64>> = (0..m).map(|p| (0..n).map(|j| (c.q[k_of(p) + 1][j] - c.q[k_of(p)][j]) / h).collect()).collect();
     let at: Vec<Vec<f64>> = (0..m)
         .map(|p| {
+            let k = k_of(p);
             (0..n)
-                .map(|j| (c.q[k_of(p) + 1][j] - 2.0 * c.q[k_of(p)][j] + c.q[k_of(p) - 1][j]) / (h * h))
+                .map(|j| (c.q[k + 2][j] - c.q[k + 1][j] - c.q[k][j] + c.q[k - 1][j]) / (2.0 * h * h))
                 .collect()
         })
         .collect();
@@ -598,10 +601,12 @@ fn standstill_torque_error_of_the_tanh_model_comes_from_the_velocity_estimate() 
         assert!(r > 0.05 * v_s, "joint {j}: {r}");
         assert!(if j == 1 { zero < floor[j] } else { zero > 2.0 * floor[j] }, "joint {j}: {zero}");
     }
-    // the simulated states close the loop: the true model at them gives the recorded torque
+    // the simulated states close the loop: the true model at them gives the
+    // recorded torque, over every sample, to well below the torque noise
     for j in 0..n {
-        let e = rms(&|p| c.tau[k_of(p)][j] - true_tau[p][j]);
-        assert!(e < 0.5 * floor[j], "joint {j}: {e}");
+        let e = ((3..m - 3).map(|p| (c.tau[k_of(p)][j] - true_tau[p][j]).powi(2)).sum::<f64>() / (m - 6) as f64).sqrt();
+        println!("joint {j}: recorded torque − true model at the true states, RMS {e:.1e} N·m");
+        assert!(e < 0.3 * 0.05 / 10f64.sqrt(), "joint {j}: {e}");
     }
     for (name, f) in [
         ("low-pass 10 Hz", Filter::LowPass { cutoff: 10.0 }),
@@ -640,7 +645,9 @@ fn standstill_torque_error_of_the_tanh_model_comes_from_the_velocity_estimate() 
     let res = SimResult { reps, ..noisy.clone() };
     let (_, rt, ft, zt) = ident_with(&noisy.setup.nominal, &res, &val, &idexp::ident::IdentOptions::default());
     println!("tanh model on the true states: standstill RMS {rt:.4?} N·m, noise {ft:.4?}, max|z| {zt:.1}");
+    // at the noise level, and near 3σ (max |z| 3.5 measured over 30+ parameters)
     for j in 0..n {
-        assert!(rt[j] < 2.0 * ft[j], "joint {j}: {} vs {}", rt[j], ft[j]);
+        assert!(rt[j] < 1.2 * ft[j], "joint {j}: {} vs {}", rt[j], ft[j]);
     }
+    assert!(zt < 5.0, "max|z| {zt}");
 }
