@@ -338,6 +338,12 @@ fn pick_and_place_with_dwell_tanh_model_beats_sign_model_at_standstill() {
             num(rms)
         );
     }
+    // issue 16's acceptance is not met on this process (README "Drives"): the
+    // velocity estimated at rest is off by amounts comparable to v_s, so the
+    // tanh estimate is biased beyond 3σ and its standstill error is above the
+    // noise on joints 1 and 3 (see the test below for the cause)
+    assert!(zt > 3.0, "max|z| {zt}: the acceptance is met now, update README \"Drives\"");
+    assert!(rt[0] > 2.0 * ft[0] && rt[2] > 2.0 * ft[2] && rt[1] < 2.0 * ft[1], "{rt:?} vs {ft:?}");
     for j in 0..3 {
         // over the whole motion and at standstill, the tanh model predicts better
         assert!(it.estimate.errors_all.e_rel[j] < is.estimate.errors_all.e_rel[j], "joint {j}");
@@ -514,4 +520,134 @@ fn bad_drive_inputs_are_errors_naming_file_and_joint() {
         e.contains("rec.toml") && e.contains("record") && e.contains("joint `base`") && e.contains("torque_constant"),
         "{e}"
     );
+}
+
+/// Why the tanh model misses issue 16's acceptance on the shipped
+/// pick-and-place (measured, see README "Drives"): the arm is not at rest
+/// during the dwell (it creeps at 0.1–1 v_s, so q̇ = q̈ = 0 is no fix), and
+/// the estimated q̇ there is off by amounts comparable to v_s, where
+/// ∂τ/∂q̇ = Fc/v_s is 300–4000 N·m·s/rad: the true model evaluated at the
+/// estimated states is off by more than the noise, with every linear
+/// filter tried. On the true states the same identification predicts the
+/// standstill torques at the noise level.
+#[test]
+fn standstill_torque_error_of_the_tanh_model_comes_from_the_velocity_estimate() {
+    use idexp::ident::{process, Filter, Repetition, Run};
+    use idexp::sim::{PerJoint, SimDesign, SimResult, SimSetup};
+    let path = root("designs/sim_rpr_pick_place.toml");
+    let d = SimDesign::read(&path).unwrap();
+    let sim = |d: &SimDesign| {
+        SimSetup::from_design(d, &root("designs"), &path.display().to_string())
+            .unwrap()
+            .run(&idexp::optim::Control::new())
+            .unwrap()
+    };
+    let noisy = sim(&d);
+    // the same process without noise, recorded at the 1 kHz controller rate:
+    // the torque τ_k recorded at t_k is held over [t_k, t_k + h], so the true
+    // states it belongs to are those of the midpoint (differences of the 1 kHz
+    // record about t_k + h/2; about t_k the held torque's steps leave 0.03 N·m)
+    let mut dc = d.clone();
+    dc.noise.position = PerJoint::All(0.0);
+    dc.noise.torque = PerJoint::All(0.0);
+    dc.decimate = 1;
+    let clean = sim(&dc);
+    let c = &clean.reps[0];
+    let (n, h, m) = (3, 1e-3, noisy.reps[0].len());
+    let k_of = |p: usize| (5 * p).clamp(1, c.len() - 3);
+    let qt: Vec<Vec<f64>> = (0..m)
+        .map(|p| (0..n).map(|j| 0.5 * (c.q[k_of(p)][j] + c.q[k_of(p) + 1][j])).collect())
+        .collect();
+    let vt: Vec<Vec<f64>> = (0..m).map(|p| (0..n).map(|j| (c.q[k_of(p) + 1][j] - c.q[k_of(p)][j]) / h).collect()).collect();
+    let at: Vec<Vec<f64>> = (0..m)
+        .map(|p| {
+            let k = k_of(p);
+            (0..n)
+                .map(|j| (c.q[k + 2][j] - c.q[k + 1][j] - c.q[k][j] + c.q[k - 1][j]) / (2.0 * h * h))
+                .collect()
+        })
+        .collect();
+    let truth = &noisy.setup.truth;
+    let th = truth.nominal_params();
+    let ws = Workspace::new(truth);
+    let tau_at = |q: &[f64], v: &[f64], a: &[f64]| {
+        let mut t = vec![0.0; n];
+        idexp::robot::inverse_dynamics(truth, &mut ws.clone(), th.as_slice(), q, v, a, &mut t);
+        t
+    };
+    let rest: Vec<usize> = (3..m - 3)
+        .filter(|&p| {
+            let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            noisy.setup.reference.eval(noisy.reps[0].t[p] - noisy.reps[0].t[0], &mut q, &mut qd, &mut qdd);
+            qd.iter().chain(&qdd).all(|v| v.abs() < 1e-9)
+        })
+        .collect();
+    assert!(rest.len() > 300, "{}", rest.len());
+    let rms = |f: &dyn Fn(usize) -> f64| (rest.iter().map(|&p| f(p).powi(2)).sum::<f64>() / rest.len() as f64).sqrt();
+    let true_tau: Vec<Vec<f64>> = (0..m).map(|p| tau_at(&qt[p], &vt[p], &at[p])).collect();
+    let v_s = 1e-3;
+    let pr10 = process(&Run::new(vec![], noisy.reps.clone()).unwrap(), &Filter::LowPass { cutoff: 10.0 }).unwrap();
+    // noise floor at rest: σ of the averaged torque
+    let floor: Vec<f64> = (0..n)
+        .map(|j| rms(&|p| (pr10.tau_var.as_ref().unwrap()[p][j] / pr10.n_reps as f64).sqrt()))
+        .collect();
+    println!("noise floor at rest {floor:.4?} N·m");
+    for j in 0..n {
+        let (r, zero) = (rms(&|p| vt[p][j]), rms(&|p| tau_at(&qt[p], &[0.0; 3], &[0.0; 3])[j] - true_tau[p][j]));
+        println!("joint {j}: true q̇ at rest RMS {r:.2e} rad/s; true model at (q, 0, 0) off by {zero:.3} N·m");
+        // the arm creeps: zeroing q̇, q̈ at rest puts the torque off by more than the
+        // noise, except on the slide, whose floor (0.55 N·m, the PD loop feeding the
+        // position noise back) is above its 0.40 N·m
+        assert!(r > 0.05 * v_s, "joint {j}: {r}");
+        assert!(if j == 1 { zero < floor[j] } else { zero > 2.0 * floor[j] }, "joint {j}: {zero}");
+    }
+    // the simulated states close the loop: the true model at them gives the
+    // recorded torque, over every sample, to well below the torque noise
+    for j in 0..n {
+        let e = ((3..m - 3).map(|p| (c.tau[k_of(p)][j] - true_tau[p][j]).powi(2)).sum::<f64>() / (m - 6) as f64).sqrt();
+        println!("joint {j}: recorded torque − true model at the true states, RMS {e:.1e} N·m");
+        assert!(e < 0.3 * 0.05 / 10f64.sqrt(), "joint {j}: {e}");
+    }
+    for (name, f) in [
+        ("low-pass 10 Hz", Filter::LowPass { cutoff: 10.0 }),
+        ("low-pass 20 Hz", Filter::LowPass { cutoff: 20.0 }),
+        ("low-pass 40 Hz", Filter::LowPass { cutoff: 40.0 }),
+        ("central differences", Filter::None),
+    ] {
+        let pr = process(&Run::new(vec![], noisy.reps.clone()).unwrap(), &f).unwrap();
+        let qd_err: Vec<f64> = (0..n).map(|j| rms(&|p| pr.qd[p][j] - vt[p][j])).collect();
+        let tau_err: Vec<f64> = (0..n).map(|j| rms(&|p| tau_at(&pr.q[p], &pr.qd[p], &pr.qdd[p])[j] - true_tau[p][j])).collect();
+        let qd_err: Vec<String> = qd_err.iter().map(|x| format!("{x:.2e}")).collect();
+        println!(
+            "{name:<20} q̇ error at rest [{}] rad/s, true model at these states off by {tau_err:.3?} N·m",
+            qd_err.join(", ")
+        );
+        // no filter brings every joint to the noise level
+        assert!((0..n).any(|j| tau_err[j] > 2.0 * floor[j]), "{name}: {tau_err:?} vs {floor:?}");
+    }
+    // the same closed loop identified on its true states (torque noise as in the design)
+    let mut g = rng(11);
+    let mut gauss = || {
+        let (u, v): (f64, f64) = (g.random::<f64>().max(1e-300), g.random::<f64>());
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    };
+    let reps: Vec<Repetition> = (0..10)
+        .map(|_| Repetition {
+            t: noisy.reps[0].t.clone(),
+            q: qt.clone(),
+            tau: (0..m).map(|p| (0..n).map(|j| c.tau[k_of(p)][j] + 0.05 * gauss()).collect()).collect(),
+            r: None,
+            qd: Some(vt.clone()),
+            qdd: Some(at.clone()),
+        })
+        .collect();
+    let val = simulate_shipped("sim_rpr_pick_place_validate");
+    let res = SimResult { reps, ..noisy.clone() };
+    let (_, rt, ft, zt) = ident_with(&noisy.setup.nominal, &res, &val, &idexp::ident::IdentOptions::default());
+    println!("tanh model on the true states: standstill RMS {rt:.4?} N·m, noise {ft:.4?}, max|z| {zt:.1}");
+    // at the noise level, and near 3σ (max |z| 3.5 measured over 30+ parameters)
+    for j in 0..n {
+        assert!(rt[j] < 1.2 * ft[j], "joint {j}: {} vs {}", rt[j], ft[j]);
+    }
+    assert!(zt < 5.0, "max|z| {zt}");
 }
