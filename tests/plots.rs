@@ -7,7 +7,7 @@
 
 mod common;
 use common::root;
-use idexp::io::plot::{log_ticks, tick_label};
+use idexp::io::plot::{linear_range, log_ticks, tick_label};
 use std::path::Path;
 use std::process::Command;
 
@@ -126,6 +126,80 @@ fn figures_of_shipped_designs_have_formatted_ticks_inside_the_canvas() {
     for want in ["10", "100", "5", "50"] {
         assert!(labels.iter().any(|l| l == want), "no tick `{want}` in {labels:?}");
     }
+    // |G| with the unit of the acceleration output of that design, on every panel
+    let units = labels.iter().filter(|l| l.starts_with("|G") && l.ends_with("((rad/s²)/(N·m))")).count();
+    assert_eq!(units, 36, "{labels:?}");
+    let frf = std::fs::read_to_string(tmp.path().join("el/frf/frf.svg")).unwrap();
+    assert!(texts(&frf).1.iter().any(|t| t.2.ends_with("((rad/s²)/(N·m))")));
+    // the positions top view of a planar arm (y ≡ 0 up to rounding): a
+    // symmetric range, not a row of "0" ticks
+    let poses = std::fs::read_to_string(tmp.path().join("pa/poses.svg")).unwrap();
+    let labels: Vec<String> = texts(&poses).1.into_iter().map(|t| t.2).collect();
+    assert!(labels.iter().any(|l| l == "-0.5") && labels.iter().any(|l| l == "0.5"), "{labels:?}");
+}
+
+#[test]
+fn noise_spans_get_a_symmetric_range() {
+    assert_eq!(linear_range(-1e-16, 2e-17), (-0.5, 0.5));
+    assert_eq!(linear_range(3.0, 3.0), (1.5, 4.5));
+    let (lo, hi) = linear_range(0.0, 10.0);
+    assert!((lo + 0.5).abs() < 1e-12 && (hi - 10.5).abs() < 1e-12);
+}
+
+fn labels_of(path: &Path) -> Vec<String> {
+    check_svg(path);
+    texts(&std::fs::read_to_string(path).unwrap()).1.into_iter().map(|t| t.2).collect()
+}
+
+#[test]
+fn identification_figures_name_parameters_e_tol_and_both_gravity_branches() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = |s: &str| tmp.path().join(s).to_str().unwrap().to_string();
+    run(&["simulate", "designs/sim_rpr_pick_place.toml", "--out", &t("sp")]);
+    run(&["simulate", "designs/sim_rpr_pick_place_validate.toml", "--out", &t("spv")]);
+    run(&[
+        "identify",
+        "tests/data/ident/rpr_drives.toml",
+        &t("sp"),
+        "--validate",
+        &t("spv"),
+        "--reduce",
+        "--out",
+        &t("ip"),
+    ]);
+    run(&["simulate", "designs/sim_puma_gravity.toml", "--out", &t("sg")]);
+    run(&[
+        "identify",
+        "designs/robots/puma560.toml",
+        &t("sg"),
+        "--experiment",
+        "gravity",
+        "--joint",
+        "2",
+        "--out",
+        &t("pg"),
+    ]);
+    let est: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(tmp.path().join("ip/estimate.json")).unwrap()).unwrap();
+    let names: Vec<String> = est["names"].as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_string()).collect();
+    assert!(names.len() >= 5, "{names:?}");
+    // params.svg: every name under each of its two panels, σ error bars in the legend
+    let params = labels_of(&tmp.path().join("ip/params.svg"));
+    for n in &names {
+        assert!(params.iter().filter(|l| *l == n).count() >= 2, "`{n}` not on the x axes: {params:?}");
+    }
+    assert!(params.iter().any(|l| l.contains('σ')), "{params:?}");
+    // reduction.svg: the tried parameters and the e_tol line in the legend
+    let red = labels_of(&tmp.path().join("ip/reduction.svg"));
+    assert!(red.iter().any(|l| l.starts_with("e_tol = ")), "{red:?}");
+    let csv = std::fs::read_to_string(tmp.path().join("ip/reduction.csv")).unwrap();
+    for row in csv.lines().skip(1) {
+        let p = row.split(',').nth(1).unwrap();
+        assert!(red.iter().any(|l| l == p), "`{p}` not in {red:?}");
+    }
+    // gravity.svg: both fitted branches k sin(q + q_off) + c±
+    let grav = labels_of(&tmp.path().join("pg/gravity.svg"));
+    assert!(grav.iter().any(|l| l.contains("+ c₊")), "{grav:?}");
+    assert!(grav.iter().any(|l| l.contains("+ c₋")), "{grav:?}");
 }
 
 #[test]

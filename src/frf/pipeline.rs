@@ -116,8 +116,8 @@ fn frf_svg(path: &Path, data: &FrfData) -> Result<()> {
         for a in 0..n {
             panels.push(Panel {
                 title: format!("pos {} |G{}{}|", pi + 1, a + 1, a + 1),
-                x_label: "Hz".into(),
-                y_label: String::new(),
+                x_label: "f (Hz)".into(),
+                y_label: format!("|G{}{}| ({})", a + 1, a + 1, super::report::g_unit(data.output)),
                 series: vec![
                     Series::line("Ĝ", data.freqs_hz.clone(), p.g.iter().map(|g| g.to_mat(n)[(a, a)].norm()).collect()),
                     Series::line("σ̂", data.freqs_hz.clone(), p.var.iter().map(|v| v[a * n + a].sqrt()).collect()),
@@ -125,6 +125,7 @@ fn frf_svg(path: &Path, data: &FrfData) -> Result<()> {
                 hlines: vec![],
                 log_y: true,
                 log_x: true,
+                x_names: vec![],
             });
         }
     }

@@ -239,8 +239,21 @@ pub fn costs_svg(path: &Path, r: &Report) -> Result<()> {
         hlines: vec![(r.reasonable_factor, format!("reasonable ≤ {}", r.reasonable_factor))],
         log_y: true,
         log_x: false,
+        x_names: vec![],
     };
     write_svg(path, "Multistart costs (paper 001 Fig. 3)", &[panel], 1)
+}
+
+/// The unit of G = s^r Bᵀ A⁻¹ B (motor torque in, motor position, speed or
+/// acceleration out) for the FRF output: "rad/(N·m)", "(rad/s)/(N·m)" or
+/// "(rad/s²)/(N·m)".
+pub fn g_unit(output: crate::elastic::linear::Output) -> &'static str {
+    use crate::elastic::linear::Output;
+    match output {
+        Output::Position => "rad/(N·m)",
+        Output::Velocity => "(rad/s)/(N·m)",
+        Output::Acceleration => "(rad/s²)/(N·m)",
+    }
 }
 
 /// Bode plots (magnitude of every element, phase of the diagonal) of measured
@@ -258,8 +271,8 @@ pub fn bode_svgs(dir: &Path, problem: &FitProblem, data: &FrfData, theta: &[f64]
                 let sd: Vec<f64> = p.var.iter().map(|v| v[a * n + b].sqrt()).collect();
                 mag.push(Panel {
                     title: format!("|G{}{}|", a + 1, b + 1),
-                    x_label: "Hz".into(),
-                    y_label: String::new(),
+                    x_label: "f (Hz)".into(),
+                    y_label: format!("|G{}{}| ({})", a + 1, b + 1, g_unit(data.output)),
                     series: vec![
                         Series::points("measured", data.freqs_hz.clone(), meas),
                         Series::line("σ̂", data.freqs_hz.clone(), sd),
@@ -268,13 +281,14 @@ pub fn bode_svgs(dir: &Path, problem: &FitProblem, data: &FrfData, theta: &[f64]
                     hlines: vec![],
                     log_y: true,
                     log_x: true,
+                    x_names: vec![],
                 });
             }
             let deg = |c: crate::elastic::C64| c.arg().to_degrees();
             ph.push(Panel {
-                title: format!("arg G{}{} (deg)", a + 1, a + 1),
-                x_label: "Hz".into(),
-                y_label: String::new(),
+                title: format!("arg G{}{}", a + 1, a + 1),
+                x_label: "f (Hz)".into(),
+                y_label: format!("arg G{}{} (deg)", a + 1, a + 1),
                 series: vec![
                     Series::points("measured", data.freqs_hz.clone(), p.g.iter().map(|g| deg(g.to_mat(n)[(a, a)])).collect()),
                     Series::line("model", data.freqs_hz.clone(), fitted[pi].iter().map(|g| deg(g[(a, a)])).collect()),
@@ -282,6 +296,7 @@ pub fn bode_svgs(dir: &Path, problem: &FitProblem, data: &FrfData, theta: &[f64]
                 hlines: vec![],
                 log_y: false,
                 log_x: true,
+                x_names: vec![],
             });
         }
         let q: Vec<String> = p.q0.iter().map(|v| format!("{v:.2}")).collect();

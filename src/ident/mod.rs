@@ -936,38 +936,7 @@ impl Identification {
             }
             write_svg(&dir.join("validation.svg"), "validation run: measured vs predicted torque", &panels, 2)?;
         }
-        let k = self.estimate.names.len();
-        let x: Vec<f64> = (1..=k).map(|i| i as f64).collect();
-        let mut bars = Series::bars("θ̂ ± 3σ", x.clone(), self.estimate.theta.clone());
-        bars.err = Some(self.estimate.std.iter().map(|s| 3.0 * s).collect());
-        let mut panels = vec![
-            Panel {
-                title: format!("estimates ({})", self.estimate.names.join(" ")),
-                x_label: "parameter index".into(),
-                y_label: "value (SI)".into(),
-                series: vec![bars],
-                ..Default::default()
-            },
-            Panel {
-                title: "relative standard deviation σ* (eq. 14)".into(),
-                x_label: "parameter index".into(),
-                y_label: "σ* (%)".into(),
-                series: vec![Series::bars("σ*", x, self.estimate.rel_std.iter().map(|v| 100.0 * v.min(1e6)).collect())],
-                log_y: true,
-                ..Default::default()
-            },
-        ];
-        if let Some(tr) = &self.estimate.truth {
-            let xs: Vec<f64> = (1..=tr.len()).map(|i| i as f64).collect();
-            panels.push(Panel {
-                title: "(estimate − truth)/σ".into(),
-                x_label: "parameter index".into(),
-                y_label: "z".into(),
-                series: vec![Series::bars("z", xs, tr.iter().map(|r| r.z).collect())],
-                hlines: vec![(3.0, "+3".into()), (-3.0, "−3".into())],
-                ..Default::default()
-            });
-        }
+        let panels = output::params_panels(&self.estimate);
         write_svg(&dir.join("params.svg"), "identified base parameters", &panels, 1)?;
         if let Some(r) = &self.estimate.reduction {
             let mut csv = format!(
@@ -988,25 +957,7 @@ impl Identification {
                 ));
             }
             crate::io::write_atomic(&dir.join("reduction.csv"), csv.as_bytes())?;
-            let ks: Vec<f64> = r.steps.iter().map(|s| s.k as f64).collect();
-            let panels = vec![
-                Panel {
-                    title: "condition number of the tried model".into(),
-                    x_label: "step k".into(),
-                    y_label: "cond".into(),
-                    series: vec![Series::points("cond", ks.clone(), r.steps.iter().map(|s| s.cond).collect())],
-                    log_y: true,
-                    ..Default::default()
-                },
-                Panel {
-                    title: "largest relative growth of e*_j".into(),
-                    x_label: "step k".into(),
-                    y_label: "growth (%)".into(),
-                    series: vec![Series::points("growth", ks, r.steps.iter().map(|s| 100.0 * s.growth).collect())],
-                    hlines: vec![(100.0 * r.options.tol, "e_tol".into())],
-                    ..Default::default()
-                },
-            ];
+            let panels = output::reduction_panels(r);
             write_svg(&dir.join("reduction.svg"), "model reduction (Algorithm 1)", &panels, 2)?;
         }
         Ok(())

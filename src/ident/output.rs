@@ -10,25 +10,19 @@ use crate::io::plot::{write_svg, Panel, Series};
 use std::path::Path;
 
 /// Writes `gravity.json`, `gravity.svg` (measured torque of joint `joint`,
-/// 1-based, against q with the fitted k sin(q + q_off)) and `report.txt`
-/// into `out`.
+/// 1-based, against q with the fitted model of both slopes, see
+/// [`gravity_panel`]) and `report.txt` into `out`.
 pub fn write_gravity(out: &Path, joint: usize, pr: &Processed, g: &GravityFit) -> Result<String> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let j = joint.saturating_sub(1);
     crate::io::write_json(&out.join("gravity.json"), g)?;
     let q: Vec<f64> = pr.q.iter().map(|v| v[j]).collect();
     let tau: Vec<f64> = pr.tau.iter().map(|v| v[j]).collect();
-    let fit: Vec<f64> = q.iter().map(|&x| g.torque(x)).collect();
+    let qd: Vec<f64> = pr.qd.iter().map(|v| v[j]).collect();
     write_svg(
         &out.join("gravity.svg"),
         &format!("gravity experiment, joint {joint}"),
-        &[Panel {
-            title: "measured torque and fitted gravity k sin(q + q_off)".into(),
-            x_label: "q (rad)".into(),
-            y_label: "torque (N·m)".into(),
-            series: vec![Series::points("measured", q.clone(), tau), Series::line("gravity fit", q, fit)],
-            ..Default::default()
-        }],
+        &[gravity_panel(&q, &qd, &tau, g)],
         1,
     )?;
     let text = format!(
@@ -44,6 +38,129 @@ pub fn write_gravity(out: &Path, joint: usize, pr: &Processed, g: &GravityFit) -
     );
     crate::io::write_atomic(&out.join("report.txt"), text.as_bytes())?;
     Ok(text)
+}
+
+/// The gravity figure: measured torque against q, split by the direction of
+/// motion (q̇ > 0, q̇ < 0, standstill), with the fitted model of eq. 23 on
+/// each slope, k sin(q + q_off) + c₊ and k sin(q + q_off) + c₋, drawn over
+/// the q range that slope covers (the two branches the data follow).
+pub fn gravity_panel(q: &[f64], qd: &[f64], tau: &[f64], g: &GravityFit) -> Panel {
+    let pick = |f: &dyn Fn(f64) -> bool| -> (Vec<f64>, Vec<f64>) { q.iter().zip(qd).zip(tau).filter(|((_, v), _)| f(**v)).map(|((a, _), t)| (*a, *t)).unzip() };
+    let moving = 0.02 * g.speed;
+    let (qp, tp) = pick(&|v| v > moving);
+    let (qn, tn) = pick(&|v| v < -moving);
+    let (qs, ts) = pick(&|v| v.abs() <= moving);
+    let branch = |qs: &[f64], c: f64| -> (Vec<f64>, Vec<f64>) {
+        let lo = qs.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = qs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        if !(lo.is_finite() && hi.is_finite()) {
+            return (vec![], vec![]);
+        }
+        let x: Vec<f64> = (0..=200).map(|i| lo + (hi - lo) * i as f64 / 200.0).collect();
+        let y = x.iter().map(|&v| g.torque(v) + c).collect();
+        (x, y)
+    };
+    let (xp, yp) = branch(&qp, g.offset_pos);
+    let (xn, yn) = branch(&qn, g.offset_neg);
+    let mut series = vec![Series::points("measured, q̇ > 0", qp, tp), Series::points("measured, q̇ < 0", qn, tn)];
+    if !qs.is_empty() {
+        series.push(Series::points("measured, q̇ ≈ 0", qs, ts));
+    }
+    series.push(Series::line(format!("k sin(q + q_off) + c₊, c₊ = {:.3} N·m", g.offset_pos), xp, yp));
+    series.push(Series::line(format!("k sin(q + q_off) + c₋, c₋ = {:.3} N·m", g.offset_neg), xn, yn));
+    Panel {
+        title: format!("measured torque and fitted model (k = {:.3} N·m, q_off = {:.4} rad)", g.k, g.q_off),
+        x_label: "q (rad)".into(),
+        y_label: "torque (N·m)".into(),
+        series,
+        ..Default::default()
+    }
+}
+
+/// The panels of `params.svg`: the estimates with ±3σ error bars, the
+/// relative standard deviations σ* and (with a truth) the z scores, each
+/// with the parameter names on the x axis.
+pub fn params_panels(est: &super::Estimate) -> Vec<Panel> {
+    let k = est.names.len();
+    let x: Vec<f64> = (1..=k).map(|i| i as f64).collect();
+    let mut bars = Series::bars("θ̂ ± 3σ", x.clone(), est.theta.clone());
+    bars.err = Some(est.std.iter().map(|s| 3.0 * s).collect());
+    let mut panels = vec![
+        Panel {
+            title: format!("{k} base parameter estimates θ̂ with ±3σ error bars"),
+            x_label: "parameter".into(),
+            y_label: "value (SI)".into(),
+            series: vec![bars],
+            x_names: est.names.clone(),
+            ..Default::default()
+        },
+        Panel {
+            title: "relative standard deviation σ* (eq. 14)".into(),
+            x_label: "parameter".into(),
+            y_label: "σ* (%)".into(),
+            series: vec![Series::bars("σ*", x, est.rel_std.iter().map(|v| 100.0 * v.min(1e6)).collect())],
+            log_y: true,
+            x_names: est.names.clone(),
+            ..Default::default()
+        },
+    ];
+    if let Some(tr) = &est.truth {
+        let xs: Vec<f64> = (1..=tr.len()).map(|i| i as f64).collect();
+        panels.push(Panel {
+            title: "(estimate − truth)/σ".into(),
+            x_label: "parameter".into(),
+            y_label: "z".into(),
+            series: vec![Series::bars("z", xs, tr.iter().map(|r| r.z).collect())],
+            hlines: vec![(3.0, "±3".into()), (-3.0, String::new())],
+            x_names: tr.iter().map(|r| r.name.clone()).collect(),
+            ..Default::default()
+        });
+    }
+    panels
+}
+
+/// The panels of `reduction.svg`: per step (x axis: the parameter tried),
+/// the condition number of the tried model and the largest relative error
+/// growth, removed and kept parameters apart, against the e_tol line.
+pub fn reduction_panels(r: &super::reduce::Reduction) -> Vec<Panel> {
+    let names: Vec<String> = r.steps.iter().map(|s| s.parameter.clone()).collect();
+    let x: Vec<f64> = (1..=r.steps.len()).map(|i| i as f64).collect();
+    let split = |f: &dyn Fn(&super::reduce::Step) -> f64, removed: bool| -> (Vec<f64>, Vec<f64>) {
+        x.iter()
+            .zip(&r.steps)
+            .filter(|(_, s)| (s.decision == "removed") == removed)
+            .map(|(a, s)| (*a, f(s)))
+            .unzip()
+    };
+    let (xr, cr) = split(&|s| s.cond, true);
+    let (xk, ck) = split(&|s| s.cond, false);
+    // growth on a log axis (it spans decades around e_tol); values below
+    // e_tol/100 (including a shrinking error) are drawn at that floor
+    let tol = 100.0 * r.options.tol;
+    let floor = if tol > 0.0 { tol / 100.0 } else { 1e-6 };
+    let (_, gr) = split(&|s| (100.0 * s.growth).max(floor), true);
+    let (_, gk) = split(&|s| (100.0 * s.growth).max(floor), false);
+    vec![
+        Panel {
+            title: "condition number of the tried model".into(),
+            x_label: "parameter tried (in step order)".into(),
+            y_label: "cond".into(),
+            series: vec![Series::points("removed", xr.clone(), cr), Series::points("kept", xk.clone(), ck)],
+            log_y: true,
+            x_names: names.clone(),
+            ..Default::default()
+        },
+        Panel {
+            title: format!("largest relative growth of e*_j (floor {} %)", crate::io::plot::tick_label(floor)),
+            x_label: "parameter tried (in step order)".into(),
+            y_label: "growth (%)".into(),
+            series: vec![Series::points("removed", xr, gr), Series::points("kept", xk, gk)],
+            hlines: vec![(tol, format!("e_tol = {} %", crate::io::plot::tick_label(tol)))],
+            log_y: true,
+            x_names: names,
+            ..Default::default()
+        },
+    ]
 }
 
 /// Writes `friction.json`, `friction.svg` (τ − J q̈ − τ_g of joint `joint`,

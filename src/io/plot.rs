@@ -97,6 +97,28 @@ pub struct Panel {
     pub log_y: bool,
     /// Logarithmic x axis (non-positive values are dropped).
     pub log_x: bool,
+    /// Names of the categories at x = 1, 2, …, n (e.g. parameter names):
+    /// when not empty, the x axis is ticked at those integers only and
+    /// labelled with the names, rotated by 90° so that long names fit.
+    pub x_names: Vec<String>,
+}
+
+/// The axis range drawn for data spanning [lo, hi] on a linear axis: 5 %
+/// padding on either side; a constant (or floating-point noise: a span below
+/// 1e-9 of the magnitude, e.g. coordinates 1e-16 and -2e-17 of points on a
+/// plane) gets a symmetric range of ±0.5·max(|centre|, 1) around its centre
+/// (0 when the centre itself is noise), so its ticks read 0, ±0.25, … rather
+/// than a row of "0".
+pub fn linear_range(lo: f64, hi: f64) -> (f64, f64) {
+    let scale = lo.abs().max(hi.abs()).max(1.0);
+    if hi - lo > 1e-9 * scale {
+        let pad = 0.05 * (hi - lo);
+        return (lo - pad, hi + pad);
+    }
+    let mid = 0.5 * (lo + hi);
+    let mid = if mid.abs() < 1e-9 { 0.0 } else { mid };
+    let half = 0.5 * mid.abs().max(1.0);
+    (mid - half, mid + half)
 }
 
 /// A tick label: at most 4 significant digits without trailing zeros
@@ -224,8 +246,7 @@ mod draw {
             }
             return (lo / 1.3, hi * 1.3);
         }
-        let pad = if hi > lo { 0.05 * (hi - lo) } else { 0.5 * lo.abs().max(1.0) };
-        (lo - pad, hi + pad)
+        super::linear_range(lo, hi)
     }
 
     fn perr<E: std::fmt::Debug>(path: &Path) -> impl Fn(E) -> Error + '_ {
@@ -268,8 +289,32 @@ mod draw {
             .chain(p.hlines.iter().map(|h| h.0))
             .chain(p.series.iter().filter(|s| s.mark == Mark::Bars && !p.log_y).map(|_| 0.0));
         let (y0, y1) = range(ys, p.log_y);
+        // a categorical axis: one slot per name
+        let names = !p.x_names.is_empty() && !p.log_x;
+        let (x0, x1) = if names { (0.4, p.x_names.len() as f64 + 0.6) } else { (x0, x1) };
+        let longest = p.x_names.iter().map(|n| n.chars().count()).max().unwrap_or(0);
+        let x_area = if names { (30 + 7 * longest as u32).clamp(40, 160) } else { 32 };
         let mut b = ChartBuilder::on(area);
-        b.caption(&p.title, ("sans-serif", 14)).margin(8).x_label_area_size(32).y_label_area_size(56);
+        b.caption(&p.title, ("sans-serif", 14))
+            .margin(8)
+            .x_label_area_size(x_area)
+            .y_label_area_size(56);
+        let x_fmt = |v: &f64| -> String {
+            if !names {
+                return super::tick_label(*v);
+            }
+            let i = v.round();
+            if (v - i).abs() < 1e-6 && i >= 1.0 && i <= p.x_names.len() as f64 {
+                p.x_names[i as usize - 1].clone()
+            } else {
+                String::new()
+            }
+        };
+        let x_style = if names {
+            ("sans-serif", 10).into_font().transform(FontTransform::Rotate90)
+        } else {
+            ("sans-serif", 11).into_font()
+        };
         macro_rules! body {
             ($chart:expr) => {{
                 let mut chart = $chart;
@@ -278,7 +323,11 @@ mod draw {
                     .x_desc(p.x_label.as_str())
                     .y_desc(p.y_label.as_str())
                     .label_style(("sans-serif", 11))
-                    .x_label_formatter(&|v: &f64| super::tick_label(*v))
+                    .axis_desc_style(("sans-serif", 11))
+                    .x_label_style(x_style.clone())
+                    // a categorical axis: a step of 1 (the formatter names the integers)
+                    .x_labels(if names { p.x_names.len() + 1 } else { 10 })
+                    .x_label_formatter(&x_fmt)
                     .y_label_formatter(&|v: &f64| super::tick_label(*v))
                     .light_line_style(WHITE.mix(0.0))
                     .draw()
@@ -322,12 +371,12 @@ mod draw {
                         continue;
                     }
                     let anno = chart
-                        .draw_series(DashedLineSeries::new(vec![(x0, *v), (x1, *v)], 4, 3, RED.stroke_width(1)))
+                        .draw_series(DashedLineSeries::new(vec![(x0, *v), (x1, *v)], 4, 3, RED.stroke_width(2)))
                         .map_err(perr(path))?;
                     if !label.is_empty() {
                         any_label = true;
                         anno.label(label.clone())
-                            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], RED.stroke_width(1)));
+                            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], RED.stroke_width(2)));
                         // one legend entry per label is enough
                     }
                 }
