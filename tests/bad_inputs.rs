@@ -552,3 +552,161 @@ fn excite_into_an_existing_file_is_refused_before_the_search() {
     );
     assert_eq!(std::fs::read_to_string(&f).unwrap(), "keep");
 }
+
+#[test]
+fn excite_with_limits_leaving_no_excitation_is_unusable_not_feasible() {
+    let tmp = tempfile::tempdir().unwrap();
+    let robot = root("designs/robots/ur5.toml");
+    let abs = format!("robot = {:?}", robot.to_str().unwrap());
+    let d = variant(
+        tmp.path(),
+        "designs/excite_ur5_bench.toml",
+        "tiny.toml",
+        &[
+            ("robot = \"robots/ur5.toml\"", abs.as_str()),
+            ("time_limit = 10.0", "time_limit = 2.0"),
+            ("velocity = 1.0", "velocity = 1e-9"),
+        ],
+    );
+    let out = tmp.path().join("o");
+    let (code, err) = limited(&["excite", &d, "--out", out.to_str().unwrap()]);
+    // exit 3: finished without a usable result (not "feasible: cond 1e12")
+    assert_eq!(code, Some(3), "exit {code:?}\n{err}");
+    for n in ["INFEASIBLE", "no trajectory within these limits excites", "rank-deficient", "limits.velocity"] {
+        assert!(err.contains(n), "`{n}` not in\n{err}");
+    }
+    let status = std::fs::read_to_string(out.join("status.json")).unwrap();
+    assert!(status.contains("infeasible") && status.contains("rank-deficient"), "{status}");
+}
+
+#[test]
+fn gravity_experiment_on_a_fourier_run_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = rpr_run(tmp.path());
+    let robot = root("tests/data/ident/rpr_drives.toml");
+    let out = tmp.path().join("o");
+    refused(
+        &[
+            "identify",
+            robot.to_str().unwrap(),
+            run.to_str().unwrap(),
+            "--experiment",
+            "gravity",
+            "--joint",
+            "2",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[
+            run.to_str().unwrap(),
+            "gravity experiment",
+            "not a gravity-slopes run of joint 2",
+            "moves too",
+            "at rest",
+        ],
+    );
+}
+
+#[test]
+fn identify_with_no_row_fast_enough_names_the_speed_rule() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = rpr_run(tmp.path());
+    let robot = root("tests/data/ident/rpr_drives.toml");
+    let out = tmp.path().join("o");
+    let (r, d, o) = (robot.to_str().unwrap(), run.to_str().unwrap(), out.to_str().unwrap());
+    // a run at rest: the first repetition with every position held at its first value
+    let text = std::fs::read_to_string(run.join("rep_001.csv")).unwrap();
+    let mut lines = text.lines();
+    let head = lines.next().unwrap();
+    let cols: Vec<&str> = head.split(',').collect();
+    let first: Vec<String> = text.lines().nth(1).unwrap().split(',').map(str::to_string).collect();
+    let mut rest = format!("{head}\n");
+    for l in lines {
+        let v: Vec<&str> = l
+            .split(',')
+            .enumerate()
+            .map(|(c, x)| {
+                if cols[c].starts_with('q') || cols[c].starts_with('r') {
+                    first[c].as_str()
+                } else {
+                    x
+                }
+            })
+            .collect();
+        rest.push_str(&v.join(","));
+        rest.push('\n');
+    }
+    let rest_csv = tmp.path().join("rest.csv");
+    std::fs::write(&rest_csv, rest).unwrap();
+    let rc = rest_csv.to_str().unwrap();
+    let (code, err) = limited(&["identify", r, rc, "--method", "ols", "--out", o]);
+    assert_eq!(code, Some(1), "exit {code:?}\n{err}");
+    for n in [
+        "rest.csv",
+        "no row is fast enough",
+        "0 of 6000 rows",
+        "0.01 rad/s",
+        "[0.000e0, 0.000e0, 0.000e0]",
+    ] {
+        assert!(err.contains(n), "`{n}` not in\n{err}");
+    }
+    for extra in [&["--min-speed", "1e9", "--standstill", "drop"][..], &["--min-speed", "1e9"][..]] {
+        let mut args = vec!["identify", r, d, "--out", o];
+        args.extend_from_slice(extra);
+        let (code, err) = limited(&args);
+        assert_eq!(code, Some(1), "{args:?}: exit {code:?}\n{err}");
+        assert!(!err.contains("too short"), "{err}");
+        for n in ["no row is fast enough", "min_speed", "1000000000 rad/s", "largest |q̇_j|"] {
+            assert!(err.contains(n), "{args:?}: `{n}` not in\n{err}");
+        }
+    }
+}
+
+#[test]
+fn elastic_controller_bandwidth_above_nyquist_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let robot = root("designs/robots/industrial6.toml");
+    let abs = format!("robot = {:?}", robot.to_str().unwrap());
+    let d = variant(
+        tmp.path(),
+        "designs/elastic_industrial6_time.toml",
+        "bw.toml",
+        &[("robot = \"robots/industrial6.toml\"", abs.as_str()), ("bandwidth = 3.0", "bandwidth = 900.0")],
+    );
+    let out = tmp.path().join("o");
+    let o = out.to_str().unwrap();
+    let needles = ["bw.toml", "simulate.bandwidth", "Nyquist", "500 Hz", "900 Hz"];
+    refused(&["frf", &d, "--out", o], &needles);
+    refused(&["fit", &d, "--out", o, "--starts", "2"], &needles);
+}
+
+#[test]
+fn merge_names_the_truncated_shard() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = elastic_variant(tmp.path(), "el.toml", &[]);
+    let out = tmp.path().join("o");
+    let o = out.to_str().unwrap();
+    let ok = |args: &[&str]| {
+        let (code, err) = limited(args);
+        assert_eq!(code, Some(0), "{args:?}: {err}");
+    };
+    ok(&["frf", &d, "--out", o]);
+    ok(&["fit", &d, "--out", o, "--starts", "4", "--shard", "0/2"]);
+    ok(&["fit", &d, "--out", o, "--starts", "4", "--shard", "1/2"]);
+    let dir = out.join("fit_lls_user");
+    let (s0, s1) = (dir.join("starts.shard-0-of-2.jsonl"), dir.join("starts.shard-1-of-2.jsonl"));
+    // cut the second shard's last record short
+    let text = std::fs::read_to_string(&s1).unwrap();
+    std::fs::write(&s1, &text[..text.len() - 30]).unwrap();
+    let (code, err) = limited(&[
+        "merge",
+        s0.to_str().unwrap(),
+        s1.to_str().unwrap(),
+        "--out",
+        tmp.path().join("m").to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("starts.shard-1-of-2.jsonl"), "{err}");
+    assert!(!err.contains("starts.shard-0-of-2.jsonl"), "{err}");
+    assert!(err.contains("1 of 4 starts missing"), "{err}");
+}

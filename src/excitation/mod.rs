@@ -134,6 +134,30 @@ impl Serialize for StoppedBy {
     }
 }
 
+impl ExciteResult {
+    /// Why the best design found excites no usable set of parameters: its
+    /// regressor is rank-deficient (condition number at [`objective::COND_CAP`]),
+    /// typically because the limits leave too little motion (e.g. a tiny
+    /// `limits.velocity`). `None` when the design's condition number is finite.
+    pub fn unexcited(&self) -> Option<String> {
+        if self.spectrum.cond < objective::COND_CAP {
+            return None;
+        }
+        let s = &self.spectrum.singular_values;
+        let ratio = match (s.first(), s.last()) {
+            (Some(a), Some(b)) if *a > 0.0 => format!("{:.3e}", b / a),
+            _ => "0".to_string(),
+        };
+        Some(format!(
+            "no trajectory within these limits excites the {} base parameters: the best regressor found is \
+             rank-deficient (sigma_min/sigma_max = {ratio}, condition number at the {:e} cap); \
+             widen the limits (limits.position, limits.velocity, limits.acceleration) or the trajectory",
+            s.len(),
+            objective::COND_CAP
+        ))
+    }
+}
+
 /// Result of [`run`].
 #[derive(Debug, Clone, Serialize)]
 pub struct ExciteResult {
@@ -555,7 +579,9 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
     };
     // the delivered trajectory: lead-in, periods, lead-out, every sample checked
     let execution = execution::deliver(p, &trajectory)?;
-    let status = if violated.is_empty() && execution.verified {
+    // a regressor at the condition-number cap does not excite every base
+    // parameter: not a usable design, whatever the constraints say
+    let status = if violated.is_empty() && execution.verified && spectrum.cond < objective::COND_CAP {
         Status::Feasible
     } else {
         Status::Infeasible

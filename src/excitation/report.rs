@@ -454,6 +454,7 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Identi
         (super::Status::Infeasible, _) => (
             RunState::Infeasible,
             match (&r.execution.problem, r.violated.len()) {
+                _ if r.unexcited().is_some() => format!("infeasible: {}", r.unexcited().unwrap_or_default()),
                 (Some(e), 0) => format!("infeasible: not playable rest to rest: {e}"),
                 (_, k) => format!("infeasible: {k} constraint(s) violated"),
             },

@@ -288,6 +288,19 @@ impl Design {
             if !(s.bandwidth.is_finite() && s.bandwidth > 0.0) {
                 return inv("simulate.bandwidth", format!("expected a positive frequency (Hz), found {}", s.bandwidth));
             }
+            // the motor loops' velocity is a backward difference at the multisine rate:
+            // a bandwidth at or above Nyquist makes the sampled loop diverge
+            if s.method == SimMethod::Time && s.bandwidth >= 0.5 * ms.rate {
+                return inv(
+                    "simulate.bandwidth",
+                    format!(
+                        "expected a controller bandwidth below the Nyquist frequency rate/2 = {} Hz (multisine.rate = {}), found {} Hz",
+                        0.5 * ms.rate,
+                        ms.rate,
+                        s.bandwidth
+                    ),
+                );
+            }
             if s.method == SimMethod::Frequency && s.noise_rel == 0.0 && s.noise_abs == 0.0 && ms.blocks > 1 {
                 return inv(
                     "simulate.noise_rel",

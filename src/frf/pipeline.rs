@@ -502,8 +502,25 @@ pub fn merge(shards: &[PathBuf], out: Option<&Path>) -> Result<(Report, PathBuf)
     let missing: Vec<usize> = (0..info.starts).filter(|i| !records.iter().any(|r| r.index == *i)).collect();
     if !missing.is_empty() {
         let show: Vec<String> = missing.iter().take(10).map(|i| i.to_string()).collect();
+        // the shard files that should hold the missing starts (truncated or
+        // interrupted shards), from their names starts.shard-<i>-of-<N>.jsonl
+        let owner = |p: &Path| -> Option<super::multistart::Shard> {
+            let name = p.file_name()?.to_str()?;
+            let (i, n) = name.strip_prefix("starts.shard-")?.strip_suffix(".jsonl")?.split_once("-of-")?;
+            super::multistart::Shard::parse(&format!("{i}/{n}")).ok()
+        };
+        let culprits: Vec<String> = shards
+            .iter()
+            .filter(|p| owner(p).is_some_and(|sh| sh.indices(info.starts).iter().any(|i| missing.contains(i))))
+            .map(|p| p.display().to_string())
+            .collect();
+        let named = if culprits.is_empty() {
+            first.display().to_string()
+        } else {
+            culprits.join(", ")
+        };
         return Err(Error::invalid(
-            first.display().to_string(),
+            named,
             "shards",
             format!(
                 "{} of {} starts missing (e.g. {}): run the missing shards (they resume) and merge again",

@@ -111,6 +111,55 @@ fn check_joint(pr: &Processed, joint: usize) -> Result<usize> {
     Ok(joint - 1)
 }
 
+/// Largest speed of another joint, as a fraction of the experiment joint's
+/// largest speed, for the others to count as at rest.
+pub const GRAVITY_OTHERS_AT_REST: f64 = 0.05;
+/// Least share of the moving samples (|q̇_j| above 10 % of its largest value)
+/// at constant speed (within 2 % of the largest) for a slopes run.
+pub const GRAVITY_CONSTANT_SPEED_SHARE: f64 = 0.5;
+
+/// Refuses a run that is not a gravity-slopes run of joint `j` (0-based):
+/// another joint moving, or joint `j` mostly accelerating (e.g. a Fourier
+/// run), where eq. 23 does not hold and k would absorb inertia and coupling.
+fn check_slopes_run(pr: &Processed, j: usize, vmax: f64) -> Result<()> {
+    let what = "gravity experiment";
+    let joint = j + 1;
+    let (other, other_max) = (0..pr.n_joints())
+        .filter(|&i| i != j)
+        .map(|i| (i, pr.qd.iter().map(|v| v[i].abs()).fold(0.0, f64::max)))
+        .fold((j, 0.0), |b, c| if c.1 > b.1 { c } else { b });
+    if other_max > GRAVITY_OTHERS_AT_REST * vmax {
+        return Err(Error::invalid(
+            what,
+            "run",
+            format!(
+                "not a gravity-slopes run of joint {joint}: joint {} moves too (up to {other_max:.4} rad/s, \
+                 more than {:.0} % of joint {joint}'s {vmax:.4} rad/s); the experiment needs the other joints at rest \
+                 (a `gravity_slopes` reference)",
+                other + 1,
+                100.0 * GRAVITY_OTHERS_AT_REST
+            ),
+        ));
+    }
+    let moving = pr.qd.iter().filter(|v| v[j].abs() > 0.1 * vmax).count();
+    let constant = pr.qd.iter().filter(|v| (v[j].abs() - vmax).abs() < 0.02 * vmax).count();
+    let share = constant as f64 / moving.max(1) as f64;
+    if share < GRAVITY_CONSTANT_SPEED_SHARE {
+        return Err(Error::invalid(
+            what,
+            "run",
+            format!(
+                "not a gravity-slopes run of joint {joint}: only {:.0} % of its moving samples are at constant speed \
+                 ({vmax:.4} rad/s within 2 %), at least {:.0} % expected (slow slopes of constant velocity, \
+                 a `gravity_slopes` reference)",
+                100.0 * share,
+                100.0 * GRAVITY_CONSTANT_SPEED_SHARE
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Fits the gravity model of eq. 23 on the constant-velocity samples of a
 /// slopes run (|q̇_j| within 2 % of its largest value and |q̈_j| below 2 % of max |q̈_j|·).
 pub fn gravity_experiment(pr: &Processed, joint: usize) -> Result<GravityFit> {
@@ -124,6 +173,7 @@ pub fn gravity_experiment(pr: &Processed, joint: usize) -> Result<GravityFit> {
         ));
     }
     let amax = pr.qdd.iter().map(|v| v[j].abs()).fold(0.0, f64::max);
+    check_slopes_run(pr, j, vmax)?;
     let idx: Vec<usize> = (0..pr.len())
         .filter(|&p| (pr.qd[p][j].abs() - vmax).abs() < 0.02 * vmax && pr.qdd[p][j].abs() <= 0.02 * amax.max(1e-9) + 1e-3)
         .collect();

@@ -440,6 +440,12 @@ pub fn identify(
         .collect();
     let every = Dataset::every_row(robot, base, &pr);
     let full = every.moving_rows_of(&pr, slow, vmin, &drop);
+    if full.c.nrows() <= full.c.ncols() && every.c.nrows() > every.c.ncols() {
+        let vmax: Vec<String> = (0..robot.dof())
+            .map(|j| format!("{:.3e}", pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max)))
+            .collect();
+        return Err(Error::invalid(run.files.first().map_or_else(|| "identify".to_string(), |f| f.display().to_string()), "min_speed", format!("no row is fast enough: {} of {} rows left after the speed rule |q̇_j| ≥ max({slow} · max |q̇_j|, {vmin} rad/s) (--slow-ratio, --min-speed), more than {} needed; largest |q̇_j| of the run: [{}] rad/s", full.c.nrows(), every.c.nrows(), full.c.ncols(), vmax.join(", "))));
+    }
     let rows_used = rows_used(robot, &full, pr.len(), &drop, slow, vmin, opts);
     let moving: Vec<bool> = (0..robot.dof())
         .map(|j| pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max) > opts.reduce.as_ref().map_or(0.05, |r| r.moving_speed))

@@ -123,6 +123,9 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         if let Some(b) = &r.stopped_by {
             println!("  stopped early: {b}");
         }
+        if let Some(e) = r.unexcited() {
+            println!("  {e}");
+        }
         if let Some(e) = &r.execution.problem {
             println!("  not playable rest to rest: {e}");
         }
@@ -155,6 +158,7 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         || crate::interrupted(ctl);
     Ok(match r.status {
         Status::Infeasible => Outcome::Unusable(match (&r.execution.problem, r.violated.len()) {
+            _ if r.unexcited().is_some() => format!("the design is INFEASIBLE: {}", r.unexcited().unwrap_or_default()),
             (Some(e), 0) => format!("the design is INFEASIBLE: not playable rest to rest: {e}"),
             (_, k) => format!("the design is INFEASIBLE ({k} constraint(s) violated)"),
         }),

@@ -414,7 +414,10 @@ fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run, started: SystemT
     idexp::io::folder::begin(&out, "identify", "")?;
     let (text, json) = match exp {
         Experiment::Gravity => {
-            let g = gravity_experiment(&pr, joint)?;
+            let g = gravity_experiment(&pr, joint).with_context(|| {
+                let runs: Vec<String> = a.run.iter().map(|p| p.display().to_string()).collect();
+                format!("run {}", runs.join(", "))
+            })?;
             (write_gravity(&out, joint, &pr, &g)?, serde_json::to_value(&g)?)
         }
         Experiment::Friction => {
