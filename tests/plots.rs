@@ -200,6 +200,104 @@ fn identification_figures_name_parameters_e_tol_and_both_gravity_branches() {
     let grav = labels_of(&tmp.path().join("pg/gravity.svg"));
     assert!(grav.iter().any(|l| l.contains("+ c₊")), "{grav:?}");
     assert!(grav.iter().any(|l| l.contains("+ c₋")), "{grav:?}");
+    // the legend covers no measured point (its box: the translucent white rect)
+    let svg = std::fs::read_to_string(tmp.path().join("pg/gravity.svg")).unwrap();
+    let boxes: Vec<[f64; 4]> = elements(&svg, "rect")
+        .into_iter()
+        .filter(|t| t.contains("opacity=\"0.8\"") && t.contains("fill=\"#FFFFFF\""))
+        .map(|t| [num(&t, "x"), num(&t, "y"), num(&t, "width"), num(&t, "height")])
+        .collect();
+    assert_eq!(boxes.len(), 1, "one legend");
+    let [bx, by, bw, bh] = boxes[0];
+    let circles = elements(&svg, "circle");
+    assert!(circles.len() > 1000, "{} points", circles.len());
+    for c in &circles {
+        let (cx, cy) = (num(c, "cx"), num(c, "cy"));
+        assert!(
+            !(bx..=bx + bw).contains(&cx) || !(by..=by + bh).contains(&cy),
+            "point ({cx}, {cy}) under the legend {:?}",
+            boxes[0]
+        );
+    }
+    // params.svg: each parameter name starts under the bars of its panel,
+    // never inside the plot (rotated labels used to be centred on the axis)
+    let svg = std::fs::read_to_string(tmp.path().join("ip/params.svg")).unwrap();
+    let bars: Vec<[f64; 4]> = elements(&svg, "rect")
+        .into_iter()
+        .filter(|t| t.contains("fill=\"#1F77B4\""))
+        .map(|t| [num(&t, "x"), num(&t, "y"), num(&t, "width"), num(&t, "height")])
+        .collect();
+    assert!(bars.len() >= 2 * names.len(), "{} bars", bars.len());
+    assert!(bars.iter().all(|b| b[2] >= 5.0), "bars are at least 5 px wide: {bars:?}");
+    let (_, ts) = texts(&svg);
+    // drawn from their start point (a centred rotated label reaches half its
+    // length above the anchor, into the plot)
+    let starts = elements(&svg, "text")
+        .into_iter()
+        .filter(|t| t.contains("rotate(90") && t.contains("text-anchor=\"start\""))
+        .count();
+    assert!(starts >= 2 * names.len(), "{starts} rotated names drawn from their start");
+    for (x, y, t) in ts.iter().filter(|t| names.contains(&t.2)) {
+        for b in bars.iter().filter(|b| (b[0]..=b[0] + b[2]).contains(x) && b[1] < *y && b[1] > y - 300.0) {
+            assert!(b[1] + b[3] <= *y, "`{t}` at y {y} starts inside its bar {b:?}");
+        }
+    }
+}
+
+/// Every `<name ...>` opening tag of the SVG.
+fn elements(svg: &str, name: &str) -> Vec<String> {
+    let open = format!("<{name} ");
+    let mut out = Vec::new();
+    let mut rest = svg;
+    while let Some(i) = rest.find(&open) {
+        let end = rest[i..].find('>').unwrap() + i;
+        out.push(rest[i..end].to_string());
+        rest = &rest[end..];
+    }
+    out
+}
+
+/// A numeric attribute of a tag.
+fn num(tag: &str, name: &str) -> f64 {
+    let i = tag.find(&format!(" {name}=\"")).unwrap_or_else(|| panic!("no {name} in {tag}")) + name.len() + 3;
+    tag[i..].split('"').next().unwrap().parse().unwrap()
+}
+
+#[test]
+fn legend_growth_line_breaks_and_shortened_titles() {
+    use idexp::io::plot::{fit_text, legend_place, line_segments};
+    // data filling every corner of the unit square: the range grows until
+    // the chosen corner's box (30 % × 30 %) is empty
+    let fill: Vec<(f64, f64)> = (0..=20).flat_map(|i| (0..=20).map(move |j| (i as f64 / 20.0, j as f64 / 20.0))).collect();
+    let (k, (lo, hi)) = legend_place(fill.iter().copied(), (0.0, 1.0, false), (0.0, 1.0, false), (0.3, 0.3));
+    assert!(hi > 1.0 || lo < 0.0, "range not grown: {lo} {hi}");
+    let inside = fill.iter().filter(|(x, y)| {
+        let (u, w) = (*x, (y - lo) / (hi - lo));
+        let col = if k % 2 == 0 { u <= 0.3 } else { u >= 0.7 };
+        let row = if k < 2 { w >= 0.7 } else { w <= 0.3 };
+        col && row
+    });
+    assert_eq!(inside.count(), 0, "corner {k}, range {lo}..{hi}");
+    // an empty corner keeps the range
+    let low: Vec<(f64, f64)> = (0..=20).map(|i| (i as f64 / 20.0, 0.1)).collect();
+    assert_eq!(
+        legend_place(low.iter().copied(), (0.0, 1.0, false), (0.0, 1.0, false), (0.3, 0.3)),
+        (0, (0.0, 1.0))
+    );
+    // a time series with rows left out is drawn in pieces
+    let t: Vec<(f64, f64)> = (0..10).chain(50..60).map(|i| (i as f64, 0.0)).collect();
+    let segs = line_segments(&t);
+    assert_eq!(segs.iter().map(Vec::len).collect::<Vec<_>>(), vec![10, 10]);
+    // a closed path (x not increasing) stays one line
+    let path: Vec<(f64, f64)> = (0..20).map(|i| ((i as f64).cos(), (i as f64).sin())).collect();
+    assert_eq!(line_segments(&path).len(), 1);
+    assert_eq!(fit_text("short", 10), "short");
+    let long = fit_text("identifiability of /a/very/long/folder/name/excite_ur5/trajectory.csv", 40);
+    assert_eq!(long.chars().count(), 40);
+    assert!(
+        long.ends_with("trajectory.csv") && long.starts_with("identifiability") && long.contains('…'),
+        "{long}"
+    );
 }
 
 #[test]

@@ -159,43 +159,136 @@ pub fn tick_label(v: f64) -> String {
 /// first). Each corner is the box of 40 % of the width and 35 % of the height
 /// in axis coordinates (log axes in decades); `x`, `y` are (lo, hi, log).
 pub fn emptiest_corner(pts: impl Iterator<Item = (f64, f64)>, x: (f64, f64, bool), y: (f64, f64, bool)) -> usize {
-    let unit = |v: f64, (lo, hi, log): (f64, f64, bool)| -> Option<f64> {
-        let (v, lo, hi) = if log {
-            if v <= 0.0 || lo <= 0.0 {
-                return None;
+    legend_place(pts, x, y, (0.4, 0.35)).0
+}
+
+/// Where a legend box of `frac` = (width, height), in fractions of the
+/// plotting area, goes so that it covers no data point: the corner (0 upper
+/// left, 1 upper right, 2 lower left, 3 lower right) and the y range to draw.
+/// A corner already empty keeps the range (ties: the first). Otherwise the
+/// y range grows away from the data on the side of the corner that needs the
+/// least growth, until every point under (or over) the legend's columns lies
+/// outside the box: the legend then sits in a band of its own, never on the
+/// data. Log axes work in decades; `x`, `y` are (lo, hi, log).
+pub fn legend_place(pts: impl Iterator<Item = (f64, f64)>, x: (f64, f64, bool), y: (f64, f64, bool), frac: (f64, f64)) -> (usize, (f64, f64)) {
+    let to = |v: f64, log: bool| {
+        if log {
+            if v > 0.0 {
+                v.log10()
+            } else {
+                f64::NAN
             }
-            (v.log10(), lo.log10(), hi.log10())
         } else {
-            (v, lo, hi)
-        };
-        let u = (v - lo) / (hi - lo);
-        u.is_finite().then_some(u)
+            v
+        }
     };
+    let (ux0, ux1) = (to(x.0, x.2), to(x.1, x.2));
+    let (uy0, uy1) = (to(y.0, y.2), to(y.1, y.2));
+    let (bw, bh) = (frac.0.clamp(0.05, 0.95), frac.1.clamp(0.05, 0.9));
+    // per corner: count inside the box, and the extreme y of the points in
+    // the legend's columns (max for an upper corner, min for a lower one)
     let mut count = [0usize; 4];
+    let mut ext = [f64::NEG_INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::INFINITY];
     for (a, b) in pts {
-        let (Some(u), Some(w)) = (unit(a, x), unit(b, y)) else { continue };
-        let (left, right, top, bottom) = (u <= 0.4, u >= 0.6, w >= 0.65, w <= 0.35);
-        for (k, inside) in [left && top, right && top, left && bottom, right && bottom].into_iter().enumerate() {
-            if inside {
-                count[k] += 1;
+        let (a, b) = (to(a, x.2), to(b, y.2));
+        let u = (a - ux0) / (ux1 - ux0);
+        let w = (b - uy0) / (uy1 - uy0);
+        if !(u.is_finite() && w.is_finite()) || !(0.0..=1.0).contains(&u) {
+            continue;
+        }
+        let (left, right, top, bottom) = (u <= bw, u >= 1.0 - bw, w >= 1.0 - bh, w <= bh);
+        for (k, (col, row)) in [(left, top), (right, top), (left, bottom), (right, bottom)].into_iter().enumerate() {
+            if col {
+                if row {
+                    count[k] += 1;
+                }
+                ext[k] = if k < 2 { ext[k].max(b) } else { ext[k].min(b) };
             }
         }
     }
-    (0..4).min_by_key(|&k| count[k]).unwrap_or(1)
+    let from = |v: f64| if y.2 { 10f64.powf(v) } else { v };
+    if let Some(k) = (0..4).find(|&k| count[k] == 0) {
+        return (k, (y.0, y.1));
+    }
+    // growth needed per corner so that the box is above (below) the data
+    let grow = |k: usize| -> (f64, f64, f64) {
+        if k < 2 {
+            // (hi' − m) = bh (hi' − lo)
+            let hi = (ext[k] - bh * uy0) / (1.0 - bh);
+            (hi - uy1, uy0, hi.max(uy1))
+        } else {
+            let lo = (ext[k] - bh * uy1) / (1.0 - bh);
+            (uy0 - lo, lo.min(uy0), uy1)
+        }
+    };
+    let best = (0..4).min_by(|&a, &b| grow(a).0.total_cmp(&grow(b).0)).unwrap_or(1);
+    let (_, lo, hi) = grow(best);
+    // a small pad so the box does not touch the outermost point
+    let pad = 0.02 * (hi - lo);
+    let (lo, hi) = if best < 2 { (lo, hi + pad) } else { (lo - pad, hi) };
+    (best, (from(lo), from(hi)))
 }
 
-/// Tick positions of a log axis over [lo, hi] (lo > 0): the decades, with 2
-/// and 5 between them when the range spans at most two decades, every 1..9
-/// inside a single decade, and every k-th decade on ranges over 8 decades.
+/// `text` shortened to at most `max` characters by an ellipsis in the middle
+/// (a long path keeps its start and its file name); unchanged when it fits.
+pub fn fit_text(text: &str, max: usize) -> String {
+    let n = text.chars().count();
+    if n <= max || max < 5 {
+        return text.to_string();
+    }
+    let keep = max - 1;
+    let (head, tail) = (keep * 2 / 5, keep - keep * 2 / 5);
+    let start: String = text.chars().take(head).collect();
+    let end: String = text.chars().skip(n - tail).collect();
+    format!("{start}…{end}")
+}
+
+/// A line's points split where the abscissa jumps: for increasing x, at
+/// every step longer than 5× the median step (points left out there); any
+/// other line is one segment.
+pub fn line_segments(pts: &[(f64, f64)]) -> Vec<Vec<(f64, f64)>> {
+    let steps: Vec<f64> = pts.windows(2).map(|w| w[1].0 - w[0].0).collect();
+    if steps.len() < 4 || steps.iter().any(|d| !(*d > 0.0)) {
+        return vec![pts.to_vec()];
+    }
+    let mut sorted = steps.clone();
+    sorted.sort_by(f64::total_cmp);
+    let gap = 5.0 * sorted[sorted.len() / 2];
+    let mut out = vec![vec![pts[0]]];
+    for (k, d) in steps.iter().enumerate() {
+        if *d > gap {
+            out.push(Vec::new());
+        }
+        out.last_mut().expect("non-empty").push(pts[k + 1]);
+    }
+    out
+}
+
+/// The smallest positive gap between distinct finite abscissae (None for
+/// fewer than two distinct values).
+fn min_spacing(x: &[f64]) -> Option<f64> {
+    let mut v: Vec<f64> = x.iter().copied().filter(|a| a.is_finite()).collect();
+    v.sort_by(f64::total_cmp);
+    v.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).min_by(f64::total_cmp)
+}
+
+/// Tick positions of a log axis over [lo, hi] (lo > 0): every 1..9 on a
+/// range of at most 0.6 decades, 1, 2, 3, 5 up to 1.5 decades, 1, 2, 5 up to
+/// 3.5 decades, the decades beyond (every k-th decade over 8 decades).
 pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
     if !(lo > 0.0 && hi > lo && lo.is_finite() && hi.is_finite()) {
         return vec![];
     }
     let (d0, d1) = (lo.log10().floor() as i32, hi.log10().ceil() as i32);
     let span = d1 - d0;
-    let mults: &[f64] = if span <= 1 {
+    // subdivisions by the decades the range really spans (0.25…2.3 is one
+    // decade, though it touches three)
+    let decades = (hi / lo).log10();
+    let mults: &[f64] = if decades <= 0.6 {
         &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]
-    } else if span <= 3 {
+    } else if decades <= 1.5 {
+        &[1.0, 2.0, 3.0, 5.0]
+    } else if decades <= 3.5 {
         &[1.0, 2.0, 5.0]
     } else {
         &[1.0]
@@ -218,6 +311,7 @@ mod draw {
     use super::{Mark, Panel, Result};
     use crate::error::Error;
     use plotters::prelude::*;
+    use plotters::style::text_anchor::{HPos, Pos, VPos};
     use std::path::Path;
 
     const COLORS: [RGBColor; 8] = [
@@ -263,7 +357,10 @@ mod draw {
         {
             let root = SVGBackend::with_string(&mut svg, (w, h)).into_drawing_area();
             root.fill(&WHITE).map_err(perr(path))?;
-            let root = root.titled(title, ("sans-serif", 20)).map_err(perr(path))?;
+            // a title wider than the figure (e.g. one naming a long path) is
+            // shortened in the middle, never cut by the canvas edge
+            let title = super::fit_text(title, ((w as f64 - 20.0) / 7.5) as usize);
+            let root = root.titled(&title, ("sans-serif", 20)).map_err(perr(path))?;
             let areas = root.split_evenly((rows, cols));
             for (panel, area) in panels.iter().zip(areas.iter()) {
                 draw_panel(path, panel, area)?;
@@ -293,9 +390,37 @@ mod draw {
         let names = !p.x_names.is_empty() && !p.log_x;
         let (x0, x1) = if names { (0.4, p.x_names.len() as f64 + 0.6) } else { (x0, x1) };
         let longest = p.x_names.iter().map(|n| n.chars().count()).max().unwrap_or(0);
-        let x_area = if names { (30 + 7 * longest as u32).clamp(40, 160) } else { 32 };
+        let x_area = if names { (34 + 6 * longest as u32).clamp(40, 160) } else { 32 };
+        // the legend: its box (10 px font: ~6 px per character, 15 px per
+        // row, 40 px of key and padding) against the plotting area, and the
+        // y range that keeps it off the data
+        let labels: Vec<&str> = p
+            .series
+            .iter()
+            .map(|s| s.label.as_str())
+            .chain(p.hlines.iter().map(|h| h.1.as_str()))
+            .filter(|l| !l.is_empty())
+            .collect();
+        let (pw, ph) = area.dim_in_pixel();
+        let plot_w = (pw as f64 - 16.0 - 56.0 - 8.0).max(50.0);
+        let plot_h = (ph as f64 - 16.0 - 24.0 - x_area as f64).max(50.0);
+        let widest = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0);
+        let frac = ((6.0 * widest as f64 + 50.0) / plot_w, (15.0 * labels.len() as f64 + 22.0) / plot_h);
+        let (corner, (y0, y1)) = if labels.is_empty() {
+            (1, (y0, y1))
+        } else {
+            // the data and the reference lines (sampled across the panel)
+            let lines: Vec<(f64, f64)> = p
+                .hlines
+                .iter()
+                .flat_map(|h| (0..=40).map(move |k| (x0 + (x1 - x0) * k as f64 / 40.0, h.0)))
+                .collect();
+            let pts = p.series.iter().flat_map(|s| s.x.iter().copied().zip(s.y.iter().copied())).chain(lines);
+            super::legend_place(pts, (x0, x1, p.log_x), (y0, y1, p.log_y), frac)
+        };
+        let caption = super::fit_text(&p.title, ((pw as f64 - 16.0) / 5.6) as usize);
         let mut b = ChartBuilder::on(area);
-        b.caption(&p.title, ("sans-serif", 14))
+        b.caption(&caption, ("sans-serif", 14))
             .margin(8)
             .x_label_area_size(x_area)
             .y_label_area_size(56);
@@ -303,17 +428,8 @@ mod draw {
             if !names {
                 return super::tick_label(*v);
             }
-            let i = v.round();
-            if (v - i).abs() < 1e-6 && i >= 1.0 && i <= p.x_names.len() as f64 {
-                p.x_names[i as usize - 1].clone()
-            } else {
-                String::new()
-            }
-        };
-        let x_style = if names {
-            ("sans-serif", 10).into_font().transform(FontTransform::Rotate90)
-        } else {
-            ("sans-serif", 11).into_font()
+            // the names are drawn below, rotated and starting under the axis
+            String::new()
         };
         macro_rules! body {
             ($chart:expr) => {{
@@ -324,7 +440,7 @@ mod draw {
                     .y_desc(p.y_label.as_str())
                     .label_style(("sans-serif", 11))
                     .axis_desc_style(("sans-serif", 11))
-                    .x_label_style(x_style.clone())
+                    .x_label_style(("sans-serif", 11))
                     // a categorical axis: a step of 1 (the formatter names the integers)
                     .x_labels(if names { p.x_names.len() + 1 } else { 10 })
                     .x_label_formatter(&x_fmt)
@@ -338,14 +454,26 @@ mod draw {
                     let c = COLORS[k % COLORS.len()];
                     let pts: Vec<(f64, f64)> = s.x.iter().zip(&s.y).map(|(a, b)| (*a, *b)).filter(|(a, b)| ok(*a, *b)).collect();
                     let anno = match s.mark {
-                        Mark::Line => chart.draw_series(LineSeries::new(pts.clone(), c.stroke_width(1))).map_err(perr(path))?,
+                        Mark::Line => {
+                            // a gap in the abscissae (rows left out, e.g. the
+                            // slow rows of an estimate) is a break in the line,
+                            // not a straight segment across it
+                            let mut segs = super::line_segments(&pts).into_iter();
+                            let first = segs.next().unwrap_or_default();
+                            for seg in segs {
+                                chart.draw_series(LineSeries::new(seg, c.stroke_width(1))).map_err(perr(path))?;
+                            }
+                            chart.draw_series(LineSeries::new(first, c.stroke_width(1))).map_err(perr(path))?
+                        }
                         Mark::Points => chart
                             .draw_series(pts.iter().map(|&(a, b)| Circle::new((a, b), 2, c.filled())))
                             .map_err(perr(path))?,
                         Mark::Bars => {
                             let base = if p.log_y { y0 } else { 0.0 };
+                            // bars 60 % of the spacing of the abscissae wide
+                            let half = 0.3 * super::min_spacing(&s.x).unwrap_or(0.05 * (x1 - x0)).min(0.1 * (x1 - x0));
                             chart
-                                .draw_series(pts.iter().map(|&(a, b)| PathElement::new(vec![(a, base), (a, b)], c.stroke_width(3))))
+                                .draw_series(pts.iter().map(|&(a, b)| Rectangle::new([(a - half, base), (a + half, b)], c.filled())))
                                 .map_err(perr(path))?
                         }
                     };
@@ -380,9 +508,24 @@ mod draw {
                         // one legend entry per label is enough
                     }
                 }
+                if names {
+                    // the category names, rotated by 90°, each starting 6 px
+                    // under the axis at its slot (plotters centres rotated
+                    // tick labels on the tick, half of them inside the plot)
+                    let base = area.get_base_pixel();
+                    let style = ("sans-serif", 10)
+                        .into_font()
+                        .transform(FontTransform::Rotate90)
+                        .color(&BLACK)
+                        .pos(Pos::new(HPos::Left, VPos::Center));
+                    for (i, name) in p.x_names.iter().enumerate() {
+                        let (px, py) = chart.backend_coord(&((i + 1) as f64, y0));
+                        area.draw(&Text::new(name.clone(), (px - base.0, py - base.1 + 6), style.clone()))
+                            .map_err(perr(path))?;
+                    }
+                }
                 if any_label {
-                    let pts = p.series.iter().flat_map(|s| s.x.iter().copied().zip(s.y.iter().copied()));
-                    let corner = match super::emptiest_corner(pts, (x0, x1, p.log_x), (y0, y1, p.log_y)) {
+                    let corner = match corner {
                         0 => SeriesLabelPosition::UpperLeft,
                         1 => SeriesLabelPosition::UpperRight,
                         2 => SeriesLabelPosition::LowerLeft,
