@@ -5,8 +5,14 @@
 # or "about N s" with N > 60, lines marked `# long`, the test-suite line and
 # the Slurm recipe (run by scripts/slurm-test.sh). Each must exit 0 (or 3 for
 # a documented infeasible/unusable outcome) within 5 minutes.
+# A `pip install` line ("into the active Python") runs with the venv
+# target/python-venv active when it exists (made by scripts/python-test.sh):
+# Debian's system Python refuses pip installs (PEP 668).
 #   scripts/readme-commands.sh            # all fast commands
 #   scripts/readme-commands.sh --list     # print them only
+#   scripts/readme-commands.sh --ci       # in this checkout (CI's clean clone, already built;
+#                                         # a clone elsewhere rebuilds the crate), and without
+#                                         # ./scripts/python-test.sh (.ci/run has just run it)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 repo=$(pwd)
@@ -17,15 +23,36 @@ cmds=$(awk '
   inb && cont != "" {cont = cont " " $0; if ($0 !~ /\\$/) {print cont; cont = ""}; next}
   inb && !slurm && (/^cargo run/ || /^\.\/scripts\//) {if ($0 ~ /\\$/) cont = $0; else print}
 ' README.md | grep -v -E '# long|cargo test|[0-9] ?min|[(]about ([6-9][0-9]|[0-9]{3,}) s' || true)
-if [ "${1:-}" = "--list" ]; then
+ci=0 list=0
+for a in "$@"; do
+  case $a in
+    --ci) ci=1 ;;
+    --list) list=1 ;;
+    *) echo "readme-commands: unknown option $a (allowed: --ci, --list)" >&2; exit 2 ;;
+  esac
+done
+if [ $ci = 1 ]; then
+  cmds=$(printf '%s\n' "$cmds" | grep -v -x -F './scripts/python-test.sh' || true)
+fi
+if [ $list = 1 ]; then
   printf '%s\n' "$cmds"
   exit 0
 fi
 work=$(mktemp -d /tmp/idexp-readme.XXXXXX)
 trap 'rm -rf "$work"' EXIT
-git clone -q --local "$repo" "$work/clone"
-cd "$work/clone"
-# the clone builds into the repository's target/ (no second 5-minute build)
+if [ $ci = 1 ]; then
+  if [ -n "$(git status --porcelain --untracked-files=normal)" ] || [ -e out ]; then
+    echo "readme-commands --ci: this checkout is not clean (or has out/): run it on a clean clone" >&2
+    exit 1
+  fi
+else
+  git clone -q --local "$repo" "$work/clone"
+  cd "$work/clone"
+  # the clone's path differs from the repository's: cargo rebuilds the crate
+  # once, before the timed commands
+  CARGO_TARGET_DIR="$repo/target" cargo build -q --release --bins --examples
+fi
+# the repository's target/ (dependencies built once)
 export CARGO_TARGET_DIR="$repo/target" IDEXP_NO_PROGRESS=1
 n=0
 fail=0
@@ -35,7 +62,11 @@ while IFS= read -r c; do
   n=$((n + 1))
   start=$(date +%s)
   set +e
-  timeout 300 bash -c "$c" >"$work/out.txt" 2>&1
+  if [[ "$c" == *"pip install"* ]] && [ -x "$repo/target/python-venv/bin/python" ]; then
+    timeout 300 env VIRTUAL_ENV="$repo/target/python-venv" PATH="$repo/target/python-venv/bin:$PATH" bash -c "$c" >"$work/out.txt" 2>&1
+  else
+    timeout 300 bash -c "$c" >"$work/out.txt" 2>&1
+  fi
   rc=$?
   set -e
   if [ "$rc" -ne 0 ] && [ "$rc" -ne 3 ]; then
