@@ -12,7 +12,8 @@
 #   scripts/readme-commands.sh --list     # print them only
 #   scripts/readme-commands.sh --ci       # in this checkout (CI's clean clone, already built;
 #                                         # a clone elsewhere rebuilds the crate), and without
-#                                         # ./scripts/python-test.sh (.ci/run has just run it)
+#                                         # the Python lines (.ci/run has just run python-test.sh,
+#                                         # which does the same `pip install ./python` in its venv)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 repo=$(pwd)
@@ -32,7 +33,9 @@ for a in "$@"; do
   esac
 done
 if [ $ci = 1 ]; then
-  cmds=$(printf '%s\n' "$cmds" | grep -v -x -F './scripts/python-test.sh' || true)
+  # .ci/run has just run scripts/python-test.sh, which builds and installs
+  # the package with the same `pip install ./python` into target/python-venv
+  cmds=$(printf '%s\n' "$cmds" | grep -v -e '^\./scripts/python-test\.sh$' -e 'pip install \./python' || true)
 fi
 if [ $list = 1 ]; then
   printf '%s\n' "$cmds"
@@ -63,7 +66,7 @@ while IFS= read -r c; do
   start=$(date +%s)
   set +e
   if [[ "$c" == *"pip install"* ]] && [ -x "$repo/target/python-venv/bin/python" ]; then
-    timeout 300 env VIRTUAL_ENV="$repo/target/python-venv" PATH="$repo/target/python-venv/bin:$PATH" bash -c "$c" >"$work/out.txt" 2>&1
+    timeout 900 env VIRTUAL_ENV="$repo/target/python-venv" PATH="$repo/target/python-venv/bin:$PATH" bash -c "$c" >"$work/out.txt" 2>&1
   else
     timeout 300 bash -c "$c" >"$work/out.txt" 2>&1
   fi
