@@ -651,3 +651,99 @@ fn standstill_torque_error_of_the_tanh_model_comes_from_the_velocity_estimate() 
     }
     assert!(zt < 5.0, "max|z| {zt}");
 }
+
+/// Simulates a shipped design with `edit` applied to it.
+fn simulate_edited(name: &str, edit: impl Fn(&mut idexp::sim::SimDesign)) -> idexp::sim::SimResult {
+    let path = root(&format!("designs/{name}.toml"));
+    let mut d = idexp::sim::SimDesign::read(&path).unwrap();
+    edit(&mut d);
+    d.validate(&path.display().to_string()).unwrap();
+    let setup = idexp::sim::SimSetup::from_design(&d, &root("designs"), &path.display().to_string()).unwrap();
+    setup.run(&idexp::optim::Control::new()).unwrap()
+}
+
+#[test]
+#[ignore]
+fn scratch_measure_logged_velocity() {
+    use idexp::ident::{Filter, FilterChoice, IdentOptions, Standstill, VelocityFrom};
+    use idexp::sim::PerJoint;
+    let sign = robot::load(&root("tests/data/ident/rpr_drives.toml")).unwrap();
+    let noise: f64 = std::env::var("VNOISE").ok().map_or(idexp::sim::DRIVE_VELOCITY_NOISE, |s| s.parse().unwrap());
+    for seed in [2u64, 12, 22] {
+        let res = simulate_edited("sim_rpr_pick_place", |d| {
+            d.record_velocity = true;
+            d.noise.velocity = Some(PerJoint::All(noise));
+            d.seed = seed;
+        });
+        let val = simulate_edited("sim_rpr_pick_place_validate", |d| {
+            d.record_velocity = true;
+            d.noise.velocity = Some(PerJoint::All(noise));
+            d.seed = seed + 1;
+        });
+        let tanh = res.setup.nominal.clone();
+        // spread of the logged velocity over the repetitions at rest
+        let n = 3;
+        let m = res.reps[0].len();
+        let (mut sp, mut cnt) = (vec![0.0; n], 0);
+        for p in 0..m {
+            let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            res.setup.reference.eval(res.reps[0].t[p] - res.reps[0].t[0], &mut q, &mut qd, &mut qdd);
+            if qd.iter().chain(&qdd).all(|v| v.abs() < 1e-9) {
+                for j in 0..n {
+                    let mean: f64 = res.reps.iter().map(|r| r.qd.as_ref().unwrap()[p][j]).sum::<f64>() / 10.0;
+                    sp[j] += res.reps.iter().map(|r| (r.qd.as_ref().unwrap()[p][j] - mean).powi(2)).sum::<f64>() / 9.0;
+                }
+                cnt += 1;
+            }
+        }
+        let sp: Vec<f64> = sp.iter().map(|v| (v / cnt as f64).sqrt()).collect();
+        println!("seed {seed} vnoise {noise:e}: spread of logged qd over reps at rest {:?}", sp.iter().map(|x| format!("{x:.2e}")).collect::<Vec<_>>());
+        for (name, robot, opts) in [
+            ("tanh log lp10", &tanh, IdentOptions::default()),
+            (
+                "tanh log lp20",
+                &tanh,
+                IdentOptions {
+                    filter: FilterChoice::Given(Filter::LowPass { cutoff: 20.0 }),
+                    ..Default::default()
+                },
+            ),
+            (
+                "tanh log lp40",
+                &tanh,
+                IdentOptions {
+                    filter: FilterChoice::Given(Filter::LowPass { cutoff: 40.0 }),
+                    ..Default::default()
+                },
+            ),
+            (
+                "tanh positions",
+                &tanh,
+                IdentOptions {
+                    velocity_from: VelocityFrom::Positions,
+                    ..Default::default()
+                },
+            ),
+            ("sign dropped", &sign, IdentOptions::default()),
+            (
+                "sign every row",
+                &sign,
+                IdentOptions {
+                    standstill: Standstill::Keep,
+                    ..Default::default()
+                },
+            ),
+        ] {
+            let (id, rms, floor, z) = ident_with(robot, &res, &val, &opts);
+            let t = id.estimate.truth.as_ref().unwrap();
+            let mut big: Vec<String> = t.iter().filter(|r| r.z.abs() > 2.5).map(|r| format!("{}:{:.1}", r.name, r.z)).collect();
+            big.truncate(8);
+            println!(
+                "  {name:<16} max|z| {z:6.2} [{}] standstill RMS {rms:.4?} floor {floor:.4?} e_all {:.2?} val {:.2?}",
+                big.join(" "),
+                id.estimate.errors_all.e_rel.iter().map(|x| 100.0 * x).collect::<Vec<_>>(),
+                id.estimate.validation_all.as_ref().unwrap().e_rel.iter().map(|x| 100.0 * x).collect::<Vec<_>>()
+            );
+        }
+    }
+}

@@ -16,7 +16,10 @@
 //!   τ_ff the inverse dynamics of the **nominal** model (or its gravity part, or none);
 //! * the plant (true parameters) integrates (q, q̇) over Δt with RK4 (`substeps`
 //!   steps) under τ + d, d ~ N(0, σ_d²) held over the period (unmeasured disturbance);
-//! * recorded: t, q_m, τ + n_τ (n_τ ~ N(0, σ_τ²), the torque measurement), r.
+//! * recorded: t, q_m, τ + n_τ (n_τ ~ N(0, σ_τ²), the torque measurement), r;
+//!   with `record_velocity = true` also the drive's velocity q̇ + n_v (the
+//!   plant's velocity at t_k, n_v ~ N(0, σ_v²), `noise.velocity`, default
+//!   [`DRIVE_VELOCITY_NOISE`]) as `qd1..qdn`.
 //!
 //! Default gains place each joint at `bandwidth` Hz with damping `damping`
 //! using the diagonal of the nominal mass matrix at the start:
@@ -173,7 +176,18 @@ pub struct NoiseSpec {
     pub encoder_counts: f64,
     /// Standard deviation of the unmeasured torque disturbance at the plant input (N·m).
     pub disturbance: PerJoint,
+    /// Standard deviation of the drive's logged velocity (rad/s or m/s; with
+    /// `record_velocity = true`; default [`DRIVE_VELOCITY_NOISE`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub velocity: Option<PerJoint>,
 }
+
+/// Default noise of a logged drive velocity (rad/s): the quantisation of a
+/// velocity taken from a 2²⁰-count motor encoder through a 100:1 gear over a
+/// 1 ms logging period, 2π/(2²⁰·100·1 ms) = 6.0e-5 rad/s per count, whose
+/// uniform rounding error has σ = 6.0e-5/√12 = 1.7e-5 rad/s (simulated as
+/// white Gaussian noise of that σ).
+pub const DRIVE_VELOCITY_NOISE: f64 = 1.7e-5;
 
 /// A simulation design file (`idexp simulate <design.toml>`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -215,6 +229,11 @@ pub struct SimDesign {
     /// file's torque_constant, gear_ratio and current_sign) or `both`.
     #[serde(default, skip_serializing_if = "Record::is_torque")]
     pub record: Record,
+    /// Also log the drive's joint velocities `qd1..qdn` (the plant's q̇ at
+    /// each sample plus `noise.velocity`), as UR, KUKA, ABB and Franka
+    /// controllers log the velocity of the motor encoder through the gear.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub record_velocity: bool,
 }
 
 /// What a simulated run logs of the drive input (design key `record`).
@@ -313,6 +332,16 @@ impl SimDesign {
         self.noise.torque.check(ctx, "noise.torque")?;
         self.noise.position.check(ctx, "noise.position")?;
         self.noise.disturbance.check(ctx, "noise.disturbance")?;
+        if let Some(v) = &self.noise.velocity {
+            v.check(ctx, "noise.velocity")?;
+            if !self.record_velocity {
+                return Err(Error::invalid(
+                    ctx,
+                    "noise.velocity",
+                    "the noise of the logged drive velocities, but no velocities are logged: add record_velocity = true (or drop noise.velocity)",
+                ));
+            }
+        }
         for (f, v) in [
             ("controller.kp", &self.controller.kp),
             ("controller.kd", &self.controller.kd),
@@ -366,6 +395,8 @@ pub struct SimSetup {
     pub position_noise: Vec<f64>,
     /// Disturbance σ_d per joint.
     pub disturbance: Vec<f64>,
+    /// σ_v of the logged drive velocities per joint, when they are logged.
+    pub velocity_noise: Option<Vec<f64>>,
     /// Quantisation step (rad; 0 = none).
     pub quantum: f64,
     /// Repetitions.
@@ -567,6 +598,11 @@ impl SimSetup {
             torque_noise: d.noise.torque.resolve(n, ctx, "noise.torque")?,
             position_noise: d.noise.position.resolve(n, ctx, "noise.position")?,
             disturbance: d.noise.disturbance.resolve(n, ctx, "noise.disturbance")?,
+            velocity_noise: match (d.record_velocity, &d.noise.velocity) {
+                (false, _) => None,
+                (true, None) => Some(vec![DRIVE_VELOCITY_NOISE; n]),
+                (true, Some(v)) => Some(v.resolve(n, ctx, "noise.velocity")?),
+            },
             nominal,
             truth,
             reference,
@@ -686,6 +722,9 @@ impl SimSetup {
                     if let Some(rr) = rep.r.as_mut() {
                         rr.push(r.clone());
                     }
+                    if let (Some(v), Some(sv)) = (rep.qd.as_mut(), &self.velocity_noise) {
+                        v.push((0..n).map(|j| lp.qd[j] + sv[j] * unit.sample(rng)).collect());
+                    }
                 }
             }
             // plant: RK4 under τ + d
@@ -711,7 +750,7 @@ impl SimSetup {
             q: Vec::new(),
             tau: Vec::new(),
             r: Some(Vec::new()),
-            qd: None,
+            qd: self.velocity_noise.as_ref().map(|_| Vec::new()),
             qdd: None,
         };
         let obs = ctl.observer();
