@@ -521,4 +521,51 @@ mod tests {
         // a record that is not a whole number of periods is refused for Fourier filtering
         assert!(process(&run, &Filter::Fourier { omega: w * 1.1, n_h: 3 }).is_err());
     }
+
+    #[test]
+    fn logged_velocities_are_used_unfiltered_and_differentiated_through_the_filter() {
+        // q = 0.3 sin(ωt) with its exact velocity logged, plus a 40 Hz ripple on
+        // the logged velocity that the low-pass must remove from q̈ but not from q̇
+        let w = std::f64::consts::TAU * 0.5;
+        let t: Vec<f64> = (0..400).map(|i| i as f64 * 0.005).collect();
+        let ripple = |t: f64| 1e-4 * (std::f64::consts::TAU * 40.0 * t).sin();
+        let rep = |acc: bool| Repetition {
+            t: t.clone(),
+            q: t.iter().map(|t| vec![0.3 * (w * t).sin()]).collect(),
+            tau: t.iter().map(|_| vec![1.0]).collect(),
+            r: None,
+            qd: Some(t.iter().map(|t| vec![0.3 * w * (w * t).cos() + ripple(*t)]).collect()),
+            qdd: acc.then(|| t.iter().map(|t| vec![-0.3 * w * w * (w * t).sin()]).collect()),
+        };
+        let run = Run::new(vec![], vec![rep(false), rep(false)]).unwrap();
+        let lp = Filter::LowPass { cutoff: 10.0 };
+        let pr = process(&run, &lp).unwrap();
+        assert_eq!(pr.velocity, VelocitySource::Logged);
+        assert!(pr.joint_cov.is_some());
+        for p in 40..360 {
+            let tt = t[p];
+            assert_eq!(pr.qd[p][0], 0.3 * w * (w * tt).cos() + ripple(tt));
+            // the ripple's derivative (2.5e-2 rad/s²) is filtered out of q̈
+            assert!((pr.qdd[p][0] + 0.3 * w * w * (w * tt).sin()).abs() < 2e-3, "{p}: {}", pr.qdd[p][0]);
+        }
+        // the Fourier path differentiates the Fourier fit of the logged velocity
+        let pf = process(&run, &Filter::Fourier { omega: w, n_h: 3 }).unwrap();
+        for p in 0..400 {
+            assert!((pf.qdd[p][0] + 0.3 * w * w * (w * t[p]).sin()).abs() < 1e-6, "{p}");
+        }
+        // logged accelerations are taken as they are
+        let pa = process(&Run::new(vec![], vec![rep(true), rep(true)]).unwrap(), &lp).unwrap();
+        assert_eq!(pa.velocity, VelocitySource::LoggedWithAcceleration);
+        assert_eq!(pa.qdd[17][0], -0.3 * w * w * (w * t[17]).sin());
+        // positions only: the logged columns are ignored
+        let pp = process_with(&run, &lp, VelocityFrom::Positions).unwrap();
+        assert_eq!(pp.velocity, VelocitySource::Positions);
+        assert!((pp.qd[200][0] - 0.3 * w * (w * t[200]).cos()).abs() < 1e-3);
+        assert_ne!(pp.qd[200][0], pr.qd[200][0]);
+        // log without logged velocities
+        let mut bare = rep(false);
+        bare.qd = None;
+        let e = process_with(&Run::new(vec![], vec![bare]).unwrap(), &lp, VelocityFrom::Log).unwrap_err();
+        assert!(e.to_string().contains("--velocity-from") && e.to_string().contains("qd1..qd1"), "{e}");
+    }
 }
