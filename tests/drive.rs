@@ -338,10 +338,13 @@ fn pick_and_place_with_dwell_tanh_model_beats_sign_model_at_standstill() {
             num(rms)
         );
     }
-    // issue 16's acceptance is not met on this process (README "Drives"): the
-    // velocity estimated at rest is off by amounts comparable to v_s, so the
-    // tanh estimate is biased beyond 3σ and its standstill error is above the
-    // noise on joints 1 and 3 (see the test below for the cause)
+    // with q̇ from the positions (this run logs no qd*), issue 16's acceptance
+    // is not met (README "Drives"): the velocity estimated at rest is off by
+    // amounts comparable to v_s, so the tanh estimate is biased beyond 3σ and
+    // its standstill error is above the noise on joints 1 and 3 (see
+    // `standstill_torque_error_of_the_tanh_model_comes_from_the_velocity_estimate`);
+    // with the drive's logged velocities it is met
+    // (`pick_and_place_with_logged_drive_velocities_meets_the_standstill_acceptance`)
     assert!(zt > 3.0, "max|z| {zt}: the acceptance is met now, update README \"Drives\"");
     assert!(rt[0] > 2.0 * ft[0] && rt[2] > 2.0 * ft[2] && rt[1] < 2.0 * ft[1], "{rt:?} vs {ft:?}");
     for j in 0..3 {
@@ -643,11 +646,227 @@ fn standstill_torque_error_of_the_tanh_model_comes_from_the_velocity_estimate() 
         .collect();
     let val = simulate_shipped("sim_rpr_pick_place_validate");
     let res = SimResult { reps, ..noisy.clone() };
-    let (_, rt, ft, zt) = ident_with(&noisy.setup.nominal, &res, &val, &idexp::ident::IdentOptions::default());
-    println!("tanh model on the true states: standstill RMS {rt:.4?} N·m, noise {ft:.4?}, max|z| {zt:.1}");
-    // at the noise level, and near 3σ (max |z| 3.5 measured over 30+ parameters)
+    let (it, rt, ft, zt) = ident_with(&noisy.setup.nominal, &res, &val, &idexp::ident::IdentOptions::default());
+    let big = |id: &idexp::ident::Identification| -> String {
+        let t = id.estimate.truth.as_ref().unwrap();
+        t.iter()
+            .filter(|r| r.z.abs() > 2.5)
+            .map(|r| format!("{} {:+.2}", r.name, r.z))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    println!(
+        "tanh model on the true states: standstill RMS {rt:.4?} N·m, noise {ft:.4?}, max|z| {zt:.2} (|z| > 2.5: {})",
+        big(&it)
+    );
+    // at the noise level, and near 3σ (18 base parameters)
     for j in 0..n {
         assert!(rt[j] < 1.2 * ft[j], "joint {j}: {} vs {}", rt[j], ft[j]);
     }
     assert!(zt < 5.0, "max|z| {zt}");
+    // chance or bias: the same true states with two more draws of the torque noise
+    for seed in [12, 13] {
+        let mut g = rng(seed);
+        let mut gauss = || {
+            let (u, v): (f64, f64) = (g.random::<f64>().max(1e-300), g.random::<f64>());
+            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+        };
+        let reps: Vec<Repetition> = res
+            .reps
+            .iter()
+            .map(|r| Repetition {
+                tau: (0..m).map(|p| (0..n).map(|j| c.tau[k_of(p)][j] + 0.05 * gauss()).collect()).collect(),
+                ..r.clone()
+            })
+            .collect();
+        let res = SimResult { reps, ..noisy.clone() };
+        let (id, r, _, z) = ident_with(&noisy.setup.nominal, &res, &val, &idexp::ident::IdentOptions::default());
+        println!(
+            "  torque-noise seed {seed}: standstill RMS {r:.4?} N·m, max|z| {z:.2} (|z| > 2.5: {})",
+            big(&id)
+        );
+        assert!(z < 5.0, "seed {seed}: max|z| {z}");
+    }
+}
+
+/// Simulates a shipped design with `edit` applied to it.
+fn simulate_edited(name: &str, edit: impl Fn(&mut idexp::sim::SimDesign)) -> idexp::sim::SimResult {
+    let path = root(&format!("designs/{name}.toml"));
+    let mut d = idexp::sim::SimDesign::read(&path).unwrap();
+    edit(&mut d);
+    d.validate(&path.display().to_string()).unwrap();
+    let setup = idexp::sim::SimSetup::from_design(&d, &root("designs"), &path.display().to_string()).unwrap();
+    setup.run(&idexp::optim::Control::new()).unwrap()
+}
+
+/// The pick-and-place process of `pick_and_place_with_dwell_tanh_model_beats_sign_model_at_standstill`
+/// with the drive's velocities logged (`record_velocity`, default noise
+/// 1.7e-5 rad/s; q and τ are the same samples as without them). Identified
+/// with the logged q̇ (q̈ from it, low-pass 40 Hz), the tanh model on every
+/// row meets issue 16's acceptance; the sign model on the same data does
+/// not. Measured, not tuned: the numbers are printed (README "Drives").
+#[test]
+fn pick_and_place_with_logged_drive_velocities_meets_the_standstill_acceptance() {
+    use idexp::ident::{Filter, FilterChoice, IdentOptions, Standstill, VelocityFrom, VelocitySource};
+    let logged = |d: &mut idexp::sim::SimDesign| d.record_velocity = true;
+    let res = simulate_edited("sim_rpr_pick_place", logged);
+    let val = simulate_edited("sim_rpr_pick_place_validate", logged);
+    // logging velocities leaves the positions and torques of the run as they were
+    let plain = simulate_shipped("sim_rpr_pick_place");
+    assert_eq!((&res.reps[3].q, &res.reps[3].tau), (&plain.reps[3].q, &plain.reps[3].tau));
+    let tanh = res.setup.nominal.clone();
+    let sign = robot::load(&root("tests/data/ident/rpr_drives.toml")).unwrap();
+    let lp = |cutoff: f64| FilterChoice::Given(Filter::LowPass { cutoff });
+    let o40 = IdentOptions {
+        filter: lp(40.0),
+        ..Default::default()
+    };
+    let (it, rt, ft, zt) = ident_with(&tanh, &res, &val, &o40);
+    assert_eq!(it.estimate.velocity, VelocitySource::Logged);
+    assert!(it.estimate.text().contains("q̇ logged (qd* columns, unfiltered)"), "{}", it.estimate.text());
+    assert!(it.estimate.rows_used.iter().all(|r| r.used == r.total));
+    let (i10, r10, _, z10) = ident_with(&tanh, &res, &val, &IdentOptions::default());
+    let (ip, rp, _, zp) = ident_with(
+        &tanh,
+        &res,
+        &val,
+        &IdentOptions {
+            velocity_from: VelocityFrom::Positions,
+            ..Default::default()
+        },
+    );
+    assert_eq!(ip.estimate.velocity, VelocitySource::Positions);
+    let (is, rs, _, zs) = ident_with(&sign, &res, &val, &o40);
+    let (ik, rk, _, zk) = ident_with(
+        &sign,
+        &res,
+        &val,
+        &IdentOptions {
+            standstill: Standstill::Keep,
+            ..o40.clone()
+        },
+    );
+    let pct = |v: &[f64]| v.iter().map(|x| format!("{:.2}", 100.0 * x)).collect::<Vec<_>>().join(", ");
+    let num = |v: &[f64]| v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", ");
+    println!(
+        "{} base parameters; noise floor at standstill (σ of the averaged torque, N·m): [{}]",
+        it.estimate.names.len(),
+        num(&ft)
+    );
+    for (name, id, rms, z) in [
+        ("tanh, logged q̇, 40 Hz", &it, &rt, zt),
+        ("tanh, logged q̇, 10 Hz", &i10, &r10, z10),
+        ("tanh, q̇ from positions", &ip, &rp, zp),
+        ("sign, dropped, logged", &is, &rs, zs),
+        ("sign, every row, logged", &ik, &rk, zk),
+    ] {
+        let big: Vec<String> = id
+            .estimate
+            .truth
+            .as_ref()
+            .unwrap()
+            .iter()
+            .filter(|r| r.z.abs() > 2.5)
+            .map(|r| format!("{} {:+.2}", r.name, r.z))
+            .collect();
+        println!(
+            "{name:<24} e*_j all rows [{}] %, validation all rows [{}] %, standstill RMS [{}] N·m, max|z| {z:.2} (|z| > 2.5: {})",
+            pct(&id.estimate.errors_all.e_rel),
+            pct(&id.estimate.validation_all.as_ref().unwrap().e_rel),
+            num(rms),
+            big.join(", ")
+        );
+    }
+    // the acceptance: within 3σ, standstill torques at the noise level
+    assert!(zt < 3.0, "max|z| {zt}");
+    for j in 0..3 {
+        assert!(rt[j] < 1.2 * ft[j], "joint {j}: standstill RMS {} vs noise {}", rt[j], ft[j]);
+        // the sign model on the same data: standstill error several times the noise
+        assert!(rs[j] > 3.0 * ft[j] && rk[j] > 2.0 * ft[j], "joint {j}: {} / {} vs {}", rs[j], rk[j], ft[j]);
+        assert!(it.estimate.errors_all.e_rel[j] < is.estimate.errors_all.e_rel[j], "joint {j}");
+        assert!(it.estimate.errors_all.e_rel[j] < ik.estimate.errors_all.e_rel[j], "joint {j}");
+    }
+    assert!(zk > 10.0, "sign model on every row: max|z| {zk}");
+    // q̈ from the logged q̇ through the 10 Hz low-pass misses the captures at the
+    // start of a dwell: joint 1's standstill error is above the 40 Hz one's
+    assert!(r10[0] > 1.2 * rt[0], "{} vs {}", r10[0], rt[0]);
+    // and the velocity from the positions is the old failure
+    assert!(zp > 10.0 && rp[0] > 3.0 * ft[0] && rp[2] > 3.0 * ft[2], "{zp} {rp:?}");
+}
+
+/// A three-joint run file with the columns `header` and `rows` rows of values `f(row, column)`.
+fn write_csv(path: &Path, header: &[&str], rows: usize, f: impl Fn(usize, usize) -> String) {
+    let mut s = header.join(",") + "\n";
+    for k in 0..rows {
+        let row: Vec<String> = (0..header.len())
+            .map(|c| if c == 0 { format!("{}", 0.01 * k as f64) } else { f(k, c) })
+            .collect();
+        s += &(row.join(",") + "\n");
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+#[test]
+fn bad_logged_velocity_columns_are_errors_naming_file_row_and_column() {
+    use idexp::ident::{identify, IdentOptions, Run, VelocityFrom};
+    let tmp = tempfile::tempdir().unwrap();
+    let base = ["t", "q1", "q2", "q3", "tau1", "tau2", "tau3"];
+    let with = |extra: &[&'static str]| -> Vec<&'static str> { base.iter().copied().chain(extra.iter().copied()).collect() };
+    let val = |k: usize, c: usize| format!("{}", 0.1 * ((k * 7 + c * 3) % 11) as f64);
+    let read = |name: &str, header: &[&str], f: &dyn Fn(usize, usize) -> String| {
+        let p = tmp.path().join(name);
+        write_csv(&p, header, 20, f);
+        err_text(Run::read(std::slice::from_ref(&p), 3))
+    };
+    // a velocity column missing for one joint
+    let e = read("partial.csv", &with(&["qd1", "qd3"]), &val);
+    assert!(e.contains("partial.csv") && e.contains("qd2") && e.contains("every joint"), "{e}");
+    // accelerations without velocities
+    let e = read("acc.csv", &with(&["qdd1", "qdd2", "qdd3"]), &val);
+    assert!(e.contains("acc.csv") && e.contains("qd1") && e.contains("without logged velocities"), "{e}");
+    // NaN, infinite and non-number velocities: file, row and column
+    for (bad, what) in [("NaN", "nan"), ("inf", "inf"), ("fast", "fast")] {
+        let f = |k: usize, c: usize| if k == 6 && c == 8 { bad.to_string() } else { val(k, c) };
+        let e = read("nan.csv", &with(&["qd1", "qd2", "qd3"]), &f);
+        assert!(e.contains("nan.csv") && e.contains("qd2") && e.contains('7'), "{what}: {e}");
+    }
+    // a velocity column beyond the robot's joints
+    let e = read("extra.csv", &with(&["qd1", "qd2", "qd3", "qd4"]), &val);
+    assert!(e.contains("extra.csv") && e.contains("qd4"), "{e}");
+    // velocities in one repetition but not in the other
+    let (a, b) = (tmp.path().join("a.csv"), tmp.path().join("b.csv"));
+    write_csv(&a, &with(&["qd1", "qd2", "qd3"]), 20, val);
+    write_csv(&b, &base, 20, val);
+    let e = err_text(Run::read(&[a.clone(), b.clone()], 3));
+    assert!(e.contains("b.csv") && e.contains("qd1") && e.contains("same columns"), "{e}");
+    // --velocity-from log on a run without velocities
+    let r = robot::load(&root("tests/data/ident/rpr_drives_tanh.toml")).unwrap();
+    let bp = BaseParams::compute(&r, &BaseOptions::default()).unwrap();
+    let run = Run::read(std::slice::from_ref(&b), 3).unwrap();
+    let opts = IdentOptions {
+        velocity_from: VelocityFrom::Log,
+        ..Default::default()
+    };
+    let e = err_text(identify(&r, &bp, &run, None, None, &opts, &idexp::optim::Control::new()));
+    assert!(e.contains("b.csv") && e.contains("--velocity-from") && e.contains("qd1..qd3"), "{e}");
+    assert!("logged".parse::<VelocityFrom>().unwrap_err().to_string().contains("auto, log or positions"));
+    // the design: velocity noise without logged velocities, negative noise
+    let design = |extra: &str, noise: &str| {
+        format!(
+            "robot = {:?}\n{extra}\n[noise]\n{noise}\n[reference]\nkind = \"random_fourier\"\nn_h = 3\nfrequency = 0.2\namplitude = 0.3\nseed = 1\n",
+            root("tests/data/ident/rpr_drives_tanh.toml").to_str().unwrap()
+        )
+    };
+    for (extra, noise, what) in [
+        ("", "velocity = 1e-5", "record_velocity = true"),
+        ("record_velocity = true", "velocity = -1e-5", "-0.00001"),
+        ("record_velocity = true", "velocity = [1e-5, 2e-5]", "one per joint"),
+    ] {
+        let d: idexp::sim::SimDesign = idexp::io::parse_toml(Path::new("vel.toml"), &design(extra, noise)).unwrap();
+        let e = match d.validate("vel.toml") {
+            Err(e) => e.to_string(),
+            Ok(()) => err_text(idexp::sim::SimSetup::from_design(&d, &root(""), "vel.toml")),
+        };
+        assert!(e.contains("vel.toml") && e.contains("noise.velocity") && e.contains(what), "{e}");
+    }
 }

@@ -247,6 +247,7 @@ def identify(
     standstill: str = "auto",
     torque_from: str = "auto",
     current_tolerance: float = 0.05,
+    velocity_from: str = "auto",
     time_limit: Optional[float] = None,
     progress: Progress = None,
 ) -> Identification:
@@ -257,7 +258,8 @@ def identify(
     standstill: auto (drop the slow rows of joints with sign friction, keep those of
     tanh/stribeck joints), drop or keep. torque_from: auto, torque or current (a run folder
     or CSV logging cur1..curn: τ = current_sign·k_t·N·i from the robot file's drives);
-    current_tolerance: relative RMS by which logged torques and currents may disagree."""
+    current_tolerance: relative RMS by which logged torques and currents may disagree.
+    velocity_from: auto (the logged qd1..qdn when the run has them), log or positions."""
 
 class PositionsResult:
     param_names: list[str]

@@ -831,7 +831,7 @@ fn read_trajectory(obj: &Bound<'_, PyAny>) -> PyResult<FourierTrajectory> {
 #[pyo3(signature = (robot, run, method = "wls", weights = "sample", filter = "auto", cutoff = 10.0, trajectory = None,
                     harmonics = None, decimate = 1, validate = None, truth = None, consistent = false, margin = 0.0,
                     regularization = 1e-6, standstill = "auto", torque_from = "auto", current_tolerance = 0.05,
-                    time_limit = None, progress = None))]
+                    velocity_from = "auto", time_limit = None, progress = None))]
 #[allow(clippy::too_many_arguments)] // the Python signature mirrors `idexp identify`'s options
 pub fn identify(
     py: Python<'_>,
@@ -852,6 +852,7 @@ pub fn identify(
     standstill: &str,
     torque_from: &str,
     current_tolerance: f64,
+    velocity_from: &str,
     time_limit: Option<f64>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<Identification> {
@@ -862,6 +863,7 @@ pub fn identify(
         return Err(value(format!("cutoff: expected a positive frequency in Hz, got {cutoff}")));
     }
     let standstill: ident::Standstill = standstill.parse().py()?;
+    let velocity_from: ident::VelocityFrom = velocity_from.parse().py()?;
     let drives = Drives {
         robot: r,
         from: torque_from.parse().py()?,
@@ -902,6 +904,7 @@ pub fn identify(
         decimate,
         consistent: consistent.then_some(idexp::ident::consistent::ConsistentOptions { margin, regularization }),
         standstill,
+        velocity_from,
         ..Default::default()
     };
     let val = validate.as_ref().map(|v| read_run(py, v, &drives, "validate")).transpose()?;

@@ -2,9 +2,11 @@
 //!
 //! Columns (header names, any order): `t` (s, uniform steps), `q1..qn` (rad
 //! or m), `tau1..taun` (measured or commanded motor torque, N·m or N),
-//! optionally `r1..rn` (the reference), `qd1..qdn` and `qdd1..qddn`
-//! (measured velocities/accelerations; used instead of differentiation when
-//! present in every file). Any other column is an error, as are NaN/Inf,
+//! optionally `r1..rn` (the reference), `qd1..qdn` (the drive's logged joint
+//! velocities, rad/s or m/s) and `qdd1..qddn` (logged accelerations, only
+//! beside `qd*`); each of these for every joint or for none, in every file or
+//! in none (how identification uses them: [`crate::ident::VelocityFrom`]).
+//! Any other column is an error, as are NaN/Inf,
 //! non-numbers, non-uniform time, and repetitions of different lengths or
 //! time grids. A run is a folder (every `*.csv` in it except `reference.csv`,
 //! in name order) or an explicit list of files.
@@ -147,13 +149,36 @@ impl Repetition {
         }
         let itau = t.numbered("tau", n)?;
         let opt = |p: &str| -> Result<Option<Vec<usize>>> {
-            if (1..=n).any(|i| t.index(&format!("{p}{i}")).is_some()) {
+            let present: Vec<bool> = (1..=n).map(|i| t.index(&format!("{p}{i}")).is_some()).collect();
+            if let (Some(a), Some(b)) = (present.iter().position(|&x| x), present.iter().position(|&x| !x)) {
+                return Err(Error::Data {
+                    path: path.clone(),
+                    row: 0,
+                    column: format!("{p}{}", b + 1),
+                    msg: format!(
+                        "missing column: the file has {p}{} but not {p}{}; {p}* columns are logged for every joint ({p}1..{p}{n}) or for none",
+                        a + 1,
+                        b + 1
+                    ),
+                });
+            }
+            if present.iter().any(|&x| x) {
                 Ok(Some(t.numbered(p, n)?))
             } else {
                 Ok(None)
             }
         };
         let (ir, iqd, iqdd) = (opt("r")?, opt("qd")?, opt("qdd")?);
+        if iqdd.is_some() && iqd.is_none() {
+            return Err(Error::Data {
+                path: path.clone(),
+                row: 0,
+                column: "qd1".into(),
+                msg: format!(
+                    "logged accelerations qdd1..qdd{n} without logged velocities qd1..qd{n}: give the drive's velocities too (or drop the qdd* columns and let idexp differentiate)"
+                ),
+            });
+        }
         let times = t.column(it);
         if times.len() < 3 {
             return Err(Error::Data {

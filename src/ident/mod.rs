@@ -25,7 +25,7 @@ pub use crate::data::{Coordinates, Repetition, Run, TorqueFrom, TorqueSource, CU
 pub use closed_loop::{MlOptions, ProjectionOptions};
 pub use consistent::{Consistent, ConsistentOptions};
 pub use estimate::{Dataset, Errors, LsFit, Weights};
-pub use process::{process, Filter, Processed};
+pub use process::{process, process_with, Filter, Processed, VelocityFrom, VelocitySource};
 pub use reduce::{Essential, ReduceOptions, Reduction};
 
 use crate::error::{Error, Result};
@@ -188,6 +188,10 @@ pub struct IdentOptions {
     /// Which joints the slow-row rule applies to ([`Standstill`]; default:
     /// those with a `sign` Coulomb term).
     pub standstill: Standstill,
+    /// Velocities from the logged `qd*` columns or from the positions
+    /// ([`VelocityFrom`]; default: logged when present), for the
+    /// identification and the validation run alike.
+    pub velocity_from: VelocityFrom,
     /// Model reduction (WLS only).
     pub reduce: Option<ReduceOptions>,
     /// Projection-method options.
@@ -211,6 +215,7 @@ impl Default for IdentOptions {
             slow_ratio: 0.1,
             min_speed: 0.01,
             standstill: Standstill::Auto,
+            velocity_from: VelocityFrom::Auto,
             reduce: None,
             projection: ProjectionOptions::default(),
             ml: MlOptions::default(),
@@ -307,6 +312,8 @@ pub struct Estimate {
     pub n_samples: usize,
     /// Filter used.
     pub filter: Filter,
+    /// Where q̇ and q̈ came from (logged `qd*`/`qdd*` or the positions).
+    pub velocity: VelocitySource,
     /// Per joint: RMS of (averaged − filtered) positions and the noise RMS of
     /// the averaged positions ([`Processed::filter_residual`]).
     pub filter_residual: Vec<(f64, Option<f64>)>,
@@ -404,7 +411,7 @@ pub fn identify(
         ));
     }
     let filter = resolve_filter(&opts.filter, trajectory, opts.harmonics);
-    let pr = process(run, &filter)?.decimated(opts.decimate);
+    let pr = process_with(run, &filter, opts.velocity_from)?.decimated(opts.decimate);
     if !(opts.slow_ratio.is_finite() && (0.0..1.0).contains(&opts.slow_ratio)) {
         return Err(Error::invalid("identify", "slow_ratio", "expected a fraction in [0, 1)"));
     }
@@ -513,7 +520,7 @@ pub fn identify(
                 (_, Some(t)) => resolve_filter(&FilterChoice::Auto, Some(t), opts.harmonics),
                 (_, None) => resolve_filter(&FilterChoice::Auto, None, None),
             };
-            let vp = process(vrun, &vf)?.decimated(opts.decimate);
+            let vp = process_with(vrun, &vf, opts.velocity_from)?.decimated(opts.decimate);
             let ve = Dataset::every_row(robot, base, &vp).columns(&cols);
             let vd = ve.moving_rows_of(&vp, slow, vmin, &drop);
             val_every = Some(ve);
@@ -594,6 +601,7 @@ pub fn identify(
             )
             .collect(),
         filter_residual: pr.filter_residual.clone(),
+        velocity: pr.velocity,
         filter,
         projection,
         ml,
@@ -786,6 +794,7 @@ impl Estimate {
                 Filter::None => "none (central differences)".into(),
             }
         );
+        let _ = writeln!(s, "velocities: {}", self.velocity.words(&self.filter));
         for w in &self.warnings {
             let _ = writeln!(s, "WARNING: {w}");
         }

@@ -9,11 +9,87 @@
 //! sample covariance of the filtered states and torques per time step (used by
 //! the maximum-likelihood estimator and reported as the position noise floor).
 
-use crate::data::Run;
+use crate::data::{Repetition, Run};
 use crate::error::{Error, Result};
 use crate::trajectory::differentiate;
 use crate::trajectory::FourierTrajectory;
 use serde::Serialize;
+
+/// Where identification takes the joint velocities from (`identify --velocity-from`).
+///
+/// With logged velocities (`qd*` columns, the drive's own velocity from the
+/// motor encoder through the gear ratio) the averaged logged q̇ is used as it
+/// is, unfiltered: at rest a smooth friction model's torque Fc·tanh(q̇/v_s)
+/// depends on q̇ at the scale v_s, where any filter's bias matters. q still
+/// comes from the position filter, and q̈ (unless `qdd*` are logged too) from
+/// the logged velocity through the same filter: zero-phase low-pass at the
+/// cut-off then central differences, the Fourier fit at the run's harmonics
+/// differentiated analytically, or central differences for `Filter::None`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VelocityFrom {
+    /// The logged velocities when the run has `qd*` columns, else the positions.
+    #[default]
+    Auto,
+    /// The logged velocities `qd*` (an error when the run has none).
+    Log,
+    /// Differentiated filtered positions, even when velocities are logged.
+    Positions,
+}
+
+impl std::str::FromStr for VelocityFrom {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<VelocityFrom> {
+        match s {
+            "auto" => Ok(VelocityFrom::Auto),
+            "log" => Ok(VelocityFrom::Log),
+            "positions" => Ok(VelocityFrom::Positions),
+            _ => Err(Error::invalid(
+                "--velocity-from",
+                "velocity_from",
+                format!("expected auto, log or positions, found `{s}`"),
+            )),
+        }
+    }
+}
+
+impl std::fmt::Display for VelocityFrom {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            VelocityFrom::Auto => "auto",
+            VelocityFrom::Log => "log",
+            VelocityFrom::Positions => "positions",
+        })
+    }
+}
+
+/// Where the velocities and accelerations of a processed run came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VelocitySource {
+    /// q̇ and q̈ from the filtered positions.
+    Positions,
+    /// q̇ logged (`qd*`), q̈ from the logged q̇ through the filter.
+    Logged,
+    /// q̇ and q̈ logged (`qd*`, `qdd*`).
+    LoggedWithAcceleration,
+}
+
+impl VelocitySource {
+    /// In words, for reports.
+    pub fn words(self, filter: &Filter) -> String {
+        let how = match filter {
+            Filter::Fourier { n_h, .. } => format!("its Fourier fit at {n_h} harmonics, differentiated"),
+            Filter::LowPass { cutoff } => format!("zero-phase low-pass {cutoff} Hz + central differences"),
+            Filter::None => "central differences".into(),
+        };
+        match self {
+            VelocitySource::Positions => "q̇, q̈ from the positions (the filter above)".into(),
+            VelocitySource::Logged => format!("q̇ logged (qd* columns, unfiltered), q̈ from the logged q̇: {how}"),
+            VelocitySource::LoggedWithAcceleration => "q̇, q̈ logged (qd*, qdd* columns, unfiltered)".into(),
+        }
+    }
+}
 
 /// How positions are filtered and differentiated.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -59,6 +135,8 @@ pub struct Processed {
     pub n_reps: usize,
     /// Filter used.
     pub filter: Filter,
+    /// Where q̇ and q̈ came from.
+    pub velocity: VelocitySource,
     /// The Fourier fit of the averaged positions (Fourier filter only).
     pub fourier: Option<FourierTrajectory>,
     /// Per joint, the RMS of (averaged − filtered) positions and the RMS noise
@@ -101,6 +179,7 @@ impl Processed {
             joint_cov: self.joint_cov.as_ref().map(pick),
             n_reps: self.n_reps,
             filter: self.filter.clone(),
+            velocity: self.velocity,
             fourier: self.fourier.clone(),
             filter_residual: self.filter_residual.clone(),
         }
@@ -154,6 +233,25 @@ fn filter_positions(t: &[f64], q: &[Vec<f64>], filter: &Filter) -> Result<(Signa
     }
 }
 
+/// The signals of one record (or of the averages): q through `filter`; q̇
+/// logged when `qd` is given (q̈ logged when `qdd` is given too, else the
+/// logged q̇ through `filter`, differentiated), else from the filtered q.
+fn signals(t: &[f64], q: &[Vec<f64>], qd: Option<&[Vec<f64>]>, qdd: Option<&[Vec<f64>]>, filter: &Filter) -> Result<(Signals, Option<FourierTrajectory>)> {
+    let ((fq, fqd, fqdd), fourier) = filter_positions(t, q, filter)?;
+    let Some(qd) = qd else {
+        return Ok(((fq, fqd, fqdd), fourier));
+    };
+    let qdd = match qdd {
+        Some(a) => a.to_vec(),
+        None => {
+            // the filter applied to the logged velocity: its first derivative is q̈
+            let ((_, a, _), _) = filter_positions(t, qd, filter)?;
+            a
+        }
+    };
+    Ok(((fq, qd.to_vec(), qdd), fourier))
+}
+
 /// Checks that a Fourier filter fits the record: the duration must be a whole
 /// number of periods (within 1 % of a sample).
 pub fn check_fourier_span(t: &[f64], omega: f64) -> Result<()> {
@@ -174,8 +272,14 @@ pub fn check_fourier_span(t: &[f64], omega: f64) -> Result<()> {
     Ok(())
 }
 
-/// Averages the repetitions (paper 000 §III-C, eq. 7) and filters the positions.
+/// Averages the repetitions (paper 000 §III-C, eq. 7) and filters the
+/// positions; logged velocities are used when present ([`VelocityFrom::Auto`]).
 pub fn process(run: &Run, filter: &Filter) -> Result<Processed> {
+    process_with(run, filter, VelocityFrom::Auto)
+}
+
+/// [`process`] with the velocity source `from` ([`VelocityFrom`]).
+pub fn process_with(run: &Run, filter: &Filter, from: VelocityFrom) -> Result<Processed> {
     let reps = &run.reps;
     let nr = reps.len();
     let n = run.n_joints();
@@ -221,15 +325,26 @@ pub fn process(run: &Run, filter: &Filter) -> Result<Processed> {
     } else {
         None
     };
-    // measured derivatives in every file: use their averages (no differentiation)
-    let (q, qd, qdd, fourier) = if let (Some(_), Some(_)) = (&reps[0].qd, &reps[0].qdd) {
-        let qd = mean_of(&reps.iter().filter_map(|r| r.qd.as_ref()).collect::<Vec<_>>());
-        let qdd = mean_of(&reps.iter().filter_map(|r| r.qdd.as_ref()).collect::<Vec<_>>());
-        (q_mean.clone(), qd, qdd, None)
-    } else {
-        let ((q, qd, qdd), f) = filter_positions(&t, &q_mean, filter)?;
-        (q, qd, qdd, f)
+    let logged = match from {
+        VelocityFrom::Positions => false,
+        VelocityFrom::Auto => reps[0].qd.is_some(),
+        VelocityFrom::Log => {
+            if reps[0].qd.is_none() {
+                let file = run.files.first().map_or_else(|| "run".to_string(), |f| f.display().to_string());
+                return Err(Error::invalid(
+                    file,
+                    "--velocity-from",
+                    format!("`log`, but the run logs no velocities qd1..qd{n}: use --velocity-from positions (or auto)"),
+                ));
+            }
+            true
+        }
     };
+    let with_acc = logged && reps[0].qdd.is_some();
+    let mean_opt = |f: fn(&Repetition) -> Option<&Vec<Vec<f64>>>, on: bool| on.then(|| mean_of(&reps.iter().filter_map(f).collect::<Vec<_>>()));
+    let qd_log = mean_opt(|r| r.qd.as_ref(), logged);
+    let qdd_log = mean_opt(|r| r.qdd.as_ref(), with_acc);
+    let ((q, qd, qdd), fourier) = signals(&t, &q_mean, qd_log.as_deref(), qdd_log.as_deref(), filter)?;
     let q_noise_avg: Option<Vec<f64>> = run.averaged.as_ref().and_then(|av| {
         av.var_q.as_ref().map(|vq| {
             (0..n)
@@ -261,9 +376,10 @@ pub fn process(run: &Run, filter: &Filter) -> Result<Processed> {
         let d = 4 * n;
         let per: Vec<Signals> = reps
             .iter()
-            .map(|rep| match (&rep.qd, &rep.qdd) {
-                (Some(a), Some(b)) => Ok((rep.q.clone(), a.clone(), b.clone())),
-                _ => filter_positions(&t, &rep.q, filter).map(|(sig, _)| sig),
+            .map(|rep| {
+                let qd = rep.qd.as_deref().filter(|_| logged);
+                let qdd = rep.qdd.as_deref().filter(|_| with_acc);
+                signals(&t, &rep.q, qd, qdd, filter).map(|(sig, _)| sig)
             })
             .collect::<Result<_>>()?;
         let mut cov = vec![vec![0.0; d * d]; m];
@@ -299,6 +415,11 @@ pub fn process(run: &Run, filter: &Filter) -> Result<Processed> {
         joint_cov,
         n_reps: run.n_reps(),
         filter: filter.clone(),
+        velocity: match (logged, with_acc) {
+            (false, _) => VelocitySource::Positions,
+            (true, false) => VelocitySource::Logged,
+            (true, true) => VelocitySource::LoggedWithAcceleration,
+        },
         fourier,
         filter_residual,
     })
@@ -357,7 +478,6 @@ pub fn filtfilt(x: &[f64], cutoff: f64, fs: f64) -> Result<Vec<f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::data::{Repetition, Run};
 
     #[test]
     fn filtfilt_keeps_slow_sines_without_phase_and_removes_fast_ones() {
@@ -400,5 +520,52 @@ mod tests {
         }
         // a record that is not a whole number of periods is refused for Fourier filtering
         assert!(process(&run, &Filter::Fourier { omega: w * 1.1, n_h: 3 }).is_err());
+    }
+
+    #[test]
+    fn logged_velocities_are_used_unfiltered_and_differentiated_through_the_filter() {
+        // q = 0.3 sin(ωt) with its exact velocity logged, plus a 40 Hz ripple on
+        // the logged velocity that the low-pass must remove from q̈ but not from q̇
+        let w = std::f64::consts::TAU * 0.5;
+        let t: Vec<f64> = (0..400).map(|i| i as f64 * 0.005).collect();
+        let ripple = |t: f64| 1e-4 * (std::f64::consts::TAU * 40.0 * t).sin();
+        let rep = |acc: bool| Repetition {
+            t: t.clone(),
+            q: t.iter().map(|t| vec![0.3 * (w * t).sin()]).collect(),
+            tau: t.iter().map(|_| vec![1.0]).collect(),
+            r: None,
+            qd: Some(t.iter().map(|t| vec![0.3 * w * (w * t).cos() + ripple(*t)]).collect()),
+            qdd: acc.then(|| t.iter().map(|t| vec![-0.3 * w * w * (w * t).sin()]).collect()),
+        };
+        let run = Run::new(vec![], vec![rep(false), rep(false)]).unwrap();
+        let lp = Filter::LowPass { cutoff: 10.0 };
+        let pr = process(&run, &lp).unwrap();
+        assert_eq!(pr.velocity, VelocitySource::Logged);
+        assert!(pr.joint_cov.is_some());
+        for p in 40..360 {
+            let tt = t[p];
+            assert_eq!(pr.qd[p][0], 0.3 * w * (w * tt).cos() + ripple(tt));
+            // the ripple's derivative (2.5e-2 rad/s²) is filtered out of q̈
+            assert!((pr.qdd[p][0] + 0.3 * w * w * (w * tt).sin()).abs() < 2e-3, "{p}: {}", pr.qdd[p][0]);
+        }
+        // the Fourier path differentiates the Fourier fit of the logged velocity
+        let pf = process(&run, &Filter::Fourier { omega: w, n_h: 3 }).unwrap();
+        for p in 0..400 {
+            assert!((pf.qdd[p][0] + 0.3 * w * w * (w * t[p]).sin()).abs() < 1e-6, "{p}");
+        }
+        // logged accelerations are taken as they are
+        let pa = process(&Run::new(vec![], vec![rep(true), rep(true)]).unwrap(), &lp).unwrap();
+        assert_eq!(pa.velocity, VelocitySource::LoggedWithAcceleration);
+        assert_eq!(pa.qdd[17][0], -0.3 * w * w * (w * t[17]).sin());
+        // positions only: the logged columns are ignored
+        let pp = process_with(&run, &lp, VelocityFrom::Positions).unwrap();
+        assert_eq!(pp.velocity, VelocitySource::Positions);
+        assert!((pp.qd[200][0] - 0.3 * w * (w * t[200]).cos()).abs() < 1e-3);
+        assert_ne!(pp.qd[200][0], pr.qd[200][0]);
+        // log without logged velocities
+        let mut bare = rep(false);
+        bare.qd = None;
+        let e = process_with(&Run::new(vec![], vec![bare]).unwrap(), &lp, VelocityFrom::Log).unwrap_err();
+        assert!(e.to_string().contains("--velocity-from") && e.to_string().contains("qd1..qd1"), "{e}");
     }
 }

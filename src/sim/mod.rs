@@ -16,7 +16,12 @@
 //!   τ_ff the inverse dynamics of the **nominal** model (or its gravity part, or none);
 //! * the plant (true parameters) integrates (q, q̇) over Δt with RK4 (`substeps`
 //!   steps) under τ + d, d ~ N(0, σ_d²) held over the period (unmeasured disturbance);
-//! * recorded: t, q_m, τ + n_τ (n_τ ~ N(0, σ_τ²), the torque measurement), r.
+//! * recorded: t, q_m, τ + n_τ (n_τ ~ N(0, σ_τ²), the torque measurement), r;
+//!   with `record_velocity = true` also the drive's velocity as `qd1..qdn`:
+//!   (q(t_k + Δt) − q(t_k))/Δt + n_v, the mean velocity over the controller
+//!   period in which the row's torque acts (what a drive differentiating its
+//!   motor encoder reports at the end of that period, put on the row of the
+//!   command), n_v ~ N(0, σ_v²) (`noise.velocity`, default [`DRIVE_VELOCITY_NOISE`]).
 //!
 //! Default gains place each joint at `bandwidth` Hz with damping `damping`
 //! using the diagonal of the nominal mass matrix at the start:
@@ -173,7 +178,18 @@ pub struct NoiseSpec {
     pub encoder_counts: f64,
     /// Standard deviation of the unmeasured torque disturbance at the plant input (N·m).
     pub disturbance: PerJoint,
+    /// Standard deviation of the drive's logged velocity (rad/s or m/s; with
+    /// `record_velocity = true`; default [`DRIVE_VELOCITY_NOISE`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub velocity: Option<PerJoint>,
 }
+
+/// Default noise of a logged drive velocity (rad/s): the quantisation of a
+/// velocity taken from a 2²⁰-count motor encoder through a 100:1 gear over a
+/// 1 ms logging period, 2π/(2²⁰·100·1 ms) = 6.0e-5 rad/s per count, whose
+/// uniform rounding error has σ = 6.0e-5/√12 = 1.7e-5 rad/s (simulated as
+/// white Gaussian noise of that σ).
+pub const DRIVE_VELOCITY_NOISE: f64 = 1.7e-5;
 
 /// A simulation design file (`idexp simulate <design.toml>`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -215,6 +231,12 @@ pub struct SimDesign {
     /// file's torque_constant, gear_ratio and current_sign) or `both`.
     #[serde(default, skip_serializing_if = "Record::is_torque")]
     pub record: Record,
+    /// Also log the drive's joint velocities `qd1..qdn` (the mean velocity
+    /// over the controller period of each row's torque plus `noise.velocity`),
+    /// as UR, KUKA, ABB and Franka controllers log the velocity of the motor
+    /// encoder through the gear.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub record_velocity: bool,
 }
 
 /// What a simulated run logs of the drive input (design key `record`).
@@ -313,6 +335,16 @@ impl SimDesign {
         self.noise.torque.check(ctx, "noise.torque")?;
         self.noise.position.check(ctx, "noise.position")?;
         self.noise.disturbance.check(ctx, "noise.disturbance")?;
+        if let Some(v) = &self.noise.velocity {
+            v.check(ctx, "noise.velocity")?;
+            if !self.record_velocity {
+                return Err(Error::invalid(
+                    ctx,
+                    "noise.velocity",
+                    "the noise of the logged drive velocities, but no velocities are logged: add record_velocity = true (or drop noise.velocity)",
+                ));
+            }
+        }
         for (f, v) in [
             ("controller.kp", &self.controller.kp),
             ("controller.kd", &self.controller.kd),
@@ -366,6 +398,8 @@ pub struct SimSetup {
     pub position_noise: Vec<f64>,
     /// Disturbance σ_d per joint.
     pub disturbance: Vec<f64>,
+    /// σ_v of the logged drive velocities per joint, when they are logged.
+    pub velocity_noise: Option<Vec<f64>>,
     /// Quantisation step (rad; 0 = none).
     pub quantum: f64,
     /// Repetitions.
@@ -385,6 +419,10 @@ struct Span {
     k0: usize,
     steps: usize,
     t_rec0: f64,
+    /// Index of the period or repetition (0: lead-in): seeds the stream of
+    /// the logged-velocity noise, separate from the loop's draws so that
+    /// logging velocities leaves q and τ of the run unchanged.
+    stream: u64,
 }
 
 /// Whether a simulation ran all its repetitions (serialised `complete` /
@@ -567,6 +605,11 @@ impl SimSetup {
             torque_noise: d.noise.torque.resolve(n, ctx, "noise.torque")?,
             position_noise: d.noise.position.resolve(n, ctx, "noise.position")?,
             disturbance: d.noise.disturbance.resolve(n, ctx, "noise.disturbance")?,
+            velocity_noise: match (d.record_velocity, &d.noise.velocity) {
+                (false, _) => None,
+                (true, None) => Some(vec![DRIVE_VELOCITY_NOISE; n]),
+                (true, Some(v)) => Some(v.resolve(n, ctx, "noise.velocity")?),
+            },
             nominal,
             truth,
             reference,
@@ -622,7 +665,8 @@ impl SimSetup {
     /// recording every `decimate`-th sample with time `t - span.t_rec0`;
     /// `Ok(false)` when `ctl` asked to stop (polled every [`POLL_STEPS`] periods).
     fn run_steps(&self, lp: &mut Loop, span: Span, rng: &mut rand_chacha::ChaCha8Rng, record: Option<&mut Repetition>, ctl: &Control) -> Result<bool> {
-        let Span { k0, steps, t_rec0 } = span;
+        let Span { k0, steps, t_rec0, stream } = span;
+        let mut vrng = rand_chacha::ChaCha8Rng::seed_from_u64(crate::rng::mix(self.seed, stream, 1));
         let n = self.truth.dof();
         let dt = 1.0 / self.rate;
         let mut ws_t = Workspace::new(&self.truth);
@@ -632,6 +676,7 @@ impl SimSetup {
         let mut ff = vec![0.0; n];
         let mut tau = vec![0.0; n];
         let mut qm = vec![0.0; n];
+        let mut q_start = vec![0.0; n];
         let alpha = if self.velocity_filter > 0.0 {
             let wc = std::f64::consts::TAU * self.velocity_filter * dt;
             (-wc).exp()
@@ -686,6 +731,9 @@ impl SimSetup {
                     if let Some(rr) = rep.r.as_mut() {
                         rr.push(r.clone());
                     }
+                    if self.velocity_noise.is_some() {
+                        q_start.copy_from_slice(&lp.q);
+                    }
                 }
             }
             // plant: RK4 under τ + d
@@ -693,6 +741,14 @@ impl SimSetup {
             let h = dt / self.substeps as f64;
             for _ in 0..self.substeps {
                 rk4(&self.truth, &mut ws_t, &mut lp.q, &mut lp.qd, &drive, h)?;
+            }
+            // the drive's velocity: the motor-encoder difference over the period the row's torque acts in
+            if s % self.decimate == 0 {
+                if let (Some(rep), Some(sv)) = (rec.as_deref_mut(), &self.velocity_noise) {
+                    if let Some(v) = rep.qd.as_mut() {
+                        v.push((0..n).map(|j| (lp.q[j] - q_start[j]) / dt + sv[j] * unit.sample(&mut vrng)).collect());
+                    }
+                }
             }
         }
         Ok(true)
@@ -711,7 +767,7 @@ impl SimSetup {
             q: Vec::new(),
             tau: Vec::new(),
             r: Some(Vec::new()),
-            qd: None,
+            qd: self.velocity_noise.as_ref().map(|_| Vec::new()),
             qdd: None,
         };
         let obs = ctl.observer();
@@ -723,7 +779,18 @@ impl SimSetup {
             let steps = (self.reference.duration() * self.rate).round() as usize;
             let mut lp = self.new_loop();
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(crate::rng::mix(self.seed, 0, 0));
-            interrupted = !self.run_steps(&mut lp, Span { k0: 0, steps, t_rec0: 0.0 }, &mut rng, None, ctl)?; // lead-in period
+            interrupted = !self.run_steps(
+                &mut lp,
+                Span {
+                    k0: 0,
+                    steps,
+                    t_rec0: 0.0,
+                    stream: 0,
+                },
+                &mut rng,
+                None,
+                ctl,
+            )?; // lead-in period
             for i in 0..self.repetitions {
                 if interrupted {
                     break;
@@ -737,6 +804,7 @@ impl SimSetup {
                         k0,
                         steps,
                         t_rec0: k0 as f64 * dt,
+                        stream: (i + 1) as u64,
                     },
                     &mut rng,
                     Some(&mut rep),
@@ -759,7 +827,18 @@ impl SimSetup {
                     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(crate::rng::mix(self.seed, (i + 1) as u64, 0));
                     let mut lp = self.new_loop();
                     let mut rep = new_rep();
-                    let r = match self.run_steps(&mut lp, Span { k0: 0, steps, t_rec0: 0.0 }, &mut rng, Some(&mut rep), ctl) {
+                    let r = match self.run_steps(
+                        &mut lp,
+                        Span {
+                            k0: 0,
+                            steps,
+                            t_rec0: 0.0,
+                            stream: (i + 1) as u64,
+                        },
+                        &mut rng,
+                        Some(&mut rep),
+                        ctl,
+                    ) {
                         Ok(true) => Ok(rep),
                         Ok(false) => return None,
                         Err(e) => Err(e),

@@ -124,6 +124,9 @@ pub struct IdentifyArgs {
     /// Which slow rows to leave out: auto (those of joints with a `sign` Coulomb term; smooth tanh/stribeck joints keep their standstill rows), drop (every joint), keep (none).
     #[arg(long, default_value = "auto")]
     pub standstill: idexp::ident::Standstill,
+    /// Joint velocities from the drive's logged qd* columns (q̇ unfiltered; q̈ from q̇ through the filter, unless qdd* are logged too) or from the positions; auto: logged when present.
+    #[arg(long, default_value_t = idexp::ident::VelocityFrom::Auto)]
+    pub velocity_from: idexp::ident::VelocityFrom,
     /// Joint torques from the torque columns tau*, the motor currents cur* (τ = current_sign·k_t·N·i with the robot file's drives), or auto (currents when the run logs no torques).
     #[arg(long, default_value_t = idexp::ident::TorqueFrom::Auto)]
     pub torque_from: idexp::ident::TorqueFrom,
@@ -272,6 +275,7 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         slow_ratio: a.slow_ratio,
         min_speed: a.min_speed.unwrap_or(0.01),
         standstill: a.standstill,
+        velocity_from: a.velocity_from,
         reduce: a.reduce.then(|| ReduceOptions {
             tol: a.reduce_tol,
             essential,
@@ -409,7 +413,7 @@ fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run, started: SystemT
     let joint = a
         .joint
         .context("identify --experiment: --joint: name the joint (1-based) of the dedicated experiment")?;
-    let pr = idexp::ident::process(run, &Filter::LowPass { cutoff: a.cutoff })?;
+    let pr = idexp::ident::process_with(run, &Filter::LowPass { cutoff: a.cutoff }, a.velocity_from)?;
     let out = a.out.clone().unwrap_or_else(|| default_out(&a.run, &format!("_{exp:?}").to_lowercase()));
     idexp::io::folder::begin(&out, "identify", "")?;
     let (text, json) = match exp {

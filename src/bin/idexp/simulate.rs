@@ -16,6 +16,9 @@ pub struct SimulateArgs {
     /// Override the design's seed (noise and parameter perturbation draws).
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Also log the drive's joint velocities qd1..qdn (as `record_velocity = true` in the design; noise `noise.velocity`).
+    #[arg(long)]
+    pub record_velocity: bool,
     /// Print the run's status summary as JSON instead of text.
     #[arg(long)]
     pub json: bool,
@@ -26,6 +29,9 @@ pub fn run(a: &SimulateArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let mut d = SimDesign::read(&a.design)?;
     if let Some(s) = a.seed {
         d.seed = s;
+    }
+    if a.record_velocity {
+        d.record_velocity = true;
     }
     let base = a.design.parent().map(|p| p.to_path_buf()).unwrap_or_default();
     let ctx = a.design.display().to_string();
