@@ -605,6 +605,8 @@ fn gravity_experiment_on_a_fourier_run_is_refused() {
             "at rest",
         ],
     );
+    // refused before any output: no folder left behind
+    assert!(!out.exists(), "{} was created by a refused experiment", out.display());
 }
 
 #[test]

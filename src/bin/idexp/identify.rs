@@ -415,15 +415,17 @@ fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run, started: SystemT
         .context("identify --experiment: --joint: name the joint (1-based) of the dedicated experiment")?;
     let pr = idexp::ident::process_with(run, &Filter::LowPass { cutoff: a.cutoff }, a.velocity_from)?;
     let out = a.out.clone().unwrap_or_else(|| default_out(&a.run, &format!("_{exp:?}").to_lowercase()));
-    idexp::io::folder::begin(&out, "identify", "")?;
-    let (text, json) = match exp {
-        Experiment::Gravity => {
-            let g = gravity_experiment(&pr, joint).with_context(|| {
-                let runs: Vec<String> = a.run.iter().map(|p| p.display().to_string()).collect();
-                format!("run {}", runs.join(", "))
-            })?;
-            (write_gravity(&out, joint, &pr, &g)?, serde_json::to_value(&g)?)
-        }
+    // the fit first: a refused experiment (wrong run, wrong joint) leaves no
+    // output folder behind and an earlier result where it was
+    enum Fit {
+        Gravity(GravityFit),
+        Friction(FrictionFit, f64, &'static str),
+    }
+    let fit = match exp {
+        Experiment::Gravity => Fit::Gravity(gravity_experiment(&pr, joint).with_context(|| {
+            let runs: Vec<String> = a.run.iter().map(|p| p.display().to_string()).collect();
+            format!("run {}", runs.join(", "))
+        })?),
         Experiment::Friction => {
             let grav: Option<GravityFit> = match &a.gravity_fit {
                 Some(p) => {
@@ -446,8 +448,13 @@ fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run, started: SystemT
             } else {
                 "fitted alongside"
             };
-            (write_friction(&out, joint, &pr, &f, min_speed, source)?, serde_json::to_value(&f)?)
+            Fit::Friction(f, min_speed, source)
         }
+    };
+    idexp::io::folder::begin(&out, "identify", "")?;
+    let (text, json) = match &fit {
+        Fit::Gravity(g) => (write_gravity(&out, joint, &pr, g)?, serde_json::to_value(g)?),
+        Fit::Friction(f, min_speed, source) => (write_friction(&out, joint, &pr, f, *min_speed, source)?, serde_json::to_value(f)?),
     };
     idexp::io::write_json(&out.join("options.json"), a)?;
     let detail = format!("{} experiment, joint {joint}", if exp == Experiment::Gravity { "gravity" } else { "friction" });
