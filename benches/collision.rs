@@ -1,15 +1,24 @@
 //! Cost of the collision constraints (issue 11): the constraint set of
 //! designs/excite_ur5.toml (UR5 meshes, 21 pairs) and
-//! designs/excite_panda_table.toml (Panda meshes, 28 pairs) evaluated with
-//! and without collision checking, values only (one GA evaluation's
-//! constraints) and with the Jacobian (one refinement step), the latter also
-//! without the broad phase (every pair queried at every grid time: the cost
-//! before culling); plus the distances of every pair at one configuration.
+//! designs/excite_panda_table.toml (Panda meshes, 28 pairs), one evaluation
+//! at a fixed random design point:
+//!
+//! * `ga_eval_*`: what one GA evaluation costs (values only): without
+//!   collision checking; with it as the GA now evaluates it
+//!   ([`Constraints::eval_selection`]: distances capped at the margin,
+//!   hill-climbing support points); and as before (`eval` with the full cap,
+//!   support points by a scan over every hull vertex: parry's `contact`);
+//! * `refine_eval_*`: one refinement step (values and the Jacobian): without
+//!   collision, with it (climbing), with parry's scan (before), and without
+//!   the broad phase (every pair at every grid time);
+//! * the distances of every pair at one configuration.
 //!
 //! Run: `cargo bench --bench collision -- --warm-up-time 1 --measurement-time 3`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use idexp::excitation::constraints::Constraints;
 use idexp::excitation::Problem;
+use idexp::robot::collision::NarrowPhase;
 use idexp::robot::kinematics::Kin;
 use rand::{RngExt, SeedableRng};
 use std::hint::black_box;
@@ -32,39 +41,55 @@ fn bench(c: &mut Criterion) {
             let mut g = rand_chacha::ChaCha8Rng::seed_from_u64(5);
             let mut x: Vec<f64> = (0..nv).map(|i| g.random_range(p.lower[i]..p.upper[i]) * 0.3).collect();
             p.constraints.repair_joints(&mut x, &p.limits, 1e-6);
-            let mut cw = p.constraints.workspace();
-            let mut cval = vec![0.0; p.constraints.len()];
-            let mut jac = vec![0.0; p.constraints.len() * nv];
-            let tag = if on { "with_collision" } else { "without_collision" };
-            grp.bench_function(format!("constraints_{tag}"), |b| {
-                b.iter(|| {
-                    p.constraints.eval(black_box(&x), &mut cw, &mut cval, None);
-                    black_box(&cval);
-                })
-            });
-            grp.bench_function(format!("constraints_and_jacobian_{tag}"), |b| {
-                b.iter(|| {
-                    p.constraints.eval(black_box(&x), &mut cw, &mut cval, Some(&mut jac));
-                    black_box(&jac);
-                })
-            });
-            if on {
-                // the reference: every pair queried at every grid time (no broad phase)
-                let mut bw = p.constraints.workspace();
-                bw.set_exhaustive(true);
-                grp.bench_function("constraints_and_jacobian_with_collision_exhaustive", |b| {
+            let nc = p.constraints.len();
+            let mut cval = vec![0.0; nc];
+            let mut jac = vec![0.0; nc * nv];
+            let variants: Vec<(&str, Constraints, bool)> = if on {
+                vec![
+                    ("with_collision", p.constraints.clone(), false),
+                    ("with_collision_scan", p.constraints.clone().with_narrow_phase(NarrowPhase::Scan), false),
+                    ("with_collision_exhaustive", p.constraints.clone(), true),
+                ]
+            } else {
+                vec![("without_collision", p.constraints.clone(), false)]
+            };
+            for (tag, cons, exhaustive) in &variants {
+                let mut cw = cons.workspace();
+                cw.set_exhaustive(*exhaustive);
+                if !exhaustive {
+                    grp.bench_function(format!("ga_eval_{tag}"), |b| {
+                        b.iter(|| {
+                            cons.eval_selection(black_box(&x), &mut cw, &mut cval);
+                            black_box(&cval);
+                        })
+                    });
+                }
+                if *tag != "without_collision" && !exhaustive {
+                    grp.bench_function(format!("ga_eval_full_cap_{tag}"), |b| {
+                        b.iter(|| {
+                            cons.eval(black_box(&x), &mut cw, &mut cval, None);
+                            black_box(&cval);
+                        })
+                    });
+                }
+                grp.bench_function(format!("refine_eval_{tag}"), |b| {
                     b.iter(|| {
-                        p.constraints.eval(black_box(&x), &mut bw, &mut cval, Some(&mut jac));
+                        cons.eval(black_box(&x), &mut cw, &mut cval, Some(&mut jac));
                         black_box(&jac);
                     })
                 });
-                p.constraints.eval(&x, &mut cw, &mut cval, None);
-                p.constraints.eval(&x, &mut bw, &mut cval, None);
-                eprintln!(
-                    "{label}: {} exact distance queries per evaluation with the broad phase, {} without",
-                    cw.distance_queries(),
-                    bw.distance_queries()
-                );
+                if on {
+                    cons.eval(&x, &mut cw, &mut cval, None);
+                    let full = cw.distance_queries();
+                    let per_pair = cw.distance_queries_per_pair();
+                    cons.eval_selection(&x, &mut cw, &mut cval);
+                    eprintln!(
+                        "{label} {tag}: {full} exact distance queries per evaluation (full cap; per pair {per_pair:?}), {} for the selection",
+                        cw.distance_queries()
+                    );
+                }
+            }
+            if on {
                 let sc = p.constraints.scene().expect("scene");
                 let mut kin = Kin::new(p.robot.dof());
                 let q = p.layout.trajectory(&x).q0.clone();

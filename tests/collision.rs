@@ -377,6 +377,19 @@ fn missing_mesh_names_the_link_and_the_path() {
     .unwrap();
     let e = idexp::robot::load(&rf).unwrap_err().to_string();
     assert!(e.contains("base_link") && e.contains("collision/base.stl") && e.contains("nowhere"), "{e}");
+    // the robot file and its mesh_path entries as written, whether wrong or dropped
+    let rs = rf.display().to_string();
+    assert!(e.contains(&rs) && e.contains("mesh_path = [\"nowhere\"]"), "{e}");
+    std::fs::write(
+        &rf,
+        format!("urdf = \"{}/ur5.urdf\"\nbase_link = \"base_link\"\ntip_link = \"tool0\"\n", rd.display()),
+    )
+    .unwrap();
+    let e = idexp::robot::load(&rf).unwrap_err().to_string();
+    assert!(
+        e.contains(&rs) && e.contains("mesh_path = []") && e.contains("base_link") && e.contains("ur5.urdf"),
+        "{e}"
+    );
 }
 
 fn excite(design: &str, out: &Path) -> (i32, String) {
@@ -593,5 +606,140 @@ fn culled_series_and_worst_pair_equal_the_exhaustive_ones() {
             }
             assert!(queries < sc.len() * poses.len(), "{name}: no query saved");
         }
+    }
+}
+
+#[test]
+fn climbing_support_equals_the_scan_on_every_shipped_hull() {
+    // hill climbing on the hull's vertex adjacency finds a vertex as far along
+    // the direction as the scan over every vertex: from the seeds and, as GJK
+    // calls it, from the previous direction's support vertex
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let mut hulls = 0;
+    for name in ["ur5.toml", "panda.toml"] {
+        let r = robot(name);
+        let sc = scene(&r, &CollisionSpec::default());
+        for body in sc.bodies() {
+            for (h, _) in body.climb_hulls() {
+                hulls += 1;
+                assert!(h.len() >= 4);
+                let mut prev = None;
+                for k in 0..3000 {
+                    let mut d = nalgebra::Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+                    if k % 7 == 0 {
+                        // axis-aligned and exactly reversed directions: ties between coplanar vertices
+                        d = nalgebra::Vector3::zeros();
+                        d[k % 3] = if k % 2 == 0 { 1.0 } else { -1.0 };
+                    }
+                    let scan = h.points().iter().chain(h.orphans()).map(|p| p.coords.dot(&d)).fold(f64::NEG_INFINITY, f64::max);
+                    let v = match prev {
+                        Some(v) if k % 3 != 0 => h.support_from(&d, v),
+                        _ => h.support_index(&d),
+                    };
+                    let got = h.support_point(&d, v).coords.dot(&d);
+                    assert!(got >= scan - 1e-12, "{name} `{}`: climbing {got} < scan {scan} along {d:?}", body.name);
+                    prev = Some(h.support_index(&d));
+                }
+            }
+        }
+    }
+    assert!(hulls >= 15, "{hulls} hulls");
+}
+
+#[test]
+fn climbing_narrow_phase_matches_parry_scan() {
+    // the default narrow phase (parry's GJK/EPA, support points by climbing)
+    // against parry's query::contact as it is, every pair at random poses,
+    // penetrations included
+    use idexp::robot::collision::NarrowPhase;
+    for name in ["ur5.toml", "panda.toml"] {
+        let r = robot(name);
+        let fast = scene(&r, &CollisionSpec::default());
+        let mut slow = fast.clone();
+        slow.set_narrow_phase(NarrowPhase::Scan);
+        assert_eq!(fast.narrow_phase(), NarrowPhase::Climb);
+        let mut kin = Kin::new(r.dof());
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
+        let (mut close, mut deep) = (0, 0);
+        for _ in 0..300 {
+            let q = random_q(&r, &mut rng);
+            forward_kinematics(&r, &q, &mut kin);
+            let mut poses = Vec::new();
+            fast.poses(&kin, &mut poses);
+            for k in 0..fast.len() {
+                let a = fast.pair_proximity(k, &poses, fast.cap);
+                let b = slow.pair_proximity(k, &poses, slow.cap);
+                match (a, b) {
+                    (None, None) => {}
+                    (Some(a), Some(b)) => {
+                        let tol = if b.distance < 0.0 { 1e-6 } else { 1e-9 };
+                        assert!(
+                            (a.distance - b.distance).abs() <= tol,
+                            "{name} {}: {} vs {}",
+                            fast.pairs[k].label(),
+                            a.distance,
+                            b.distance
+                        );
+                        if b.distance >= 0.0 {
+                            assert!(
+                                (a.normal - b.normal).norm() < 1e-4 || b.distance < 1e-6,
+                                "{name} {}: normals",
+                                fast.pairs[k].label()
+                            );
+                        }
+                        close += 1;
+                        deep += usize::from(b.distance < 0.0);
+                    }
+                    (a, b) => {
+                        // only at the cap itself
+                        let d = a.or(b).unwrap().distance;
+                        assert!((d - fast.cap).abs() < 1e-9, "{name} {}: {a:?} vs {b:?}", fast.pairs[k].label());
+                    }
+                }
+            }
+        }
+        assert!(close > 300 && deep > 20, "{name}: {close} pairs within the cap, {deep} penetrating");
+    }
+}
+
+#[test]
+fn selection_evaluation_gives_the_violation_of_the_full_one() {
+    // the GA's evaluation (distances capped at the margin) against the full
+    // one: every constraint equal, except a distance constraint that holds on
+    // the grid (0 there); the violations agree but for a parabola dipping
+    // below the margin between grid times
+    for design in ["excite_ur5.toml", "excite_panda_table.toml"] {
+        let p = design_problem(design);
+        let nv = p.layout.n_vars();
+        let m = p.constraints.len();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(29);
+        let mut cw = p.constraints.workspace();
+        let (mut full, mut sel) = (vec![0.0; m], vec![0.0; m]);
+        let (mut violating, mut fewer) = (0, 0);
+        for trial in 0..16 {
+            let amp = [0.05, 0.2, 0.5, 1.0][trial % 4];
+            let x: Vec<f64> = (0..nv).map(|i| rng.random_range(p.lower[i]..p.upper[i]) * amp).collect();
+            p.constraints.eval(&x, &mut cw, &mut full, None);
+            let nq = cw.distance_queries();
+            p.constraints.eval_selection(&x, &mut cw, &mut sel);
+            fewer += usize::from(cw.distance_queries() < nq);
+            for (inf, (a, b)) in p.constraints.info.iter().zip(full.iter().zip(&sel)) {
+                let distance = inf.unit == "m" && inf.scale == idexp::excitation::constraints::DISTANCE_SCALE;
+                if distance && *b == 0.0 {
+                    // holds on the grid: the full value may only dip by the parabola (a few mm)
+                    assert!(*a <= 0.02, "{design} trial {trial}: {}: full {a}, selection 0", inf.name);
+                } else {
+                    assert_eq!(a.to_bits(), b.to_bits(), "{design} trial {trial}: {}: full {a}, selection {b}", inf.name);
+                }
+                violating += usize::from(distance && *b > 0.0);
+            }
+            let (vf, vs) = (
+                idexp::excitation::constraints::Constraints::violation(&full),
+                idexp::excitation::constraints::Constraints::violation(&sel),
+            );
+            assert!(vs <= vf && vf - vs <= 0.02 * m as f64, "{design} trial {trial}: violation {vs} vs {vf}");
+        }
+        assert!(violating > 0, "{design}: no trial violates a distance constraint");
+        assert!(fewer > 8, "{design}: the selection saves queries in only {fewer} of 16 trials");
     }
 }

@@ -27,7 +27,7 @@
 use super::grid::TrigGrid;
 use crate::error::{Error, Result};
 use crate::robot::cartesian::{CartesianConstraint, Shape};
-use crate::robot::collision::{CollisionScene, DistanceSeries, PairClass};
+use crate::robot::collision::{CollisionScene, DistanceSeries, NarrowPhase, PairClass};
 use crate::robot::kinematics::forward_kinematics;
 use crate::robot::{frame_jacobian, id_derivatives, inverse_dynamics, motor_inertia, Frame, Robot, Workspace};
 use crate::trajectory::{period_grid, Basis, FourierLayout, FourierTrajectory};
@@ -146,6 +146,8 @@ pub struct ConstraintWorkspace {
     poses: Vec<nalgebra::Isometry3<f64>>,
     gq: Vec<f64>,
     exhaustive: bool,
+    /// Evaluation for the GA's selection ([`Constraints::eval_selection`]).
+    selection: bool,
 }
 
 impl ConstraintWorkspace {
@@ -160,6 +162,11 @@ impl ConstraintWorkspace {
     /// evaluation's grid, over all pairs.
     pub fn distance_queries(&self) -> usize {
         self.series.iter().map(|s| s.queries).sum()
+    }
+
+    /// The exact distance queries of the last evaluation per checked pair.
+    pub fn distance_queries_per_pair(&self) -> Vec<usize> {
+        self.series.iter().map(|s| s.queries).collect()
     }
 }
 
@@ -450,6 +457,15 @@ impl Constraints {
         self
     }
 
+    /// Chooses the narrow phase of the distance constraints (default
+    /// [`NarrowPhase::Climb`]; [`NarrowPhase::Scan`] is the reference).
+    pub fn with_narrow_phase(mut self, np: NarrowPhase) -> Self {
+        if let Some(sc) = self.scene.as_mut() {
+            std::sync::Arc::make_mut(sc).set_narrow_phase(np);
+        }
+        self
+    }
+
     /// The collision scene, if collisions are checked.
     pub fn scene(&self) -> Option<&CollisionScene> {
         self.scene.as_deref()
@@ -518,6 +534,7 @@ impl Constraints {
             poses: Vec::new(),
             gq: vec![0.0; n],
             exhaustive: false,
+            selection: false,
         }
     }
 
@@ -533,6 +550,25 @@ impl Constraints {
     pub fn eval(&self, x: &[f64], cw: &mut ConstraintWorkspace, c: &mut [f64], jac: Option<&mut [f64]>) {
         let tr = self.layout.trajectory(x);
         self.eval_traj(&tr, cw, c, jac)
+    }
+
+    /// The constraint values the GA's selection needs (feasibility first, then
+    /// the total violation, [`Self::violation`]): as [`Self::eval`] without
+    /// the Jacobian, except that a distance constraint that holds at every
+    /// grid time reports 0 instead of its (negative) value. Its distances are
+    /// capped at the margin instead of margin + band, so the broad phase skips
+    /// every pair and grid time whose bound is above the margin; a pair closer
+    /// than the margin somewhere on the grid gets the value of [`Self::eval`]
+    /// (the grid minimum and its neighbours exact at the full cap, the same
+    /// parabola). The violation therefore equals that of [`Self::eval`] except
+    /// for a pair that keeps the margin at every grid time while the parabola
+    /// through its grid minimum dips below it (then 0 here, a small positive
+    /// value there): the selection counts a design feasible on the grid.
+    pub fn eval_selection(&self, x: &[f64], cw: &mut ConstraintWorkspace, c: &mut [f64]) {
+        let tr = self.layout.trajectory(x);
+        cw.selection = true;
+        self.eval_traj(&tr, cw, c, None);
+        cw.selection = false;
     }
 
     /// As [`Self::eval`] for a trajectory (the Jacobian is still w.r.t. the layout's x).
@@ -559,8 +595,9 @@ impl Constraints {
                 forward_kinematics(&self.robot, &cw.q, &mut cw.ws.kin);
                 sc.poses(&cw.ws.kin, &mut cw.pose_grid[g]);
             }
+            let cap = if cw.selection { sc.margin } else { sc.cap };
             for k in 0..sc.len() {
-                sc.pair_series(k, &cw.pose_grid, sc.cap, cw.exhaustive, &mut cw.series[k]);
+                sc.pair_series(k, &cw.pose_grid, cap, cw.exhaustive, &mut cw.series[k]);
             }
         }
         for (i, item) in self.items.iter().enumerate() {
@@ -664,9 +701,21 @@ impl Constraints {
                     let sc = self.scene.as_deref().expect("distance constraints have a scene");
                     // the parabola through the grid minimum needs its neighbours exact
                     let ng = cw.pose_grid.len();
-                    if let Some((ib, _)) = cw.series[pair].argmin() {
+                    if let Some((ib, vmin)) = cw.series[pair].argmin() {
+                        if cw.selection && vmin >= sc.margin {
+                            // holds at every grid time: all the selection needs
+                            c[i] = 0.0;
+                            continue;
+                        }
                         for g in [(ib + ng - 1) % ng, (ib + 1) % ng] {
-                            cw.series[pair].make_exact(sc, pair, g, &cw.pose_grid, sc.cap);
+                            let sr = &mut cw.series[pair];
+                            if cw.selection && sr.exact[g] && sr.value[g] >= sc.margin {
+                                // capped at the margin: the full-cap value, as in `eval`
+                                sr.value[g] = sc.pair_distance(pair, &cw.pose_grid[g], sc.cap);
+                                sr.queries += 1;
+                            } else {
+                                sr.make_exact(sc, pair, g, &cw.pose_grid, sc.cap);
+                            }
                         }
                     }
                     let vals: Vec<f64> = cw.series[pair].value.iter().map(|v| -v).collect();

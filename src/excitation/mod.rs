@@ -354,7 +354,7 @@ impl Problem {
         }
         self.constraints.repair_joints(x, &self.limits, 1e-6);
         c.resize(self.constraints.len(), 0.0);
-        self.constraints.eval(x, cw, c, None);
+        self.constraints.eval_selection(x, cw, c);
         let f = self.objective.value(x, ow);
         (f, Constraints::violation(c))
     }

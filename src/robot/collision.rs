@@ -30,7 +30,7 @@ use crate::robot::kinematics::Kin;
 use crate::robot::model::Robot;
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
 use parry3d_f64::query;
-use parry3d_f64::shape::{HalfSpace, SharedShape};
+use parry3d_f64::shape::{HalfSpace, SharedShape, SupportMap};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -110,6 +110,247 @@ pub struct ConvexPart {
     halfspace: Option<(Vector3<f64>, f64)>,
     /// Bounding capsule (body frame) for the broad phase; `None` for half-spaces.
     capsule: Option<BoundCapsule>,
+    /// Vertex adjacency of a convex polyhedron, for support points by hill climbing.
+    climb: Option<std::sync::Arc<ClimbHull>>,
+}
+
+/// A convex polyhedron's vertices with their adjacency on its boundary
+/// (the edges of a triangulation of its faces): support points by hill
+/// climbing instead of a scan over every vertex.
+///
+/// **Why it is exact.** On a triangulated convex surface, a vertex v none of
+/// whose neighbours has a larger dᵀx is a maximiser of dᵀx over the whole
+/// polyhedron P, except when v lies inside a face and d points into P along
+/// that face's normal: the incident triangles cover v's neighbourhood in ∂P,
+/// so at a corner or on an edge the cone of the edge directions from v is the
+/// tangent cone of P at v, which holds P − v. Climbing moves only to strictly
+/// better neighbours, so it never reaches such a face-interior vertex as a
+/// false maximum; it starts at a vertex that is not one (a seed, or the
+/// previous support vertex of the same query when that is not inside a face).
+/// The support value is the scan's to rounding (tested on every shipped hull
+/// against the scan for random directions).
+#[derive(Debug, Clone)]
+pub struct ClimbHull {
+    pts: Vec<Point3<f64>>,
+    /// CSR adjacency: neighbours of vertex i are `adj[start[i]..start[i + 1]]`.
+    start: Vec<u32>,
+    adj: Vec<u32>,
+    /// Start vertices: the best vertex (not inside a face) along 14 fixed directions.
+    seeds: Vec<u32>,
+    /// Vertices inside a face (all incident triangles coplanar): never a start.
+    flat: Vec<bool>,
+    /// Vertices of the polyhedron outside the triangulation (normally none): scanned.
+    orphans: Vec<Point3<f64>>,
+}
+
+impl ClimbHull {
+    /// From the vertices of a convex polyhedron: the triangulation of their
+    /// convex hull (parry's, the one `SharedShape::convex_hull` builds the
+    /// polyhedron from) gives the adjacency; a vertex the triangulation does
+    /// not use is kept aside and scanned at every support call.
+    pub fn new(points: &[Point3<f64>]) -> Option<ClimbHull> {
+        let (pts, tris) = parry3d_f64::transformation::try_convex_hull(points).ok()?;
+        let orphans: Vec<Point3<f64>> = points.iter().filter(|p| !pts.contains(p)).copied().collect();
+        let nv = pts.len();
+        if nv == 0 || tris.is_empty() {
+            return None;
+        }
+        let mut nb: Vec<Vec<u32>> = vec![Vec::new(); nv];
+        // incident triangle normals: a vertex all of whose triangles are coplanar lies inside a face
+        let mut normals: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); nv];
+        for t in &tris {
+            let [a, b, c] = t.map(|i| i as usize);
+            if a >= nv || b >= nv || c >= nv {
+                return None;
+            }
+            let n = (pts[b] - pts[a]).cross(&(pts[c] - pts[a]));
+            let nn = n.norm();
+            for (i, j) in [(a, b), (b, c), (c, a)] {
+                nb[i].push(j as u32);
+                nb[j].push(i as u32);
+            }
+            if nn > 0.0 {
+                for i in [a, b, c] {
+                    normals[i].push(n / nn);
+                }
+            }
+        }
+        let mut start = Vec::with_capacity(nv + 1);
+        let mut adj = Vec::new();
+        for l in &mut nb {
+            l.sort_unstable();
+            l.dedup();
+            start.push(adj.len() as u32);
+            adj.extend_from_slice(l);
+        }
+        start.push(adj.len() as u32);
+        let face_interior = |i: usize| -> bool {
+            let ns = &normals[i];
+            nb[i].is_empty() || ns.is_empty() || ns.iter().all(|n| (n - ns[0]).norm() < 1e-9)
+        };
+        let usable: Vec<usize> = (0..nv).filter(|&i| !face_interior(i)).collect();
+        if usable.is_empty() {
+            return None;
+        }
+        let mut seeds = Vec::new();
+        for d in seed_directions() {
+            let mut best = usable[0];
+            for &i in &usable {
+                if pts[i].coords.dot(&d) > pts[best].coords.dot(&d) {
+                    best = i;
+                }
+            }
+            if !seeds.contains(&(best as u32)) {
+                seeds.push(best as u32);
+            }
+        }
+        let flat = (0..nv).map(face_interior).collect();
+        Some(ClimbHull {
+            pts,
+            start,
+            adj,
+            seeds,
+            flat,
+            orphans,
+        })
+    }
+
+    /// Number of vertices.
+    pub fn len(&self) -> usize {
+        self.pts.len()
+    }
+
+    /// True without vertices (never for a built hull).
+    pub fn is_empty(&self) -> bool {
+        self.pts.is_empty()
+    }
+
+    /// The vertices of the triangulation.
+    pub fn points(&self) -> &[Point3<f64>] {
+        &self.pts
+    }
+
+    /// The polyhedron's vertices outside the triangulation (scanned at every support call).
+    pub fn orphans(&self) -> &[Point3<f64>] {
+        &self.orphans
+    }
+
+    /// Index of the best seed along `dir`.
+    fn seed(&self, dir: &Vector3<f64>) -> u32 {
+        let mut best = self.seeds[0];
+        let mut bv = self.pts[best as usize].coords.dot(dir);
+        for &s in &self.seeds[1..] {
+            let v = self.pts[s as usize].coords.dot(dir);
+            if v > bv {
+                bv = v;
+                best = s;
+            }
+        }
+        best
+    }
+
+    /// A vertex maximising dᵀx, climbing from vertex `from` (steepest ascent
+    /// over the neighbours, strict improvements only).
+    pub fn support_from(&self, dir: &Vector3<f64>, from: u32) -> u32 {
+        let mut v = from as usize;
+        let mut best = self.pts[v].coords.dot(dir);
+        loop {
+            let mut next = v;
+            for &u in &self.adj[self.start[v] as usize..self.start[v + 1] as usize] {
+                let d = self.pts[u as usize].coords.dot(dir);
+                if d > best {
+                    best = d;
+                    next = u as usize;
+                }
+            }
+            if next == v {
+                return v as u32;
+            }
+            v = next;
+        }
+    }
+
+    /// A vertex maximising dᵀx, climbing from the best seed.
+    pub fn support_index(&self, dir: &Vector3<f64>) -> u32 {
+        self.support_from(dir, self.seed(dir))
+    }
+
+    /// The support point along `dir`: vertex `v` (a climb's result) or a
+    /// vertex outside the triangulation if that is farther along `dir`.
+    pub fn support_point(&self, dir: &Vector3<f64>, v: u32) -> Point3<f64> {
+        let mut best = self.pts[v as usize];
+        let mut bv = best.coords.dot(dir);
+        for p in &self.orphans {
+            let d = p.coords.dot(dir);
+            if d > bv {
+                bv = d;
+                best = *p;
+            }
+        }
+        best
+    }
+}
+
+/// The 14 seed directions of [`ClimbHull`]: the axes and the cube diagonals,
+/// slightly tilted (ties between coplanar vertices are then unlikely).
+fn seed_directions() -> Vec<Vector3<f64>> {
+    let mut v = Vec::with_capacity(14);
+    for a in 0..3 {
+        for s in [-1.0, 1.0] {
+            let mut d = Vector3::new(0.013, 0.007, 0.011);
+            d[a] = s;
+            v.push(d);
+        }
+    }
+    for sx in [-1.0, 1.0] {
+        for sy in [-1.0, 1.0] {
+            for sz in [-1.0, 1.0] {
+                v.push(Vector3::new(sx * 1.013, sy * 0.993, sz * 1.007));
+            }
+        }
+    }
+    v
+}
+
+/// A [`ClimbHull`] as a parry support map for one query: each support call
+/// climbs from the previous call's vertex (GJK's directions change little
+/// from one iteration to the next), the first from the best seed.
+struct Climbing<'a> {
+    hull: &'a ClimbHull,
+    last: std::cell::Cell<Option<u32>>,
+}
+
+impl<'a> Climbing<'a> {
+    fn new(hull: &'a ClimbHull) -> Self {
+        Climbing {
+            hull,
+            last: std::cell::Cell::new(None),
+        }
+    }
+}
+
+impl SupportMap for Climbing<'_> {
+    fn local_support_point(&self, dir: &Vector3<f64>) -> Point3<f64> {
+        let from = match self.last.get() {
+            Some(v) if !self.hull.flat[v as usize] => v,
+            _ => self.hull.seed(dir),
+        };
+        let v = self.hull.support_from(dir, from);
+        self.last.set(Some(v));
+        self.hull.support_point(dir, v)
+    }
+}
+
+/// Which narrow phase computes the exact distances.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum NarrowPhase {
+    /// parry's GJK/EPA with support points of convex hulls by hill climbing
+    /// on their vertex adjacency ([`ClimbHull`]; default).
+    #[default]
+    Climb,
+    /// parry's `query::contact` as it is: support points by a scan over every
+    /// hull vertex (the reference the climbing is tested against).
+    Scan,
 }
 
 /// A capsule enclosing a convex part: the points within `r` of the segment [a, b].
@@ -316,6 +557,7 @@ fn rot_y_to_z() -> UnitQuaternion<f64> {
 fn part(shape: SharedShape, local: Isometry3<f64>) -> ConvexPart {
     let bs = shape.compute_local_bounding_sphere();
     let capsule = bound_capsule(&shape).map(|c| c.moved(&local));
+    let climb = shape.as_convex_polyhedron().and_then(|c| ClimbHull::new(c.points())).map(std::sync::Arc::new);
     ConvexPart {
         centre: local * bs.center(),
         radius: bs.radius(),
@@ -323,6 +565,7 @@ fn part(shape: SharedShape, local: Isometry3<f64>) -> ConvexPart {
         local,
         halfspace: None,
         capsule,
+        climb,
     }
 }
 
@@ -455,6 +698,7 @@ impl Body {
                         radius: f64::INFINITY,
                         halfspace: Some((nw, offw)),
                         capsule: None,
+                        climb: None,
                     });
                 }
             }
@@ -473,6 +717,12 @@ impl Body {
     /// True if the body has no shapes.
     pub fn is_empty(&self) -> bool {
         self.parts.is_empty()
+    }
+
+    /// The hill-climbing hulls of the body's convex polyhedra with their
+    /// poses in the body frame (for tests).
+    pub fn climb_hulls(&self) -> Vec<(&ClimbHull, Isometry3<f64>)> {
+        self.parts.iter().filter_map(|p| p.climb.as_deref().map(|h| (h, p.local))).collect()
     }
 
     /// Number of convex parts.
@@ -549,19 +799,31 @@ fn world_plane(x: &Isometry3<f64>, n: &Vector3<f64>, off: f64) -> (Vector3<f64>,
 }
 
 /// Signed distance of two convex parts at world poses, if below `cap`.
-fn part_proximity(a: &ConvexPart, xa: &Isometry3<f64>, b: &ConvexPart, xb: &Isometry3<f64>, cap: f64) -> Option<Proximity> {
+fn part_proximity(a: &ConvexPart, xa: &Isometry3<f64>, b: &ConvexPart, xb: &Isometry3<f64>, cap: f64, np: NarrowPhase) -> Option<Proximity> {
     if part_lower_bound(a, xa, b, xb) > cap {
         return None;
     }
     let pa = xa * a.local;
     let pb = xb * b.local;
+    let pred = cap.max(0.0);
     // parry 0.25's (support map, half-space) contact measures from the wrong
     // side (found by tests/collision.rs); the (half-space, support map) order
     // is right, so a half-space always goes first and the result is flipped.
-    let c = if b.halfspace.is_some() && a.halfspace.is_none() {
-        query::contact(&pb, &*b.shape, &pa, &*a.shape, cap.max(0.0)).ok()??.flipped()
-    } else {
-        query::contact(&pa, &*a.shape, &pb, &*b.shape, cap.max(0.0)).ok()??
+    let c = match np {
+        NarrowPhase::Scan => {
+            if b.halfspace.is_some() && a.halfspace.is_none() {
+                query::contact(&pb, &*b.shape, &pa, &*a.shape, pred).ok()??.flipped()
+            } else {
+                query::contact(&pa, &*a.shape, &pb, &*b.shape, pred).ok()??
+            }
+        }
+        NarrowPhase::Climb => {
+            if b.halfspace.is_some() && a.halfspace.is_none() {
+                climb_contact(&pb, b, &pa, a, pred)?.flipped()
+            } else {
+                climb_contact(&pa, a, &pb, b, pred)?
+            }
+        }
     };
     if c.dist > cap {
         return None;
@@ -574,15 +836,49 @@ fn part_proximity(a: &ConvexPart, xa: &Isometry3<f64>, b: &ConvexPart, xb: &Isom
     })
 }
 
+/// `query::contact` with the same dispatch as parry's default query
+/// dispatcher for the shapes of a collision model (half-space first, balls
+/// by their special cases, every other pair by GJK/EPA on support maps), the
+/// support points of convex hulls by hill climbing ([`ClimbHull`]).
+fn climb_contact(p1: &Isometry3<f64>, a: &ConvexPart, p2: &Isometry3<f64>, b: &ConvexPart, pred: f64) -> Option<query::Contact> {
+    use parry3d_f64::query::details::{contact_halfspace_support_map, contact_support_map_support_map};
+    let (Some(ha), Some(hb)) = (&a.climb, &b.climb) else {
+        if (a.climb.is_none() && b.climb.is_none()) || a.shape.as_ball().is_some() || b.shape.as_ball().is_some() {
+            return query::contact(p1, &*a.shape, p2, &*b.shape, pred).ok()?;
+        }
+        let pos12 = p1.inv_mul(p2);
+        let mut c = if let Some(hs) = a.shape.as_shape::<HalfSpace>() {
+            let hb = b.climb.as_deref()?;
+            contact_halfspace_support_map(&pos12, hs, &Climbing::new(hb), pred)?
+        } else if let Some(ha) = &a.climb {
+            contact_support_map_support_map(&pos12, &Climbing::new(ha), b.shape.as_support_map()?, pred)?
+        } else {
+            let hb = b.climb.as_deref()?;
+            contact_support_map_support_map(&pos12, a.shape.as_support_map()?, &Climbing::new(hb), pred)?
+        };
+        c.transform_by_mut(p1, p2);
+        return Some(c);
+    };
+    let pos12 = p1.inv_mul(p2);
+    let mut c = contact_support_map_support_map(&pos12, &Climbing::new(ha), &Climbing::new(hb), pred)?;
+    c.transform_by_mut(p1, p2);
+    Some(c)
+}
+
 /// Signed distance between bodies `a` and `b` at world poses `xa`, `xb`:
 /// the closest pair of parts, or `None` if every pair is farther than `cap`
 /// (then the capped distance is `cap`). Bodies without shapes never collide.
 pub fn proximity(a: &Body, xa: &Isometry3<f64>, b: &Body, xb: &Isometry3<f64>, cap: f64) -> Option<Proximity> {
+    proximity_with(a, xa, b, xb, cap, NarrowPhase::default())
+}
+
+/// [`proximity`] with a chosen narrow phase.
+pub fn proximity_with(a: &Body, xa: &Isometry3<f64>, b: &Body, xb: &Isometry3<f64>, cap: f64, np: NarrowPhase) -> Option<Proximity> {
     let mut best: Option<Proximity> = None;
     let mut lim = cap;
     for pa in &a.parts {
         for pb in &b.parts {
-            if let Some(p) = part_proximity(pa, xa, pb, xb, lim) {
+            if let Some(p) = part_proximity(pa, xa, pb, xb, lim, np) {
                 if best.is_none_or(|b| p.distance < b.distance) {
                     lim = p.distance.max(0.0).min(lim);
                     best = Some(p);
@@ -876,6 +1172,8 @@ pub struct CollisionScene {
     pub margin: f64,
     /// Cap of the distances in the optimisation (m): margin + band.
     pub cap: f64,
+    /// The exact distance computation.
+    narrow: NarrowPhase,
 }
 
 /// Tolerance of the broad phase (m): a configuration (or pair) is left
@@ -1083,12 +1381,23 @@ impl CollisionScene {
             excluded,
             margin: spec.margin,
             cap: spec.margin + spec.band,
+            narrow: NarrowPhase::default(),
         }))
     }
 
     /// Number of checked pairs.
     pub fn len(&self) -> usize {
         self.pairs.len()
+    }
+
+    /// Chooses the narrow phase (default [`NarrowPhase::Climb`]).
+    pub fn set_narrow_phase(&mut self, np: NarrowPhase) {
+        self.narrow = np;
+    }
+
+    /// The narrow phase in use.
+    pub fn narrow_phase(&self) -> NarrowPhase {
+        self.narrow
     }
 
     /// True when no pair is checked.
@@ -1111,7 +1420,7 @@ impl CollisionScene {
     /// (`None`: farther than the cap).
     pub fn pair_proximity(&self, k: usize, poses: &[Isometry3<f64>], cap: f64) -> Option<Proximity> {
         let p = &self.pairs[k];
-        proximity(&self.bodies[p.ia], &poses[p.ia], &self.bodies[p.ib], &poses[p.ib], cap)
+        proximity_with(&self.bodies[p.ia], &poses[p.ia], &self.bodies[p.ib], &poses[p.ib], cap, self.narrow)
     }
 
     /// Adds `scale · ∂d/∂q` of pair `k` to `grad` (length n): nᵀ(J_B(p_B) − J_A(p_A)),

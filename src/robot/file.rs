@@ -328,7 +328,19 @@ fn collision_geometry(path: &Path, f: &RobotFile, robot: &Robot, ctx: &str) -> R
         Some(u) => {
             let upath = dir.join(u);
             let parts = load_urdf(&upath, f.base_link.as_deref(), f.tip_link.as_deref())?;
-            super::urdf::load_collision(&upath, &parts, f.base_link.as_deref(), &mesh_path, mode)?
+            super::urdf::load_collision(&upath, &parts, f.base_link.as_deref(), &mesh_path, mode).map_err(|e| match e {
+                // a mesh the URDF names but mesh_path does not lead to: name the robot file and its entries
+                Error::Invalid { context, field, msg } if field.ends_with("<collision> mesh") && msg.contains("not found") => Error::invalid(
+                    path.display().to_string(),
+                    "mesh_path",
+                    format!(
+                        "{context}: {field}: {msg}; this robot file's mesh_path = [{}] (relative to {}): set it to the folder(s) below which the URDF's mesh names are found",
+                        f.mesh_path.iter().map(|m| format!("\"{m}\"")).collect::<Vec<_>>().join(", "),
+                        dir.display()
+                    ),
+                ),
+                e => e,
+            })?
         }
         None => {
             let b: Vec<Body> = std::iter::once(Body::empty("base"))
