@@ -49,3 +49,32 @@ def test_bad_drive_arguments(tanh_robot, both_run):
         idexp.identify(tanh_robot, both_run, torque_from="voltage")
     with pytest.raises(ValueError, match="tolerance"):
         idexp.identify(tanh_robot, both_run, current_tolerance=-1.0)
+
+
+@pytest.fixture(scope="module")
+def velocity_run(tmp_path_factory):
+    spec = tomllib.loads((DESIGNS / "sim_rpr_pick_place.toml").read_text())
+    spec["repetitions"] = 2
+    spec["reference"]["cycles"] = 2
+    spec["record_velocity"] = True
+    s = idexp.simulate(spec, base_dir=DESIGNS)
+    return s.write(tmp_path_factory.mktemp("velocity") / "run")
+
+
+def test_logged_velocities_are_used_unless_told_otherwise(tanh_robot, velocity_run, both_run):
+    header = (velocity_run / "rep_001.csv").read_text().splitlines()[0].split(",")
+    assert {"qd1", "qd2", "qd3", "tau1"} <= set(header), header
+    auto = idexp.identify(tanh_robot, velocity_run)
+    log = idexp.identify(tanh_robot, velocity_run, velocity_from="log")
+    pos = idexp.identify(tanh_robot, velocity_run, velocity_from="positions")
+    assert auto.report["velocity"] == log.report["velocity"] == "logged"
+    assert pos.report["velocity"] == "positions"
+    np.testing.assert_array_equal(auto.theta, log.theta)
+    # the tanh friction at rest follows the logged velocity, not the
+    # differentiated positions: the two estimates differ
+    assert np.max(np.abs(log.theta - pos.theta) / pos.std) > 1.0
+    # a run without qd columns cannot give logged velocities
+    with pytest.raises(ValueError, match="qd"):
+        idexp.identify(tanh_robot, both_run, velocity_from="log")
+    with pytest.raises(ValueError, match="velocity"):
+        idexp.identify(tanh_robot, velocity_run, velocity_from="tachometer")
