@@ -365,7 +365,7 @@ fn simplex_objective(pb: &Problem, crit: Criterion, w: &[f64]) -> Option<f64> {
 /// solves (Q + μI) d + ν1 = g_set, 1ᵀd = 0, μ a small relative
 /// regularisation (Q is singular when the free set is larger than the span of
 /// its information matrices). `a` holds L⁻¹H and `b` (A only) M⁻¹H.
-fn newton_direction(pb: &Problem, set: &[usize], g: &[f64], a: &DMatrix<f64>, b: Option<&DMatrix<f64>>) -> Option<Vec<f64>> {
+fn newton_direction(pb: &Problem, set: &[usize], g: &[f64], a: &DMatrix<f64>, b: Option<&DMatrix<f64>>, c: Option<&DMatrix<f64>>) -> Option<Vec<f64>> {
     let p = pb.p();
     let k = set.len();
     let cols: Vec<(usize, usize)> = {
@@ -387,29 +387,54 @@ fn newton_direction(pb: &Problem, set: &[usize], g: &[f64], a: &DMatrix<f64>, b:
         }
         out
     };
-    let a_s = gather(a);
-    let g1 = a_s.transpose() * &a_s;
-    let g2 = b.map(|b| {
-        let b_s = gather(b);
-        b_s.transpose() * &b_s
-    });
     let mut q = DMatrix::zeros(k, k);
-    for s in 0..k {
-        for t in 0..=s {
-            let (cs, rs_) = cols[s];
-            let (ct, rt) = cols[t];
-            let mut v = 0.0;
-            for x in 0..rs_ {
-                for y in 0..rt {
-                    let e = g1[(cs + x, ct + y)];
-                    v += match &g2 {
-                        Some(g2) => 2.0 * e * g2[(cs + x, ct + y)],
-                        None => e * e,
-                    };
+    if rs * rs > k * p * p {
+        // large ranks: X_s = L⁻¹F_sL⁻ᵀ (p×p), D: Q_st = ⟨X_s, X_t⟩; A (with
+        // C = L⁻¹L⁻ᵀ): Q_st = 2 tr(X_s X_t C) = ⟨X_s, X_t C + C X_t⟩
+        let mut xs = DMatrix::zeros(p * p, k);
+        for (s, &(_, r)) in cols.iter().enumerate() {
+            let asub = a.columns(off[s], r);
+            let x = &asub * asub.transpose();
+            xs.column_mut(s).copy_from_slice(x.as_slice());
+        }
+        let ys = match c {
+            None => xs.clone(),
+            Some(c) => {
+                let mut ys = DMatrix::zeros(p * p, k);
+                for s in 0..k {
+                    let x = DMatrix::from_column_slice(p, p, xs.column(s).as_slice());
+                    let y = &x * c + c * &x;
+                    ys.column_mut(s).copy_from_slice(y.as_slice());
                 }
+                ys
             }
-            q[(s, t)] = v;
-            q[(t, s)] = v;
+        };
+        q = xs.transpose() * ys;
+        super::problem::symmetrize(&mut q);
+    } else {
+        let a_s = gather(a);
+        let g1 = a_s.transpose() * &a_s;
+        let g2 = b.map(|b| {
+            let b_s = gather(b);
+            b_s.transpose() * &b_s
+        });
+        for s in 0..k {
+            for t in 0..=s {
+                let (cs, rs_) = cols[s];
+                let (ct, rt) = cols[t];
+                let mut v = 0.0;
+                for x in 0..rs_ {
+                    for y in 0..rt {
+                        let e = g1[(cs + x, ct + y)];
+                        v += match &g2 {
+                            Some(g2) => 2.0 * e * g2[(cs + x, ct + y)],
+                            None => e * e,
+                        };
+                    }
+                }
+                q[(s, t)] = v;
+                q[(t, s)] = v;
+            }
         }
     }
     let qmax = (0..k).map(|s| q[(s, s)]).fold(0.0f64, f64::max).max(f64::MIN_POSITIVE);
@@ -479,6 +504,11 @@ pub fn newton_simplex(pb: &Problem, crit: Criterion, w: &mut [f64], max_iter: us
         } else {
             None
         };
+        // A: C = L⁻¹L⁻ᵀ for the Hessian of large-rank candidates
+        let cmat = match (&b, chol.l().solve_lower_triangular(&DMatrix::identity(pb.p(), pb.p()))) {
+            (Some(_), Some(li)) => Some(&li * li.transpose()),
+            _ => None,
+        };
         let sq = b.as_ref().unwrap_or(&a);
         let g: Vec<f64> = (0..n)
             .map(|i| sq.columns(pb.offset(i), pb.rank(i)).norm_squared())
@@ -493,11 +523,11 @@ pub fn newton_simplex(pb: &Problem, crit: Criterion, w: &mut [f64], max_iter: us
         if w[jmax] == 0.0 {
             set.push(jmax);
         }
-        let mut d = newton_direction(pb, &set, &g, &a, b.as_ref());
+        let mut d = newton_direction(pb, &set, &g, &a, b.as_ref(), cmat.as_ref());
         if w[jmax] == 0.0 && d.as_ref().is_some_and(|d| d[set.len() - 1] <= 0.0) {
             // the best outside candidate is not wanted by Newton: step on the support only
             set.pop();
-            d = newton_direction(pb, &set, &g, &a, b.as_ref());
+            d = newton_direction(pb, &set, &g, &a, b.as_ref(), cmat.as_ref());
         }
         let mut stepped = false;
         if let Some(d) = d {
@@ -509,19 +539,28 @@ pub fn newton_simplex(pb: &Problem, crit: Criterion, w: &mut [f64], max_iter: us
                 }
             }
             if slope > 0.0 && amax < 1.0 {
-                // projected Newton step: the full step with negative weights
-                // cut to zero, so that many candidates can leave at once
-                let mut wt = w.to_vec();
-                for (&i, &di) in set.iter().zip(&d) {
-                    wt[i] = (wt[i] + di).max(0.0);
-                }
-                normalise(&mut wt);
-                if let Some(ft) = simplex_objective(pb, crit, &wt) {
-                    if ft >= f_cur + 1e-4 * slope {
-                        w.copy_from_slice(&wt);
-                        f_cur = ft;
-                        stepped = true;
+                // projection arc (Bertsekas 1982): w(α) = P(w + αd), negative
+                // weights cut to zero, so that many candidates can leave at
+                // once; Armijo on the actual change, down to the ratio-test step
+                let mut alpha = 1.0f64;
+                while alpha > amax {
+                    let mut wt = w.to_vec();
+                    for (&i, &di) in set.iter().zip(&d) {
+                        wt[i] = (wt[i] + alpha * di).max(0.0);
                     }
+                    normalise(&mut wt);
+                    let gain: f64 = set.iter().map(|&i| g[i] * (wt[i] - w[i])).sum();
+                    if gain > 0.0 {
+                        if let Some(ft) = simplex_objective(pb, crit, &wt) {
+                            if ft >= f_cur + 1e-4 * gain {
+                                w.copy_from_slice(&wt);
+                                f_cur = ft;
+                                stepped = true;
+                                break;
+                            }
+                        }
+                    }
+                    alpha *= 0.5;
                 }
             }
             if !stepped && slope > 0.0 && amax > 0.0 {
