@@ -394,7 +394,7 @@ fn newton_direction(pb: &Problem, set: &[usize], g: &[f64], a: &DMatrix<f64>, b:
         let mut xs = DMatrix::zeros(p * p, k);
         for (s, &(_, r)) in cols.iter().enumerate() {
             let asub = a.columns(off[s], r);
-            let x = &asub * asub.transpose();
+            let x = asub * asub.transpose();
             xs.column_mut(s).copy_from_slice(x.as_slice());
         }
         let ys = match c {
@@ -510,9 +510,7 @@ pub fn newton_simplex(pb: &Problem, crit: Criterion, w: &mut [f64], max_iter: us
             _ => None,
         };
         let sq = b.as_ref().unwrap_or(&a);
-        let g: Vec<f64> = (0..n)
-            .map(|i| sq.columns(pb.offset(i), pb.rank(i)).norm_squared())
-            .collect();
+        let g: Vec<f64> = (0..n).map(|i| sq.columns(pb.offset(i), pb.rank(i)).norm_squared()).collect();
         let mean: f64 = w.iter().zip(&g).map(|(a, b)| a * b).sum();
         let (jmax, gmax) = g.iter().enumerate().fold((0, f64::NEG_INFINITY), |b, (i, &v)| if v > b.1 { (i, v) } else { b });
         log.eps = gmax - mean;

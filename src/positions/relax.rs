@@ -545,7 +545,12 @@ const NEWTON_ITERS: usize = 200;
 /// weights (the warm start of the Clarabel rounds) and, when the certificate
 /// holds (or the user stopped the run), the design with its certificate.
 #[allow(clippy::type_complexity)]
-fn newton_phase(cx: &Phase, mut ws: Vec<usize>, w_ws: Vec<f64>, log: &mut SolveLog) -> Result<(Vec<usize>, Vec<f64>, Option<(Vec<f64>, Certificate, Evaluation)>)> {
+fn newton_phase(
+    cx: &Phase,
+    mut ws: Vec<usize>,
+    w_ws: Vec<f64>,
+    log: &mut SolveLog,
+) -> Result<(Vec<usize>, Vec<f64>, Option<(Vec<f64>, Certificate, Evaluation)>)> {
     let Phase { pb, pbs, crit, opts, ctl } = *cx;
     let (p, n) = (pb.p(), pb.n());
     let mut w_ws = w_ws;
