@@ -368,6 +368,37 @@ fn simplex_objective(pb: &Problem, crit: Criterion, w: &[f64]) -> Option<f64> {
 fn newton_direction(pb: &Problem, set: &[usize], g: &[f64], a: &DMatrix<f64>, b: Option<&DMatrix<f64>>, c: Option<&DMatrix<f64>>) -> Option<Vec<f64>> {
     let p = pb.p();
     let k = set.len();
+    let rs: usize = set.iter().map(|&i| pb.rank(i)).sum();
+    let q = hessian(pb, set, a, b, c, rs * rs > k * p * p);
+    let qmax = (0..k).map(|s| q[(s, s)]).fold(0.0f64, f64::max).max(f64::MIN_POSITIVE);
+    let mut mu = 1e-12 * qmax;
+    for _ in 0..6 {
+        let mut qr = q.clone();
+        for s in 0..k {
+            qr[(s, s)] += mu;
+        }
+        if let Some(c) = qr.cholesky() {
+            let gs = nalgebra::DVector::from_iterator(k, set.iter().map(|&i| g[i]));
+            let x = c.solve(&gs);
+            let y = c.solve(&nalgebra::DVector::from_element(k, 1.0));
+            let nu = x.sum() / y.sum();
+            let d = x - y * nu;
+            if d.iter().all(|v| v.is_finite()) {
+                return Some(d.iter().copied().collect());
+            }
+        }
+        mu *= 100.0;
+    }
+    None
+}
+
+/// Q = −Hessian of the criterion (D: log det M, A: −tr M⁻¹) with respect to
+/// the weights of `set`: D Q_st = tr(M⁻¹F_sM⁻¹F_t), A Q_st = 2 tr(M⁻¹F_sM⁻¹F_tM⁻¹),
+/// either from the factor products (`whitened` false) or from the whitened
+/// p×p matrices L⁻¹F_sL⁻ᵀ (`whitened` true, cheaper for large ranks).
+fn hessian(pb: &Problem, set: &[usize], a: &DMatrix<f64>, b: Option<&DMatrix<f64>>, c: Option<&DMatrix<f64>>, whitened: bool) -> DMatrix<f64> {
+    let p = pb.p();
+    let k = set.len();
     let cols: Vec<(usize, usize)> = {
         let mut c0 = 0;
         set.iter()
@@ -388,7 +419,7 @@ fn newton_direction(pb: &Problem, set: &[usize], g: &[f64], a: &DMatrix<f64>, b:
         out
     };
     let mut q = DMatrix::zeros(k, k);
-    if rs * rs > k * p * p {
+    if whitened {
         // large ranks: X_s = L⁻¹F_sL⁻ᵀ (p×p), D: Q_st = ⟨X_s, X_t⟩; A (with
         // C = L⁻¹L⁻ᵀ): Q_st = 2 tr(X_s X_t C) = ⟨X_s, X_t C + C X_t⟩
         let mut xs = DMatrix::zeros(p * p, k);
@@ -437,26 +468,7 @@ fn newton_direction(pb: &Problem, set: &[usize], g: &[f64], a: &DMatrix<f64>, b:
             }
         }
     }
-    let qmax = (0..k).map(|s| q[(s, s)]).fold(0.0f64, f64::max).max(f64::MIN_POSITIVE);
-    let mut mu = 1e-12 * qmax;
-    for _ in 0..6 {
-        let mut qr = q.clone();
-        for s in 0..k {
-            qr[(s, s)] += mu;
-        }
-        if let Some(c) = qr.cholesky() {
-            let gs = nalgebra::DVector::from_iterator(k, set.iter().map(|&i| g[i]));
-            let x = c.solve(&gs);
-            let y = c.solve(&nalgebra::DVector::from_element(k, 1.0));
-            let nu = x.sum() / y.sum();
-            let d = x - y * nu;
-            if d.iter().all(|v| v.is_finite()) {
-                return Some(d.iter().copied().collect());
-            }
-        }
-        mu *= 100.0;
-    }
-    None
+    q
 }
 
 /// Active-set Newton method for D or A on the simplex of `pb` from `w` (in
@@ -601,4 +613,58 @@ pub fn newton_simplex(pb: &Problem, crit: Criterion, w: &mut [f64], max_iter: us
     }
     log.iterations = max_iter;
     Ok(log)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+
+    /// Both Hessian forms equal minus the finite-difference Jacobian of the
+    /// sensitivities, for D and A.
+    #[test]
+    fn newton_hessian_matches_finite_differences() {
+        let mut g = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let p = 5;
+        let factors: Vec<DMatrix<f64>> = (0..7)
+            .map(|i| DMatrix::from_fn(p, 1 + i % 3, |_, _| <StandardNormal as Distribution<f64>>::sample(&StandardNormal, &mut g)))
+            .collect();
+        let pb = Problem::from_factors(p, &factors, None).unwrap();
+        let n = pb.n();
+        let w: Vec<f64> = (0..n).map(|i| (1.0 + i as f64) / (n * (n + 1) / 2) as f64).collect();
+        let set: Vec<usize> = vec![0, 2, 3, 6];
+        for crit in [Criterion::D, Criterion::A] {
+            let chol = pb.information(&w).cholesky().unwrap();
+            let a = chol.l().solve_lower_triangular(pb.stacked()).unwrap();
+            let b = (crit == Criterion::A).then(|| chol.l().tr_solve_lower_triangular(&a).unwrap());
+            let li = chol.l().solve_lower_triangular(&DMatrix::identity(p, p)).unwrap();
+            let c = b.as_ref().map(|_| &li * li.transpose());
+            let q1 = hessian(&pb, &set, &a, b.as_ref(), c.as_ref(), false);
+            let q2 = hessian(&pb, &set, &a, b.as_ref(), c.as_ref(), true);
+            let h = 1e-6;
+            for (t, &j) in set.iter().enumerate() {
+                let (mut wp, mut wm) = (w.clone(), w.clone());
+                wp[j] += h;
+                wm[j] -= h;
+                let sp = pb.evaluate(crit, &wp).unwrap().sens;
+                let sm = pb.evaluate(crit, &wm).unwrap().sens;
+                for (s, &i) in set.iter().enumerate() {
+                    let fd = -(sp[i] - sm[i]) / (2.0 * h);
+                    let scale = q1[(s, t)].abs().max(1.0);
+                    assert!(
+                        (q1[(s, t)] - fd).abs() <= 1e-5 * scale,
+                        "{crit:?} factor form ({s},{t}): {} vs {fd}",
+                        q1[(s, t)]
+                    );
+                    assert!(
+                        (q2[(s, t)] - q1[(s, t)]).abs() <= 1e-10 * scale,
+                        "{crit:?} whitened form ({s},{t}): {} vs {}",
+                        q2[(s, t)],
+                        q1[(s, t)]
+                    );
+                }
+            }
+        }
+    }
 }
