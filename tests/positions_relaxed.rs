@@ -281,3 +281,92 @@ fn pruning_bound_keeps_the_optimal_support() {
         }
     }
 }
+
+/// The Newton path (default) and the Clarabel path (`newton = false`) reach
+/// the same certified optimum on random instances: D and A, with and without
+/// a prior, ranks 1..=3, badly scaled parameters; and the Newton path
+/// certifies without any conic solve.
+#[test]
+fn newton_path_matches_the_conic_path() {
+    let cases = [
+        (Criterion::D, 200, 10, 3, 71, false),
+        (Criterion::D, 400, 16, 2, 72, true),
+        (Criterion::D, 150, 6, 1, 73, false),
+        (Criterion::A, 300, 8, 3, 74, false),
+        (Criterion::A, 200, 10, 2, 75, true),
+        (Criterion::A, 120, 5, 1, 76, false),
+    ];
+    for (crit, n, p, rank, seed, prior) in cases {
+        let (h, f) = instance(n, p, rank, 1.0, seed);
+        let f0 = prior.then(|| instance(1, p, 2, 1.0, seed + 1).1[0].clone() * 0.3);
+        let pb = Problem::from_factors(p, &h, f0.as_ref()).unwrap();
+        let ctl = idexp::optim::Control::new();
+        let newton = solve_relaxed(&pb, crit, &SolverOptions::default(), &ctl).unwrap();
+        let conic_opts = SolverOptions {
+            newton: false,
+            ..Default::default()
+        };
+        let conic = solve_relaxed(&pb, crit, &conic_opts, &ctl).unwrap();
+        let tag = format!("{crit:?} n={n} p={p} seed={seed}");
+        assert_eq!(newton.status, Status::Optimal, "{tag}: {:?}", newton.certificate);
+        assert_eq!(conic.status, Status::Optimal, "{tag}: {:?}", conic.certificate);
+        assert!(newton.log.newton_certified && newton.log.rounds.is_empty(), "{tag}: Clarabel was needed");
+        assert!(!conic.log.newton_certified && !conic.log.rounds.is_empty());
+        assert!(newton.certificate.efficiency_bound >= 1.0 - 1e-6, "{tag}");
+        // the certified efficiency, recomputed here on the dense matrices
+        let m = info(&f, f0.as_ref(), &newton.weights);
+        let minv = m.clone().cholesky().unwrap().inverse();
+        let x = if crit == Criterion::A { &minv * &minv } else { minv.clone() };
+        let s: Vec<f64> = f.iter().map(|fi| x.component_mul(fi).sum()).collect();
+        let t0 = f0.as_ref().map(|f0| x.component_mul(f0).sum()).unwrap_or(0.0);
+        let smax = s.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        let eff = if crit == Criterion::D {
+            p as f64 / (t0 + smax)
+        } else {
+            let mean: f64 = newton.weights.iter().zip(&s).map(|(a, b)| a * b).sum();
+            1.0 - (smax - mean) / minv.trace()
+        };
+        assert!(eff >= 1.0 - 1e-6, "{tag}: recomputed efficiency {eff}");
+        assert!((eff - newton.certificate.efficiency_bound).abs() < 1e-9, "{tag}");
+        // both are certified within 1e-6: the values agree to that
+        let rel = (newton.value - conic.value).abs() / conic.value.abs().max(1.0);
+        assert!(rel <= 1e-6, "{tag}: Newton {} vs Clarabel {}", newton.value, conic.value);
+        // and the Newton value is no worse than Clarabel's beyond Clarabel's own accuracy
+        let better = if crit == Criterion::D {
+            newton.value >= conic.value - 1e-7 * conic.value.abs().max(1.0)
+        } else {
+            newton.value <= conic.value * (1.0 + 1e-7)
+        };
+        assert!(better, "{tag}: Newton {} vs Clarabel {}", newton.value, conic.value);
+    }
+}
+
+/// Pruning by the equivalence-theorem bound (D) never drops a support point:
+/// the pipeline with pruning finds the same weights as without it.
+#[test]
+fn pruned_and_unpruned_solves_agree() {
+    for (n, p, rank, seed) in [(600, 12, 3, 81), (300, 20, 1, 82)] {
+        let (h, _) = instance(n, p, rank, 1.0, seed);
+        let pb = Problem::from_factors(p, &h, None).unwrap();
+        let ctl = idexp::optim::Control::new();
+        let pruned = solve_relaxed(&pb, Criterion::D, &SolverOptions::default(), &ctl).unwrap();
+        let full_opts = SolverOptions {
+            prune: false,
+            ..Default::default()
+        };
+        let full = solve_relaxed(&pb, Criterion::D, &full_opts, &ctl).unwrap();
+        assert_eq!(pruned.status, Status::Optimal);
+        assert_eq!(full.status, Status::Optimal);
+        assert!((pruned.value - full.value).abs() <= 1e-9 * full.value.abs().max(1.0));
+        // the D-optimal information matrix is unique; with weights above 1e-4 both find the same support
+        let sup = |w: &[f64]| (0..n).filter(|&i| w[i] > 1e-4).collect::<Vec<_>>();
+        assert_eq!(sup(&pruned.weights), sup(&full.weights), "n={n} p={p}");
+        // the first-order phase run to a tight gap prunes most candidates, and
+        // never one that carries weight in the unpruned optimum
+        let ws = idexp::positions::firstorder::d_warm_start(&pb, true, 1e-6 * p as f64, 5000, &ctl).unwrap();
+        assert!(ws.pool.len() < n / 2, "n={n}: only pruned to {}", ws.pool.len());
+        for i in (0..n).filter(|&i| full.weights[i] > 1e-9) {
+            assert!(ws.pool.contains(&i), "n={n} p={p}: support point {i} (weight {}) was pruned", full.weights[i]);
+        }
+    }
+}

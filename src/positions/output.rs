@@ -322,11 +322,16 @@ pub fn report_text(run: &PositionsRun) -> String {
     let l = &rel.log;
     let _ = writeln!(
         s,
-        "solver: first order {} iterations (eps {:.2e}) in {:.3} s, pruned to {} candidates; Clarabel {} round(s) {:.3} s; total {:.3} s; information {:.3} s",
+        "solver: first order {} iterations (eps {:.2e}) in {:.3} s, pruned to {} candidates; Newton {} iterations on {} working set(s) ({} candidates) {:.3} s{}; Clarabel {} round(s) {:.3} s; total {:.3} s; information {:.3} s",
         l.first_order_iterations,
         l.first_order_eps,
         l.first_order_time,
         l.pruned_to,
+        l.newton_iterations,
+        l.newton_rounds,
+        l.newton_working_set,
+        l.newton_time,
+        if l.newton_certified { ", certified" } else { "" },
         l.rounds.len(),
         l.clarabel_time,
         l.total_time,

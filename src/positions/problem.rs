@@ -184,6 +184,10 @@ impl Problem {
     pub fn rank(&self, i: usize) -> usize {
         self.off[i + 1] - self.off[i]
     }
+    /// The first column of H_i in [`Problem::stacked`].
+    pub fn offset(&self, i: usize) -> usize {
+        self.off[i]
+    }
     /// The factor H_i (p × r_i).
     pub fn factor(&self, i: usize) -> nalgebra::DMatrixView<'_, f64> {
         self.g.columns(self.off[i], self.rank(i))

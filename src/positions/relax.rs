@@ -13,8 +13,14 @@
 //! 2. **First order** on the full set (D: multiplicative algorithm, then
 //!    Frank–Wolfe with away steps; A and E: the A multiplicative algorithm),
 //!    with the equivalence-theorem pruning of [`super::firstorder`] for D.
-//! 3. **Clarabel** ([`super::conic`]) on the pruned working set.
-//! 4. **Certificate on the full set** ([`certify`]); candidates outside the
+//! 3. **Newton** (D, A; `newton = true`, the default): the active-set Newton
+//!    method of [`firstorder::newton_simplex`] solves the working set to
+//!    ε ≤ 10⁻³·tol, the certificate is checked on the full set, violators are
+//!    added (column generation). When it certifies, no conic solve is needed:
+//!    the Kiefer–Wolfowitz / A-equivalence bound below *is* the certificate.
+//! 4. **Clarabel** ([`super::conic`]) on the pruned working set, for E, with
+//!    `newton = false`, or when the Newton phase did not certify.
+//! 5. **Certificate on the full set** ([`certify`]); candidates outside the
 //!    working set that violate the optimality condition are added and the
 //!    working set is solved again (at most `max_rounds` times).
 //!
@@ -55,7 +61,8 @@ pub struct SolverOptions {
     pub prune: bool,
     /// Iteration limit of the first-order warm start.
     pub first_order_iters: usize,
-    /// Stop the first-order method when ε = max d − δ ≤ this · p.
+    /// Stop the first-order method when ε = max d − δ ≤ this · p (with
+    /// `newton`, D stops at 0.1·p at the latest: the Newton phase finishes).
     pub first_order_eps: f64,
     /// Working-set rounds (Clarabel solves) at most.
     pub max_rounds: usize,
@@ -72,6 +79,11 @@ pub struct SolverOptions {
     pub factor_tol: f64,
     /// Print Clarabel's iteration log.
     pub verbose: bool,
+    /// D and A: solve the working set by the active-set Newton method
+    /// ([`firstorder::newton_simplex`]) with column generation on all
+    /// candidates, and call Clarabel only if that does not certify. false:
+    /// Clarabel rounds straight after the first-order phase.
+    pub newton: bool,
 }
 
 impl Default for SolverOptions {
@@ -88,6 +100,7 @@ impl Default for SolverOptions {
             time_limit: None,
             factor_tol: 1e-9,
             verbose: false,
+            newton: true,
         }
     }
 }
@@ -214,7 +227,8 @@ pub fn certify(pb: &Problem, crit: Criterion, w: &[f64], z: Option<&DMatrix<f64>
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Status {
-    /// Clarabel solved the working set and the certificate holds on the full set.
+    /// The certificate holds on the full set (the design came from the Newton
+    /// phase or from Clarabel on the working set).
     Optimal,
     /// A design was found but the certificate does not reach 1 − tol (see its bound).
     NotCertified,
@@ -258,6 +272,16 @@ pub struct SolveLog {
     pub rounds: Vec<Round>,
     /// Polishing Frank–Wolfe iterations after Clarabel (D and A; 0 if not needed).
     pub polish_iterations: usize,
+    /// Newton iterations (all working sets; 0 without the Newton phase).
+    pub newton_iterations: usize,
+    /// Working sets the Newton phase solved (column-generation rounds).
+    pub newton_rounds: usize,
+    /// Candidates in the last Newton working set.
+    pub newton_working_set: usize,
+    /// Whether the Newton phase alone certified the design (no Clarabel solve).
+    pub newton_certified: bool,
+    /// Wall time of the Newton phase (s).
+    pub newton_time: f64,
     /// Wall time of the first-order phase (s).
     pub first_order_time: f64,
     /// Wall time inside Clarabel (s).
@@ -323,7 +347,6 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions, ctl: &
     let (ws, w_ws) = initial_working_set(&pbs, crit, opts, ctl, &mut log)?;
     log.first_order_time = t_fo.elapsed().as_secs_f64();
     log.pruned_to = ws.len();
-    // --- Clarabel rounds
     let phase = Phase {
         pb,
         pbs: &pbs,
@@ -331,6 +354,31 @@ pub fn solve_relaxed(pb: &Problem, crit: Criterion, opts: &SolverOptions, ctl: &
         opts,
         ctl,
     };
+    // --- Newton on working sets (D, A): certified without a conic solve in the normal case
+    let (ws, w_ws) = if opts.newton && crit != Criterion::E {
+        let t_nt = Instant::now();
+        let (ws, w_ws, done) = newton_phase(&phase, ws, w_ws, &mut log)?;
+        log.newton_time = t_nt.elapsed().as_secs_f64();
+        if let Some((w, cert, ev)) = done {
+            log.newton_certified = true;
+            log.total_time = t_start.elapsed().as_secs_f64();
+            let status = if cert.holds { Status::Optimal } else { Status::Interrupted };
+            return Ok(Relaxed {
+                criterion: crit,
+                value: cert.value,
+                weights: w,
+                sensitivities: ev.sens.clone(),
+                certificate: cert,
+                status,
+                log,
+                dual: None,
+            });
+        }
+        (ws, w_ws)
+    } else {
+        (ws, w_ws)
+    };
+    // --- Clarabel rounds
     let (best, best_z, mut status, ws, w_ws) = clarabel_rounds(&phase, ws, w_ws, &mut log)?;
     let (mut w, mut cert, mut ev) = match best {
         Some(b) => b,
@@ -403,6 +451,11 @@ fn scaled_problem(pb: &Problem) -> Result<Problem> {
 const A_FIRST_ORDER_ITERS: usize = 300;
 const A_CHUNK: usize = 10;
 const A_SMALL_SET: usize = 6;
+/// With the Newton phase: the D warm start stops at ε ≤ this·p (or the
+/// design's `first_order_eps` if larger), the A warm start after this many
+/// multiplicative steps; Newton's column generation does the rest.
+const NEWTON_WARM_EPS: f64 = 0.1;
+const NEWTON_A_ITERS: usize = 30;
 
 /// First-order warm start on the scaled problem `pbs` and the first working
 /// set (candidate indices, their warm-start weights).
@@ -413,7 +466,13 @@ fn initial_working_set(pbs: &Problem, crit: Criterion, opts: &SolverOptions, ctl
         Criterion::D => {
             let t = chol_inverse_factor(&pbs.information(&uniform))
                 .ok_or_else(|| Error::Numerical("the uniform design's information is not positive definite after scaling".into()))?;
-            let ws0 = firstorder::d_warm_start(&pbs.transformed(&t), opts.prune, opts.first_order_eps * p as f64, opts.first_order_iters, ctl)?;
+            // before Newton the first order only finds the neighbourhood of the support
+            let eps = if opts.newton {
+                opts.first_order_eps.max(NEWTON_WARM_EPS)
+            } else {
+                opts.first_order_eps
+            };
+            let ws0 = firstorder::d_warm_start(&pbs.transformed(&t), opts.prune, eps * p as f64, opts.first_order_iters, ctl)?;
             let (live, mut w, iters, eps) = (ws0.pool, ws0.w, ws0.iterations, ws0.eps);
             log.first_order_iterations = iters;
             log.first_order_eps = eps;
@@ -435,7 +494,9 @@ fn initial_working_set(pbs: &Problem, crit: Criterion, opts: &SolverOptions, ctl
             // A: enough multiplicative steps that the weights off the support
             // have decayed (they shrink geometrically), so the first working
             // set is small; E keeps its short A warm start
-            let iters = if crit == Criterion::A {
+            let iters = if crit == Criterion::A && opts.newton {
+                opts.first_order_iters.min(NEWTON_A_ITERS)
+            } else if crit == Criterion::A {
                 opts.first_order_iters.min(A_FIRST_ORDER_ITERS)
             } else {
                 opts.first_order_iters.min(50)
@@ -468,6 +529,92 @@ fn initial_working_set(pbs: &Problem, crit: Criterion, opts: &SolverOptions, ctl
             (set, ww)
         }
     })
+}
+
+/// Newton working-set rounds at most (each adds the violators of the full set).
+const NEWTON_ROUNDS: usize = 30;
+/// A first Newton working set larger than this many times p is cut to the
+/// largest weights and sensitivities.
+const NEWTON_SPARSE: usize = 6;
+/// Newton iterations per working set at most.
+const NEWTON_ITERS: usize = 200;
+
+/// Column generation with the active-set Newton method: solve the working set
+/// to ε ≤ 10⁻³·tol (relative), check all candidates, add the violators, until
+/// the certificate holds on the full set. Returns the working set with its
+/// weights (the warm start of the Clarabel rounds) and, when the certificate
+/// holds (or the user stopped the run), the design with its certificate.
+#[allow(clippy::type_complexity)]
+fn newton_phase(
+    cx: &Phase,
+    mut ws: Vec<usize>,
+    w_ws: Vec<f64>,
+    log: &mut SolveLog,
+) -> Result<(Vec<usize>, Vec<f64>, Option<(Vec<f64>, Certificate, Evaluation)>)> {
+    let Phase { pb, pbs, crit, opts, ctl } = *cx;
+    let (p, n) = (pb.p(), pb.n());
+    let mut w_ws = w_ws;
+    firstorder::normalise(&mut w_ws);
+    if w_ws.iter().sum::<f64>() <= 0.0 {
+        w_ws = vec![1.0 / ws.len() as f64; ws.len()];
+    }
+    // a small first working set: the warm start's main support and the
+    // largest sensitivities (column generation adds what is missing)
+    let newton_max = NEWTON_SPARSE * p;
+    if ws.len() > newton_max {
+        let sub = pbs.subset(&ws);
+        if let Ok(ev) = sub.evaluate(crit, &w_ws) {
+            let wmax = w_ws.iter().cloned().fold(0.0, f64::max);
+            let mut keep: Vec<usize> = top_k(&w_ws, newton_max).into_iter().filter(|&k| w_ws[k] > 1e-3 * wmax).collect();
+            keep.extend(top_k(&ev.sens, (2 * p).min(ws.len())));
+            keep.sort_unstable();
+            keep.dedup();
+            w_ws = keep.iter().map(|&k| w_ws[k]).collect();
+            ws = keep.iter().map(|&k| ws[k]).collect();
+            firstorder::normalise(&mut w_ws);
+        }
+    }
+    for _ in 0..NEWTON_ROUNDS {
+        let sub = pbs.subset(&ws);
+        // a working set that cannot identify the parameters: leave it to Clarabel
+        let wmix: Vec<f64> = w_ws.iter().map(|v| 0.9 * v + 0.1 / ws.len() as f64).collect();
+        let Some(t) = chol_inverse_factor(&sub.information(&wmix)) else {
+            return Ok((ws, w_ws, None));
+        };
+        // D: whitened at the warm start (the weights do not change); A: as scaled
+        let sub = if crit == Criterion::D { sub.transformed(&t) } else { sub };
+        if sub.evaluate(crit, &w_ws).is_err() {
+            w_ws = wmix;
+        }
+        let target = match crit {
+            Criterion::D => 1e-3 * opts.tol * p as f64,
+            _ => 1e-3 * opts.tol * sub.evaluate(crit, &w_ws).map(|e| e.value).unwrap_or(0.0),
+        };
+        let lg = firstorder::newton_simplex(&sub, crit, &mut w_ws, NEWTON_ITERS, target, ctl)?;
+        log.newton_iterations += lg.iterations;
+        log.newton_rounds += 1;
+        log.newton_working_set = ws.len();
+        let mut w_full = vec![0.0; n];
+        for (k, &i) in ws.iter().enumerate() {
+            w_full[i] = w_ws[k];
+        }
+        let (cert, ev) = certify(pb, crit, &w_full, None, opts.tol)?;
+        if cert.holds || ctl.interrupted() {
+            return Ok((ws, w_ws, Some((w_full, cert, ev))));
+        }
+        // violators outside the working set, largest first
+        let thr = cert.reference + 1e-3 * opts.tol * cert.reference.abs();
+        let in_ws: std::collections::HashSet<usize> = ws.iter().copied().collect();
+        let mut viol: Vec<usize> = (0..n).filter(|i| !in_ws.contains(i) && ev.sens[*i] > thr).collect();
+        if viol.is_empty() {
+            // the working set is not solved accurately enough: Clarabel takes over
+            return Ok((ws, w_ws, None));
+        }
+        viol.sort_by(|&a, &b| ev.sens[b].total_cmp(&ev.sens[a]));
+        viol.truncate((2 * p).max(20));
+        (ws, w_ws) = grow_working_set(&ws, &w_full, viol);
+    }
+    Ok((ws, w_ws, None))
 }
 
 /// One Clarabel solve on the working-set problem `sub` (congruence-scaled by
