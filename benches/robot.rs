@@ -26,7 +26,9 @@ fn states(r: &robot::Robot, k: usize) -> Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> {
 
 /// The bench's states as text for the Pinocchio side (scripts/pinocchio-timing.sh).
 fn write_states(root: &Path, name: &str, st: &[(Vec<f64>, Vec<f64>, Vec<f64>)]) {
-    let dir = std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root.join("target"), std::path::PathBuf::from).join("bench-states");
+    let dir = std::env::var_os("CARGO_TARGET_DIR")
+        .map_or_else(|| root.join("target"), std::path::PathBuf::from)
+        .join("bench-states");
     let text: String = st
         .iter()
         .map(|(q, qd, qdd)| {

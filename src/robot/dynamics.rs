@@ -23,7 +23,7 @@
 
 use super::kinematics::{joint_transform, joint_transforms, lift3, Kin, Real};
 use super::model::{Coulomb, Drive, Friction, Inertial, Robot};
-use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Vector3};
 use num_dual::Dual64;
 
 /// Per-thread buffers for every kernel. Create one per thread
@@ -36,18 +36,15 @@ pub struct Workspace {
     pub(crate) q_dual: Vec<Dual64>,
     pub(crate) qdd_dual: Vec<Dual64>,
     pub(crate) tau_dual: Vec<Dual64>,
-    pub(crate) y_dual: Vec<Dual64>,
     pub(crate) y: Vec<f64>,
     /// Shared quantities and tangents of [`regressor_derivatives`].
     tan: Tangents,
     /// Scratch for the kernels that take a parameter vector θ (the link
     /// inertials of θ); the nominal kernels read `robot.links` instead.
     theta_inertials: Vec<Inertial>,
-    /// Composite inertias of the CRBA: mass, first moment, rotational
-    /// inertia about the link origin (link coordinates).
-    c_mass: Vec<f64>,
-    c_h: Vec<Vector3<f64>>,
-    c_i: Vec<Matrix3<f64>>,
+    ic: Vec<Matrix6<f64>>,
+    /// Motion transforms parent → child of the CRBA.
+    xs: Vec<Matrix6<f64>>,
     /// Mass matrix / Cholesky factor of forward dynamics.
     fd_m: DMatrix<f64>,
     /// Right-hand side and scratch of forward dynamics.
@@ -70,13 +67,11 @@ impl Workspace {
             qd_dual: vec![Dual64::from(0.0); n],
             qdd_dual: vec![Dual64::from(0.0); n],
             tau_dual: vec![Dual64::from(0.0); n],
-            y_dual: vec![Dual64::from(0.0); n * p],
             y: vec![0.0; n * p],
             tan: Tangents::new(robot),
             theta_inertials: robot.links.iter().map(|l| l.inertial).collect(),
-            c_mass: vec![0.0; n],
-            c_h: vec![Vector3::zeros(); n],
-            c_i: vec![Matrix3::zeros(); n],
+            ic: vec![Matrix6::zeros(); n],
+            xs: vec![Matrix6::zeros(); n],
             fd_m: DMatrix::zeros(n, n),
             fd_rhs: vec![0.0; n],
             fd_tmp: vec![0.0; n],
@@ -960,17 +955,29 @@ pub fn id_derivatives(robot: &Robot, ws: &mut Workspace, theta: &[f64], q: &[f64
     (dq, dqd)
 }
 
+fn spatial_inertia(ine: &Inertial) -> Matrix6<f64> {
+    let sh = ine.first_moment.cross_matrix();
+    let mut m = Matrix6::zeros();
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&ine.inertia);
+    m.fixed_view_mut::<3, 3>(0, 3).copy_from(&sh);
+    m.fixed_view_mut::<3, 3>(3, 0).copy_from(&sh.transpose());
+    m.fixed_view_mut::<3, 3>(3, 3).copy_from(&(Matrix3::identity() * ine.mass));
+    m
+}
+
+/// Motion transform parent → child (6×6) from child orientation `r` and position `p` in parent.
+fn motion_x(r: &Matrix3<f64>, p: &Vector3<f64>) -> Matrix6<f64> {
+    let rt = r.transpose();
+    let mut x = Matrix6::zeros();
+    x.fixed_view_mut::<3, 3>(0, 0).copy_from(&rt);
+    x.fixed_view_mut::<3, 3>(3, 3).copy_from(&rt);
+    x.fixed_view_mut::<3, 3>(3, 0).copy_from(&(-rt * p.cross_matrix()));
+    x
+}
+
 /// Composite rigid-body algorithm into `m` (n×n, overwritten): M_rb(q) for
 /// the inertials `inert` plus Cᵀ diag(Ia) C for the rotor inertias `ia(j)`.
 /// Allocation-free (buffers in `ws`).
-///
-/// Composite inertias in their ten parameters (mass m, first moment h and
-/// rotational inertia I about the link origin, link coordinates), carried to
-/// the parent with R = ᵖR_i, p the child origin in the parent:
-/// h ← R h + m p, I ← R I Rᵀ − [p]×[R h]× − [R h]×[p]× − m [p]×²; then the
-/// force of S_i on composite i, F = (I a + h × l, m l + a × h) for S_i = (a, l),
-/// carried up the path to the root (n ← R n + p × R f, f ← R f) and
-/// projected on each joint's S_j.
 fn crba_into(robot: &Robot, ws: &mut Workspace, inert: Inertials<'_>, ia: impl Fn(usize) -> Option<f64>, q: &[f64], m: &mut DMatrix<f64>) {
     let n = robot.dof();
     assert!(m.nrows() == n && m.ncols() == n, "mass matrix output must be n×n");
@@ -980,40 +987,29 @@ fn crba_into(robot: &Robot, ws: &mut Workspace, inert: Inertials<'_>, ia: impl F
             Inertials::Nominal => &robot.links[i].inertial,
             Inertials::Of(v) => &v[i],
         };
-        ws.c_mass[i] = ine.mass;
-        ws.c_h[i] = ine.first_moment;
-        ws.c_i[i] = ine.inertia;
+        ws.ic[i] = spatial_inertia(ine);
+        ws.xs[i] = motion_x(&ws.kin.rot[i], &ws.kin.pos[i]);
     }
-    let kin = &ws.kin;
     for i in (0..n).rev() {
-        if let Some(par) = robot.joints[i].parent {
-            let (r, p) = (&kin.rot[i], &kin.pos[i]);
-            let mi = ws.c_mass[i];
-            let hr = r * ws.c_h[i];
-            let px = p.cross_matrix();
-            let hx = hr.cross_matrix();
-            let ir = r * ws.c_i[i] * r.transpose() - px * hx - hx * px - px * px * mi;
-            ws.c_mass[par] += mi;
-            ws.c_h[par] += hr + p * mi;
-            ws.c_i[par] += ir;
+        if let Some(p) = robot.joints[i].parent {
+            let add = ws.xs[i].transpose() * ws.ic[i] * ws.xs[i];
+            ws.ic[p] += add;
         }
     }
+    let s = |i: usize| {
+        let (a, l) = (robot.s_ang[i], robot.s_lin[i]);
+        nalgebra::Vector6::new(a.x, a.y, a.z, l.x, l.y, l.z)
+    };
     m.fill(0.0);
     for i in 0..n {
-        let (a, l) = (robot.s_ang[i], robot.s_lin[i]);
-        let h = ws.c_h[i];
-        let mut nn = ws.c_i[i] * a + h.cross(&l);
-        let mut ff = l * ws.c_mass[i] + a.cross(&h);
-        m[(i, i)] = a.dot(&nn) + l.dot(&ff);
+        let mut f = ws.ic[i] * s(i);
+        m[(i, i)] = s(i).dot(&f);
         let mut j = i;
-        while let Some(par) = robot.joints[j].parent {
-            let rf = kin.rot[j] * ff;
-            nn = kin.rot[j] * nn + kin.pos[j].cross(&rf);
-            ff = rf;
-            j = par;
-            let v = robot.s_ang[j].dot(&nn) + robot.s_lin[j].dot(&ff);
-            m[(i, j)] = v;
-            m[(j, i)] = v;
+        while let Some(p) = robot.joints[j].parent {
+            f = ws.xs[j].transpose() * f;
+            j = p;
+            m[(i, j)] = s(j).dot(&f);
+            m[(j, i)] = m[(i, j)];
         }
     }
     // rotor inertias: Cᵀ diag(Ia) C
@@ -1225,7 +1221,7 @@ mod tests {
     fn reference(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f64>> {
         let n = robot.dof();
         let mut out = Vec::new();
-        let mut yd = ws.y_dual.clone();
+        let mut yd = vec![Dual64::from(0.0); n * robot.n_params()];
         for which in 0..3 {
             for k in 0..n {
                 for i in 0..n {
@@ -1273,7 +1269,10 @@ mod tests {
                 for (k, (got, exp)) in d.iter().zip(&want).enumerate() {
                     let scale = exp.iter().fold(0.0_f64, |a, e| a.max(e.abs()));
                     for (i, (g, e)) in got.iter().zip(exp).enumerate() {
-                        assert!((g - e).abs() <= 1e-12 * scale, "{name}: direction {k}, entry {i}: {g:e} vs {e:e} (scale {scale:e})");
+                        assert!(
+                            (g - e).abs() <= 1e-12 * scale,
+                            "{name}: direction {k}, entry {i}: {g:e} vs {e:e} (scale {scale:e})"
+                        );
                     }
                 }
                 // and the excitation gradient's shared-transform dual passes, bit for bit
@@ -1292,8 +1291,8 @@ mod tests {
         }
     }
 
-    /// The ten-parameter CRBA equals the mass matrix from n RNEA passes
-    /// (column k: τ_rb(q, 0, e_k) without gravity) to 1e-12.
+    /// The CRBA equals the mass matrix from n RNEA passes (column k:
+    /// τ_rb(q, 0, e_k) without gravity) to 1e-12.
     #[test]
     fn crba_equals_rnea_columns() {
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
