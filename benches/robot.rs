@@ -3,7 +3,9 @@
 //! buffer), allocation-free forward dynamics, for a 6-axis (UR5, PUMA 560,
 //! the coupled-wrist industrial arm) and a 7-axis (iiwa 14, Panda) robot.
 //!
-//! Run: `cargo bench --bench robot`.
+//! Run: `cargo bench --bench robot`. Each run also writes its states, one
+//! line per state (q, q̇, q̈), to `target/bench-states/<robot>.txt`: the
+//! states that `scripts/pinocchio-timing.sh` times Pinocchio on.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use idexp::robot::{self, Workspace};
@@ -22,6 +24,23 @@ fn states(r: &robot::Robot, k: usize) -> Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> {
         .collect()
 }
 
+/// The bench's states as text for the Pinocchio side (scripts/pinocchio-timing.sh).
+fn write_states(root: &Path, name: &str, st: &[(Vec<f64>, Vec<f64>, Vec<f64>)]) {
+    let dir = std::env::var_os("CARGO_TARGET_DIR")
+        .map_or_else(|| root.join("target"), std::path::PathBuf::from)
+        .join("bench-states");
+    let text: String = st
+        .iter()
+        .map(|(q, qd, qdd)| {
+            let v: Vec<String> = q.iter().chain(qd).chain(qdd).map(|x| format!("{x:e}")).collect();
+            v.join(" ") + "\n"
+        })
+        .collect();
+    if let Err(e) = std::fs::create_dir_all(&dir).and_then(|_| std::fs::write(dir.join(format!("{name}.txt")), text)) {
+        eprintln!("bench states not written to {}: {e}", dir.display());
+    }
+}
+
 fn bench(c: &mut Criterion) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     for name in ["ur5", "puma560", "industrial6", "iiwa14", "panda"] {
@@ -30,6 +49,7 @@ fn bench(c: &mut Criterion) {
         let n = r.dof();
         let p = r.n_params();
         let st = states(&r, 64);
+        write_states(root, name, &st);
         let mut ws = Workspace::new(&r);
         let mut tau = vec![0.0; n];
         let mut y = vec![0.0; n * p];
@@ -86,6 +106,14 @@ fn bench(c: &mut Criterion) {
                 k += 1;
                 robot::regressor_derivatives(&r, &mut ws, &s.0, &s.1, &s.2, &mut y, &mut dq, &mut dqd, &mut dqdd);
                 black_box(&dq);
+            })
+        });
+        let theta = r.nominal_params();
+        g.bench_function("id_derivatives", |b| {
+            b.iter(|| {
+                let s = &st[k % st.len()];
+                k += 1;
+                black_box(robot::id_derivatives(&r, &mut ws, theta.as_slice(), &s.0, &s.1, &s.2));
             })
         });
         g.finish();
