@@ -193,7 +193,7 @@ pub fn legend_place(pts: impl Iterator<Item = (f64, f64)>, x: (f64, f64, bool), 
         let (a, b) = (to(a, x.2), to(b, y.2));
         let u = (a - ux0) / (ux1 - ux0);
         let w = (b - uy0) / (uy1 - uy0);
-        if !(u.is_finite() && w.is_finite()) || !(0.0..=1.0).contains(&u) {
+        if !(u.is_finite() && w.is_finite() && (0.0..=1.0).contains(&u)) {
             continue;
         }
         let (left, right, top, bottom) = (u <= bw, u >= 1.0 - bw, w >= 1.0 - bh, w <= bh);
@@ -248,7 +248,7 @@ pub fn fit_text(text: &str, max: usize) -> String {
 /// other line is one segment.
 pub fn line_segments(pts: &[(f64, f64)]) -> Vec<Vec<(f64, f64)>> {
     let steps: Vec<f64> = pts.windows(2).map(|w| w[1].0 - w[0].0).collect();
-    if steps.len() < 4 || steps.iter().any(|d| !(*d > 0.0)) {
+    if steps.len() < 4 || !steps.iter().all(|d| d.is_finite() && *d > 0.0) {
         return vec![pts.to_vec()];
     }
     let mut sorted = steps.clone();
