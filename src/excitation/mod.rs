@@ -24,7 +24,10 @@
 //! 2. Gradient refinement ([`refine`]) of the best distinct individuals with
 //!    nlopt SLSQP or MMA, analytic gradients (dσ_i = u_iᵀ dC v_i through the
 //!    regressor derivatives and the Fourier basis; envelope-theorem gradients
-//!    of the constraint extrema).
+//!    of the constraint extrema); optionally (`refine.restarts`) restarts
+//!    from perturbed copies of the best refined point (basin hopping), and
+//!    (`refine.bundle`) the epigraph form of the condition number over the
+//!    eigenvalues at both ends of the spectrum ([`refine`]).
 //! 3. The report ([`report`]): criterion, condition number, singular values,
 //!    sensitivities c̄_i (paper 000 eq. 10), predicted relative standard
 //!    deviations (eq. 13–14), the worst margin of every constraint on the
