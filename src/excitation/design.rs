@@ -74,6 +74,11 @@
 //! max_evals = 300                   # per start
 //! xtol_rel = 1e-7
 //! smooth = 0.0                      # cond: > 0 adds a first stage on a smooth surrogate with this exponent
+//! bundle = 0                        # cond, inv_sigma_min: > 0 refines the epigraph form over this many eigenvalues at each end
+//! bundle_weight = 0.1               # weight of the epigraph objective (length of SLSQP's first steps)
+//! parallel = 1                      # starts refined at the same time (results per start unchanged)
+//! restarts = 0                      # then restarts from the best refined point perturbed by ...
+//! perturb = 0.05                    # ... this fraction of each variable's half range (uniform)
 //! ```
 
 use super::objective::{Columns, Criterion, Scaling};
@@ -270,6 +275,18 @@ pub struct RefineSpec {
     pub ftol_rel: f64,
     /// Exponent p of the smooth first stage for `criterion = "cond"` (0: off).
     pub smooth: f64,
+    /// cond or inv_sigma_min: > 0 refines the epigraph form over this many
+    /// eigenvalues at each end of the spectrum (0: the criterion itself).
+    pub bundle: usize,
+    /// Weight w of the epigraph objective w·(u − l): with SLSQP's initial
+    /// identity Hessian it sets the length of the first steps (smaller: shorter).
+    pub bundle_weight: f64,
+    /// Starts refined at the same time (each start's result does not depend on it).
+    pub parallel: usize,
+    /// Restarts from perturbed copies of the best refined point, after the GA starts.
+    pub restarts: usize,
+    /// Size of a restart's perturbation, a fraction of each variable's half range.
+    pub perturb: f64,
 }
 
 impl Default for RefineSpec {
@@ -281,6 +298,11 @@ impl Default for RefineSpec {
             xtol_rel: 1e-7,
             ftol_rel: 1e-9,
             smooth: 0.0,
+            bundle: 0,
+            bundle_weight: 0.1,
+            parallel: 1,
+            restarts: 0,
+            perturb: 0.05,
         }
     }
 }
@@ -408,6 +430,24 @@ impl ExciteDesign {
         }
         if !(r.smooth == 0.0 || (r.smooth >= 1.0 && r.smooth <= 1000.0)) {
             return bad("refine.smooth", format!("expected 0 (off) or an exponent in [1, 1000], got {}", r.smooth));
+        }
+        if r.bundle > 24 {
+            return bad("refine.bundle", format!("expected 0 (off) or 1..=24 eigenvalues at each end, got {}", r.bundle));
+        }
+        if !(r.bundle_weight.is_finite() && r.bundle_weight > 0.0 && r.bundle_weight <= 100.0) {
+            return bad("refine.bundle_weight", format!("expected a weight in (0, 100], got {}", r.bundle_weight));
+        }
+        if r.bundle > 0 && o.criterion == Criterion::LogDet {
+            return bad(
+                "refine.bundle",
+                "the epigraph form applies to criterion = \"cond\" or \"inv_sigma_min\" (log_det is smooth already); set bundle = 0".into(),
+            );
+        }
+        if !(r.perturb > 0.0 && r.perturb <= 1.0) {
+            return bad("refine.perturb", format!("expected a fraction in (0, 1], got {}", r.perturb));
+        }
+        if r.parallel == 0 || r.parallel > 64 {
+            return bad("refine.parallel", format!("expected 1..=64 starts at a time, got {}", r.parallel));
         }
         if !(r.xtol_rel >= 0.0 && r.ftol_rel >= 0.0) {
             return bad("refine.xtol_rel", "tolerances must be ≥ 0".into());

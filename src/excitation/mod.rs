@@ -24,7 +24,10 @@
 //! 2. Gradient refinement ([`refine`]) of the best distinct individuals with
 //!    nlopt SLSQP or MMA, analytic gradients (dσ_i = u_iᵀ dC v_i through the
 //!    regressor derivatives and the Fourier basis; envelope-theorem gradients
-//!    of the constraint extrema).
+//!    of the constraint extrema); optionally (`refine.restarts`) restarts
+//!    from perturbed copies of the best refined point (basin hopping), and
+//!    (`refine.bundle`) the epigraph form of the condition number over the
+//!    eigenvalues at both ends of the spectrum ([`refine`]).
 //! 3. The report ([`report`]): criterion, condition number, singular values,
 //!    sensitivities c̄_i (paper 000 eq. 10), predicted relative standard
 //!    deviations (eq. 13–14), the worst margin of every constraint on the
@@ -439,6 +442,9 @@ fn finalise(p: &Problem, x: &[f64]) -> Result<Finalised> {
     })
 }
 
+/// Restarts of the refinement perturbed from the same best point (`refine.restarts`).
+const RESTART_ROUND: usize = 2;
+
 /// Runs the design: GA, refinement, verification (see the module docs).
 ///
 /// `ctl` stops the run (stop request, deadline, evaluation budget); the
@@ -506,21 +512,63 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
             "{first} {} start(s), analytic gradients",
             format!("{:?}", d.refine.algorithm).to_lowercase()
         ));
-        // one start at a time, best first: the gradient's per-sample work is
-        // what runs in parallel (no nested pools competing for the threads)
-        for s in &starts[..first] {
+        // `refine.parallel` starts at a time (one: the gradient's per-sample
+        // work is what runs in parallel); each start's result does not depend
+        // on how many run beside it
+        let batch = d.refine.parallel.max(1);
+        let refine_batch = |xs: &[Vec<f64>]| -> Vec<refine::RefineOutcome> {
+            let one = |x: &Vec<f64>| refine::refine(&p.objective, &p.constraints, x, &d.refine, &p.lower, &p.upper, &ctl_all);
+            if xs.len() == 1 {
+                vec![one(&xs[0])]
+            } else {
+                use rayon::prelude::*;
+                xs.par_iter().map(one).collect()
+            }
+        };
+        let ga_x: Vec<Vec<f64>> = starts.iter().map(|s| s.x.clone()).collect();
+        for chunk in ga_x[..first].chunks(batch) {
             if ctl_all.should_stop() {
                 break;
             }
-            refinements.push(refine::refine(&p.objective, &p.constraints, &s.x, &d.refine, &p.lower, &p.upper, &ctl_all));
+            refinements.extend(refine_batch(chunk));
+            obs.progress(refinements.len() as u64, "");
+        }
+        // `refine.restarts` perturbed copies of the best refined point so far,
+        // in rounds of RESTART_ROUND from the best before the round (so that
+        // the starts do not depend on `refine.parallel`; seeded by the
+        // design's seed and the restart index)
+        let mut k = 0;
+        while k < d.refine.restarts && !ctl_all.should_stop() {
+            let Some(best) = refinements
+                .iter()
+                .map(|r| ga::Individual {
+                    x: r.x.clone(),
+                    f: r.f,
+                    violation: r.violation,
+                })
+                .min_by(|a, b| a.cmp_fitness(b))
+            else {
+                break;
+            };
+            let xs: Vec<Vec<f64>> = (k..(k + RESTART_ROUND).min(d.refine.restarts))
+                .map(|i| {
+                    let mut x = refine::perturb(&best.x, &p.lower, &p.upper, d.refine.perturb, crate::rng::mix(d.seed, i as u64, 7));
+                    p.constraints.repair_joints(&mut x, &p.limits, 1e-6);
+                    x
+                })
+                .collect();
+            k += xs.len();
+            for chunk in xs.chunks(batch) {
+                refinements.extend(refine_batch(chunk));
+            }
             obs.progress(refinements.len() as u64, "");
         }
         if ctl_all.deadline().is_some() {
-            for s in &starts[first..] {
+            for chunk in ga_x[first..].chunks(batch) {
                 if ctl_all.should_stop() {
                     break;
                 }
-                refinements.push(refine::refine(&p.objective, &p.constraints, &s.x, &d.refine, &p.lower, &p.upper, &ctl_all));
+                refinements.extend(refine_batch(chunk));
                 obs.progress(refinements.len() as u64, "");
             }
         }

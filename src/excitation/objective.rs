@@ -143,6 +143,7 @@ pub struct ObjectiveWorkspace {
     /// Scaled regressor C̃, column-major.
     pub cs: Vec<f64>,
     h: Vec<f64>,
+    hb: Vec<Vec<f64>>,
     rows: usize,
     col_norm: Vec<f64>,
     sd: faer::diag::Diag<f64>,
@@ -154,9 +155,6 @@ pub struct ObjectiveWorkspace {
     mem_vec: MemBuffer,
     mem_evd: MemBuffer,
     states: Vec<[Vec<f64>; 3]>,
-    g_q0: Vec<f64>,
-    g_a: Vec<Vec<f64>>,
-    g_b: Vec<Vec<f64>>,
     /// Number of criterion evaluations made with this workspace.
     pub evaluations: u64,
     /// Number of gradient evaluations made with this workspace.
@@ -282,13 +280,13 @@ impl Objective {
         let (r, m) = (self.n_rows(), self.n_cols());
         let req_no = svd_scratch::<f64>(r, m, ComputeSvdVectors::No, ComputeSvdVectors::No, Par::Seq, Default::default());
         let req_v = svd_scratch::<f64>(r, m, ComputeSvdVectors::No, ComputeSvdVectors::Thin, Par::Seq, Default::default());
-        let nh = self.layout.n_h;
         ObjectiveWorkspace {
             ws: Workspace::new(&self.robot),
             y: vec![0.0; n * p],
             c: vec![0.0; r * m],
             cs: vec![0.0; r * m],
             h: vec![0.0; r * m],
+            hb: Vec::new(),
             rows: r,
             col_norm: vec![0.0; m],
             sd: faer::diag::Diag::zeros(m),
@@ -300,9 +298,6 @@ impl Objective {
             mem_vec: MemBuffer::new(req_v),
             mem_evd: MemBuffer::new(self_adjoint_evd_scratch::<f64>(m, ComputeEigenvectors::Yes, Par::Seq, Default::default())),
             states: vec![[vec![0.0; n], vec![0.0; n], vec![0.0; n]]; self.times.len()],
-            g_q0: vec![0.0; n],
-            g_a: vec![vec![0.0; nh]; n],
-            g_b: vec![vec![0.0; nh]; n],
             evaluations: 0,
             gradients: 0,
         }
@@ -528,16 +523,28 @@ impl Objective {
             let hm = MatMut::from_column_major_slice_mut(&mut h, rows, m);
             faer::linalg::matmul::matmul(hm, faer::Accum::Replace, cs, mm.as_ref(), 1.0, Par::Seq);
         }
+        self.scale_pullback(&w.col_norm, &w.cs, &mut h);
+        self.contract(&w.states, &[&h], grad);
+        w.h = h;
+        jval
+    }
+
+    /// Pulls G = ∂J/∂C̃ (column-major, rows × m, in place) back through the
+    /// column scaling to H = ∂J/∂C (for unit columns
+    /// dc̃_j = (dc_j − c̃_j c̃_jᵀ dc_j)/‖c_j‖).
+    fn scale_pullback(&self, col_norm: &[f64], cs: &[f64], h: &mut [f64]) {
+        let m = self.n_cols();
+        let rows = self.n_rows();
         match self.scaling {
             Scaling::UnitColumn => {
                 for j in 0..m {
-                    let nrm = w.col_norm[j];
+                    let nrm = col_norm[j];
                     let hj = &mut h[j * rows..(j + 1) * rows];
                     if nrm <= 0.0 {
                         hj.iter_mut().for_each(|v| *v = 0.0);
                         continue;
                     }
-                    let cj = &w.cs[j * rows..(j + 1) * rows];
+                    let cj = &cs[j * rows..(j + 1) * rows];
                     let dot: f64 = cj.iter().zip(hj.iter()).map(|(a, b)| a * b).sum();
                     for (hv, cv) in hj.iter_mut().zip(cj) {
                         *hv = (*hv - cv * dot) / nrm;
@@ -551,32 +558,42 @@ impl Objective {
                 }
             }
         }
-        // per-sample contraction with the regressor derivatives, in fixed
-        // chunks of samples evaluated in parallel and summed in chunk order
-        // (the result does not depend on the thread count)
+    }
+
+    /// The design-vector gradients Σ ⟨H_t, ∂C/∂x⟩ of several matrices H_t
+    /// (each = ∂J_t/∂C, column-major) at once: the regressor derivatives of
+    /// each sample are computed once and contracted with every H_t. The
+    /// per-sample work runs in fixed chunks of samples in parallel and is
+    /// summed in chunk order (the result does not depend on the thread
+    /// count). `out` holds one gradient of `n_vars` values per H_t.
+    fn contract(&self, states: &[[Vec<f64>; 3]], hs: &[&[f64]], out: &mut [f64]) {
         let n = self.robot.dof();
         let nh = self.layout.n_h;
+        let nv = self.layout.n_vars();
+        let rows = self.n_rows();
         let len = 1 + 2 * nh;
+        let nt = hs.len();
         let nchunks = self.grid.len().div_ceil(GRAD_CHUNK);
-        let states = &w.states;
-        let hs = &h;
         let parts: Vec<Vec<f64>> = (0..nchunks)
             .into_par_iter()
             .map_init(
                 || SampleBuffers::new(&self.robot),
                 |buf, c| {
-                    let mut acc = vec![0.0; n * len];
-                    let mut g = vec![0.0; 3 * n];
+                    let mut acc = vec![0.0; nt * n * len];
+                    let mut g = vec![0.0; nt * 3 * n];
                     for i in c * GRAD_CHUNK..((c + 1) * GRAD_CHUNK).min(self.grid.len()) {
                         self.sample_gradient(i, &states[i], hs, rows, buf, &mut g);
                         self.grid.basis(i, &mut buf.basis);
-                        for j in 0..n {
-                            let (gq, gqd, gqdd) = (g[j], g[n + j], g[2 * n + j]);
-                            acc[j * len] += gq;
-                            for k in 0..nh {
-                                let b = &buf.basis.k[k];
-                                acc[j * len + 1 + k] += gq * b[0] + gqd * b[2] + gqdd * b[4];
-                                acc[j * len + 1 + nh + k] += gq * b[1] + gqd * b[3] + gqdd * b[5];
+                        for t in 0..nt {
+                            let (g, acc) = (&g[t * 3 * n..(t + 1) * 3 * n], &mut acc[t * n * len..(t + 1) * n * len]);
+                            for j in 0..n {
+                                let (gq, gqd, gqdd) = (g[j], g[n + j], g[2 * n + j]);
+                                acc[j * len] += gq;
+                                for k in 0..nh {
+                                    let b = &buf.basis.k[k];
+                                    acc[j * len + 1 + k] += gq * b[0] + gqd * b[2] + gqdd * b[4];
+                                    acc[j * len + 1 + nh + k] += gq * b[1] + gqd * b[3] + gqdd * b[5];
+                                }
                             }
                         }
                     }
@@ -584,15 +601,85 @@ impl Objective {
                 },
             )
             .collect();
-        for j in 0..n {
-            w.g_q0[j] = parts.iter().map(|a| a[j * len]).sum();
-            for k in 0..nh {
-                w.g_a[j][k] = parts.iter().map(|a| a[j * len + 1 + k]).sum();
-                w.g_b[j][k] = parts.iter().map(|a| a[j * len + 1 + nh + k]).sum();
+        let mut g_q0 = vec![0.0; n];
+        let mut g_a = vec![vec![0.0; nh]; n];
+        let mut g_b = vec![vec![0.0; nh]; n];
+        for t in 0..nt {
+            let o = t * n * len;
+            for j in 0..n {
+                g_q0[j] = parts.iter().map(|a| a[o + j * len]).sum();
+                for k in 0..nh {
+                    g_a[j][k] = parts.iter().map(|a| a[o + j * len + 1 + k]).sum();
+                    g_b[j][k] = parts.iter().map(|a| a[o + j * len + 1 + nh + k]).sum();
+                }
+            }
+            self.layout.pullback(&g_q0, &g_a, &g_b, &mut out[t * nv..(t + 1) * nv]);
+        }
+    }
+
+    /// The eigenvalues λ_i = σ_i² of C̃ᵀC̃ at both ends of the spectrum, as
+    /// ln λ_i, with their gradients: the `top` largest (i = 1..top) then the
+    /// `bottom` smallest (i = m−bottom+1..m), d ln λ_i = (2/λ_i) v_iᵀ C̃ᵀ dC̃ v_i,
+    /// exact wherever λ_i is simple. `vals` gets top + bottom values, `grads`
+    /// (top + bottom) × n_vars (one gradient after the other); the regressor
+    /// derivatives are shared by all of them ([`Objective::contract`]).
+    /// Returns the criterion J(x) (+∞, zero gradients and values +∞ when C̃
+    /// is not finite). Used by the refinement's epigraph form
+    /// (`refine.bundle`). σ_i below σ_1/[`COND_CAP`] count as that floor.
+    pub fn log_eigen_bundle(&self, x: &[f64], w: &mut ObjectiveWorkspace, top: usize, bottom: usize, vals: &mut [f64], grads: &mut [f64]) -> f64 {
+        let m = self.n_cols();
+        let nv = self.layout.n_vars();
+        let nt = top + bottom;
+        assert!(top <= m && bottom <= m, "bundle larger than the spectrum");
+        assert!(vals.len() == nt && grads.len() == nt * nv, "bundle buffer lengths");
+        w.evaluations += 1;
+        w.gradients += 1;
+        let tr = self.layout.trajectory(x);
+        self.fill(&tr, w);
+        if !self.decompose(w, true) {
+            grads.iter_mut().for_each(|g| *g = 0.0);
+            vals.iter_mut().for_each(|v| *v = f64::INFINITY);
+            return f64::INFINITY;
+        }
+        let jval = self.criterion_value(w);
+        let rows = self.n_rows();
+        let floor = (w.s[0] / COND_CAP).max(1e-300);
+        let which: Vec<usize> = (0..top).chain(m - bottom..m).collect();
+        w.hb.resize_with(nt, Vec::new);
+        // C̃ V_sel (rows × nt), then G_t = (2/λ_i) (C̃ v_i) v_iᵀ
+        let mut vsel = Mat::<f64>::zeros(m, nt);
+        for (t, &i) in which.iter().enumerate() {
+            for a in 0..m {
+                vsel[(a, t)] = w.v[(a, i)];
             }
         }
-        w.h = h;
-        self.layout.pullback(&w.g_q0, &w.g_a, &w.g_b, grad);
+        let mut cv = Mat::<f64>::zeros(rows, nt);
+        {
+            let cs = MatRef::from_column_major_slice(&w.cs, rows, m);
+            faer::linalg::matmul::matmul(cv.as_mut(), faer::Accum::Replace, cs, vsel.as_ref(), 1.0, Par::Seq);
+        }
+        for (t, &i) in which.iter().enumerate() {
+            let si = w.s[i].max(floor);
+            let lam = si * si;
+            vals[t] = lam.ln();
+            let h = &mut w.hb[t];
+            h.resize(rows * m, 0.0);
+            for j in 0..m {
+                let vj = (2.0 / lam) * vsel[(j, t)];
+                for (r, hv) in h[j * rows..(j + 1) * rows].iter_mut().enumerate() {
+                    *hv = cv[(r, t)] * vj;
+                }
+            }
+        }
+        let mut hb = std::mem::take(&mut w.hb);
+        for h in hb.iter_mut() {
+            self.scale_pullback(&w.col_norm, &w.cs, h);
+        }
+        {
+            let hs: Vec<&[f64]> = hb.iter().map(|h| h.as_slice()).collect();
+            self.contract(&w.states, &hs, grads);
+        }
+        w.hb = hb;
         jval
     }
 }
@@ -611,6 +698,8 @@ struct SampleBuffers {
     qd_: Vec<Dual64>,
     qdd_: Vec<Dual64>,
     basis: Basis,
+    hloc: Vec<f64>,
+    ycol: Vec<f64>,
 }
 
 impl SampleBuffers {
@@ -626,17 +715,32 @@ impl SampleBuffers {
             qd_: vec![Dual64::from(0.0); n],
             qdd_: vec![Dual64::from(0.0); n],
             basis: Basis::default(),
+            hloc: Vec::new(),
+            ycol: Vec::new(),
         }
     }
 }
 
 impl Objective {
-    /// ∂J/∂q, ∂J/∂q̇, ∂J/∂q̈ at sample i (into g: 3n values) from H (column-major, `rows` rows).
-    fn sample_gradient(&self, i: usize, state: &[Vec<f64>; 3], h: &[f64], rows: usize, b: &mut SampleBuffers, g: &mut [f64]) {
+    /// ∂J_t/∂q, ∂J_t/∂q̇, ∂J_t/∂q̈ at sample i (into g: 3n values per t, one
+    /// block after the other) from every H_t of `hs` (column-major, `rows` rows).
+    fn sample_gradient(&self, i: usize, state: &[Vec<f64>; 3], hs: &[&[f64]], rows: usize, b: &mut SampleBuffers, g: &mut [f64]) {
         let n = self.robot.dof();
         let p = self.robot.n_params();
         let [q, qd, qdd] = state;
-        let hrow = |r: usize, j: usize| h[j * rows + i * n + r] * self.row_weight[r];
+        let m = self.columns.len();
+        // this sample's rows of every W½-weighted H_t, gathered contiguously
+        // (r major, j minor: the order of the sums below)
+        let nt = hs.len();
+        b.hloc.resize(nt * n * m, 0.0);
+        for (t, h) in hs.iter().enumerate() {
+            for r in 0..n {
+                for j in 0..m {
+                    b.hloc[(t * n + r) * m + j] = h[j * rows + i * n + r] * self.row_weight[r];
+                }
+            }
+        }
+        b.ycol.resize(n * m, 0.0);
         let no_grav = Terms { gravity: false, drive: true };
         // ∂/∂q_k and ∂/∂q̇_k with duals, sharing the joint transforms at q
         // (filled into b.kin by the f64 pass)
@@ -647,6 +751,7 @@ impl Objective {
             b.qdd_[a] = Dual64::from(qdd[a]);
         }
         let columns = &self.columns;
+        let (hloc, ycol) = (&b.hloc, &mut b.ycol);
         regressor_dual_directions(
             &self.robot,
             &b.kin,
@@ -654,13 +759,18 @@ impl Objective {
             [&mut b.q_, &mut b.qd_, &mut b.qdd_],
             &mut b.yd,
             |which, k, yd| {
-                let mut acc = 0.0;
                 for r in 0..n {
                     for (j, &c) in columns.iter().enumerate() {
-                        acc += hrow(r, j) * yd[r * p + c].eps;
+                        ycol[r * m + j] = yd[r * p + c].eps;
                     }
                 }
-                g[which * n + k] = acc;
+                for t in 0..nt {
+                    let mut acc = 0.0;
+                    for (hv, yv) in hloc[t * n * m..(t + 1) * n * m].iter().zip(ycol.iter()) {
+                        acc += hv * yv;
+                    }
+                    g[t * 3 * n + which * n + k] = acc;
+                }
             },
         );
         // ∂/∂q̈_k: Y(q,0,e_k) − Y(q,0,0) without gravity (Y is affine in q̈)
@@ -671,13 +781,18 @@ impl Objective {
             e.iter_mut().for_each(|v| *v = 0.0);
             e[k] = 1.0;
             regressor_generic(&self.robot, q, &zeros, &e, no_grav, &mut b.kin, &mut b.yk);
-            let mut acc = 0.0;
             for r in 0..n {
                 for (j, &c) in self.columns.iter().enumerate() {
-                    acc += hrow(r, j) * (b.yk[r * p + c] - b.y0[r * p + c]);
+                    b.ycol[r * m + j] = b.yk[r * p + c] - b.y0[r * p + c];
                 }
             }
-            g[2 * n + k] = acc;
+            for t in 0..nt {
+                let mut acc = 0.0;
+                for (hv, yv) in b.hloc[t * n * m..(t + 1) * n * m].iter().zip(b.ycol.iter()) {
+                    acc += hv * yv;
+                }
+                g[t * 3 * n + 2 * n + k] = acc;
+            }
         }
     }
 }

@@ -208,10 +208,177 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
     (x, t.best, status, t.evals)
 }
 
+/// Buffers of the epigraph stage's constraint callback.
+struct EpiBuffers {
+    ow: super::objective::ObjectiveWorkspace,
+    cw: super::constraints::ConstraintWorkspace,
+    c: Vec<f64>,
+    jac: Vec<f64>,
+    vals: Vec<f64>,
+    grads: Vec<f64>,
+}
+
+/// Bound of the epigraph variables u, l (ln λ of any finite regressor lies inside).
+const LN_BOUND: f64 = 700.0;
+
+/// The epigraph form of the condition number (or of 1/σ_min) from x0:
+/// over z = (x, u, l), minimise w·(u − l) (for 1/σ_min: −w·l; w =
+/// `refine.bundle_weight`) subject to
+/// ln λ_i(x) ≤ u for the `k` largest and ln λ_i(x) ≥ l for the `k` smallest
+/// eigenvalues λ_i = σ_i² of C̃ᵀC̃, and the design's constraints c(x) ≤ 0. At
+/// the solution u − l = ln λ_max − ln λ_min = 2 ln κ, but unlike ln κ the
+/// problem stays smooth where the extreme singular values coalesce (as they
+/// do at the optimum of a min–max criterion): SLSQP sees one linearised
+/// constraint per eigenvalue of the cluster instead of a kink. The best point
+/// is chosen on the exact criterion J(x), which every constraint call
+/// evaluates. Returns the x part of the last iterate.
+fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k: usize, max_evals: u32) -> StageResult {
+    let (s, ctl) = (b.spec, b.ctl);
+    let nv = x0.len();
+    let mc = cons.len();
+    let m = obj.n_cols();
+    let with_top = obj.criterion == Criterion::Cond;
+    let bottom = k.min(if with_top { m / 2 } else { m }).max(1);
+    let top = if with_top { bottom } else { 0 };
+    let nt = top + bottom;
+    // z = (x, u, l)
+    let nz = nv + 2;
+    let (iu, il) = (nv, nv + 1);
+    let mut buf = EpiBuffers {
+        ow: obj.workspace(),
+        cw: cons.workspace(),
+        c: vec![0.0; mc],
+        jac: vec![0.0; mc * nv],
+        vals: vec![0.0; nt],
+        grads: vec![0.0; nt * nv],
+    };
+    let j0 = obj.log_eigen_bundle(x0, &mut buf.ow, top, bottom, &mut buf.vals, &mut buf.grads);
+    ctl.count(1);
+    let tracker = RefCell::new(Tracker {
+        last_x: Vec::new(),
+        last_f: f64::INFINITY,
+        best: None,
+        evals: 1,
+    });
+    if !j0.is_finite() {
+        return (x0.to_vec(), None, NloptWord::Failure, 1);
+    }
+    cons.eval(x0, &mut buf.cw, &mut buf.c, None);
+    if buf.c.iter().all(|v| *v + 2.0 * TOL <= TOL) {
+        tracker.borrow_mut().best = Some((x0.to_vec(), j0));
+    }
+    let mut z = x0.to_vec();
+    let u0 = if top > 0 { buf.vals[0] } else { 0.0 };
+    z.push(u0.clamp(-LN_BOUND, LN_BOUND));
+    z.push(buf.vals[nt - 1].clamp(-LN_BOUND, LN_BOUND));
+    let stop_now = || ctl.should_stop();
+    // SLSQP starts from the identity as its Hessian: the weight of the linear
+    // objective sets the length of the first steps against it
+    let wgt = s.bundle_weight;
+    let f_cb = |z: &[f64], grad: Option<&mut [f64]>, _: &mut ()| -> f64 {
+        if let Some(g) = grad {
+            g.iter_mut().for_each(|v| *v = 0.0);
+            if !stop_now() {
+                if with_top {
+                    g[iu] = wgt;
+                }
+                g[il] = -wgt;
+            }
+        }
+        if with_top {
+            wgt * (z[iu] - z[il])
+        } else {
+            -wgt * z[il]
+        }
+    };
+    let mut opt = nlopt::Nlopt::new(
+        match s.algorithm {
+            RefineAlgorithm::Mma => nlopt::Algorithm::Mma,
+            _ => nlopt::Algorithm::Slsqp,
+        },
+        nz,
+        f_cb,
+        nlopt::Target::Minimize,
+        (),
+    );
+    let mut lower = b.lower.to_vec();
+    let mut upper = b.upper.to_vec();
+    lower.extend([-LN_BOUND, -LN_BOUND]);
+    upper.extend([LN_BOUND, LN_BOUND]);
+    let _ = opt.set_lower_bounds(&lower);
+    let _ = opt.set_upper_bounds(&upper);
+    let _ = opt.set_maxeval(max_evals.max(1));
+    if s.xtol_rel > 0.0 {
+        let _ = opt.set_xtol_rel(s.xtol_rel);
+    }
+    if s.ftol_rel > 0.0 {
+        let _ = opt.set_ftol_rel(s.ftol_rel);
+    }
+    if let Some(d) = ctl.remaining() {
+        let _ = opt.set_maxtime(d.as_secs_f64().max(1e-3));
+    }
+    let c_cb = |res: &mut [f64], z: &[f64], grad: Option<&mut [f64]>, e: &mut EpiBuffers| {
+        let x = &z[..nv];
+        let want = grad.is_some();
+        cons.eval(x, &mut e.cw, &mut e.c, if want { Some(&mut e.jac) } else { None });
+        let j = obj.log_eigen_bundle(x, &mut e.ow, top, bottom, &mut e.vals, &mut e.grads);
+        ctl.count(1);
+        let ok = j.is_finite() && !stop_now();
+        // the design's constraints, shifted by 2·tol as in the direct stage
+        for i in 0..mc {
+            res[i] = e.c[i] + 2.0 * TOL;
+        }
+        let feasible = res[..mc].iter().all(|v| *v <= TOL);
+        for t in 0..nt {
+            let v = if j.is_finite() { e.vals[t] } else { LN_BOUND };
+            res[mc + t] = if t < top { v - z[iu] } else { z[il] - v };
+            if !j.is_finite() {
+                res[mc + t] = LN_BOUND;
+            }
+        }
+        if let Some(g) = grad {
+            g.iter_mut().for_each(|v| *v = 0.0);
+            if ok {
+                for i in 0..mc {
+                    g[i * nz..i * nz + nv].copy_from_slice(&e.jac[i * nv..(i + 1) * nv]);
+                }
+                for t in 0..nt {
+                    let row = &mut g[(mc + t) * nz..(mc + t + 1) * nz];
+                    let gt = &e.grads[t * nv..(t + 1) * nv];
+                    if t < top {
+                        row[..nv].copy_from_slice(gt);
+                        row[iu] = -1.0;
+                    } else {
+                        row[..nv].iter_mut().zip(gt).for_each(|(r, v)| *r = -v);
+                        row[il] = 1.0;
+                    }
+                }
+            }
+        }
+        let mut t = tracker.borrow_mut();
+        t.evals += 1;
+        t.last_x.clear();
+        t.last_x.extend_from_slice(x);
+        t.last_f = j;
+        if feasible && j.is_finite() && t.best.as_ref().is_none_or(|b| j < b.1) {
+            t.best = Some((x.to_vec(), j));
+        }
+    };
+    let tol = vec![TOL; mc + nt];
+    let _ = opt.add_inequality_mconstraint(mc + nt, c_cb, buf, &tol);
+    let status = NloptWord::of(&opt.optimize(&mut z));
+    drop(opt);
+    let t = tracker.into_inner();
+    z.truncate(nv);
+    (z, t.best, status, t.evals)
+}
+
 /// Refines `x0` (see the module docs). For the condition number with
 /// `smooth = Some(p)`, a first stage (60 % of the evaluations) minimises the
 /// smooth surrogate L_p of 2 ln κ, and a second stage polishes ln κ itself
-/// from the best feasible point of the first.
+/// from the best feasible point of the first. With `bundle = k > 0` (cond
+/// or 1/σ_min), the main stage is the epigraph form of [`stage_epigraph`]
+/// over the k eigenvalues at each end of the spectrum.
 ///
 /// `spec` gives the algorithm, the evaluation budget and the tolerances,
 /// [lower, upper] the box; `ctl` stops it (deadline → nlopt's `maxtime`;
@@ -237,7 +404,12 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], spec: &RefineSpec
         x_start = best.map(|b| b.0).unwrap_or(last);
     }
     let left = s.max_evals.saturating_sub(evals as u32).max(1);
-    let (x, best, status, ev) = stage(obj, cons, &x_start, &b, None, left);
+    let epigraph = s.bundle > 0 && matches!(obj.criterion, Criterion::Cond | Criterion::InvSigmaMin);
+    let (x, best, status, ev) = if epigraph {
+        stage_epigraph(obj, cons, &x_start, &b, s.bundle, left)
+    } else {
+        stage(obj, cons, &x_start, &b, None, left)
+    };
     evals += ev;
     let status = RefineStatus {
         smooth: status_soft,
@@ -265,4 +437,19 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], spec: &RefineSpec
         evaluations: evals,
         seconds: t0.elapsed().as_secs_f64(),
     }
+}
+
+/// A perturbed copy of x: each variable moved by a uniform draw in
+/// ±`scale`·(upper − lower)/2 (ChaCha8 seeded with `seed`), clamped to the
+/// box. The start of a restart of the refinement (`refine.restarts`).
+pub fn perturb(x: &[f64], lower: &[f64], upper: &[f64], scale: f64, seed: u64) -> Vec<f64> {
+    use rand::{RngExt, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    x.iter()
+        .zip(lower.iter().zip(upper))
+        .map(|(&v, (&lo, &hi))| {
+            let r: f64 = rng.random_range(-1.0..=1.0);
+            (v + r * scale * 0.5 * (hi - lo)).clamp(lo, hi)
+        })
+        .collect()
 }
