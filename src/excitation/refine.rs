@@ -16,6 +16,21 @@ use serde::Serialize;
 use std::cell::RefCell;
 use std::time::Instant;
 
+/// The stopping rules of a refinement run: the evaluation budget, the
+/// spec's relative tolerances (when positive) and the time left.
+fn set_stops<F: nlopt::ObjFn<T>, T>(opt: &mut nlopt::Nlopt<F, T>, s: &RefineSpec, max_evals: u32, ctl: &Control) {
+    let _ = opt.set_maxeval(max_evals.max(1));
+    if s.xtol_rel > 0.0 {
+        let _ = opt.set_xtol_rel(s.xtol_rel);
+    }
+    if s.ftol_rel > 0.0 {
+        let _ = opt.set_ftol_rel(s.ftol_rel);
+    }
+    if let Some(d) = ctl.remaining() {
+        let _ = opt.set_maxtime(d.as_secs_f64().max(1e-3));
+    }
+}
+
 /// Feasibility tolerance of nlopt on the scaled constraints; the
 /// constraints are imposed as c + 2·tol ≤ 0, so accepted points have c < 0.
 const TOL: f64 = 1e-9;
@@ -173,17 +188,7 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
     );
     let _ = opt.set_lower_bounds(b.lower);
     let _ = opt.set_upper_bounds(b.upper);
-    let _ = opt.set_maxeval(max_evals.max(1));
-    if s.xtol_rel > 0.0 {
-        let _ = opt.set_xtol_rel(s.xtol_rel);
-    }
-    if s.ftol_rel > 0.0 {
-        let _ = opt.set_ftol_rel(s.ftol_rel);
-    }
-    if let Some(d) = ctl.remaining() {
-        let left = d.as_secs_f64();
-        let _ = opt.set_maxtime(left.max(1e-3));
-    }
+    set_stops(&mut opt, s, max_evals, ctl);
     if m > 0 {
         let c_cb = |res: &mut [f64], x: &[f64], grad: Option<&mut [f64]>, cw: &mut super::constraints::ConstraintWorkspace| {
             cons.eval(x, cw, res, grad);
@@ -307,16 +312,7 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
     upper.extend([LN_BOUND, LN_BOUND]);
     let _ = opt.set_lower_bounds(&lower);
     let _ = opt.set_upper_bounds(&upper);
-    let _ = opt.set_maxeval(max_evals.max(1));
-    if s.xtol_rel > 0.0 {
-        let _ = opt.set_xtol_rel(s.xtol_rel);
-    }
-    if s.ftol_rel > 0.0 {
-        let _ = opt.set_ftol_rel(s.ftol_rel);
-    }
-    if let Some(d) = ctl.remaining() {
-        let _ = opt.set_maxtime(d.as_secs_f64().max(1e-3));
-    }
+    set_stops(&mut opt, s, max_evals, ctl);
     let c_cb = |res: &mut [f64], z: &[f64], grad: Option<&mut [f64]>, e: &mut EpiBuffers| {
         let x = &z[..nv];
         let want = grad.is_some();

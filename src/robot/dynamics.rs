@@ -451,18 +451,8 @@ fn rigid_regressor<T: Real>(robot: &Robot, q: &[T], qd: &[T], qdd: &[T], gravity
             let uxw = u.cross(&w);
             let row = &mut y[j * p + robot.link_param_offset(i)..];
             // u^T (L(α) + S(ω)L(ω)) = u^T L(α) + (u×ω)^T L(ω)
-            let l = |a: &Vector3<T>, b: &Vector3<T>| {
-                [
-                    a.x * b.x,
-                    a.x * b.y + a.y * b.x,
-                    a.x * b.z + a.z * b.x,
-                    a.y * b.y,
-                    a.y * b.z + a.z * b.y,
-                    a.z * b.z,
-                ]
-            };
-            let l1 = l(&u, &dw);
-            let l2 = l(&uxw, &w);
+            let l1 = sym_bilinear(&u, &dw);
+            let l2 = sym_bilinear(&uxw, &w);
             for k in 0..6 {
                 row[k] = l1[k] + l2[k];
             }
@@ -491,6 +481,20 @@ fn couple_rows_inv_t<T: Real>(robot: &Robot, y: &mut [T], col: &mut [T]) {
             }
         }
     }
+}
+
+/// aᵀL(b) for the inertia columns (XX, XY, XZ, YY, YZ, ZZ): the products of
+/// a and b that multiply each second moment in u·(I b), symmetric in the
+/// off-diagonal pairs.
+fn sym_bilinear<T: Real>(a: &Vector3<T>, b: &Vector3<T>) -> [T; 6] {
+    [
+        a.x * b.x,
+        a.x * b.y + a.y * b.x,
+        a.x * b.z + a.z * b.x,
+        a.y * b.y,
+        a.y * b.z + a.z * b.y,
+        a.z * b.z,
+    ]
 }
 
 /// Full regressor (motor side, coupling and drive columns) into row-major `y` (n×p).
@@ -801,16 +805,7 @@ impl Tangents {
                 let tuxw = tu.cross(&w) + u.cross(&tw);
                 let row = &mut out[j * p + o..j * p + o + 10];
                 // d/dε of u^T L(ω̇) + (u×ω)^T L(ω), L symmetric-bilinear
-                let l = |a: &Vector3<f64>, b: &Vector3<f64>| {
-                    [
-                        a.x * b.x,
-                        a.x * b.y + a.y * b.x,
-                        a.x * b.z + a.z * b.x,
-                        a.y * b.y,
-                        a.y * b.z + a.z * b.y,
-                        a.z * b.z,
-                    ]
-                };
+                let l = sym_bilinear::<f64>;
                 let (l1, l2, l3, l4) = (l(&tu, &dw), l(&u, &tdw), l(&tuxw, &w), l(&uxw, &tw));
                 for c in 0..6 {
                     row[c] = l1[c] + l2[c] + l3[c] + l4[c];
