@@ -266,6 +266,7 @@ pub fn line_segments(pts: &[(f64, f64)]) -> Vec<Vec<(f64, f64)>> {
 
 /// The smallest positive gap between distinct finite abscissae (None for
 /// fewer than two distinct values).
+#[cfg(feature = "plots")]
 fn min_spacing(x: &[f64]) -> Option<f64> {
     let mut v: Vec<f64> = x.iter().copied().filter(|a| a.is_finite()).collect();
     v.sort_by(f64::total_cmp);
