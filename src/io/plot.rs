@@ -393,7 +393,7 @@ mod draw {
         let longest = p.x_names.iter().map(|n| n.chars().count()).max().unwrap_or(0);
         let x_area = if names { (34 + 6 * longest as u32).clamp(40, 160) } else { 32 };
         // the legend: its box (10 px font: ~6 px per character, 15 px per
-        // row, 40 px of key and padding) against the plotting area, and the
+        // row, 50 px of key and padding) against the plotting area, and the
         // y range that keeps it off the data
         let labels: Vec<&str> = p
             .series
@@ -442,7 +442,7 @@ mod draw {
                     .label_style(("sans-serif", 11))
                     .axis_desc_style(("sans-serif", 11))
                     .x_label_style(("sans-serif", 11))
-                    // a categorical axis: a step of 1 (the formatter names the integers)
+                    // a categorical axis: a tick at every integer (the names are drawn below)
                     .x_labels(if names { p.x_names.len() + 1 } else { 10 })
                     .x_label_formatter(&x_fmt)
                     .y_label_formatter(&|v: &f64| super::tick_label(*v))
