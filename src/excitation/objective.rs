@@ -700,6 +700,8 @@ struct SampleBuffers {
     basis: Basis,
     hloc: Vec<f64>,
     ycol: Vec<f64>,
+    zeros: Vec<f64>,
+    unit: Vec<f64>,
 }
 
 impl SampleBuffers {
@@ -717,6 +719,8 @@ impl SampleBuffers {
             basis: Basis::default(),
             hloc: Vec::new(),
             ycol: Vec::new(),
+            zeros: vec![0.0; n],
+            unit: vec![0.0; n],
         }
     }
 }
@@ -764,36 +768,36 @@ impl Objective {
                         ycol[r * m + j] = yd[r * p + c].eps;
                     }
                 }
-                for t in 0..nt {
-                    let mut acc = 0.0;
-                    for (hv, yv) in hloc[t * n * m..(t + 1) * n * m].iter().zip(ycol.iter()) {
-                        acc += hv * yv;
-                    }
-                    g[t * 3 * n + which * n + k] = acc;
-                }
+                contract_sample(hloc, ycol, n, which * n + k, g);
             },
         );
         // ∂/∂q̈_k: Y(q,0,e_k) − Y(q,0,0) without gravity (Y is affine in q̈)
-        let zeros = vec![0.0; n];
-        let mut e = vec![0.0; n];
-        regressor_generic(&self.robot, q, &zeros, &zeros, no_grav, &mut b.kin, &mut b.y0);
+        regressor_generic(&self.robot, q, &b.zeros, &b.zeros, no_grav, &mut b.kin, &mut b.y0);
         for k in 0..n {
-            e.iter_mut().for_each(|v| *v = 0.0);
-            e[k] = 1.0;
-            regressor_generic(&self.robot, q, &zeros, &e, no_grav, &mut b.kin, &mut b.yk);
+            b.unit.iter_mut().for_each(|v| *v = 0.0);
+            b.unit[k] = 1.0;
+            regressor_generic(&self.robot, q, &b.zeros, &b.unit, no_grav, &mut b.kin, &mut b.yk);
             for r in 0..n {
                 for (j, &c) in self.columns.iter().enumerate() {
                     b.ycol[r * m + j] = b.yk[r * p + c] - b.y0[r * p + c];
                 }
             }
-            for t in 0..nt {
-                let mut acc = 0.0;
-                for (hv, yv) in b.hloc[t * n * m..(t + 1) * n * m].iter().zip(b.ycol.iter()) {
-                    acc += hv * yv;
-                }
-                g[t * 3 * n + 2 * n + k] = acc;
-            }
+            contract_sample(&b.hloc, &b.ycol, n, 2 * n + k, g);
         }
+    }
+}
+
+/// One derivative direction of one sample against every H_t: entry `idx`
+/// of each H_t's 3n block of `g` gets ⟨H_t's rows of the sample (`hloc`, n·m
+/// per H_t), ∂Y/∂(direction) on the columns (`ycol`)⟩.
+fn contract_sample(hloc: &[f64], ycol: &[f64], n: usize, idx: usize, g: &mut [f64]) {
+    let block = ycol.len();
+    for (t, h) in hloc.chunks_exact(block).enumerate() {
+        let mut acc = 0.0;
+        for (hv, yv) in h.iter().zip(ycol) {
+            acc += hv * yv;
+        }
+        g[t * 3 * n + idx] = acc;
     }
 }
 

@@ -254,13 +254,15 @@ pub fn line_segments(pts: &[(f64, f64)]) -> Vec<Vec<(f64, f64)>> {
     let mut sorted = steps.clone();
     sorted.sort_by(f64::total_cmp);
     let gap = 5.0 * sorted[sorted.len() / 2];
-    let mut out = vec![vec![pts[0]]];
-    for (k, d) in steps.iter().enumerate() {
+    let mut out = Vec::new();
+    let mut seg = vec![pts[0]];
+    for (d, pt) in steps.iter().zip(&pts[1..]) {
         if *d > gap {
-            out.push(Vec::new());
+            out.push(std::mem::take(&mut seg));
         }
-        out.last_mut().expect("non-empty").push(pts[k + 1]);
+        seg.push(*pt);
     }
+    out.push(seg);
     out
 }
 
