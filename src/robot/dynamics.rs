@@ -974,6 +974,7 @@ fn spatial_inertia_into(ine: &Inertial, out: &mut Matrix6<f64>) {
 /// Lower-left block B = −Rᵀ [p]× of the motion transform parent → child
 /// X = [[Rᵀ, 0], [B, Rᵀ]] (child orientation `r`, position `p` in the parent),
 /// as nalgebra's 3×3 product computes it.
+#[inline(always)]
 fn motion_x_lower(r: &Matrix3<f64>, p: &Vector3<f64>) -> Matrix3<f64> {
     -r.transpose() * p.cross_matrix()
 }
@@ -1050,6 +1051,7 @@ pub(crate) struct Sub {
 }
 
 impl Sub {
+    #[inline(always)]
     fn of(robot: &Robot, i: usize) -> Self {
         let (a, l) = (robot.s_ang[i], robot.s_lin[i]);
         let v = [a.x, a.y, a.z, l.x, l.y, l.z];
