@@ -168,6 +168,12 @@ impl ConstraintWorkspace {
     pub fn distance_queries_per_pair(&self) -> Vec<usize> {
         self.series.iter().map(|s| s.queries).collect()
     }
+
+    /// Per checked pair, the grid times of the last evaluation ruled out by
+    /// the support-function bound alone (no exact query).
+    pub fn support_skips_per_pair(&self) -> Vec<usize> {
+        self.series.iter().map(|s| s.support_skips).collect()
+    }
 }
 
 /// Which joint limits are imposed and how much of each is usable.
@@ -490,6 +496,22 @@ impl Constraints {
             margin: sc.margin,
             depth: (-w.distance).max(0.0),
         })
+    }
+
+    /// [`Self::collision_at`] for a sequence of nearby configurations (a
+    /// sampled path): the same result, with the normals of the pairs' last
+    /// exact queries kept in `hints` (one per pair; start with an empty
+    /// vector) so that a pose every pair provably keeps the margin at
+    /// ([`CollisionScene::clear_at`]) needs few or no exact queries.
+    pub fn collision_along(&self, ws: &mut Workspace, q: &[f64], hints: &mut Vec<Option<Vector3<f64>>>) -> Option<CollisionReport> {
+        let sc = self.scene.as_deref()?;
+        forward_kinematics(&self.robot, q, &mut ws.kin);
+        let mut poses = Vec::with_capacity(sc.bodies().len());
+        sc.poses(&ws.kin, &mut poses);
+        if sc.clear_at(&poses, sc.margin, hints) {
+            return None;
+        }
+        self.collision_at(ws, q)
     }
 
     /// Number of scalar constraints.
