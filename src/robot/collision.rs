@@ -465,14 +465,23 @@ fn segment_distance(p1: &Point3<f64>, q1: &Point3<f64>, p2: &Point3<f64>, q2: &P
 impl ConvexPart {
     /// The support function h(d) = max over the part of dᵀx in the world
     /// frame, the body at `x` (`d` a unit vector); +∞ for a half-space.
-    fn world_support(&self, x: &Isometry3<f64>, d: &Vector3<f64>) -> f64 {
+    /// A hull's support vertex is climbed from `start` (a previous call's
+    /// vertex, unless that lies inside a face or is `u32::MAX`: then from the
+    /// best seed), and `start` becomes the new support vertex.
+    fn world_support(&self, x: &Isometry3<f64>, d: &Vector3<f64>, start: &mut u32) -> f64 {
         if self.halfspace.is_some() {
             return f64::INFINITY;
         }
         let pose = x * self.local;
         let dl = pose.rotation.inverse_transform_vector(d);
         let local = if let Some(h) = &self.climb {
-            h.support_point(&dl, h.support_index(&dl)).coords.dot(&dl)
+            let from = match h.flat.get(*start as usize) {
+                Some(false) => *start,
+                _ => h.seed(&dl),
+            };
+            let v = h.support_from(&dl, from);
+            *start = v;
+            h.support_point(&dl, v).coords.dot(&dl)
         } else if let Some(sm) = self.shape.as_support_map() {
             sm.local_support_point(&dl).coords.dot(&dl)
         } else {
@@ -1266,6 +1275,8 @@ pub struct DistanceSeries {
     pub hint: Option<Vector3<f64>>,
     /// Configurations ruled out by the support-function bound alone (no exact query).
     pub support_skips: usize,
+    /// Support vertices of the last support-function bound (climbing starts).
+    starts: Vec<u32>,
 }
 
 impl DistanceSeries {
@@ -1571,8 +1582,11 @@ impl CollisionScene {
         out.exact.clear();
         out.queries = 0;
         out.support_skips = 0;
-        // no normal carried over from another call: the queries made depend on this call only
-        out.hint = None;
+        // no normal carried over from another call: the queries made depend
+        // on this call only; against a half-space the bound needs none
+        // (any direction: the plane's normal is used)
+        let pi = &self.pairs[k];
+        out.hint = (self.bodies[pi.ia].is_unbounded() || self.bodies[pi.ib].is_unbounded()).then(Vector3::z);
         if exhaustive {
             for x in poses {
                 out.value.push(self.pair_distance(k, x, cap));
@@ -1581,21 +1595,25 @@ impl CollisionScene {
             out.queries = poses.len();
             return;
         }
+        out.starts.clear();
         let mut best = f64::INFINITY;
         let mut first: Option<(usize, f64)> = None;
+        // the bounding spheres first (cheapest); the capsules and the
+        // support-function bound only where the spheres leave the
+        // configuration a candidate for the minimum
         for (g, x) in poses.iter().enumerate() {
-            let (sphere, bound) = self.pair_bounds(k, x, cap);
+            let sphere = self.pair_sphere_bound(k, x);
             // exactly what the exact query returns without querying: every
-            // part pair fails its sphere test, or the true distance is above cap
-            if sphere > cap || bound > cap + CULL_TOL {
+            // part pair fails its sphere test
+            if sphere > cap {
                 out.value.push(cap);
                 out.exact.push(true);
                 best = best.min(cap);
             } else {
-                out.value.push(bound);
+                out.value.push(sphere);
                 out.exact.push(false);
-                if first.is_none_or(|(_, b)| bound < b) {
-                    first = Some((g, bound));
+                if first.is_none_or(|(_, b)| sphere < b) {
+                    first = Some((g, sphere));
                 }
             }
         }
@@ -1604,27 +1622,70 @@ impl CollisionScene {
             best = best.min(out.make_exact(self, k, g, poses, cap));
         }
         for g in 0..poses.len() {
-            if !out.exact[g] && out.value[g] <= best + CULL_TOL {
-                if let Some(n) = out.hint {
-                    // the support-function bound along the last exact normal
-                    let sb = self.pair_support_bound(k, &poses[g], &n);
-                    if sb > cap + CULL_TOL {
-                        // the exact query would report the cap
-                        out.value[g] = cap;
-                        out.exact[g] = true;
-                        out.support_skips += 1;
-                        best = best.min(cap);
-                        continue;
-                    }
-                    if sb > best + CULL_TOL {
-                        out.value[g] = out.value[g].max(sb);
-                        out.support_skips += 1;
-                        continue;
-                    }
+            if out.exact[g] || out.value[g] > best + CULL_TOL {
+                continue;
+            }
+            if let Some(n) = out.hint {
+                // the support-function bound along the last exact normal
+                let sb = self.support_bound_from(k, &poses[g], &n, &mut out.starts);
+                if sb > cap + CULL_TOL {
+                    // the exact query would report the cap
+                    out.value[g] = cap;
+                    out.exact[g] = true;
+                    out.support_skips += 1;
+                    best = best.min(cap);
+                    continue;
                 }
-                best = best.min(out.make_exact(self, k, g, poses, cap));
+                if sb > best + CULL_TOL {
+                    out.value[g] = out.value[g].max(sb);
+                    out.support_skips += 1;
+                    continue;
+                }
+            }
+            let caps = self.pair_capsule_bound(k, &poses[g]);
+            if caps > cap + CULL_TOL {
+                // the true distance is above the cap: the exact query reports the cap
+                out.value[g] = cap;
+                out.exact[g] = true;
+                best = best.min(cap);
+                continue;
+            }
+            if caps > best + CULL_TOL {
+                out.value[g] = out.value[g].max(caps);
+                continue;
+            }
+            best = best.min(out.make_exact(self, k, g, poses, cap));
+        }
+    }
+
+    /// The bounding-sphere bound of pair `k` at `poses` (the first value of
+    /// [`Self::pair_bounds`]).
+    fn pair_sphere_bound(&self, k: usize, poses: &[Isometry3<f64>]) -> f64 {
+        let p = &self.pairs[k];
+        let (a, b) = (&self.bodies[p.ia], &self.bodies[p.ib]);
+        let (xa, xb) = (&poses[p.ia], &poses[p.ib]);
+        let mut sphere = f64::INFINITY;
+        for pa in &a.parts {
+            for pb in &b.parts {
+                sphere = sphere.min(part_lower_bound(pa, xa, pb, xb));
             }
         }
+        sphere
+    }
+
+    /// The sphere-and-capsule bound of pair `k` at `poses` (the second value
+    /// of [`Self::pair_bounds`] when the spheres leave the pair within the cap).
+    fn pair_capsule_bound(&self, k: usize, poses: &[Isometry3<f64>]) -> f64 {
+        let p = &self.pairs[k];
+        let (a, b) = (&self.bodies[p.ia], &self.bodies[p.ib]);
+        let (xa, xb) = (&poses[p.ia], &poses[p.ib]);
+        let mut bound = f64::INFINITY;
+        for pa in &a.parts {
+            for pb in &b.parts {
+                bound = bound.min(part_lower_bound(pa, xa, pb, xb).max(part_capsule_bound(pa, xa, pb, xb)));
+            }
+        }
+        bound
     }
 
     /// A world direction `n` (e.g. a [`Proximity`] normal of pair `k` at
@@ -1644,22 +1705,46 @@ impl CollisionScene {
     /// closest (or deepest) pair of points. With the normal of an exact query
     /// at a nearby configuration the bound is within second order of the
     /// normal's rotation of the distance. The body distance is the minimum
-    /// over the part pairs; a part pair with a half-space gets −∞ (its
-    /// support function is unbounded along other directions). The bound is
+    /// over the part pairs. A part pair with a half-space (floor, wall)
+    /// {x : mᵀx ≤ off} takes m itself (its support function is unbounded
+    /// along any other direction): min over the part of mᵀx − off, the
+    /// signed distance itself. The bound is
     /// computed with the same support points as the narrow phase (vertices
     /// of the hulls by hill climbing, parry's support maps otherwise), so it
     /// is a lower bound of the exact distance up to rounding (≪ [`CULL_TOL`]).
     pub fn pair_support_bound(&self, k: usize, poses: &[Isometry3<f64>], n_a: &Vector3<f64>) -> f64 {
+        self.support_bound_from(k, poses, n_a, &mut Vec::new())
+    }
+
+    /// [`Self::pair_support_bound`], the hulls' support vertices climbed
+    /// from those of the previous call (`starts`: one per part of the first
+    /// body, then of the second; filled on the first call). The climb's
+    /// result does not depend on its start (see [`ClimbHull`]).
+    fn support_bound_from(&self, k: usize, poses: &[Isometry3<f64>], n_a: &Vector3<f64>, starts: &mut Vec<u32>) -> f64 {
         let p = &self.pairs[k];
         let (a, b) = (&self.bodies[p.ia], &self.bodies[p.ib]);
         let (xa, xb) = (&poses[p.ia], &poses[p.ib]);
+        let na = a.parts.len();
+        starts.resize(na + b.parts.len(), u32::MAX);
         let n = xa.rotation * n_a;
         let mut bound = f64::INFINITY;
-        for pa in &a.parts {
-            let ha = pa.world_support(xa, &n);
-            for pb in &b.parts {
-                let hb = pb.world_support(xb, &-n);
-                bound = bound.min(-ha - hb);
+        for (ia, pa) in a.parts.iter().enumerate() {
+            for (ib, pb) in b.parts.iter().enumerate() {
+                let b_pp = match (&pa.halfspace, &pb.halfspace) {
+                    // a plane nᵀx = off (free side nᵀx ≥ off) against a part:
+                    // sd = min over the part of nᵀx − off, whatever `n_a`
+                    (Some((hn, hoff)), None) => {
+                        let (nw, off) = world_plane(xa, hn, *hoff);
+                        -pb.world_support(xb, &-nw, &mut starts[na + ib]) - off
+                    }
+                    (None, Some((hn, hoff))) => {
+                        let (nw, off) = world_plane(xb, hn, *hoff);
+                        -pa.world_support(xa, &-nw, &mut starts[ia]) - off
+                    }
+                    (Some(_), Some(_)) => f64::NEG_INFINITY,
+                    (None, None) => -pa.world_support(xa, &n, &mut starts[ia]) - pb.world_support(xb, &-n, &mut starts[na + ib]),
+                };
+                bound = bound.min(b_pp);
             }
         }
         bound
@@ -1747,8 +1832,11 @@ impl CollisionScene {
             if bound > limit + CULL_TOL {
                 continue;
             }
-            if let Some(n) = hint {
-                if self.pair_support_bound(k, poses, n) > limit + CULL_TOL {
+            let pi = &self.pairs[k];
+            // against a half-space the bound needs no direction (see pair_support_bound)
+            let unbounded = self.bodies[pi.ia].is_unbounded() || self.bodies[pi.ib].is_unbounded();
+            if let Some(n) = hint.or(unbounded.then(Vector3::z)) {
+                if self.pair_support_bound(k, poses, &n) > limit + CULL_TOL {
                     continue;
                 }
             }
