@@ -24,6 +24,19 @@
 //! **Cap.** Queries take a cap c: a pair farther apart than c reports c
 //! (d̃ = min(d, c)), which lets a bounding-sphere test skip exact queries
 //! without changing any value at or below the cap.
+//!
+//! **Support-function bound.** For convex A, B and any unit m,
+//! sd(A, B) ≥ min_{b∈B} mᵀb − max_{a∈A} mᵀa = −h_B(−m) − h_A(m) (h the
+//! support function), with equality at the normal of the closest (or
+//! deepest) points. Along a sampled path the normal of the previous exact
+//! query (kept in the first body's frame), or the separating direction with
+//! which GJK proved a pair beyond its cap, gives a lower bound that is
+//! within second order of the normal's turn of the distance, for the price
+//! of two support points (hill climbing from the previous ones) instead of a
+//! GJK/EPA query ([`CollisionScene::pair_support_bound`]). Against a
+//! half-space the bound is its normal's (the signed distance itself). The
+//! bound only decides where an exact query is needed: every value reported
+//! is still an exact query's (or the cap).
 
 use crate::error::{Error, Result};
 use crate::robot::kinematics::Kin;
