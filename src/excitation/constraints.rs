@@ -32,6 +32,7 @@ use crate::robot::kinematics::forward_kinematics;
 use crate::robot::{frame_jacobian, id_derivatives, inverse_dynamics, motor_inertia, Frame, Robot, Workspace};
 use crate::trajectory::{period_grid, Basis, FourierLayout, FourierTrajectory};
 use nalgebra::Vector3;
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Grid points per period of the highest harmonic used to bracket joint extrema.
@@ -618,9 +619,13 @@ impl Constraints {
                 sc.poses(&cw.ws.kin, &mut cw.pose_grid[g]);
             }
             let cap = if cw.selection { sc.margin } else { sc.cap };
-            for k in 0..sc.len() {
-                sc.pair_series(k, &cw.pose_grid, cap, cw.exhaustive, &mut cw.series[k]);
-            }
+            // the pairs on the rayon pool (each pair's series depends on that
+            // pair alone: the values do not depend on the thread count)
+            let (pose_grid, exhaustive) = (&cw.pose_grid, cw.exhaustive);
+            cw.series
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(k, out)| sc.pair_series(k, pose_grid, cap, exhaustive, out));
         }
         for (i, item) in self.items.iter().enumerate() {
             let inf = &self.info[i];
@@ -850,9 +855,10 @@ impl Constraints {
                 sc.poses(&ws.kin, x);
             }
             dist_all = vec![DistanceSeries::default(); sc.len()];
-            for (p, out) in dist_all.iter_mut().enumerate() {
-                sc.pair_series(p, &poses, cap, false, out);
-            }
+            dist_all
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(p, out)| sc.pair_series(p, &poses, cap, false, out));
         }
         let mut out = Vec::with_capacity(self.len());
         for (i, item) in self.items.iter().enumerate() {
