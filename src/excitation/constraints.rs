@@ -619,13 +619,19 @@ impl Constraints {
                 sc.poses(&cw.ws.kin, &mut cw.pose_grid[g]);
             }
             let cap = if cw.selection { sc.margin } else { sc.cap };
-            // the pairs on the rayon pool (each pair's series depends on that
-            // pair alone: the values do not depend on the thread count)
+            // the pairs on the rayon pool when the evaluation runs outside it
+            // (the refinement); inside it (the GA's evaluations, parallel
+            // refinement starts) one after the other: nested, the pool's
+            // threads are already busy and the fork-join only costs. Each
+            // pair's series depends on that pair alone, so the values do not
+            // depend on the thread count.
             let (pose_grid, exhaustive) = (&cw.pose_grid, cw.exhaustive);
-            cw.series
-                .par_iter_mut()
-                .enumerate()
-                .for_each(|(k, out)| sc.pair_series(k, pose_grid, cap, exhaustive, out));
+            let one = |(k, out): (usize, &mut DistanceSeries)| sc.pair_series(k, pose_grid, cap, exhaustive, out);
+            if rayon::current_thread_index().is_none() {
+                cw.series.par_iter_mut().enumerate().for_each(one);
+            } else {
+                cw.series.iter_mut().enumerate().for_each(one);
+            }
         }
         for (i, item) in self.items.iter().enumerate() {
             let inf = &self.info[i];
@@ -855,10 +861,12 @@ impl Constraints {
                 sc.poses(&ws.kin, x);
             }
             dist_all = vec![DistanceSeries::default(); sc.len()];
-            dist_all
-                .par_iter_mut()
-                .enumerate()
-                .for_each(|(p, out)| sc.pair_series(p, &poses, cap, false, out));
+            let one = |(p, out): (usize, &mut DistanceSeries)| sc.pair_series(p, &poses, cap, false, out);
+            if rayon::current_thread_index().is_none() {
+                dist_all.par_iter_mut().enumerate().for_each(one);
+            } else {
+                dist_all.iter_mut().enumerate().for_each(one);
+            }
         }
         let mut out = Vec::with_capacity(self.len());
         for (i, item) in self.items.iter().enumerate() {
