@@ -11,7 +11,16 @@
 //! * `refine_eval_*`: one refinement step (values and the Jacobian): without
 //!   collision, with it (climbing), with parry's scan (before), and without
 //!   the broad phase (every pair at every grid time);
-//! * the distances of every pair at one configuration.
+//! * the distances of every pair at one configuration;
+//! * the per-pose collision check of the delivered trajectory over one
+//!   second of the trajectory at 1 kHz: each pose alone
+//!   (`Constraints::collision_at`) and along the path with the pairs' last
+//!   normals carried over (`Constraints::collision_along`, what the check
+//!   uses: the support-function bound clears most poses without a query).
+//!
+//! The query counts printed are those of the culled evaluation (spheres,
+//! support-function bound along the last exact normal, capsules, then the
+//! exact query), with the number of grid times the support bound ruled out.
 //!
 //! Run: `cargo bench --bench collision -- --warm-up-time 1 --measurement-time 3`.
 
@@ -84,8 +93,9 @@ fn bench(c: &mut Criterion) {
                     let per_pair = cw.distance_queries_per_pair();
                     cons.eval_selection(&x, &mut cw, &mut cval);
                     eprintln!(
-                        "{label} {tag}: {full} exact distance queries per evaluation (full cap; per pair {per_pair:?}), {} for the selection",
-                        cw.distance_queries()
+                        "{label} {tag}: {full} exact distance queries per evaluation (full cap; per pair {per_pair:?}), {} for the selection ({} grid times ruled out by the support bound)",
+                        cw.distance_queries(),
+                        cw.support_skips_per_pair().iter().sum::<usize>()
                     );
                 }
             }
@@ -95,6 +105,32 @@ fn bench(c: &mut Criterion) {
                 let q = p.layout.trajectory(&x).q0.clone();
                 grp.bench_function("all_pairs_one_configuration", |b| {
                     b.iter(|| black_box(sc.distances(&p.robot, &mut kin, black_box(&q), sc.cap)))
+                });
+                // one second of the trajectory at 1 kHz, as the delivered-trajectory check sees it
+                let tr = p.layout.trajectory(&x);
+                let n = p.robot.dof();
+                let path: Vec<Vec<f64>> = (0..1000)
+                    .map(|i| {
+                        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+                        tr.eval(i as f64 * 1e-3, &mut q, &mut qd, &mut qdd);
+                        q
+                    })
+                    .collect();
+                let mut ws = idexp::robot::Workspace::new(&p.robot);
+                grp.bench_function("check_1000_poses_each_alone", |b| {
+                    b.iter(|| {
+                        for q in &path {
+                            black_box(p.constraints.collision_at(&mut ws, q));
+                        }
+                    })
+                });
+                grp.bench_function("check_1000_poses_along_the_path", |b| {
+                    b.iter(|| {
+                        let mut hints = Vec::new();
+                        for q in &path {
+                            black_box(p.constraints.collision_along(&mut ws, q, &mut hints));
+                        }
+                    })
                 });
             }
         }

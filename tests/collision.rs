@@ -743,3 +743,110 @@ fn selection_evaluation_gives_the_violation_of_the_full_one() {
         assert!(fewer > 8, "{design}: the selection saves queries in only {fewer} of 16 trials");
     }
 }
+
+#[test]
+fn support_bound_never_exceeds_the_exact_distance() {
+    // the support-function bound along the normal of an exact query at a
+    // nearby (or unrelated) configuration is a lower bound of the signed
+    // distance there, penetrations included, and nearly tight for small steps
+    for name in ["ur5.toml", "panda.toml"] {
+        let r = robot(name);
+        let sc = scene(&r, &CollisionSpec::default());
+        let mut kin = Kin::new(r.dof());
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(31);
+        let (mut checked, mut tight, mut deep) = (0usize, 0usize, 0usize);
+        let far = 10.0;
+        for trial in 0..600 {
+            let q = random_q(&r, &mut rng);
+            let step = [0.002, 0.02, 0.2, 3.0][trial % 4];
+            let q2: Vec<f64> = q.iter().map(|v| v + rng.random_range(-step..step)).collect();
+            let (mut x1, mut x2) = (Vec::new(), Vec::new());
+            forward_kinematics(&r, &q, &mut kin);
+            sc.poses(&kin, &mut x1);
+            forward_kinematics(&r, &q2, &mut kin);
+            sc.poses(&kin, &mut x2);
+            for k in 0..sc.len() {
+                let Some(p1) = sc.pair_proximity(k, &x1, far) else { continue };
+                let n_a = sc.normal_in_first_body(k, &x1, &p1.normal);
+                // at the query's own configuration: the bound is the distance
+                let own = sc.pair_support_bound(k, &x1, &n_a);
+                assert!(own <= p1.distance + 1e-9, "{name} pair {k}: own bound {own} > {}", p1.distance);
+                let d2 = sc.pair_distance(k, &x2, far);
+                let b = sc.pair_support_bound(k, &x2, &n_a);
+                assert!(b <= d2 + 1e-9, "{name} trial {trial} pair {k}: bound {b} > exact {d2}");
+                checked += 1;
+                tight += usize::from(b.is_finite() && d2 - b < 1e-4);
+                deep += usize::from(d2 < 0.0);
+            }
+        }
+        assert!(
+            checked > 5000 && tight > 1000 && deep > 50,
+            "{name}: {checked} checked, {tight} within 0.1 mm, {deep} penetrating"
+        );
+    }
+}
+
+#[test]
+fn collision_along_a_path_equals_the_per_pose_check() {
+    // the per-pose check with the normals carried along a sampled path
+    // (Constraints::collision_along) reports exactly what the check of each
+    // pose alone reports (Constraints::collision_at): clear, or the worst pair
+    // and its distance, on smooth paths into and out of collisions
+    for design in ["excite_ur5.toml", "excite_panda_table.toml"] {
+        let p = design_problem(design);
+        let n = p.robot.dof();
+        let mut ws = idexp::robot::Workspace::new(&p.robot);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(37);
+        let mut hints = Vec::new();
+        let (mut hits, mut clear) = (0usize, 0usize);
+        for _path in 0..20 {
+            let a = random_q(&p.robot, &mut rng);
+            let b = random_q(&p.robot, &mut rng);
+            for s in 0..=400 {
+                let t = s as f64 / 400.0;
+                let q: Vec<f64> = (0..n).map(|j| a[j] + t * (b[j] - a[j])).collect();
+                let along = p.constraints.collision_along(&mut ws, &q, &mut hints);
+                let alone = p.constraints.collision_at(&mut ws, &q);
+                match (&along, &alone) {
+                    (None, None) => clear += 1,
+                    (Some(x), Some(y)) => {
+                        assert_eq!((&x.pair, x.distance.to_bits()), (&y.pair, y.distance.to_bits()), "{design} at {q:?}");
+                        hits += 1;
+                    }
+                    _ => panic!("{design} at {q:?}: along {along:?}, alone {alone:?}"),
+                }
+            }
+        }
+        assert!(hits > 100 && clear > 100, "{design}: {hits} poses in collision, {clear} clear");
+    }
+}
+
+#[test]
+fn support_bound_spares_exact_queries_on_the_design_grid() {
+    // the culled evaluation (values equal to the exhaustive one: see
+    // culled_constraints_equal_the_exhaustive_evaluation) rules grid times
+    // out by the support-function bound, in the GA's selection and in the
+    // refinement's evaluation
+    for design in ["excite_ur5.toml", "excite_panda_table.toml"] {
+        let p = design_problem(design);
+        let nv = p.layout.n_vars();
+        let m = p.constraints.len();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(41);
+        let mut cw = p.constraints.workspace();
+        let mut c = vec![0.0; m];
+        let (mut q_full, mut q_sel, mut skips) = (0usize, 0usize, 0usize);
+        for trial in 0..8 {
+            let amp = [0.05, 0.2, 0.5, 1.0][trial % 4];
+            let mut x: Vec<f64> = (0..nv).map(|i| rng.random_range(p.lower[i]..p.upper[i]) * amp).collect();
+            p.constraints.repair_joints(&mut x, &p.limits, 1e-6);
+            p.constraints.eval(&x, &mut cw, &mut c, None);
+            q_full += cw.distance_queries();
+            skips += cw.support_skips_per_pair().iter().sum::<usize>();
+            p.constraints.eval_selection(&x, &mut cw, &mut c);
+            q_sel += cw.distance_queries();
+            skips += cw.support_skips_per_pair().iter().sum::<usize>();
+        }
+        eprintln!("{design}: {q_full} exact queries (full), {q_sel} (selection), {skips} grid times ruled out by the support bound, in 8 evaluations");
+        assert!(skips > 100, "{design}: the support bound ruled out only {skips} grid times");
+    }
+}

@@ -32,6 +32,7 @@ use crate::robot::kinematics::forward_kinematics;
 use crate::robot::{frame_jacobian, id_derivatives, inverse_dynamics, motor_inertia, Frame, Robot, Workspace};
 use crate::trajectory::{period_grid, Basis, FourierLayout, FourierTrajectory};
 use nalgebra::Vector3;
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Grid points per period of the highest harmonic used to bracket joint extrema.
@@ -167,6 +168,12 @@ impl ConstraintWorkspace {
     /// The exact distance queries of the last evaluation per checked pair.
     pub fn distance_queries_per_pair(&self) -> Vec<usize> {
         self.series.iter().map(|s| s.queries).collect()
+    }
+
+    /// Per checked pair, the grid times of the last evaluation ruled out by
+    /// the support-function bound alone (no exact query).
+    pub fn support_skips_per_pair(&self) -> Vec<usize> {
+        self.series.iter().map(|s| s.support_skips).collect()
     }
 }
 
@@ -492,6 +499,22 @@ impl Constraints {
         })
     }
 
+    /// [`Self::collision_at`] for a sequence of nearby configurations (a
+    /// sampled path): the same result, with the normals of the pairs' last
+    /// exact queries kept in `hints` (one per pair; start with an empty
+    /// vector) so that a pose every pair provably keeps the margin at
+    /// ([`CollisionScene::clear_at`]) needs few or no exact queries.
+    pub fn collision_along(&self, ws: &mut Workspace, q: &[f64], hints: &mut Vec<Option<Vector3<f64>>>) -> Option<CollisionReport> {
+        let sc = self.scene.as_deref()?;
+        forward_kinematics(&self.robot, q, &mut ws.kin);
+        let mut poses = Vec::with_capacity(sc.bodies().len());
+        sc.poses(&ws.kin, &mut poses);
+        if sc.clear_at(&poses, sc.margin, hints) {
+            return None;
+        }
+        self.collision_at(ws, q)
+    }
+
     /// Number of scalar constraints.
     pub fn len(&self) -> usize {
         self.items.len()
@@ -596,8 +619,18 @@ impl Constraints {
                 sc.poses(&cw.ws.kin, &mut cw.pose_grid[g]);
             }
             let cap = if cw.selection { sc.margin } else { sc.cap };
-            for k in 0..sc.len() {
-                sc.pair_series(k, &cw.pose_grid, cap, cw.exhaustive, &mut cw.series[k]);
+            // the pairs on the rayon pool when the evaluation runs outside it
+            // (the refinement); inside it (the GA's evaluations, parallel
+            // refinement starts) one after the other: nested, the pool's
+            // threads are already busy and the fork-join only costs. Each
+            // pair's series depends on that pair alone, so the values do not
+            // depend on the thread count.
+            let (pose_grid, exhaustive) = (&cw.pose_grid, cw.exhaustive);
+            let one = |(k, out): (usize, &mut DistanceSeries)| sc.pair_series(k, pose_grid, cap, exhaustive, out);
+            if rayon::current_thread_index().is_none() {
+                cw.series.par_iter_mut().enumerate().for_each(one);
+            } else {
+                cw.series.iter_mut().enumerate().for_each(one);
             }
         }
         for (i, item) in self.items.iter().enumerate() {
@@ -828,8 +861,11 @@ impl Constraints {
                 sc.poses(&ws.kin, x);
             }
             dist_all = vec![DistanceSeries::default(); sc.len()];
-            for (p, out) in dist_all.iter_mut().enumerate() {
-                sc.pair_series(p, &poses, cap, false, out);
+            let one = |(p, out): (usize, &mut DistanceSeries)| sc.pair_series(p, &poses, cap, false, out);
+            if rayon::current_thread_index().is_none() {
+                dist_all.par_iter_mut().enumerate().for_each(one);
+            } else {
+                dist_all.iter_mut().enumerate().for_each(one);
             }
         }
         let mut out = Vec::with_capacity(self.len());

@@ -148,7 +148,9 @@ impl<'a> StateCheck<'a> {
         // cell) when the robot has collision geometry
         let mut cws = Workspace::new(&p.robot);
         let constraints = &p.constraints;
-        Ok(check.with_pose_check(move |q| match constraints.collision_at(&mut cws, q) {
+        // the poses come along sampled paths: the pairs' last normals carry over
+        let mut hints = Vec::new();
+        Ok(check.with_pose_check(move |q| match constraints.collision_along(&mut cws, q, &mut hints) {
             None => Ok(()),
             Some(c) => Err(format!(
                 "collision {}: distance {:.4} m (penetration depth {:.4} m), below the margin {} m",

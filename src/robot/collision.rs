@@ -24,6 +24,19 @@
 //! **Cap.** Queries take a cap c: a pair farther apart than c reports c
 //! (d̃ = min(d, c)), which lets a bounding-sphere test skip exact queries
 //! without changing any value at or below the cap.
+//!
+//! **Support-function bound.** For convex A, B and any unit m,
+//! sd(A, B) ≥ min_{b∈B} mᵀb − max_{a∈A} mᵀa = −h_B(−m) − h_A(m) (h the
+//! support function), with equality at the normal of the closest (or
+//! deepest) points. Along a sampled path the normal of the previous exact
+//! query (kept in the first body's frame), or the separating direction with
+//! which GJK proved a pair beyond its cap, gives a lower bound that is
+//! within second order of the normal's turn of the distance, for the price
+//! of two support points (hill climbing from the previous ones) instead of a
+//! GJK/EPA query ([`CollisionScene::pair_support_bound`]). Against a
+//! half-space the bound is its normal's (the signed distance itself). The
+//! bound only decides where an exact query is needed: every value reported
+//! is still an exact query's (or the cap).
 
 use crate::error::{Error, Result};
 use crate::robot::kinematics::Kin;
@@ -462,6 +475,35 @@ fn segment_distance(p1: &Point3<f64>, q1: &Point3<f64>, p2: &Point3<f64>, q2: &P
     ((p1 + d1 * s) - (p2 + d2 * t)).norm()
 }
 
+impl ConvexPart {
+    /// The support function h(d) = max over the part of dᵀx in the world
+    /// frame, the body at `x` (`d` a unit vector); +∞ for a half-space.
+    /// A hull's support vertex is climbed from `start` (a previous call's
+    /// vertex, unless that lies inside a face or is `u32::MAX`: then from the
+    /// best seed), and `start` becomes the new support vertex.
+    fn world_support(&self, x: &Isometry3<f64>, d: &Vector3<f64>, start: &mut u32) -> f64 {
+        if self.halfspace.is_some() {
+            return f64::INFINITY;
+        }
+        let pose = x * self.local;
+        let dl = pose.rotation.inverse_transform_vector(d);
+        let local = if let Some(h) = &self.climb {
+            let from = match h.flat.get(*start as usize) {
+                Some(false) => *start,
+                _ => h.seed(&dl),
+            };
+            let v = h.support_from(&dl, from);
+            *start = v;
+            h.support_point(&dl, v).coords.dot(&dl)
+        } else if let Some(sm) = self.shape.as_support_map() {
+            sm.local_support_point(&dl).coords.dot(&dl)
+        } else {
+            return f64::INFINITY;
+        };
+        local + d.dot(&pose.translation.vector)
+    }
+}
+
 impl std::fmt::Debug for ConvexPart {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ConvexPart")
@@ -799,7 +841,18 @@ fn world_plane(x: &Isometry3<f64>, n: &Vector3<f64>, off: f64) -> (Vector3<f64>,
 }
 
 /// Signed distance of two convex parts at world poses, if below `cap`.
-fn part_proximity(a: &ConvexPart, xa: &Isometry3<f64>, b: &ConvexPart, xb: &Isometry3<f64>, cap: f64, np: NarrowPhase) -> Option<Proximity> {
+/// `sep` receives, when GJK proves the parts farther apart than `cap`, its
+/// separating direction (world frame, from `a` toward `b`; see
+/// [`CollisionScene::pair_query`]); the result itself does not depend on it.
+fn part_proximity(
+    a: &ConvexPart,
+    xa: &Isometry3<f64>,
+    b: &ConvexPart,
+    xb: &Isometry3<f64>,
+    cap: f64,
+    np: NarrowPhase,
+    sep: &mut Option<Vector3<f64>>,
+) -> Option<Proximity> {
     if part_lower_bound(a, xa, b, xb) > cap {
         return None;
     }
@@ -819,9 +872,9 @@ fn part_proximity(a: &ConvexPart, xa: &Isometry3<f64>, b: &ConvexPart, xb: &Isom
         }
         NarrowPhase::Climb => {
             if b.halfspace.is_some() && a.halfspace.is_none() {
-                climb_contact(&pb, b, &pa, a, pred)?.flipped()
+                climb_contact(&pb, b, &pa, a, pred, &mut None)?.flipped()
             } else {
-                climb_contact(&pa, a, &pb, b, pred)?
+                climb_contact(&pa, a, &pb, b, pred, sep)?
             }
         }
     };
@@ -840,8 +893,21 @@ fn part_proximity(a: &ConvexPart, xa: &Isometry3<f64>, b: &ConvexPart, xb: &Isom
 /// dispatcher for the shapes of a collision model (half-space first, balls
 /// by their special cases, every other pair by GJK/EPA on support maps), the
 /// support points of convex hulls by hill climbing ([`ClimbHull`]).
-fn climb_contact(p1: &Isometry3<f64>, a: &ConvexPart, p2: &Isometry3<f64>, b: &ConvexPart, pred: f64) -> Option<query::Contact> {
-    use parry3d_f64::query::details::{contact_halfspace_support_map, contact_support_map_support_map};
+///
+/// Between two hulls the contact is that of parry's
+/// `contact_support_map_support_map` (the same GJK/EPA call and result
+/// mapping), and when GJK proves the distance above `pred` its separating
+/// direction goes to `sep` (world frame).
+fn climb_contact(
+    p1: &Isometry3<f64>,
+    a: &ConvexPart,
+    p2: &Isometry3<f64>,
+    b: &ConvexPart,
+    pred: f64,
+    sep: &mut Option<Vector3<f64>>,
+) -> Option<query::Contact> {
+    use parry3d_f64::query::details::{contact_halfspace_support_map, contact_support_map_support_map, contact_support_map_support_map_with_params};
+    use parry3d_f64::query::gjk::{GJKResult, VoronoiSimplex};
     let (Some(ha), Some(hb)) = (&a.climb, &b.climb) else {
         if (a.climb.is_none() && b.climb.is_none()) || a.shape.as_ball().is_some() || b.shape.as_ball().is_some() {
             return query::contact(p1, &*a.shape, p2, &*b.shape, pred).ok()?;
@@ -860,9 +926,23 @@ fn climb_contact(p1: &Isometry3<f64>, a: &ConvexPart, p2: &Isometry3<f64>, b: &C
         return Some(c);
     };
     let pos12 = p1.inv_mul(p2);
-    let mut c = contact_support_map_support_map(&pos12, &Climbing::new(ha), &Climbing::new(hb), pred)?;
-    c.transform_by_mut(p1, p2);
-    Some(c)
+    let simplex = &mut VoronoiSimplex::new();
+    match contact_support_map_support_map_with_params(&pos12, &Climbing::new(ha), &Climbing::new(hb), pred, simplex, None) {
+        GJKResult::ClosestPoints(point1, point2_1, normal1) => {
+            let dist = (point2_1 - point1).dot(&normal1);
+            let point2 = pos12.inverse_transform_point(&point2_1);
+            let normal2 = pos12.inverse_transform_unit_vector(&-normal1);
+            let mut c = query::Contact::new(point1, point2, normal1, normal2, dist);
+            c.transform_by_mut(p1, p2);
+            Some(c)
+        }
+        GJKResult::NoIntersection(dir) => {
+            *sep = Some(p1.rotation * dir.into_inner());
+            None
+        }
+        // parry never returns these from this call (its wrapper: unreachable)
+        GJKResult::Intersection | GJKResult::Proximity(_) => None,
+    }
 }
 
 /// Signed distance between bodies `a` and `b` at world poses `xa`, `xb`:
@@ -874,11 +954,17 @@ pub fn proximity(a: &Body, xa: &Isometry3<f64>, b: &Body, xb: &Isometry3<f64>, c
 
 /// [`proximity`] with a chosen narrow phase.
 pub fn proximity_with(a: &Body, xa: &Isometry3<f64>, b: &Body, xb: &Isometry3<f64>, cap: f64, np: NarrowPhase) -> Option<Proximity> {
+    proximity_sep(a, xa, b, xb, cap, np, &mut None)
+}
+
+/// [`proximity_with`], with a separating direction (world frame, `a` toward
+/// `b`) into `sep` when GJK proves a pair of parts beyond its cap.
+fn proximity_sep(a: &Body, xa: &Isometry3<f64>, b: &Body, xb: &Isometry3<f64>, cap: f64, np: NarrowPhase, sep: &mut Option<Vector3<f64>>) -> Option<Proximity> {
     let mut best: Option<Proximity> = None;
     let mut lim = cap;
     for pa in &a.parts {
         for pb in &b.parts {
-            if let Some(p) = part_proximity(pa, xa, pb, xb, lim, np) {
+            if let Some(p) = part_proximity(pa, xa, pb, xb, lim, np, sep) {
                 if best.is_none_or(|b| p.distance < b.distance) {
                     lim = p.distance.max(0.0).min(lim);
                     best = Some(p);
@@ -1196,6 +1282,14 @@ pub struct DistanceSeries {
     pub exact: Vec<bool>,
     /// Number of exact (narrow-phase) queries made.
     pub queries: usize,
+    /// Unit normal of the last exact query (or the separating direction
+    /// that put the pair beyond the cap), in the first body's frame: the direction of the support-function
+    /// bound ([`CollisionScene::pair_support_bound`]) at the other configurations.
+    pub hint: Option<Vector3<f64>>,
+    /// Configurations ruled out by the support-function bound alone (no exact query).
+    pub support_skips: usize,
+    /// Support vertices of the last support-function bound (climbing starts).
+    starts: Vec<u32>,
 }
 
 impl DistanceSeries {
@@ -1211,9 +1305,14 @@ impl DistanceSeries {
     }
 
     /// Makes `value[g]` exact (one query if it is not yet) and returns it.
+    /// Its direction ([`CollisionScene::pair_query`]) becomes the [`Self::hint`].
     pub fn make_exact(&mut self, sc: &CollisionScene, k: usize, g: usize, poses: &[Vec<Isometry3<f64>>], cap: f64) -> f64 {
         if !self.exact[g] {
-            self.value[g] = sc.pair_distance(k, &poses[g], cap);
+            let (prox, dir) = sc.pair_query(k, &poses[g], cap);
+            self.value[g] = prox.map_or(cap, |p| p.distance);
+            if dir.is_some() {
+                self.hint = dir;
+            }
             self.exact[g] = true;
             self.queries += 1;
         }
@@ -1423,6 +1522,19 @@ impl CollisionScene {
         proximity_with(&self.bodies[p.ia], &poses[p.ia], &self.bodies[p.ib], &poses[p.ib], cap, self.narrow)
     }
 
+    /// [`Self::pair_proximity`] (the same result) and a direction for the
+    /// support-function bound ([`Self::pair_support_bound`]), in the pair's
+    /// first body's frame: the normal of the result, or, when the pair is
+    /// beyond the cap, the separating direction with which GJK proved it
+    /// (convex hulls; `None` when no part pair went that far).
+    pub fn pair_query(&self, k: usize, poses: &[Isometry3<f64>], cap: f64) -> (Option<Proximity>, Option<Vector3<f64>>) {
+        let p = &self.pairs[k];
+        let mut sep = None;
+        let prox = proximity_sep(&self.bodies[p.ia], &poses[p.ia], &self.bodies[p.ib], &poses[p.ib], cap, self.narrow, &mut sep);
+        let dir = prox.map(|x| x.normal).or(sep).map(|n| self.normal_in_first_body(k, poses, &n));
+        (prox, dir)
+    }
+
     /// Adds `scale · ∂d/∂q` of pair `k` to `grad` (length n): nᵀ(J_B(p_B) − J_A(p_A)),
     /// the point Jacobians of the witness points fixed on their bodies. `kin`
     /// must hold the forward kinematics of the configuration of `prox`.
@@ -1482,6 +1594,12 @@ impl CollisionScene {
         out.value.clear();
         out.exact.clear();
         out.queries = 0;
+        out.support_skips = 0;
+        // no normal carried over from another call: the queries made depend
+        // on this call only; against a half-space the bound needs none
+        // (any direction: the plane's normal is used)
+        let pi = &self.pairs[k];
+        out.hint = (self.bodies[pi.ia].is_unbounded() || self.bodies[pi.ib].is_unbounded()).then(Vector3::z);
         if exhaustive {
             for x in poses {
                 out.value.push(self.pair_distance(k, x, cap));
@@ -1490,21 +1608,25 @@ impl CollisionScene {
             out.queries = poses.len();
             return;
         }
+        out.starts.clear();
         let mut best = f64::INFINITY;
         let mut first: Option<(usize, f64)> = None;
+        // the bounding spheres first (cheapest); the capsules and the
+        // support-function bound only where the spheres leave the
+        // configuration a candidate for the minimum
         for (g, x) in poses.iter().enumerate() {
-            let (sphere, bound) = self.pair_bounds(k, x, cap);
+            let sphere = self.pair_sphere_bound(k, x);
             // exactly what the exact query returns without querying: every
-            // part pair fails its sphere test, or the true distance is above cap
-            if sphere > cap || bound > cap + CULL_TOL {
+            // part pair fails its sphere test
+            if sphere > cap {
                 out.value.push(cap);
                 out.exact.push(true);
                 best = best.min(cap);
             } else {
-                out.value.push(bound);
+                out.value.push(sphere);
                 out.exact.push(false);
-                if first.is_none_or(|(_, b)| bound < b) {
-                    first = Some((g, bound));
+                if first.is_none_or(|(_, b)| sphere < b) {
+                    first = Some((g, sphere));
                 }
             }
         }
@@ -1513,10 +1635,132 @@ impl CollisionScene {
             best = best.min(out.make_exact(self, k, g, poses, cap));
         }
         for g in 0..poses.len() {
-            if !out.exact[g] && out.value[g] <= best + CULL_TOL {
-                best = best.min(out.make_exact(self, k, g, poses, cap));
+            if out.exact[g] || out.value[g] > best + CULL_TOL {
+                continue;
+            }
+            if let Some(n) = out.hint {
+                // the support-function bound along the last exact normal
+                let sb = self.support_bound_from(k, &poses[g], &n, &mut out.starts);
+                if sb > cap + CULL_TOL {
+                    // the exact query would report the cap
+                    out.value[g] = cap;
+                    out.exact[g] = true;
+                    out.support_skips += 1;
+                    best = best.min(cap);
+                    continue;
+                }
+                if sb > best + CULL_TOL {
+                    out.value[g] = out.value[g].max(sb);
+                    out.support_skips += 1;
+                    continue;
+                }
+            }
+            let caps = self.pair_capsule_bound(k, &poses[g]);
+            if caps > cap + CULL_TOL {
+                // the true distance is above the cap: the exact query reports the cap
+                out.value[g] = cap;
+                out.exact[g] = true;
+                best = best.min(cap);
+                continue;
+            }
+            if caps > best + CULL_TOL {
+                out.value[g] = out.value[g].max(caps);
+                continue;
+            }
+            best = best.min(out.make_exact(self, k, g, poses, cap));
+        }
+    }
+
+    /// The bounding-sphere bound of pair `k` at `poses` (the first value of
+    /// [`Self::pair_bounds`]).
+    fn pair_sphere_bound(&self, k: usize, poses: &[Isometry3<f64>]) -> f64 {
+        let p = &self.pairs[k];
+        let (a, b) = (&self.bodies[p.ia], &self.bodies[p.ib]);
+        let (xa, xb) = (&poses[p.ia], &poses[p.ib]);
+        let mut sphere = f64::INFINITY;
+        for pa in &a.parts {
+            for pb in &b.parts {
+                sphere = sphere.min(part_lower_bound(pa, xa, pb, xb));
             }
         }
+        sphere
+    }
+
+    /// The sphere-and-capsule bound of pair `k` at `poses` (the second value
+    /// of [`Self::pair_bounds`] when the spheres leave the pair within the cap).
+    fn pair_capsule_bound(&self, k: usize, poses: &[Isometry3<f64>]) -> f64 {
+        let p = &self.pairs[k];
+        let (a, b) = (&self.bodies[p.ia], &self.bodies[p.ib]);
+        let (xa, xb) = (&poses[p.ia], &poses[p.ib]);
+        let mut bound = f64::INFINITY;
+        for pa in &a.parts {
+            for pb in &b.parts {
+                bound = bound.min(part_lower_bound(pa, xa, pb, xb).max(part_capsule_bound(pa, xa, pb, xb)));
+            }
+        }
+        bound
+    }
+
+    /// A world direction `n` (e.g. a [`Proximity`] normal of pair `k` at
+    /// `poses`) in the pair's first body's frame: the direction
+    /// [`Self::pair_support_bound`] takes, which turns with that body.
+    pub fn normal_in_first_body(&self, k: usize, poses: &[Isometry3<f64>], n: &Vector3<f64>) -> Vector3<f64> {
+        poses[self.pairs[k].ia].rotation.inverse_transform_vector(n)
+    }
+
+    /// The support-function lower bound of pair `k` at `poses` along the
+    /// unit direction `n_a`, given in the first body's frame (world
+    /// direction n = R_A n_a): for convex parts P ⊂ A, Q ⊂ B the signed
+    /// distance (negative: minus the penetration depth) is
+    /// sd(P, Q) = max over unit m of [min_{q∈Q} mᵀq − max_{p∈P} mᵀp]
+    /// = max_m [−h_Q(−m) − h_P(m)], h the support function; any one m gives
+    /// the lower bound −h_Q(−n) − h_P(n), exact when n is the normal of the
+    /// closest (or deepest) pair of points. With the normal of an exact query
+    /// at a nearby configuration the bound is within second order of the
+    /// normal's rotation of the distance. The body distance is the minimum
+    /// over the part pairs. A part pair with a half-space (floor, wall)
+    /// {x : mᵀx ≤ off} takes m itself (its support function is unbounded
+    /// along any other direction): min over the part of mᵀx − off, the
+    /// signed distance itself. The bound is
+    /// computed with the same support points as the narrow phase (vertices
+    /// of the hulls by hill climbing, parry's support maps otherwise), so it
+    /// is a lower bound of the exact distance up to rounding (≪ [`CULL_TOL`]).
+    pub fn pair_support_bound(&self, k: usize, poses: &[Isometry3<f64>], n_a: &Vector3<f64>) -> f64 {
+        self.support_bound_from(k, poses, n_a, &mut Vec::new())
+    }
+
+    /// [`Self::pair_support_bound`], the hulls' support vertices climbed
+    /// from those of the previous call (`starts`: one per part of the first
+    /// body, then of the second; filled on the first call). The climb's
+    /// result does not depend on its start (see [`ClimbHull`]).
+    fn support_bound_from(&self, k: usize, poses: &[Isometry3<f64>], n_a: &Vector3<f64>, starts: &mut Vec<u32>) -> f64 {
+        let p = &self.pairs[k];
+        let (a, b) = (&self.bodies[p.ia], &self.bodies[p.ib]);
+        let (xa, xb) = (&poses[p.ia], &poses[p.ib]);
+        let na = a.parts.len();
+        starts.resize(na + b.parts.len(), u32::MAX);
+        let n = xa.rotation * n_a;
+        let mut bound = f64::INFINITY;
+        for (ia, pa) in a.parts.iter().enumerate() {
+            for (ib, pb) in b.parts.iter().enumerate() {
+                let b_pp = match (&pa.halfspace, &pb.halfspace) {
+                    // a plane nᵀx = off (free side nᵀx ≥ off) against a part:
+                    // sd = min over the part of nᵀx − off, whatever `n_a`
+                    (Some((hn, hoff)), None) => {
+                        let (nw, off) = world_plane(xa, hn, *hoff);
+                        -pb.world_support(xb, &-nw, &mut starts[na + ib]) - off
+                    }
+                    (None, Some((hn, hoff))) => {
+                        let (nw, off) = world_plane(xb, hn, *hoff);
+                        -pa.world_support(xa, &-nw, &mut starts[ia]) - off
+                    }
+                    (Some(_), Some(_)) => f64::NEG_INFINITY,
+                    (None, None) => -pa.world_support(xa, &n, &mut starts[ia]) - pb.world_support(xb, &-n, &mut starts[na + ib]),
+                };
+                bound = bound.min(b_pp);
+            }
+        }
+        bound
     }
 
     /// Distances of every pair at configuration `q` (forward kinematics into
@@ -1581,6 +1825,43 @@ impl CollisionScene {
             label: self.pairs[k].label(),
             distance: value[k],
         })
+    }
+
+    /// True when every pair keeps at least `limit` (≤ the cap) at `poses`,
+    /// i.e. exactly when the least capped distance of [`Self::worst_at`] is
+    /// ≥ `limit`: a pair counts as clear when its sphere or capsule bound
+    /// ([`Self::pair_bounds`]), or its support-function bound along `hints[k]` (the normal of the
+    /// pair's last exact query, first body's frame), exceeds `limit` by more
+    /// than [`CULL_TOL`]; otherwise its exact distance decides, and its
+    /// normal becomes the new hint. Along a finely sampled path (the 1 kHz
+    /// check of a delivered trajectory) the hints of consecutive poses are
+    /// nearly the exact normals, so almost no pair needs an exact query.
+    /// `hints` is resized to the number of pairs.
+    pub fn clear_at(&self, poses: &[Isometry3<f64>], limit: f64, hints: &mut Vec<Option<Vector3<f64>>>) -> bool {
+        let np = self.pairs.len();
+        hints.resize(np, None);
+        for (k, hint) in hints.iter_mut().enumerate() {
+            let (_, bound) = self.pair_bounds(k, poses, limit);
+            if bound > limit + CULL_TOL {
+                continue;
+            }
+            let pi = &self.pairs[k];
+            // against a half-space the bound needs no direction (see pair_support_bound)
+            let unbounded = self.bodies[pi.ia].is_unbounded() || self.bodies[pi.ib].is_unbounded();
+            if let Some(n) = hint.or(unbounded.then(Vector3::z)) {
+                if self.pair_support_bound(k, poses, &n) > limit + CULL_TOL {
+                    continue;
+                }
+            }
+            let (prox, dir) = self.pair_query(k, poses, self.cap);
+            if dir.is_some() {
+                *hint = dir;
+            }
+            if prox.map_or(self.cap, |p| p.distance) < limit {
+                return false;
+            }
+        }
+        true
     }
 
     /// The bodies (robot bodies first, index i + 1 for link i, then obstacles).
