@@ -1563,25 +1563,11 @@ impl CollisionScene {
     /// already put the pair beyond `cap` (then `bound = sphere`). +∞ when a
     /// body has no shape.
     pub fn pair_bounds(&self, k: usize, poses: &[Isometry3<f64>], cap: f64) -> (f64, f64) {
-        let p = &self.pairs[k];
-        let (a, b) = (&self.bodies[p.ia], &self.bodies[p.ib]);
-        let (xa, xb) = (&poses[p.ia], &poses[p.ib]);
-        let mut sphere = f64::INFINITY;
-        for pa in &a.parts {
-            for pb in &b.parts {
-                sphere = sphere.min(part_lower_bound(pa, xa, pb, xb));
-            }
-        }
+        let sphere = self.pair_sphere_bound(k, poses);
         if sphere > cap {
             return (sphere, sphere);
         }
-        let mut bound = f64::INFINITY;
-        for pa in &a.parts {
-            for pb in &b.parts {
-                bound = bound.min(part_lower_bound(pa, xa, pb, xb).max(part_capsule_bound(pa, xa, pb, xb)));
-            }
-        }
-        (sphere, bound)
+        (sphere, self.pair_capsule_bound(k, poses))
     }
 
     /// The capped distance of pair `k` over a sequence of configurations
@@ -1671,34 +1657,33 @@ impl CollisionScene {
         }
     }
 
-    /// The bounding-sphere bound of pair `k` at `poses` (the first value of
-    /// [`Self::pair_bounds`]).
-    fn pair_sphere_bound(&self, k: usize, poses: &[Isometry3<f64>]) -> f64 {
-        let p = &self.pairs[k];
-        let (a, b) = (&self.bodies[p.ia], &self.bodies[p.ib]);
-        let (xa, xb) = (&poses[p.ia], &poses[p.ib]);
-        let mut sphere = f64::INFINITY;
-        for pa in &a.parts {
-            for pb in &b.parts {
-                sphere = sphere.min(part_lower_bound(pa, xa, pb, xb));
-            }
-        }
-        sphere
-    }
-
-    /// The sphere-and-capsule bound of pair `k` at `poses` (the second value
-    /// of [`Self::pair_bounds`] when the spheres leave the pair within the cap).
-    fn pair_capsule_bound(&self, k: usize, poses: &[Isometry3<f64>]) -> f64 {
+    /// The minimum over the part pairs of pair `k` at `poses` of a per-part
+    /// lower bound `f` (the body distance is the minimum over its part pairs).
+    fn part_pairs_min(&self, k: usize, poses: &[Isometry3<f64>], f: impl Fn(&ConvexPart, &Isometry3<f64>, &ConvexPart, &Isometry3<f64>) -> f64) -> f64 {
         let p = &self.pairs[k];
         let (a, b) = (&self.bodies[p.ia], &self.bodies[p.ib]);
         let (xa, xb) = (&poses[p.ia], &poses[p.ib]);
         let mut bound = f64::INFINITY;
         for pa in &a.parts {
             for pb in &b.parts {
-                bound = bound.min(part_lower_bound(pa, xa, pb, xb).max(part_capsule_bound(pa, xa, pb, xb)));
+                bound = bound.min(f(pa, xa, pb, xb));
             }
         }
         bound
+    }
+
+    /// The bounding-sphere bound of pair `k` at `poses` (the first value of
+    /// [`Self::pair_bounds`]).
+    fn pair_sphere_bound(&self, k: usize, poses: &[Isometry3<f64>]) -> f64 {
+        self.part_pairs_min(k, poses, part_lower_bound)
+    }
+
+    /// The sphere-and-capsule bound of pair `k` at `poses` (the second value
+    /// of [`Self::pair_bounds`] when the spheres leave the pair within the cap).
+    fn pair_capsule_bound(&self, k: usize, poses: &[Isometry3<f64>]) -> f64 {
+        self.part_pairs_min(k, poses, |pa, xa, pb, xb| {
+            part_lower_bound(pa, xa, pb, xb).max(part_capsule_bound(pa, xa, pb, xb))
+        })
     }
 
     /// A world direction `n` (e.g. a [`Proximity`] normal of pair `k` at
