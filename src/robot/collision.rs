@@ -1584,8 +1584,7 @@ impl CollisionScene {
         // no normal carried over from another call: the queries made depend
         // on this call only; against a half-space the bound needs none
         // (any direction: the plane's normal is used)
-        let pi = &self.pairs[k];
-        out.hint = (self.bodies[pi.ia].is_unbounded() || self.bodies[pi.ib].is_unbounded()).then(Vector3::z);
+        out.hint = self.halfspace_hint(k);
         if exhaustive {
             for x in poses {
                 out.value.push(self.pair_distance(k, x, cap));
@@ -1684,6 +1683,15 @@ impl CollisionScene {
         self.part_pairs_min(k, poses, |pa, xa, pb, xb| {
             part_lower_bound(pa, xa, pb, xb).max(part_capsule_bound(pa, xa, pb, xb))
         })
+    }
+
+    /// The direction of the support-function bound of pair `k` before any
+    /// exact query: against a half-space (floor, wall) the bound takes the
+    /// plane's normal whatever the direction ([`Self::pair_support_bound`]),
+    /// so any one will do; `None` for two bounded bodies.
+    fn halfspace_hint(&self, k: usize) -> Option<Vector3<f64>> {
+        let p = &self.pairs[k];
+        (self.bodies[p.ia].is_unbounded() || self.bodies[p.ib].is_unbounded()).then(Vector3::z)
     }
 
     /// A world direction `n` (e.g. a [`Proximity`] normal of pair `k` at
@@ -1825,16 +1833,17 @@ impl CollisionScene {
     pub fn clear_at(&self, poses: &[Isometry3<f64>], limit: f64, hints: &mut Vec<Option<Vector3<f64>>>) -> bool {
         let np = self.pairs.len();
         hints.resize(np, None);
+        // support vertices of the bound: climbed from the seeds for each pair
+        // (cleared), one buffer for the call
+        let mut starts = Vec::new();
         for (k, hint) in hints.iter_mut().enumerate() {
             let (_, bound) = self.pair_bounds(k, poses, limit);
             if bound > limit + CULL_TOL {
                 continue;
             }
-            let pi = &self.pairs[k];
-            // against a half-space the bound needs no direction (see pair_support_bound)
-            let unbounded = self.bodies[pi.ia].is_unbounded() || self.bodies[pi.ib].is_unbounded();
-            if let Some(n) = hint.or(unbounded.then(Vector3::z)) {
-                if self.pair_support_bound(k, poses, &n) > limit + CULL_TOL {
+            if let Some(n) = hint.or_else(|| self.halfspace_hint(k)) {
+                starts.clear();
+                if self.support_bound_from(k, poses, &n, &mut starts) > limit + CULL_TOL {
                     continue;
                 }
             }
