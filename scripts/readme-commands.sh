@@ -1,5 +1,7 @@
 #!/usr/bin/env bash
-# Runs the README's fast shell commands on a clean clone, in README order:
+# Runs the documented fast shell commands on a clean clone: those of README.md,
+# then of the pages in docs/ in the order of DOCS below (each page may use
+# what an earlier one wrote under out/):
 # every line of a ```sh block that starts with `cargo run` or `./scripts/`,
 # except the documented long ones — lines whose comment says "min" (minutes)
 # or "about N s" with N > 60, lines marked `# long`, the test-suite line and
@@ -17,13 +19,17 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 repo=$(pwd)
+DOCS="README.md docs/robots.md docs/excitation.md docs/collision.md docs/identification.md docs/elastic.md docs/positions.md docs/library.md docs/testing.md docs/performance.md docs/python.md"
+for f in docs/*.md; do
+  case " $DOCS " in *" $f "*) ;; *) echo "readme-commands: $f is not in DOCS: add it" >&2; exit 1 ;; esac
+done
 cmds=$(awk '
   /^```sh$/ {inb=1; slurm=0; next}
   /^```/ {inb=0; next}
   inb && /^# Slurm job array/ {slurm=1}
   inb && cont != "" {cont = cont " " $0; if ($0 !~ /\\$/) {print cont; cont = ""}; next}
   inb && !slurm && (/^cargo run/ || /^\.\/scripts\//) {if ($0 ~ /\\$/) cont = $0; else print}
-' README.md | grep -v -E '# long|cargo test|[0-9] ?min|[(]about ([6-9][0-9]|[0-9]{3,}) s' || true)
+' $DOCS | grep -v -E '# long|cargo test|[0-9] ?min|[(]about ([6-9][0-9]|[0-9]{3,}) s' || true)
 ci=0 list=0
 for a in "$@"; do
   case $a in

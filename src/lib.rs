@@ -79,3 +79,13 @@ pub use error::{Error, Result};
 #[cfg(doctest)]
 #[doc = include_str!("../README.md")]
 pub struct ReadmeDoctests;
+
+/// The Rust examples of `docs/excitation.md`, compiled as doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../docs/excitation.md")]
+pub struct ExcitationDocDoctests;
+
+/// The Rust examples of `docs/elastic.md`, compiled as doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../docs/elastic.md")]
+pub struct ElasticDocDoctests;
