@@ -1,4 +1,4 @@
-//! Excitation design benchmarks on the speed case
+//! Excitation design benchmarks on the UR5 speed case
 //! (designs/excite_ur5_bench.toml: UR5, q0 = 0, 5 harmonics of 0.1 Hz, 60
 //! coefficients, 48 unit-column base columns sampled at 10 Hz, position and
 //! velocity limits).

@@ -6,13 +6,13 @@
 //! r_i uniform in 1..=3, standard normal entries, and parameter j scaled by
 //! 10^{u_j}, u_j ~ U[−2, 2] (badly scaled on purpose).
 //!
-//! The group `issue13_unscaled` solves the instances of issue 13 that
+//! The group `unscaled_reference` solves the unscaled instances that
 //! scripts/cvxpy-reference.sh gives CVXPY + Clarabel (benches/common/instances.rs:
 //! D-optimal p = 26 with 1,000 candidates, A-optimal p = 8 with 5,000, F_i =
 //! J_iᵀJ_i with J_i 3 × p standard normal, no scaling).
 //!
 //! Run: `cargo bench --bench positions -- --warm-up-time 1 --measurement-time 3`
-//! (only the issue's instances: append `issue13`).
+//! (only those instances: append `unscaled_reference`).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use idexp::positions::{solve_relaxed, Criterion as Crit, Problem, SolverOptions, Status};
@@ -49,7 +49,7 @@ fn bench(c: &mut Criterion) {
         });
     }
     g.finish();
-    let mut g = c.benchmark_group("issue13_unscaled");
+    let mut g = c.benchmark_group("unscaled_reference");
     g.sample_size(10);
     for ((name, seed, n, p), crit) in [(instances::D_INSTANCE, Crit::D), (instances::A_INSTANCE, Crit::A)] {
         let pb = instances::problem(&instances::jacobians(seed, n, p));

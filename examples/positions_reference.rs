@@ -1,4 +1,4 @@
-//! The relaxed D- and A-optimal instances of issue 13 written to files and
+//! The relaxed D- and A-optimal reference instances written to files and
 //! solved by idexp, for the CVXPY + Clarabel comparison
 //! (scripts/cvxpy-reference.sh reads the same files):
 //!

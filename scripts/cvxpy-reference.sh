@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# CVXPY + Clarabel on the relaxed D- and A-optimal instances of issue 13, the
+# CVXPY + Clarabel on the relaxed D- and A-optimal reference instances, the
 # very instances idexp solves (written by examples/positions_reference.rs):
 #   D: p = 26, 1,000 candidates, F_i = J_iᵀJ_i, J_i 3×26 standard normal (seed 1)
 #   A: p = 8, 5,000 candidates, J_i 3×8 (seed 2)

@@ -1,4 +1,4 @@
-//! Bad inputs of issue 14 (resources, hangs, messages) tried again: each is
+//! Bad inputs (resources, hangs, messages) tried again: each is
 //! refused with exit code 1 and a message naming the file or field, the value
 //! and what is allowed, under a 4 GB address-space limit and within 10 s.
 #![cfg(all(feature = "cli", unix))]

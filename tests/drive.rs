@@ -1,4 +1,4 @@
-//! The drive side (issue 16): friction models per drive (sign, tanh,
+//! The drive side: friction models per drive (sign, tanh,
 //! Stribeck; symmetric and asymmetric), standstill rows in identification,
 //! motor currents in runs, and the bad inputs of each.
 
@@ -338,7 +338,7 @@ fn pick_and_place_with_dwell_tanh_model_beats_sign_model_at_standstill() {
             num(rms)
         );
     }
-    // with q̇ from the positions (this run logs no qd*), issue 16's acceptance
+    // with q̇ from the positions (this run logs no qd*), the standstill acceptance
     // is not met (README "Drives"): the velocity estimated at rest is off by
     // amounts comparable to v_s, so the tanh estimate is biased beyond 3σ and
     // its standstill error is above the noise on joints 1 and 3 (see
@@ -525,7 +525,7 @@ fn bad_drive_inputs_are_errors_naming_file_and_joint() {
     );
 }
 
-/// Why the tanh model misses issue 16's acceptance on the shipped
+/// Why the tanh model misses the standstill acceptance on the shipped
 /// pick-and-place (measured, see README "Drives"): the arm is not at rest
 /// during the dwell (it creeps at 0.1–1 v_s, so q̇ = q̈ = 0 is no fix), and
 /// the estimated q̇ there is off by amounts comparable to v_s, where
@@ -703,7 +703,7 @@ fn simulate_edited(name: &str, edit: impl Fn(&mut idexp::sim::SimDesign)) -> ide
 /// with the drive's velocities logged (`record_velocity`, default noise
 /// 1.7e-5 rad/s; q and τ are the same samples as without them). Identified
 /// with the logged q̇ (q̈ from it, low-pass 40 Hz), the tanh model on every
-/// row meets issue 16's acceptance; the sign model on the same data does
+/// row meets the standstill acceptance; the sign model on the same data does
 /// not. Measured, not tuned: the numbers are printed (README "Drives").
 #[test]
 fn pick_and_place_with_logged_drive_velocities_meets_the_standstill_acceptance() {

@@ -1,4 +1,4 @@
-//! The excitation search (issue 13): the eigenvalue bundle behind the
+//! The excitation search: the eigenvalue bundle behind the
 //! epigraph refinement against finite differences and the spectrum, the
 //! epigraph refinement against the direct one, and the parallel / restarted
 //! refinements against the sequential ones (bit-identical per start).

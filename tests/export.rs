@@ -1,4 +1,4 @@
-//! Rest-to-rest delivery and controller exports (issue 11, items 4 and 6):
+//! Rest-to-rest delivery and controller exports :
 //! the quintic leads meet their boundary states, the delivered trajectory is
 //! continuous and starts and ends at rest, and every export (URScript,
 //! ROS 2 JointTrajectory YAML, CSV) parses — the YAML with an independent

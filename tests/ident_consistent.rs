@@ -1,5 +1,5 @@
 //! Physically consistent identification, averaged runs, motor coordinates and
-//! the exported models (issue 12).
+//! the exported models.
 
 mod ident_util;
 

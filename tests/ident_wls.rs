@@ -111,7 +111,7 @@ fn negative_masses_and_inertias_are_flagged() {
 fn one_repetition_and_missing_inputs() {
     let mut res = simulate(&rpr_fourier(1, 5, 11, 2, 1e-5));
     res.reps.truncate(1);
-    // one repetition: no sample variances, so sample weights are an error (issue 12) ...
+    // one repetition: no sample variances, so sample weights are an error ...
     let robot0 = &res.setup.nominal;
     let base0 = idexp::params::BaseParams::compute(robot0, &Default::default()).unwrap();
     let e = idexp::ident::identify(

@@ -1,4 +1,4 @@
-//! Issue 13: streaming `assess` and per-state tables (block-wise reading,
+//! Streaming `assess` and per-state tables (block-wise reading,
 //! incremental QR) against the direct computations, and the `base_columns`
 //! option (a named base set is checked; the dependent names are reported).
 

@@ -82,7 +82,7 @@ fn panda_loads_with_43_base_inertial_parameters() {
     }
     assert_eq!(r.joints[4].limits.effort, 12.0);
     // The Panda as delivered: hand (0.73 kg) and both fingers, closed
-    // (0.015 kg each; their prismatic joints fixed at 0 since issue 11), are
+    // (0.015 kg each; their prismatic joints fixed at 0), are
     // lumped on link 7. Mass, first moment and Izz about the link-7 origin
     // recomputed here from the URDF values: link 7, then panda_link8 at
     // z = 0.107, the hand yawed by -pi/4 with its COM at (-0.01, 0, 0.03), the

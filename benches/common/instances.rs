@@ -1,4 +1,4 @@
-//! The unscaled random instances of issue 13, shared by
+//! The unscaled random reference instances, shared by
 //! `benches/positions.rs` and `examples/positions_reference.rs` (which writes
 //! them to files for scripts/cvxpy-reference.sh, so CVXPY solves the very same
 //! numbers): candidate i has F_i = J_iᵀJ_i with J_i (3 × p) standard normal
@@ -9,9 +9,9 @@ use nalgebra::DMatrix;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
-/// Relaxed D-optimal instance of the issue: p = 26, 1,000 candidates.
+/// Relaxed D-optimal reference instance: p = 26, 1,000 candidates.
 pub const D_INSTANCE: (&str, u64, usize, usize) = ("d_1000x26", 1, 1000, 26);
-/// Relaxed A-optimal instance of the issue: p = 8, 5,000 candidates.
+/// Relaxed A-optimal reference instance: p = 8, 5,000 candidates.
 pub const A_INSTANCE: (&str, u64, usize, usize) = ("a_5000x8", 2, 5000, 8);
 
 /// The Jacobians J_i (3 × p) of `n` candidates.

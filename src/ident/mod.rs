@@ -115,7 +115,7 @@ pub enum Standstill {
     /// for smooth shapes (`tanh`, `stribeck`) and joints without friction.
     #[default]
     Auto,
-    /// Drop the slow rows of every joint (the rule before issue 16).
+    /// Drop the slow rows of every joint (the former default rule).
     Drop,
     /// Keep every row of every joint.
     Keep,
