@@ -4,8 +4,12 @@
 //! velocity limits).
 //!
 //! First the whole design is run once with its 10 s wall-clock budget and the
-//! condition number reached and the wall time are printed (skip with
-//! `IDEXP_BENCH_DESIGN=0`); then criterion measures the kernels (single
+//! condition number reached and the wall time are printed; then the
+//! like-for-like variant (designs/excite_ur5_bench_pi.toml: the Python
+//! reference's ±π ranges and base set, 10 s) for seeds 1–5, each condition
+//! number printed against the reference's 4.47 (skip both with
+//! `IDEXP_BENCH_DESIGN=0`, the seeds alone with `IDEXP_BENCH_SEEDS=0`); then
+//! criterion measures the kernels (single
 //! threaded except the gradient's per-sample work, which uses the rayon pool):
 //! the criterion alone, the criterion with its analytic gradient, the
 //! constraints with their Jacobian, one GA evaluation (repair + criterion +
@@ -14,7 +18,7 @@
 //! Run: `cargo bench --bench excitation -- --warm-up-time 1 --measurement-time 3`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use idexp::excitation::{run, Problem};
+use idexp::excitation::{run, ExciteDesign, Problem};
 use rand::{RngExt, SeedableRng};
 use std::hint::black_box;
 use std::path::Path;
@@ -47,8 +51,40 @@ fn design_run() {
     }
 }
 
+/// The reference's condition number (scipy SLSQP, 20 starts, 210 s) on the
+/// like-for-like problem.
+const PYTHON_REFERENCE_COND: f64 = 4.47;
+
+fn seeds_run() {
+    if std::env::var("IDEXP_BENCH_DESIGN").is_ok_and(|v| v == "0") || std::env::var("IDEXP_BENCH_SEEDS").is_ok_and(|v| v == "0") {
+        return;
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let path = root.join("designs/excite_ur5_bench_pi.toml");
+    let mut worst = 0.0f64;
+    for seed in 1..=5u64 {
+        let mut d = ExciteDesign::load(&path).expect("bench_pi design");
+        d.seed = seed;
+        let robot = idexp::robot::load(&d.robot).expect("bench_pi robot");
+        let p = Problem::new(d, robot, &path.display().to_string()).expect("bench_pi problem");
+        let r = run(&p, &idexp::optim::Control::new()).expect("bench_pi run");
+        worst = worst.max(r.spectrum.cond);
+        println!(
+            "excite_ur5_bench_pi seed {seed}: {:?}, cond {:.4} in {:.2} s wall ({} GA evaluations, {} refinement evaluations){}",
+            r.status,
+            r.spectrum.cond,
+            r.seconds,
+            r.ga.evaluations,
+            r.refinements.iter().map(|rf| rf.evaluations).sum::<u64>(),
+            if r.spectrum.cond <= PYTHON_REFERENCE_COND { "" } else { "  ABOVE the reference's 4.47" }
+        );
+    }
+    println!("excite_ur5_bench_pi seeds 1-5: worst cond {worst:.4} (reference {PYTHON_REFERENCE_COND})");
+}
+
 fn bench(c: &mut Criterion) {
     design_run();
+    seeds_run();
     let p = problem();
     let nv = p.layout.n_vars();
     let mut g = rand_chacha::ChaCha8Rng::seed_from_u64(5);
