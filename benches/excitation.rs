@@ -18,7 +18,8 @@
 //! Run: `cargo bench --bench excitation -- --warm-up-time 1 --measurement-time 3`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use idexp::excitation::{run, ExciteDesign, Problem};
+use idexp::excitation::design::ExciteDesign;
+use idexp::excitation::{run, Problem};
 use rand::{RngExt, SeedableRng};
 use std::hint::black_box;
 use std::path::Path;
@@ -76,7 +77,11 @@ fn seeds_run() {
             r.seconds,
             r.ga.evaluations,
             r.refinements.iter().map(|rf| rf.evaluations).sum::<u64>(),
-            if r.spectrum.cond <= PYTHON_REFERENCE_COND { "" } else { "  ABOVE the reference's 4.47" }
+            if r.spectrum.cond <= PYTHON_REFERENCE_COND {
+                ""
+            } else {
+                "  ABOVE the reference's 4.47"
+            }
         );
     }
     println!("excite_ur5_bench_pi seeds 1-5: worst cond {worst:.4} (reference {PYTHON_REFERENCE_COND})");
