@@ -210,10 +210,9 @@ impl SampleSet {
     /// Describes the samples taken every `every`-th row of `file` with times
     /// `t` (those used, if the file has them); `note` is added in words.
     pub fn new(file: &str, every: usize, t: Option<&[f64]>, note: &str) -> SampleSet {
-        let count = t.map_or(0, |t| t.len());
-        let t_range = t.filter(|t| !t.is_empty()).map(|t| [t[0], t[t.len() - 1]]);
-        let rate_hz = t.and_then(uniform_rate);
-        SampleSet::from_parts(file, every, count, t_range, rate_hz, note)
+        let mut times = TimeStats::default();
+        t.unwrap_or_default().iter().for_each(|&v| times.add(v));
+        SampleSet::from_parts(file, every, times.count, times.range(), times.rate(), note)
     }
 
     /// As [`SampleSet::new`] from the count, time range and rate.
@@ -277,24 +276,12 @@ impl TimeStats {
     }
 
     fn rate(&self) -> Option<f64> {
-        if self.count < 2 || !(self.min_dt > 0.0) || self.max_dt - self.min_dt > 1e-6 * self.min_dt {
+        if self.count < 2 || self.min_dt.is_nan() || self.min_dt <= 0.0 || self.max_dt - self.min_dt > 1e-6 * self.min_dt {
             return None;
         }
         let dt = (self.last - self.first) / (self.count - 1) as f64;
         Some(((1.0 / dt) * 1e9).round() / 1e9)
     }
-}
-
-/// The rate of uniformly spaced times (spacing equal to 10⁻⁶ relative), rounded to 10⁻⁹ Hz.
-fn uniform_rate(t: &[f64]) -> Option<f64> {
-    if t.len() < 2 {
-        return None;
-    }
-    let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
-    if !(dt > 0.0) || t.windows(2).any(|w| ((w[1] - w[0]) - dt).abs() > 1e-6 * dt) {
-        return None;
-    }
-    Some(((1.0 / dt) * 1e9).round() / 1e9)
 }
 
 /// Stacks the base regressor of `states` and computes the report.
