@@ -220,7 +220,7 @@ impl SampleSet {
         let mut description = format!(
             "{file}: {}{count} rows",
             if every > 1 {
-                format!("every {every}th data row from the first, ")
+                format!("every {} data row from the first, ", ordinal(every))
             } else {
                 "all ".into()
             }
@@ -243,6 +243,18 @@ impl SampleSet {
             description,
         }
     }
+}
+
+/// `2nd`, `3rd`, `7th`, `11th`, `21st`, ...
+fn ordinal(k: usize) -> String {
+    let suffix = match (k % 10, k % 100) {
+        (_, 11..=13) => "th",
+        (1, _) => "st",
+        (2, _) => "nd",
+        (3, _) => "rd",
+        _ => "th",
+    };
+    format!("{k}{suffix}")
 }
 
 /// Running statistics of sample times read block by block: first, last and
