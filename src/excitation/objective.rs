@@ -178,6 +178,20 @@ pub struct Spectrum {
     pub criterion: f64,
 }
 
+/// The samples, column scaling and spectrum of one evaluation ([`Objective::record`]).
+#[derive(Debug, Clone)]
+pub struct GridRecord {
+    /// The samples (t, q, q̇, q̈) of the criterion's grid, q̇ below [`ZERO_VELOCITY`] set to 0.
+    pub samples: crate::io::States,
+    /// ‖c_j‖, the norm of column j of W½C over these samples.
+    pub column_norms: Vec<f64>,
+    /// The column factors D_jj (C̃ = W½ C D): 1/‖c_j‖ for unit columns (0 for a
+    /// zero column), the floored |θ_b,j| for nominal scaling, else 1.
+    pub scale: Vec<f64>,
+    /// Singular values, condition number and criterion of C̃.
+    pub spectrum: Spectrum,
+}
+
 /// The m columns of the stacked regressor C: which standard parameters, their
 /// names and nominal values.
 #[derive(Debug, Clone, PartialEq)]
@@ -444,6 +458,37 @@ impl Objective {
             singular_values: s,
             cond: cond_of(s1, sm),
             criterion: j,
+        })
+    }
+
+    /// Everything one evaluation of trajectory `tr` is made of, for the report
+    /// and its replay from the written files: the samples exactly as the
+    /// criterion uses them (t_i of [`Objective::times`], q̇ entries below
+    /// [`ZERO_VELOCITY`] already set to 0), the column norms ‖c_j‖ of the
+    /// weighted matrix W½C over these samples, the column factors D
+    /// (C̃ = W½ C D) and the spectrum of C̃.
+    pub fn record(&self, tr: &FourierTrajectory) -> Result<GridRecord> {
+        let mut w = self.workspace();
+        let spectrum = self.spectrum(tr, &mut w)?;
+        let m = self.n_cols();
+        let scale = (0..m)
+            .map(|j| match self.scaling {
+                Scaling::UnitColumn if w.col_norm[j] > 0.0 => 1.0 / w.col_norm[j],
+                Scaling::UnitColumn => 0.0,
+                _ => self.fixed_scale[j],
+            })
+            .collect();
+        let samples = crate::io::States {
+            t: Some(self.times.clone()),
+            q: w.states.iter().map(|s| s[0].clone()).collect(),
+            qd: w.states.iter().map(|s| s[1].clone()).collect(),
+            qdd: w.states.iter().map(|s| s[2].clone()).collect(),
+        };
+        Ok(GridRecord {
+            samples,
+            column_norms: w.col_norm.clone(),
+            scale,
+            spectrum,
         })
     }
 

@@ -18,7 +18,7 @@
 //!   component above 0.1 in a right singular vector of the numerical null space.
 
 use super::constraints::{ConstraintKind, Margin};
-use super::{ExciteResult, Problem, Status};
+use super::{Criterion, ExciteResult, Problem, Scaling, Status};
 use crate::error::{Error, Result};
 use crate::io::plot::{write_svg, Panel, Series};
 use crate::io::status::RunState;
@@ -45,6 +45,14 @@ pub struct Identifiability {
     pub names: Vec<String>,
     /// Each base parameter as a combination of standard ones.
     pub groupings: Vec<String>,
+    /// The robot's standard parameter whose regressor column is column j of C
+    /// (`ZZ1` for the base parameter `ZZ1R`, `Fc1`, ...).
+    pub parameters: Vec<String>,
+    /// ‖column j of C_w‖ over the samples: the reference of the unit-column
+    /// scaling (C_w's column j is divided by it).
+    pub column_norms: Vec<f64>,
+    /// Which samples the figures are computed from (`None`: not stated by the caller).
+    pub source: Option<SampleSet>,
     /// Numerical rank of C.
     pub rank: usize,
     /// Condition number of C_w with unit columns (∞ when rank deficient).
@@ -67,6 +75,225 @@ pub struct Identifiability {
     pub unexcited: Vec<String>,
     /// Excited parameters whose predicted relative standard deviation exceeds 100 % (nominal ≠ 0) or is unbounded.
     pub poorly_identifiable: Vec<String>,
+}
+
+/// The robot's standard-parameter name of every base column (`ZZ1` for `ZZ1R`).
+pub fn column_parameters(robot: &Robot, base: &BaseParams) -> Vec<String> {
+    let names = robot.param_names();
+    base.independent.iter().map(|&c| names[c].clone()).collect()
+}
+
+/// The samples one reported figure is computed from.
+#[derive(Debug, Clone, Serialize)]
+pub struct SampleSet {
+    /// The CSV file holding them (`t`, q1..qn, qd1..qdn, qdd1..qddn), relative
+    /// to the output folder when it is one of its files.
+    pub file: String,
+    /// Keep every `every`-th data row of the file, starting with the first.
+    pub every: usize,
+    /// Number of samples N (rows of C: N·n).
+    pub count: usize,
+    /// Sample rate (Hz) of the rows used, when they are uniformly spaced.
+    pub rate_hz: Option<f64>,
+    /// Time of the first and of the last sample used (s), when the file has a `t` column.
+    pub t_range: Option<[f64; 2]>,
+    /// The same in words.
+    pub description: String,
+}
+
+/// One base column of the stacked regressor C.
+#[derive(Debug, Clone, Serialize)]
+pub struct ColumnRecord {
+    /// Base-parameter name (suffix `R`: other standard parameters are regrouped into it).
+    pub name: String,
+    /// The robot's standard parameter whose regressor column is this column.
+    pub parameter: String,
+    /// Its index in the robot's standard parameter vector.
+    pub index: usize,
+    /// The combination of standard parameters this column's coefficient
+    /// estimates (θ_b,j = Σ k_i θ_i), as (parameter, k_i) pairs.
+    pub combination: Vec<(String, f64)>,
+    /// The same, readable.
+    pub grouping: String,
+    /// Nominal value of the combination.
+    pub nominal: f64,
+}
+
+/// One reported condition number (or criterion) and what it is computed from.
+#[derive(Debug, Clone, Serialize)]
+pub struct Figure {
+    /// Which figure of report.txt / report.json this is.
+    pub label: String,
+    /// Samples used.
+    pub samples: SampleSet,
+    /// Column scaling: `unit_column`, `nominal` or `none`.
+    pub scaling: Scaling,
+    /// ‖column j of W½C‖ over the samples (the reference of unit-column scaling).
+    pub column_norms: Vec<f64>,
+    /// Column factors D_jj: the matrix is W½ C D.
+    pub scale: Vec<f64>,
+    /// Criterion, for the design's criterion figure.
+    pub criterion: Option<Criterion>,
+    /// Criterion value, for the design's criterion figure.
+    pub value: Option<f64>,
+    /// σ_1/σ_m of W½ C D (capped at 10¹² for the design criterion, ∞ in the
+    /// identifiability figures when rank deficient).
+    pub cond: f64,
+    /// Singular values of W½ C D, decreasing.
+    pub singular_values: Vec<f64>,
+}
+
+/// criterion.json: everything needed to recompute every reported condition
+/// number from the written files with any rigid-body regressor.
+#[derive(Debug, Clone, Serialize)]
+pub struct CriterionRecord {
+    /// What this file is.
+    pub about: String,
+    /// The robot file.
+    pub robot: String,
+    /// Joint names, in the order of the columns q1..qn of the sample files.
+    pub joints: Vec<String>,
+    /// Gravity (m/s², base frame).
+    pub gravity: [f64; 3],
+    /// How the rows of C are formed, in words.
+    pub regressor: String,
+    /// |q̇_j| below this counts as 0 (the Coulomb column sign(q̇_j) is then 0).
+    pub zero_velocity: f64,
+    /// The columns of C, in order.
+    pub columns: Vec<ColumnRecord>,
+    /// Torque noise σ_j per joint (N·m or N); row r of joint j is weighted by 1/σ_j.
+    pub noise: Vec<f64>,
+    /// The reported figures.
+    pub figures: Vec<Figure>,
+}
+
+impl CriterionRecord {
+    /// The columns, weights and regressor description of `base` on `robot`
+    /// (figures to be added).
+    pub fn new(robot: &Robot, robot_file: &str, base: &BaseParams, noise: &[f64], about: String) -> CriterionRecord {
+        let pn = robot.param_names();
+        let theta = robot.nominal_params();
+        let nominal = base.base_values(theta.as_slice());
+        let columns = (0..base.n_base())
+            .map(|j| ColumnRecord {
+                name: base.names[j].clone(),
+                parameter: pn[base.independent[j]].clone(),
+                index: base.independent[j],
+                combination: (0..base.n_std)
+                    .filter(|&i| base.k[(j, i)] != 0.0)
+                    .map(|i| (pn[i].clone(), base.k[(j, i)]))
+                    .collect(),
+                grouping: base.groupings[j].clone(),
+                nominal: nominal[j],
+            })
+            .collect();
+        let g = robot.gravity;
+        CriterionRecord {
+            about,
+            robot: robot_file.to_string(),
+            joints: robot.joints.iter().map(|j| j.name.clone()).collect(),
+            gravity: [g.x, g.y, g.z],
+            regressor: "one row per joint j and sample: the joint-side torque regressor τ = Y(q, q̇, q̈) θ; column `parameter` \
+                        of Y for each column; inertial parameters per link about the link (joint) frame origin in the link frame, \
+                        as the URDF's joint frames; Coulomb friction Fc_j: sign(q̇_j) on joint j's row, viscous Fv_j: q̇_j; \
+                        samples stacked in time order, joints in order within a sample"
+                .into(),
+            zero_velocity: super::objective::ZERO_VELOCITY,
+            columns,
+            noise: noise.to_vec(),
+            figures: Vec::new(),
+        }
+    }
+}
+
+impl SampleSet {
+    /// Describes the samples taken every `every`-th row of `file` with times
+    /// `t` (those used, if the file has them); `note` is added in words.
+    pub fn new(file: &str, every: usize, t: Option<&[f64]>, note: &str) -> SampleSet {
+        let mut times = TimeStats::default();
+        t.unwrap_or_default().iter().for_each(|&v| times.add(v));
+        SampleSet::from_parts(file, every, times.count, times.range(), times.rate(), note)
+    }
+
+    /// As [`SampleSet::new`] from the count, time range and rate.
+    pub fn from_parts(file: &str, every: usize, count: usize, t_range: Option<[f64; 2]>, rate_hz: Option<f64>, note: &str) -> SampleSet {
+        let mut description = format!(
+            "{file}: {}{count} rows",
+            if every > 1 {
+                format!("every {} data row from the first, ", ordinal(every))
+            } else {
+                "all ".into()
+            }
+        );
+        if let Some(r) = rate_hz {
+            let _ = write!(description, " at {r} Hz");
+        }
+        if let Some([a, b]) = t_range {
+            let _ = write!(description, ", t = {a} … {b} s");
+        }
+        if !note.is_empty() {
+            let _ = write!(description, " ({note})");
+        }
+        SampleSet {
+            file: file.to_string(),
+            every,
+            count,
+            rate_hz,
+            t_range,
+            description,
+        }
+    }
+}
+
+/// `2nd`, `3rd`, `7th`, `11th`, `21st`, ...
+fn ordinal(k: usize) -> String {
+    let suffix = match (k % 10, k % 100) {
+        (_, 11..=13) => "th",
+        (1, _) => "st",
+        (2, _) => "nd",
+        (3, _) => "rd",
+        _ => "th",
+    };
+    format!("{k}{suffix}")
+}
+
+/// Running statistics of sample times read block by block: first, last and
+/// the extreme spacings (a uniform rate when they agree to 10⁻⁶).
+#[derive(Debug, Clone, Default)]
+struct TimeStats {
+    count: usize,
+    first: f64,
+    last: f64,
+    min_dt: f64,
+    max_dt: f64,
+}
+
+impl TimeStats {
+    fn add(&mut self, t: f64) {
+        if self.count == 0 {
+            self.first = t;
+            self.min_dt = f64::INFINITY;
+            self.max_dt = f64::NEG_INFINITY;
+        } else {
+            let dt = t - self.last;
+            self.min_dt = self.min_dt.min(dt);
+            self.max_dt = self.max_dt.max(dt);
+        }
+        self.last = t;
+        self.count += 1;
+    }
+
+    fn range(&self) -> Option<[f64; 2]> {
+        (self.count > 0).then_some([self.first, self.last])
+    }
+
+    fn rate(&self) -> Option<f64> {
+        if self.count < 2 || self.min_dt.is_nan() || self.min_dt <= 0.0 || self.max_dt - self.min_dt > 1e-6 * self.min_dt {
+            return None;
+        }
+        let dt = (self.last - self.first) / (self.count - 1) as f64;
+        Some(((1.0 / dt) * 1e9).round() / 1e9)
+    }
 }
 
 /// Stacks the base regressor of `states` and computes the report.
@@ -92,7 +319,11 @@ pub fn assess_file(robot: &Robot, base: &BaseParams, path: &Path, every: usize, 
     let mut rdr = crate::io::states::StatesReader::open(path, n)?;
     let mut acc = AssessAccumulator::new(robot, base, noise)?;
     let mut block = crate::io::states::StateBlock::default();
+    let mut times = TimeStats::default();
     while rdr.next_block(4096, every, &mut block)? > 0 {
+        for &t in &block.t {
+            times.add(t);
+        }
         for i in 0..block.len(n) {
             let r = i * n..(i + 1) * n;
             acc.add(&block.q[r.clone()], &block.qd[r.clone()], &block.qdd[r]);
@@ -106,7 +337,17 @@ pub fn assess_file(robot: &Robot, base: &BaseParams, path: &Path, every: usize, 
             msg: "the file has no data rows".into(),
         });
     }
-    acc.finish()
+    let samples = acc.samples;
+    let mut id = acc.finish()?;
+    id.source = Some(SampleSet::from_parts(
+        &path.display().to_string(),
+        every,
+        samples,
+        times.range(),
+        times.rate(),
+        "",
+    ));
+    Ok(id)
 }
 
 /// Rows of the weighted base regressor per QR update of the accumulator.
@@ -222,8 +463,7 @@ fn identifiability_from_factor(robot: &Robot, base: &BaseParams, noise: &[f64], 
     let norms: Vec<f64> = (0..m).map(|j| cw.column(j).norm()).collect();
     let maxn = norms.iter().cloned().fold(0.0, f64::max);
     let mut cn = cw.clone();
-    for j in 0..m {
-        let f = if norms[j] > 1e-14 * maxn.max(1e-300) { 1.0 / norms[j] } else { 0.0 };
+    for (j, f) in unit_scale(&norms).into_iter().enumerate() {
         cn.column_mut(j).scale_mut(f);
     }
     let (_, s, v) = crate::linalg::thin_svd(&cn)?;
@@ -282,6 +522,9 @@ fn identifiability_from_factor(robot: &Robot, base: &BaseParams, noise: &[f64], 
         rows: ns * n,
         names: base.names.clone(),
         groupings: base.groupings.clone(),
+        parameters: column_parameters(robot, base),
+        column_norms: norms,
+        source: None,
         rank,
         cond,
         singular_values: s.iter().copied().collect(),
@@ -301,7 +544,21 @@ impl Identifiability {
     pub fn text(&self) -> String {
         let mut s = String::new();
         let m = self.names.len();
+        if let Some(src) = &self.source {
+            let _ = writeln!(s, "samples used: {}", src.description);
+        }
         let _ = writeln!(s, "samples: {} ({} rows), base parameters: {m}, rank: {}", self.samples, self.rows, self.rank);
+        let _ = writeln!(
+            s,
+            "base columns (the regressor column of each of these standard parameters; groupings in report.json): {}",
+            self.parameters.join(" ")
+        );
+        let _ = writeln!(
+            s,
+            "matrix: C_w = rows of joint j divided by its torque noise σ_j, then every column divided by its norm over these \
+             samples (norms: column_norms in report.json); |q̇_j| < {:e} counts as 0 (Coulomb column sign(q̇_j), viscous q̇_j)",
+            super::objective::ZERO_VELOCITY
+        );
         let _ = writeln!(s, "condition number (unit columns): {}", fmt_num(self.cond));
         let _ = writeln!(
             s,
@@ -388,21 +645,68 @@ struct ExciteReport<'a> {
     robot: &'a str,
     result: &'a ExciteResult,
     identifiability: &'a Identifiability,
+    delivered_identifiability: &'a Identifiability,
+    criterion_samples: &'a SampleSet,
     verification_rate: f64,
     applied_limits: &'a [super::limits::AppliedLimit],
+}
+
+/// What [`write_outputs`] computed for the reports.
+#[derive(Debug, Clone)]
+pub struct Written {
+    /// Identifiability on the criterion's samples (criterion_samples.csv).
+    pub identifiability: Identifiability,
+    /// Identifiability of the delivered trajectory (every row of trajectory.csv).
+    pub delivered: Identifiability,
+    /// The contents of criterion.json.
+    pub record: CriterionRecord,
+}
+
+/// The samples of the criterion: one period on the design's grid, as a [`SampleSet`].
+pub fn criterion_sample_set(p: &Problem) -> SampleSet {
+    let d = &p.design;
+    let ratio = d.trajectory.controller_rate / d.objective.sample_rate;
+    let k = ratio.round();
+    let note = if (ratio - k).abs() < 1e-9 && k >= 1.0 {
+        format!(
+            "one period of the periodic trajectory, t_i = i/{} s; the times of rows 0, {k}, {}, … of periodic.csv",
+            d.objective.sample_rate,
+            2.0 * k
+        )
+    } else {
+        format!("one period of the periodic trajectory, t_i = i/{} s", d.objective.sample_rate)
+    };
+    SampleSet::new("criterion_samples.csv", 1, Some(&p.objective.times), &note)
+}
+
+/// The samples of the delivered trajectory as written to trajectory.csv, as a [`SampleSet`].
+fn delivered_sample_set(t: &[f64], periods: usize) -> SampleSet {
+    SampleSet::new(
+        "trajectory.csv",
+        1,
+        Some(t),
+        &format!("the delivered trajectory: lead-in, {periods} period(s), lead-out, rest to rest"),
+    )
 }
 
 /// Writes the outputs of a design run into `dir`: coefficients.json,
 /// trajectory.csv (the delivered trajectory, rest to rest, with a `segment`
 /// column: 0 lead-in, k period k, −1 lead-out), periodic.csv (one period,
-/// `t, q, qd, qdd`), report.json, report.txt, design.json, status.json and
-/// the SVG plots (joints.svg, singular_values.svg, ee_path.svg).
-pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Identifiability> {
+/// `t, q, qd, qdd`), criterion_samples.csv (the samples of the criterion:
+/// one period on its grid, exactly as evaluated), criterion.json (the base
+/// columns by name with their combinations, the weights, the column norms
+/// and scaling, every reported condition number with the samples it is
+/// computed from), report.json, report.txt, design.json, status.json and the
+/// SVG plots (joints.svg, singular_values.svg, ee_path.svg).
+pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Written> {
     let d = &p.design;
     crate::io::folder::begin(dir, "excite", &crate::io::status::fingerprint_of(d)?)?;
     let noise = d.objective.noise.clone().unwrap_or_else(|| vec![1.0; p.robot.dof()]);
-    let samples = r.trajectory.sample(d.objective.sample_rate)?;
-    let ident = assess(&p.robot, &p.base, &samples, &noise)?;
+    // the criterion's own samples (not a re-evaluation at other times)
+    let grid = p.objective.record(&r.trajectory)?;
+    let grid_set = criterion_sample_set(p);
+    let mut ident = assess(&p.robot, &p.base, &grid.samples, &noise)?;
+    ident.source = Some(grid_set.clone());
     let coeff = serde_json::json!({
         "design": d.name,
         "robot": d.robot.display().to_string(),
@@ -434,8 +738,58 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Identi
             lead_out: None,
         },
     };
-    delivered.sample(d.trajectory.controller_rate)?.write_csv(&dir.join("trajectory.csv"))?;
+    let ds = delivered.sample(d.trajectory.controller_rate)?;
+    ds.write_csv(&dir.join("trajectory.csv"))?;
     r.trajectory.sample(d.trajectory.controller_rate)?.write(&dir.join("periodic.csv"))?;
+    grid.samples.write(&dir.join("criterion_samples.csv"))?;
+    let delivered_set = delivered_sample_set(&ds.t, delivered.periods);
+    let mut delivered_ident = {
+        let states = crate::io::States {
+            t: None,
+            q: ds.q,
+            qd: ds.qd,
+            qdd: ds.qdd,
+        };
+        assess(&p.robot, &p.base, &states, &noise)?
+    };
+    delivered_ident.source = Some(delivered_set.clone());
+    let mut record = CriterionRecord::new(
+        &p.robot,
+        &d.robot.display().to_string(),
+        &p.base,
+        &noise,
+        format!(
+            "what every condition number of `idexp excite {}` is computed from: the matrix W½·C·D, C the stacked base \
+             regressor (rows: samples × joints; columns: `columns`), W½ = diag(1/noise_j) per joint row, D = diag(scale)",
+            d.name
+        ),
+    );
+    record.figures = vec![
+        Figure {
+            label: "criterion value and condition number (report.txt `criterion value`, `condition number`; \
+                    report.json result.criterion, result.spectrum)"
+                .into(),
+            samples: grid_set.clone(),
+            scaling: d.objective.scaling,
+            column_norms: grid.column_norms.clone(),
+            scale: grid.scale.clone(),
+            criterion: Some(d.objective.criterion),
+            value: Some(r.criterion),
+            cond: r.spectrum.cond,
+            singular_values: r.spectrum.singular_values.clone(),
+        },
+        ident_figure(
+            "identifiability on the design grid (report.txt `identifiability`; report.json identifiability)",
+            grid_set.clone(),
+            &ident,
+        ),
+        ident_figure(
+            "identifiability of the delivered trajectory (report.txt `delivered trajectory`; report.json delivered_identifiability)",
+            delivered_set,
+            &delivered_ident,
+        ),
+    ];
+    crate::io::write_json(&dir.join("criterion.json"), &record)?;
     crate::io::write_json(&dir.join("design.json"), d)?;
     let summary = serde_json::json!({
         "design_status": r.status,
@@ -471,11 +825,13 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Identi
             robot: &robot_path,
             result: r,
             identifiability: &ident,
+            delivered_identifiability: &delivered_ident,
+            criterion_samples: &grid_set,
             verification_rate: d.limits.check_rate,
             applied_limits: &p.applied_limits,
         },
     )?;
-    crate::io::write_atomic(&dir.join("report.txt"), excite_text(p, r, &ident).as_bytes())?;
+    crate::io::write_atomic(&dir.join("report.txt"), excite_report_text(p, r, &ident, Some(&delivered_ident)).as_bytes())?;
     spectrum_svg(
         &dir.join("singular_values.svg"),
         &r.spectrum.singular_values,
@@ -485,11 +841,44 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Identi
     ee_svg(p, r, &dir.join("ee_path.svg"))?;
     // the final status last: a folder without it is marked `running`
     crate::io::status::write_status(dir, "excite", state, detail, started, crate::io::status::fingerprint_of(d)?, summary)?;
-    Ok(ident)
+    Ok(Written {
+        identifiability: ident,
+        delivered: delivered_ident,
+        record,
+    })
 }
 
-/// The text summary of a design run (report.txt).
+/// The unit-column figure of an identifiability report.
+pub fn ident_figure(label: &str, samples: SampleSet, id: &Identifiability) -> Figure {
+    Figure {
+        label: label.into(),
+        samples,
+        scaling: Scaling::UnitColumn,
+        column_norms: id.column_norms.clone(),
+        scale: unit_scale(&id.column_norms),
+        criterion: None,
+        value: None,
+        cond: id.cond,
+        singular_values: id.singular_values.clone(),
+    }
+}
+
+/// The unit-column factors of the identifiability report: 1/‖c_j‖, 0 for a
+/// column below 10⁻¹⁴ of the largest norm (a zero column).
+pub fn unit_scale(norms: &[f64]) -> Vec<f64> {
+    let maxn = norms.iter().cloned().fold(0.0, f64::max);
+    norms.iter().map(|&v| if v > 1e-14 * maxn.max(1e-300) { 1.0 / v } else { 0.0 }).collect()
+}
+
+/// The text summary of a design run (report.txt) without the delivered
+/// trajectory's identifiability ([`excite_report_text`]).
 pub fn excite_text(p: &Problem, r: &ExciteResult, ident: &Identifiability) -> String {
+    excite_report_text(p, r, ident, None)
+}
+
+/// The text summary of a design run (report.txt): `ident` on the criterion's
+/// samples, `delivered` on every row of the delivered trajectory.
+pub fn excite_report_text(p: &Problem, r: &ExciteResult, ident: &Identifiability, delivered: Option<&Identifiability>) -> String {
     let d = &p.design;
     let mut s = String::new();
     let _ = writeln!(s, "excitation design `{}` for robot `{}` ({})", d.name, p.robot.name, d.robot.display());
@@ -503,22 +892,45 @@ pub fn excite_text(p: &Problem, r: &ExciteResult, ident: &Identifiability) -> St
         if d.trajectory.vary_q0 { ", q0 free" } else { "" },
         if d.trajectory.at_rest { ", starts and ends at rest" } else { "" }
     );
+    let grid_set = criterion_sample_set(p);
+    let noise = d.objective.noise.clone().unwrap_or_else(|| vec![1.0; p.robot.dof()]);
     let _ = writeln!(
         s,
-        "criterion: {} of the base regressor with {} ({} columns, {} samples at {} Hz)",
+        "criterion: {} of W½·C·D, C the stacked base regressor ({} columns × {} rows)",
         match d.objective.criterion {
-            super::Criterion::Cond => "condition number",
-            super::Criterion::LogDet => "−log det (D-optimality)",
+            super::Criterion::Cond => "condition number σ_max/σ_min",
+            super::Criterion::LogDet => "−log det((W½CD)ᵀ(W½CD)) (D-optimality)",
             super::Criterion::InvSigmaMin => "1/σ_min (E-optimality)",
         },
-        match d.objective.scaling {
-            super::Scaling::UnitColumn => "unit-norm columns",
-            super::Scaling::Nominal => "columns scaled by the nominal parameters",
-            super::Scaling::None => "unscaled columns",
-        },
         p.objective.n_cols(),
-        p.objective.times.len(),
-        d.objective.sample_rate
+        p.objective.n_rows(),
+    );
+    let _ = writeln!(s, "  samples: {}", grid_set.description);
+    let _ = writeln!(
+        s,
+        "  W½ = diag(1/σ_j) per joint row, σ = {:?} N·m{}",
+        noise,
+        if d.objective.noise.is_none() { " (objective.noise not given)" } else { "" }
+    );
+    let _ = writeln!(
+        s,
+        "  D: {}",
+        match d.objective.scaling {
+            super::Scaling::UnitColumn => "every column of W½C divided by its norm over these samples (norms in criterion.json)",
+            super::Scaling::Nominal => "every column times the nominal value of its base parameter (floored at 10⁻³ of the largest; criterion.json)",
+            super::Scaling::None => "none (D = I)",
+        }
+    );
+    let _ = writeln!(
+        s,
+        "  columns: the regressor column of each of these standard parameters (base parameters and their groupings in \
+         criterion.json; Coulomb column sign(q̇_j), 0 for |q̇_j| < {:e}; viscous q̇_j): {}",
+        super::objective::ZERO_VELOCITY,
+        column_parameters(&p.robot, &p.base).join(" ")
+    );
+    let _ = writeln!(
+        s,
+        "  to recompute: criterion.json (columns, weights, column norms, every figure below with its samples) and the sample files it names"
     );
     let _ = writeln!(s);
     let status = match r.status {
@@ -531,7 +943,17 @@ pub fn excite_text(p: &Problem, r: &ExciteResult, ident: &Identifiability) -> St
         r.stopped_by.as_ref().map(|b| format!(" (stopped early: {b})")).unwrap_or_default()
     );
     let _ = writeln!(s, "criterion value: {}", fmt_num(r.criterion));
-    let _ = writeln!(s, "condition number: {}", fmt_num(r.spectrum.cond));
+    let _ = writeln!(s, "condition number: {} (on the criterion's samples above)", fmt_num(r.spectrum.cond));
+    if let Some(dl) = delivered {
+        let _ = writeln!(
+            s,
+            "condition number of the delivered trajectory: {} (same columns and weights, unit columns over {}; rank {}/{})",
+            fmt_num(dl.cond),
+            dl.source.as_ref().map_or("", |s| s.description.as_str()),
+            dl.rank,
+            dl.names.len()
+        );
+    }
     if !r.violated.is_empty() {
         let _ = writeln!(s, "\nviolated constraints (on the {} Hz verification grid), worst first:", d.limits.check_rate);
         for m in &r.violated {
@@ -625,7 +1047,10 @@ pub fn excite_text(p: &Problem, r: &ExciteResult, ident: &Identifiability) -> St
         );
     }
     let _ = writeln!(s, "chosen: {}; total {:.2} s on {} threads", r.chosen, r.seconds, r.threads);
-    let _ = writeln!(s, "\nidentifiability (one period, predicted for the stated torque noise):");
+    let _ = writeln!(
+        s,
+        "\nidentifiability (on the criterion's samples, unit columns whatever the criterion's scaling; predicted for the stated torque noise):"
+    );
     s.push_str(&ident.text());
     s
 }

@@ -3,7 +3,7 @@
 use crate::Outcome;
 use anyhow::bail;
 use idexp::excitation::design::ExciteDesign;
-use idexp::excitation::report::{assess_file, violation_lines, write_outputs};
+use idexp::excitation::report::{assess_file, ident_figure, violation_lines, write_outputs, CriterionRecord};
 use idexp::excitation::{run, Criterion, Problem, Status};
 use idexp::optim::{Control, Termination};
 use idexp::params::{BaseOptions, BaseParams};
@@ -101,7 +101,7 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         Some(crate::export::formats(&a.export)?)
     };
     let r = run(&p, ctl)?;
-    let _ = write_outputs(&p, &r, &out)?;
+    let written = write_outputs(&p, &r, &out)?;
     if a.json {
         print!("{}", idexp::io::read_to_string(&out.join("report.json"))?);
     } else {
@@ -117,6 +117,14 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
             r.seconds,
             out.display()
         );
+        let grid = &written.record.figures[0].samples;
+        println!("  criterion on {}", grid.description);
+        println!(
+            "  delivered trajectory: condition number {:.4} (unit columns) on {}",
+            written.delivered.cond,
+            written.delivered.source.as_ref().map_or("", |s| s.description.as_str())
+        );
+        println!("  base columns, weights, column norms and every figure with its samples: criterion.json");
         for line in violation_lines(&r.violated) {
             println!("  violated: {line}");
         }
@@ -208,6 +216,19 @@ pub fn run_assess(a: &AssessArgs, _ctl: &Control) -> anyhow::Result<Outcome> {
             "status": if id.unexcited.is_empty() { "every base parameter excited" } else { "some base parameters not excited" },
         });
         idexp::io::write_json(&dir.join("inputs.json"), &inputs)?;
+        let mut record = CriterionRecord::new(
+            &robot,
+            &a.robot.display().to_string(),
+            &base,
+            &noise,
+            "what the condition number of `idexp assess` is computed from: the matrix W½·C·D, C the stacked base regressor \
+             (rows: samples × joints; columns: `columns`), W½ = diag(1/noise_j) per joint row, D = diag(scale) (unit columns)"
+                .into(),
+        );
+        if let Some(src) = &id.source {
+            record.figures.push(ident_figure("identifiability (report.txt, report.json)", src.clone(), &id));
+        }
+        idexp::io::write_json(&dir.join("criterion.json"), &record)?;
         let detail = if id.unexcited.is_empty() {
             "every base parameter excited"
         } else {
