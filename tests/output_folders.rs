@@ -134,7 +134,7 @@ fn a_killed_simulate_leaves_the_previous_set_aside_and_is_refused_as_input() {
 }
 
 /// The excite set is whole and consistent: all files, and the condition
-/// number in coefficients.json is the one in status.json.
+/// number in coefficients.json and criterion.json is the one in status.json.
 fn assert_whole_excite(dir: &Path) {
     let st = status_of(dir).unwrap_or_else(|| panic!("{}: no status.json", dir.display()));
     let s = st["status"].as_str().unwrap();
@@ -148,11 +148,15 @@ fn assert_whole_excite(dir: &Path) {
         "singular_values.svg",
         "joints.svg",
         "ee_path.svg",
+        "criterion.json",
+        "criterion_samples.csv",
     ] {
         assert!(dir.join(f).is_file(), "{}: {f} missing", dir.display());
     }
     let c: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("coefficients.json")).unwrap()).unwrap();
     assert_eq!(c["cond"], st["summary"]["cond"], "{}: mixed result set", dir.display());
+    let k: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("criterion.json")).unwrap()).unwrap();
+    assert_eq!(k["figures"][0]["cond"], st["summary"]["cond"], "{}: mixed result set (criterion.json)", dir.display());
 }
 
 #[test]
