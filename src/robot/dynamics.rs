@@ -1409,7 +1409,8 @@ impl Axis {
 /// the k-th column of I and e_k × h), M_ii = S_iᵀ F, then F carried up the
 /// path to the root (n ← R n + p × R f, f ← R f) and projected on each
 /// ancestor's S_j (the k-th moment component for a joint about e_k; at the
-/// root only that component is computed).
+/// root only that component is computed). A root joint about e_k reads only
+/// the (k, k) entry of its composite, so only that entry is accumulated.
 fn crba_into(robot: &Robot, ws: &mut Workspace, inert: Inertials<'_>, ia: impl Fn(usize) -> Option<f64>, q: &[f64], m: &mut DMatrix<f64>) {
     let n = robot.dof();
     assert!(m.nrows() == n && m.ncols() == n, "mass matrix output must be n×n");
@@ -1422,16 +1423,31 @@ fn crba_into(robot: &Robot, ws: &mut Workspace, inert: Inertials<'_>, ia: impl F
         ws.crb[i] = Ten::of(ine);
     }
     let kin = &ws.kin;
+    let axes = &ws.axes;
+    assert_eq!(axes.len(), n, "workspace made for another robot");
     for i in (0..n).rev() {
         if let Some(par) = robot.joints[i].parent {
-            let t = ws.crb[i].to_frame(&kin.rot[i], &kin.pos[i]);
-            ws.crb[par].add(&t);
+            let (r, p) = (&kin.rot[i], &kin.pos[i]);
+            match (robot.joints[par].parent, axes[par]) {
+                // a root joint about e_k reads only I^c_kk of its composite
+                // (M_par,par; its column's force n = I^c e_k is read only at k):
+                // (R I Rᵀ)_kk + 2 p·g − 2 g_k p_k, g = R h + (m/2) p
+                (None, Axis::Coord(k)) => {
+                    let t = &ws.crb[i];
+                    let rk = Vector3::new(r[(k, 0)], r[(k, 1)], r[(k, 2)]);
+                    let g = r * t.h + p * (0.5 * t.m);
+                    let v = rk.dot(&sym_mul(&t.i, &rk)) + 2.0 * p.dot(&g) - 2.0 * g[k] * p[k];
+                    ws.crb[par].i[[0, 3, 5][k]] += v;
+                }
+                _ => {
+                    let t = ws.crb[i].to_frame(r, p);
+                    ws.crb[par].add(&t);
+                }
+            }
         }
     }
     let ms = m.as_mut_slice(); // column-major: ms[col * n + row]
     ms.fill(0.0);
-    let axes = &ws.axes;
-    assert_eq!(axes.len(), n, "workspace made for another robot");
     for i in 0..n {
         let (mut nn, mut ff) = axes[i].force(&ws.crb[i]);
         ms[i * n + i] = axes[i].dot(&nn, &ff);
