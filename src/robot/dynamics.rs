@@ -1131,7 +1131,7 @@ pub fn id_derivatives_into(
             h: Vector3::new(t[6], t[7], t[8]),
             i: [t[0], t[1], t[2], t[3], t[4], t[5]],
         };
-        let y = local.to_frame(&rot, &pos);
+        let y = local.in_frame(&rot, &pos);
         let hm = y.times(&v.0, &v.1);
         let ya = y.times(&a.0, &a.1);
         let vxh = fcross(&v, &hm);
@@ -1317,7 +1317,7 @@ impl Ten {
     /// I' = R I Rᵀ − [p]×[u]× − [u]×[p]× − m [p]×² = R I Rᵀ + 2 (p·g) 1 − g pᵀ − p gᵀ
     /// (parallel axes).
     #[inline(always)]
-    fn to_frame(&self, r: &Matrix3<f64>, p: &Vector3<f64>) -> Ten {
+    fn in_frame(&self, r: &Matrix3<f64>, p: &Vector3<f64>) -> Ten {
         let s = &self.i;
         // A = R I (I symmetric), then R I Rᵀ = A Rᵀ, upper triangle only
         let a = Matrix3::from_fn(|row, col| r[(row, 0)] * sym_at(s, 0, col) + r[(row, 1)] * sym_at(s, 1, col) + r[(row, 2)] * sym_at(s, 2, col));
@@ -1404,7 +1404,7 @@ impl Axis {
 /// The composite inertias are kept in their ten parameters ([`Ten`]: mass,
 /// first moment, rotational inertia about the link origin, link
 /// coordinates), carried from each link to its parent with the rotation and
-/// parallel-axis transform of [`Ten::to_frame`] (leaves first). Column i:
+/// parallel-axis transform of [`Ten::in_frame`] (leaves first). Column i:
 /// the force F = I^c_i S_i ([`Axis::force`]; for a revolute joint about e_k
 /// the k-th column of I and e_k × h), M_ii = S_iᵀ F, then F carried up the
 /// path to the root (n ← R n + p × R f, f ← R f) and projected on each
@@ -1440,7 +1440,7 @@ fn crba_into(robot: &Robot, ws: &mut Workspace, inert: Inertials<'_>, ia: impl F
                     ws.crb[par].i[[0, 3, 5][k]] += v;
                 }
                 _ => {
-                    let t = ws.crb[i].to_frame(r, p);
+                    let t = ws.crb[i].in_frame(r, p);
                     ws.crb[par].add(&t);
                 }
             }
