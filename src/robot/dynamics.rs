@@ -1318,10 +1318,15 @@ impl Ten {
     /// (parallel axes).
     #[inline(always)]
     fn in_frame(&self, r: &Matrix3<f64>, p: &Vector3<f64>) -> Ten {
-        let s = &self.i;
-        // A = R I (I symmetric), then R I Rᵀ = A Rᵀ, upper triangle only
-        let a = Matrix3::from_fn(|row, col| r[(row, 0)] * sym_at(s, 0, col) + r[(row, 1)] * sym_at(s, 1, col) + r[(row, 2)] * sym_at(s, 2, col));
-        let rir = |x: usize, y: usize| a[(x, 0)] * r[(y, 0)] + a[(x, 1)] * r[(y, 1)] + a[(x, 2)] * r[(y, 2)];
+        // rows r_x of R; row x of A = R I is (I r_x)ᵀ (I symmetric); then
+        // (R I Rᵀ)_xy = (I r_x) · r_y, upper triangle only
+        let rows = [
+            Vector3::new(r[(0, 0)], r[(0, 1)], r[(0, 2)]),
+            Vector3::new(r[(1, 0)], r[(1, 1)], r[(1, 2)]),
+            Vector3::new(r[(2, 0)], r[(2, 1)], r[(2, 2)]),
+        ];
+        let a = [sym_mul(&self.i, &rows[0]), sym_mul(&self.i, &rows[1]), sym_mul(&self.i, &rows[2])];
+        let rir = |x: usize, y: usize| a[x].dot(&rows[y]);
         let u = r * self.h;
         let g = u + p * (0.5 * self.m);
         let d = 2.0 * p.dot(&g);
