@@ -1,8 +1,9 @@
 //! Rigid-body dynamics: recursive Newton–Euler inverse dynamics (RNEA), the
 //! joint-torque regressor, the composite-rigid-body mass matrix (CRBA),
-//! forward dynamics, and the derivatives of inverse dynamics and of the
-//! regressor with respect to q, q̇, q̈ (forward-mode dual numbers through the
-//! same generic kernels).
+//! forward dynamics, the derivatives of inverse dynamics (the recursive
+//! algorithm of Carpentier and Mansard, [`id_derivatives_into`]) and of the
+//! regressor with respect to q, q̇, q̈ (forward-mode tangents written out in
+//! f64, [`regressor_derivatives`]).
 //!
 //! # Model
 //!
@@ -1075,10 +1076,11 @@ impl DerivLink {
 ///   ∂τ_j/∂q̇_i = J_jᵀ (2 Y^c_i w_i + B_i J_i);
 /// * zero otherwise.
 ///
-/// B_j is kept as −(A + Aᵀ) x + x ×* H with A = Σ Y_k [v_k]× and
+/// B_j is kept as −(A + Aᵀ) x + x ×* H with A = Σ Y_k (v_k×) and
 /// H = Σ Y_k v_k: the symmetric A + Aᵀ has the blocks
-/// [[I[ω]× − [ω]×I + [h]×[u]× + [u]×[h]×, [h × ω − m u]×], [·ᵀ, 0]] for each body
-/// (Y = (m, h, I), v = (ω, u)): nine numbers per body, summed up the tree.
+/// `[[I [ω]× − [ω]× I + [h]× [u]× + [u]× [h]×, [h × ω − m u]×], [·ᵀ, 0]]` for
+/// each body (Y = (m, h, I), v = (ω, u)): nine numbers per body, summed up
+/// the tree.
 /// Then the motor side: ∂τ/∂q = C⁻ᵀ ∂τ_rb/∂q, ∂τ/∂q̇ = C⁻ᵀ ∂τ_rb/∂q̇ +
 /// diag(f′(C q̇)) C (the friction columns' slopes times θ's coefficients;
 /// sign-model Coulomb terms have slope 0). Rotor inertias do not depend on
