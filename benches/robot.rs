@@ -1,6 +1,7 @@
 //! Kernel benchmarks, single thread: RNEA calls, regressor rows (one n×p block
 //! per state), regressor derivatives, mass matrix (allocating and into a
-//! buffer), allocation-free forward dynamics, for a 6-axis (UR5, PUMA 560,
+//! buffer), allocation-free forward dynamics, the derivatives of inverse
+//! dynamics into buffers (`id_derivatives`), for a 6-axis (UR5, PUMA 560,
 //! the coupled-wrist industrial arm) and a 7-axis (iiwa 14, Panda) robot.
 //!
 //! Run: `cargo bench --bench robot`. Each run also writes its states, one
@@ -109,11 +110,13 @@ fn bench(c: &mut Criterion) {
             })
         });
         let theta = r.nominal_params();
+        let (mut gq, mut gqd) = (nalgebra::DMatrix::zeros(n, n), nalgebra::DMatrix::zeros(n, n));
         g.bench_function("id_derivatives", |b| {
             b.iter(|| {
                 let s = &st[k % st.len()];
                 k += 1;
-                black_box(robot::id_derivatives(&r, &mut ws, theta.as_slice(), &s.0, &s.1, &s.2));
+                robot::dynamics::id_derivatives_into(&r, &mut ws, theta.as_slice(), &s.0, &s.1, &s.2, &mut gq, &mut gqd);
+                black_box((&gq, &gqd));
             })
         });
         g.finish();

@@ -70,6 +70,7 @@ fn dynamics_kernels_do_not_allocate() {
         let mut dqd = dq.clone();
         let mut dqdd = dq.clone();
         let (mut qs, mut qds) = (q.clone(), qd.clone());
+        let (mut gq, mut gqd) = (nalgebra::DMatrix::zeros(n, n), nalgebra::DMatrix::zeros(n, n));
         let mut run = |ws: &mut Workspace| {
             robot::rnea(&r, ws, &q, &qd, &qdd, &mut tau);
             robot::inverse_dynamics(&r, ws, theta, &q, &qd, &qdd, &mut tau);
@@ -79,6 +80,7 @@ fn dynamics_kernels_do_not_allocate() {
             robot::rk4_step(&r, ws, &mut qs, &mut qds, &qdd, 1e-3, |_| Ok(()), |e| e).unwrap();
             robot::regressor_rows(&r, ws, &q, &qd, &qdd, &mut y);
             robot::regressor_derivatives(&r, ws, &q, &qd, &qdd, &mut y, &mut dq, &mut dqd, &mut dqdd);
+            robot::dynamics::id_derivatives_into(&r, ws, theta, &q, &qd, &qdd, &mut gq, &mut gqd);
         };
         run(&mut ws); // warm-up
         let k = allocations(|| run(&mut ws));

@@ -1,7 +1,7 @@
 """Type stubs of the native module idexp._idexp (re-exported by idexp)."""
 
 import os
-from typing import Any, Callable, Optional, Sequence, Union
+from typing import Any, Callable, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -59,6 +59,10 @@ class Robot:
         """Y(q, q̇, q̈)·θ for a given θ (p,); shapes as rnea."""
     def mass_matrix(self, q: ArrayLike) -> F64:
         """Mass matrix (n, n), or (N, n, n) for positions (N, n)."""
+    def id_derivatives(
+        self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, theta: Optional[ArrayLike] = None
+    ) -> Tuple[F64, F64]:
+        """(∂τ/∂q, ∂τ/∂q̇), each (n, n), at one state; θ default nominal."""
     def regressor(self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, base: bool = False) -> F64:
         """τ = Y θ: (n, p) for one state, (N·n, p) state-major for a batch; base=True: base columns."""
     def base_parameters(

@@ -218,6 +218,37 @@ impl Robot {
         }
     }
 
+    /// robot.id_derivatives(q, qd, qdd, theta=None) -> (dtau_dq, dtau_dqd)
+    ///
+    /// Derivatives of inverse dynamics (motor side) at one state, with the
+    /// standard parameters θ (p,; default the nominal ones): ∂τ/∂q and
+    /// ∂τ/∂q̇, each (n, n), entry [j, i] = ∂τ_j/∂x_i (the recursive RNEA
+    /// derivatives, friction slopes included in ∂τ/∂q̇).
+    #[pyo3(signature = (q, qd, qdd, theta = None))]
+    fn id_derivatives<'py>(
+        &self,
+        py: Python<'py>,
+        q: Arg,
+        qd: Arg,
+        qdd: Arg,
+        theta: Option<Arg>,
+    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>)> {
+        let r = &self.inner;
+        let n = r.dof();
+        let theta = self.theta_arg(theta.as_ref())?;
+        let (q, qd, qdd) = arrays::state_triple(&q, &qd, &qdd, n)?;
+        if q.batch || qd.batch || qdd.batch {
+            return Err(value(format!("id_derivatives: one state, q, qd, qdd of shape ({n},)")));
+        }
+        let (a, b) = py.detach(|| {
+            let mut ws = Workspace::new(r);
+            let (a, b) = rb::id_derivatives(r, &mut ws, &theta, q.row(0, n), qd.row(0, n), qdd.row(0, n));
+            let rm = |m: &nalgebra::DMatrix<f64>| (0..n * n).map(|i| m[(i / n, i % n)]).collect::<Vec<f64>>();
+            (rm(&a), rm(&b))
+        });
+        Ok((out2(py, n, n, a), out2(py, n, n, b)))
+    }
+
     /// robot.regressor(q, qd, qdd, base=False) -> Y
     ///
     /// The regressor Y with τ = Y θ (motor side): (n, p) for one state, or

@@ -160,6 +160,34 @@ fn placed_rotation_z<T: Real>(p: &Matrix3<f64>, th: T) -> Matrix3<T> {
     Matrix3::new(a.0, a.1, a.2, b.0, b.1, b.2, d.0, d.1, d.2)
 }
 
+/// The axis is exactly ±e_k: returns (k, ±1).
+#[inline]
+fn coordinate_axis(a: &Vector3<f64>) -> Option<(usize, f64)> {
+    (0..3).find_map(|k| {
+        let others_zero = (0..3).all(|c| c == k || a[c] == 0.0);
+        (others_zero && a[k].abs() == 1.0).then_some((k, a[k]))
+    })
+}
+
+/// `P · axis_angle(±e_k, th)` without the products with the rotation's
+/// zeros: with (i, j, k) cyclic, the rotation keeps e_k and sends
+/// e_i → c e_i + s e_j, e_j → −s e_i + c e_j (s = ±sin th), so column k of
+/// the product is P's, column i is c P_i + s P_j, column j is c P_j − s P_i.
+#[inline]
+fn placed_rotation_axis<T: Real>(p: &Matrix3<f64>, k: usize, sign: f64, th: T) -> Matrix3<T> {
+    let (s, c) = th.sin_cos();
+    let s = s * T::c(sign);
+    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+    let mut out = Matrix3::zeros();
+    for r in 0..3 {
+        let (pi, pj) = (T::c(p[(r, i)]), T::c(p[(r, j)]));
+        out[(r, k)] = T::c(p[(r, k)]);
+        out[(r, i)] = pi * c + pj * s;
+        out[(r, j)] = pj * c - pi * s;
+    }
+    out
+}
+
 /// Fills `kin.rot`, `kin.pos` (parent-relative transforms) for configuration `q`.
 pub fn joint_transforms<T: Real>(robot: &Robot, q: &[T], kin: &mut Kin<T>) {
     for i in 0..robot.joints.len() {
@@ -179,8 +207,15 @@ pub(crate) fn joint_transform<T: Real>(robot: &Robot, i: usize, qi: T) -> (Matri
     let a = j.axis.into_inner();
     match j.kind {
         JointKind::Revolute => {
-            let r_plm = if T::IS_F64 && is_plus_z(&a) {
+            // +e_z: f64 bit for bit the general product (the dual numbers
+            // keep the general product there, so the shared-transform dual
+            // passes equal independent ones); other coordinate axes: the
+            // shortcut in every scalar type
+            let z = is_plus_z(&a);
+            let r_plm = if T::IS_F64 && z {
                 placed_rotation_z(&g.pl_r, th)
+            } else if let (false, Some((k, sign))) = (z, coordinate_axis(&a)) {
+                placed_rotation_axis(&g.pl_r, k, sign, th)
             } else {
                 lift33::<T>(&g.pl_r) * axis_angle(&a, th)
             };
@@ -275,6 +310,44 @@ pub fn frame_jacobian(robot: &Robot, ws: &mut super::Workspace, q: &[f64], frame
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The coordinate-axis shortcut equals the general Rodrigues formula and
+    /// 3×3 product to 1e-15, for ±e_x, ±e_y, ±e_z, placements of the shipped
+    /// robots and random angles, in f64 and in the dual numbers (value and
+    /// derivative).
+    #[test]
+    fn coordinate_axis_rotation_equals_the_general_product() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let mut placements = vec![Matrix3::identity()];
+        for f in ["ur5", "panda", "iiwa14", "puma560", "industrial6"] {
+            let r = crate::robot::load(&root.join(format!("designs/robots/{f}.toml"))).unwrap();
+            placements.extend(r.geo.iter().map(|g| g.pl_r));
+        }
+        let mut checked = 0;
+        for k in 0..3 {
+            for sign in [1.0, -1.0] {
+                let mut a = Vector3::zeros();
+                a[k] = sign;
+                assert_eq!(coordinate_axis(&a), Some((k, sign)));
+                for p in &placements {
+                    for t in 0..50 {
+                        let th = -3.5 + 0.1437 * t as f64;
+                        let got = placed_rotation_axis(p, k, sign, th);
+                        let want = p * axis_angle(&a, th);
+                        assert!((got - want).amax() <= 1e-15, "axis {a:?} at {th}: {got} vs {want}");
+                        let gd = placed_rotation_axis(p, k, sign, Dual64::new(th, 1.0));
+                        let wd = lift33::<Dual64>(p) * axis_angle(&a, Dual64::new(th, 1.0));
+                        for (x, y) in gd.iter().zip(wd.iter()) {
+                            assert!((x.re - y.re).abs() <= 1e-15 && (x.eps - y.eps).abs() <= 1e-15, "dual, axis {a:?} at {th}");
+                        }
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        assert!(checked > 1000);
+        assert_eq!(coordinate_axis(&Vector3::new(0.6, 0.8, 0.0)), None);
+    }
 
     /// The e_z shortcut of the revolute joint transform returns the general
     /// Rodrigues-and-product result bit for bit (signs of zeros included)
