@@ -123,3 +123,45 @@ def test_safety_replay_bad_input_names_the_file(tmp_path):
     (tmp_path / "trajectory.csv").write_text("t,q1\n0,0\n")
     with pytest.raises(sr.InputError, match=r"trajectory.csv: header lacks columns"):
         sr.replay(DESIGNS / "excite_ur5.toml", tmp_path)
+
+
+@pytest.mark.parametrize(
+    "design, merged",
+    [
+        # the hand and the fingers are merged into panda_link7, the ee_link box into wrist_3_link
+        ("excite_panda_table.toml", {"panda_hand_0", "panda_leftfinger_0", "panda_leftfinger_1", "panda_rightfinger_0", "panda_rightfinger_1"}),
+        ("excite_ur5.toml", {"ee_link_0"}),
+    ],
+)
+def test_safety_replay_one_joint_exclusion_holds_for_the_merged_shapes(design, merged):
+    # idexp (and the replay) leave out the bodies joined by one joint. The
+    # links themselves meet at the joint; shapes merged into the child body
+    # (hand, fingers, flange box) do not, and must keep the margin from the
+    # parent body over the joint's whole range (their distance depends on that
+    # joint alone): swept at 0.1° steps with coal on the meshes
+    sr = replay_module()
+    model, gmodel, _, excluded, margin, _ = sr.build(DESIGNS / design)
+    data = model.createData()
+    gos = list(gmodel.geometryObjects)
+    names = {g.name for g in gos}
+    assert merged <= names, merged - names
+    req, res = coal.DistanceRequest(), coal.DistanceResult()
+    worst = {}
+    for child in (g for g in gos if g.name in merged):
+        j = child.parentJoint
+        parents = [g for g in gos if g.parentJoint == model.parents[j]]
+        lo, hi = model.lowerPositionLimit[j - 1], model.upperPositionLimit[j - 1]
+        for v in np.arange(lo, hi, np.radians(0.1)):
+            qv = pin.neutral(model)
+            qv[model.joints[j].idx_q] = v
+            pin.forwardKinematics(model, data, qv)
+            Mc = data.oMi[j] * child.placement
+            for par in parents:
+                Mp = data.oMi[par.parentJoint] * par.placement
+                res.clear()
+                d = coal.distance(
+                    par.geometry, coal.Transform3s(Mp.rotation, Mp.translation), child.geometry, coal.Transform3s(Mc.rotation, Mc.translation), req, res
+                )
+                key = (par.name, child.name)
+                worst[key] = min(worst.get(key, np.inf), d)
+    assert worst and all(d >= margin for d in worst.values()), worst
