@@ -305,7 +305,9 @@ def replay(design_path: Path, out_dir: Path, hulls: bool = False, mesh_dirs=None
             if gap.size:
                 entry["hull_gap_min"] = float(gap.min())
                 entry["hull_gap_median"] = float(np.median(gap))
-                entry["hull_gap_at_mesh_min"] = float(col[np.argmin(col)] - hcol[np.argmin(col)]) if col.min() < cap else None
+                kh = int(np.argmin(hcol))
+                entry["hull_gap_at_hull_min"] = float(col[kh] - hcol[kh]) if hcol[kh] < cap and col[kh] < cap else None
+                entry["hull_gap_max"] = float(gap.max())
         summary.append(entry)
     unsafe = any(e["below_margin"] for e in summary)
     return {
@@ -347,7 +349,9 @@ def main(argv=None) -> int:
         if "hull_min" in e:
             extra = f"  hull {e['hull_min']:.4f}"
             if "hull_gap_min" in e:
-                extra += f", mesh−hull ≥ {e['hull_gap_min']:.4f} (median {e['hull_gap_median']:.4f})"
+                extra += f", mesh−hull {e['hull_gap_min']:.4f} … {e['hull_gap_max']:.4f} (median {e['hull_gap_median']:.4f})"
+                if e.get("hull_gap_at_hull_min") is not None:
+                    extra += f", {e['hull_gap_at_hull_min']:.4f} where the hull is closest"
         flag = f"  BELOW MARGIN at {e['below_margin']} samples (first t = {e['first_below_t']:.3f} s)" if e["below_margin"] else ""
         print(f"  {e['pair']:<40} min {e['min']:.4f} m at t = {e['t']:.3f} s (segment {e['segment']}){extra}{flag}")
     print(f"verdict: {s['verdict']}")
