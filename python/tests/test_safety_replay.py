@@ -73,7 +73,9 @@ def test_safety_replay_ur5_hull_distances_below_mesh_distances_and_margin_kept(u
         ("forearm_link", "wrist_1_link"),
         ("wrist_1_link", "wrist_2_link"),
         ("wrist_2_link", "wrist_3_link"),
+        ("base_link", "floor"),
     }
+    assert f"{len(summary['excluded'])} pairs not checked" in (ur5_run / "report.txt").read_text()
 
     # 3. one period at 1 kHz (periodic.csv, idexp's verification grid): per
     # pair, idexp's least hull distance and where; the mesh distance there and
