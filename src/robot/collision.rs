@@ -1458,9 +1458,15 @@ impl CollisionScene {
                     continue;
                 }
                 if b == 0 {
-                    // the base stands on the floor; against a cell obstacle
-                    // the distance is constant in q: checked all the same
+                    // the base stands on the floor (its mesh may reach below
+                    // the mounting plane: the UR5's by 3 mm); against a cell
+                    // obstacle the distance is constant in q: checked all the same
                     if is_floor {
+                        excluded.push(ExcludedPair {
+                            a: bodies[0].name.clone(),
+                            b: bodies[oi].name.clone(),
+                            reason: "the base is mounted on it (fixed: the distance does not change with the motion)".into(),
+                        });
                         continue;
                     }
                 }
