@@ -139,20 +139,25 @@ def package_tree(urdf: Path, robot_path: Path, mesh_path: list, tmp: Path) -> st
     return str(tmp)
 
 
-def build(design_path: Path, mesh_dirs: list[str] | None = None, hulls: bool = False):
+def build(design_path: Path, mesh_dirs: list[str] | None = None, hulls: bool = False, meshes: str = "collision"):
     design, robot, robot_path = load_design(design_path)
     urdf_rel = robot.get("urdf")
     if not isinstance(urdf_rel, str):
         raise InputError(f"{robot_path}: field `urdf`: the replay needs a URDF robot")
     urdf = robot_path.parent / urdf_rel
     dirs = list(mesh_dirs or []) or vendor_share()
+    if meshes not in ("collision", "visual"):
+        raise InputError(f"--meshes {meshes}: expected collision or visual")
+    if meshes == "visual" and not dirs:
+        raise InputError("--meshes visual: the vendor's visual meshes come from the PyPI package example-robot-data (pip install example-robot-data), not found")
     if not dirs:
         import tempfile
 
         # the shipped copies (byte for byte the vendor's, see designs/robots/meshes/README.md)
         dirs = [package_tree(urdf, robot_path, robot.get("mesh_path", []), Path(tempfile.mkdtemp(prefix="replay-meshes-")))]
     model = pin.buildModelFromUrdf(str(urdf))
-    gmodel = pin.buildGeomFromUrdf(model, str(urdf), pin.GeometryType.COLLISION, package_dirs=dirs)
+    gtype = pin.GeometryType.VISUAL if meshes == "visual" else pin.GeometryType.COLLISION
+    gmodel = pin.buildGeomFromUrdf(model, str(urdf), gtype, package_dirs=dirs)
     # bodies: the base (joint 0) and one per moving joint, named by the link the joint moves
     base = robot.get("base_link")
     names = {}
@@ -259,10 +264,10 @@ def pair_distance(p: Pair, oMg: dict, cap: float, use_hull: bool, req, res) -> f
     return best
 
 
-def replay(design_path: Path, out_dir: Path, hulls: bool = False, mesh_dirs=None, stride: int = 1, trajectory: str = "trajectory.csv", cap: float | None = None):
+def replay(design_path: Path, out_dir: Path, hulls: bool = False, mesh_dirs=None, stride: int = 1, trajectory: str = "trajectory.csv", cap: float | None = None, meshes: str = "collision"):
     """Replays `out_dir/trajectory`; distances are capped at `cap` (default
     the design's margin + band): a pair farther apart reports the cap."""
-    model, gmodel, pairs, excluded, margin, band = build(design_path, mesh_dirs, hulls)
+    model, gmodel, pairs, excluded, margin, band = build(design_path, mesh_dirs, hulls, meshes)
     if cap is None:
         cap = margin + band
     if not (math.isfinite(cap) and cap >= margin):
@@ -318,6 +323,7 @@ def replay(design_path: Path, out_dir: Path, hulls: bool = False, mesh_dirs=None
         "design": str(design_path),
         "trajectory": str(out_dir / trajectory),
         "samples": len(rows),
+        "meshes": meshes,
         "margin": margin,
         "cap": cap,
         "excluded": [{"a": a, "b": b, "reason": r} for a, b, r in excluded],
@@ -331,6 +337,7 @@ def main(argv=None) -> int:
     ap.add_argument("design", type=Path, help="design file (TOML)")
     ap.add_argument("out", type=Path, help="output folder of `idexp excite` (holds trajectory.csv)")
     ap.add_argument("--json", type=Path, help="write the summary as JSON here")
+    ap.add_argument("--meshes", choices=["collision", "visual"], default="collision", help="the vendor's collision meshes (default) or its full visual meshes (from example-robot-data)")
     ap.add_argument("--hulls", action="store_true", help="also coal's convex-hull distances: the margin the hulls add")
     ap.add_argument("--mesh-dir", action="append", help="package folder for package:// meshes (default: example-robot-data's)")
     ap.add_argument("--stride", type=int, default=1, help="replay every n-th sample (default 1: all)")
@@ -341,11 +348,11 @@ def main(argv=None) -> int:
         print("safety-replay: --stride must be ≥ 1", file=sys.stderr)
         return 2
     try:
-        s, _ = replay(a.design, a.out, a.hulls, a.mesh_dir, a.stride, a.trajectory, a.cap)
+        s, _ = replay(a.design, a.out, a.hulls, a.mesh_dir, a.stride, a.trajectory, a.cap, a.meshes)
     except InputError as e:
         print(f"safety-replay: {e}", file=sys.stderr)
         return 2
-    print(f"{s['design']}: {s['samples']} samples of {s['trajectory']}, margin {s['margin']} m")
+    print(f"{s['design']}: {s['samples']} samples of {s['trajectory']}, the vendor's {s['meshes']} meshes, margin {s['margin']} m")
     for e in s["excluded"]:
         print(f"  not checked: {e['a']} – {e['b']}: {e['reason']}")
     for e in sorted(s["pairs"], key=lambda e: e["min"]):

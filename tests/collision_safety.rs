@@ -92,3 +92,110 @@ fn the_base_floor_pair_is_listed_as_not_checked() {
         assert!(low < below, "{name}: base lowest point {low}");
     }
 }
+
+/// The robot file with its `collision_padding` table replaced by `pads`
+/// (TOML text, empty for none), paths made absolute, in `dir`.
+fn ur5_with_padding(dir: &Path, pads: &str) -> std::path::PathBuf {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/robots");
+    let text = std::fs::read_to_string(root.join("ur5.toml")).unwrap();
+    let mut out = String::new();
+    for line in text.lines() {
+        if line.starts_with("collision_padding") {
+            out.push_str(pads);
+        } else if line.starts_with("urdf = ") {
+            out.push_str(&format!("urdf = \"{}\"", root.join("ur5.urdf").display()));
+        } else if line.starts_with("mesh_path = ") {
+            out.push_str(&format!("mesh_path = [\"{}\"]", root.join("meshes/ur5").display()));
+        } else {
+            out.push_str(line);
+        }
+        out.push('\n');
+    }
+    assert!(
+        out.contains("urdf = \"/") && out.contains("mesh_path = [\"/"),
+        "the UR5 robot file changed shape"
+    );
+    let p = dir.join("ur5.toml");
+    std::fs::write(&p, out).unwrap();
+    p
+}
+
+#[test]
+fn collision_padding_lowers_each_distance_by_the_two_paddings() {
+    // the padded shapes are the hulls grown by balls: every distance (and
+    // the culled evaluation's bounds) is the bare one less both paddings,
+    // whatever the configuration; the floor is not padded
+    let shipped = idexp::robot::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/robots/ur5.toml")).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let bare = idexp::robot::load(&ur5_with_padding(tmp.path(), "")).unwrap();
+    let pad = |link: &str| -> f64 {
+        match link {
+            "base_link" => 0.0005,
+            "shoulder_link" => 0.0014,
+            "upper_arm_link" => 0.0019,
+            "forearm_link" => 0.0015,
+            "wrist_1_link" => 0.0006,
+            "wrist_2_link" => 0.0010,
+            "wrist_3_link" => 0.0005,
+            "floor" => 0.0,
+            other => panic!("unexpected body {other}"),
+        }
+    };
+    let spec = CollisionSpec::default();
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let sp = CollisionScene::new(&shipped, &spec, dir, "test").unwrap().unwrap();
+    let sb = CollisionScene::new(&bare, &spec, dir, "test").unwrap().unwrap();
+    assert_eq!(sp.len(), sb.len());
+    let mut kin = idexp::robot::kinematics::Kin::new(6);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let cap = 0.5;
+    let mut compared = 0;
+    for _ in 0..300 {
+        let q: Vec<f64> = (0..6).map(|_| rng.random_range(-3.0..3.0)).collect();
+        let dp = sp.distances(&shipped, &mut kin, &q, cap);
+        let db = sb.distances(&bare, &mut kin, &q, cap);
+        for (p, b) in dp.iter().zip(&db) {
+            assert_eq!(p.label, b.label);
+            let (_, names) = p.label.split_once(": ").unwrap();
+            let (a, c) = names.split_once(" – ").unwrap();
+            let off = pad(a) + pad(c);
+            if b.distance < cap - 0.01 {
+                assert!(
+                    (p.distance - (b.distance - off)).abs() < 1e-9,
+                    "{} at {q:?}: padded {} vs bare {} − {off}",
+                    p.label,
+                    p.distance,
+                    b.distance
+                );
+                compared += 1;
+            }
+            // culled = exhaustive with padding: the worst pair is the same
+        }
+        let wp = sp.worst_at(&shipped, &mut kin, &q, cap).unwrap();
+        let all_min = dp.iter().map(|d| d.distance).fold(f64::INFINITY, f64::min);
+        assert!((wp.distance - all_min).abs() < 1e-9, "worst_at {} vs the minimum {all_min}", wp.distance);
+    }
+    assert!(compared > 1000, "{compared} distances compared");
+}
+
+#[test]
+fn collision_padding_bad_values_are_refused_naming_the_field() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (pads, field, what) in [
+        (
+            "collision_padding = { forearm_link = -0.001 }",
+            "collision_padding.forearm_link",
+            "between 0 and 0.1 m",
+        ),
+        (
+            "collision_padding = { forearm_link = 0.5 }",
+            "collision_padding.forearm_link",
+            "between 0 and 0.1 m",
+        ),
+        ("collision_padding = { elbow = 0.001 }", "collision_padding.elbow", "no link named `elbow`"),
+    ] {
+        let p = ur5_with_padding(tmp.path(), pads);
+        let e = idexp::robot::load(&p).unwrap_err().to_string();
+        assert!(e.contains(field) && e.contains(what) && e.contains("ur5.toml"), "{pads}: {e}");
+    }
+}

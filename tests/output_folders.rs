@@ -156,7 +156,12 @@ fn assert_whole_excite(dir: &Path) {
     let c: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("coefficients.json")).unwrap()).unwrap();
     assert_eq!(c["cond"], st["summary"]["cond"], "{}: mixed result set", dir.display());
     let k: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("criterion.json")).unwrap()).unwrap();
-    assert_eq!(k["figures"][0]["cond"], st["summary"]["cond"], "{}: mixed result set (criterion.json)", dir.display());
+    assert_eq!(
+        k["figures"][0]["cond"],
+        st["summary"]["cond"],
+        "{}: mixed result set (criterion.json)",
+        dir.display()
+    );
 }
 
 #[test]

@@ -1409,11 +1409,27 @@ pub fn collision_text(p: &Problem, margins: &[Margin], rate: f64) -> String {
     for e in &sc.excluded {
         let _ = writeln!(s, "  not checked: {} – {}: {}", e.a, e.b, e.reason);
     }
-    let _ = writeln!(
-        s,
-        "  distances between convex parts (primitives, convex hulls of the meshes): a hull holds its mesh, so the \
-         mesh distance is at least the one reported (replay on the full meshes: scripts/safety-replay.py)"
-    );
+    let padded: Vec<String> = sc
+        .bodies()
+        .iter()
+        .filter(|b| b.padding() > 0.0)
+        .map(|b| format!("{} {:.1} mm", b.name, b.padding() * 1e3))
+        .collect();
+    if padded.is_empty() {
+        let _ = writeln!(
+            s,
+            "  distances between convex parts (primitives, convex hulls of the meshes): a hull holds its mesh, so the \
+             mesh distance is at least the one reported (replay on the full meshes: scripts/safety-replay.py)"
+        );
+    } else {
+        let _ = writeln!(
+            s,
+            "  distances between convex parts (primitives, convex hulls of the collision meshes) grown by the robot \
+             file's collision_padding ({}), which holds the vendor's full visual meshes: the distance of the full meshes \
+             is at least the one reported (replay: scripts/safety-replay.py --meshes visual)",
+            padded.join(", ")
+        );
+    }
     for (kind, label) in [(ConstraintKind::SelfCollision, "self"), (ConstraintKind::WorldCollision, "world")] {
         if let Some(w) = margins.iter().filter(|m| m.kind == kind).min_by(|a, b| a.worst.total_cmp(&b.worst)) {
             let pair = w.name.trim_start_matches("distance ").split(" ≥ ").next().unwrap_or(&w.name);

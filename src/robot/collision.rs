@@ -125,6 +125,10 @@ pub struct ConvexPart {
     capsule: Option<BoundCapsule>,
     /// Vertex adjacency of a convex polyhedron, for support points by hill climbing.
     climb: Option<std::sync::Arc<ClimbHull>>,
+    /// Padding (m): the part is its shape grown by a ball of this radius
+    /// (the Minkowski sum), so every distance to it is the shape's less `pad`
+    /// and its support function is the shape's plus `pad` (both exact).
+    pad: f64,
 }
 
 /// A convex polyhedron's vertices with their adjacency on its boundary
@@ -485,6 +489,11 @@ impl ConvexPart {
         if self.halfspace.is_some() {
             return f64::INFINITY;
         }
+        self.pad + self.shape_support(x, d, start)
+    }
+
+    /// [`Self::world_support`] of the shape without its padding.
+    fn shape_support(&self, x: &Isometry3<f64>, d: &Vector3<f64>, start: &mut u32) -> f64 {
         let pose = x * self.local;
         let dl = pose.rotation.inverse_transform_vector(d);
         let local = if let Some(h) = &self.climb {
@@ -536,6 +545,21 @@ impl Body {
             }
             self.parts.push(q);
         }
+    }
+
+    /// Grows every bounded part by a ball of radius `pad` (m; the largest
+    /// padding given wins): distances to the body become those of the
+    /// grown shapes (see [`RobotGeometry`] and the robot file's
+    /// `collision_padding`).
+    pub fn pad_parts(&mut self, pad: f64) {
+        for p in self.parts.iter_mut().filter(|p| p.halfspace.is_none()) {
+            p.pad = p.pad.max(pad);
+        }
+    }
+
+    /// The largest padding of the body's parts (m).
+    pub fn padding(&self) -> f64 {
+        self.parts.iter().map(|p| p.pad).fold(0.0, f64::max)
     }
 
     /// True if the body contains an unbounded part (a half-space).
@@ -608,6 +632,7 @@ fn part(shape: SharedShape, local: Isometry3<f64>) -> ConvexPart {
         halfspace: None,
         capsule,
         climb,
+        pad: 0.0,
     }
 }
 
@@ -741,6 +766,7 @@ impl Body {
                         halfspace: Some((nw, offw)),
                         capsule: None,
                         climb: None,
+                        pad: 0.0,
                     });
                 }
             }
@@ -800,8 +826,13 @@ impl Body {
 }
 
 /// Lower bound on the distance between two parts from their bounding spheres
-/// (or the plane), in the world frame.
+/// (or the plane), in the world frame, paddings included.
 fn part_lower_bound(a: &ConvexPart, xa: &Isometry3<f64>, b: &ConvexPart, xb: &Isometry3<f64>) -> f64 {
+    shape_lower_bound(a, xa, b, xb) - a.pad - b.pad
+}
+
+/// [`part_lower_bound`] of the shapes without their paddings.
+fn shape_lower_bound(a: &ConvexPart, xa: &Isometry3<f64>, b: &ConvexPart, xb: &Isometry3<f64>) -> f64 {
     match (&a.halfspace, &b.halfspace) {
         (None, None) => ((xa * a.centre) - (xb * b.centre)).norm() - a.radius - b.radius,
         (Some((n, off)), None) => {
@@ -817,8 +848,14 @@ fn part_lower_bound(a: &ConvexPart, xa: &Isometry3<f64>, b: &ConvexPart, xb: &Is
 }
 
 /// Lower bound on the signed distance between two parts from their bounding
-/// capsules (or the plane), in the world frame; −∞ when a part has none.
+/// capsules (or the plane), in the world frame, paddings included; −∞ when a
+/// part has none.
 fn part_capsule_bound(a: &ConvexPart, xa: &Isometry3<f64>, b: &ConvexPart, xb: &Isometry3<f64>) -> f64 {
+    shape_capsule_bound(a, xa, b, xb) - a.pad - b.pad
+}
+
+/// [`part_capsule_bound`] of the shapes without their paddings.
+fn shape_capsule_bound(a: &ConvexPart, xa: &Isometry3<f64>, b: &ConvexPart, xb: &Isometry3<f64>) -> f64 {
     let plane_bound = |hp: &ConvexPart, xh: &Isometry3<f64>, cp: &BoundCapsule, xc: &Isometry3<f64>| -> f64 {
         let Some((n, off)) = &hp.halfspace else {
             return f64::NEG_INFINITY;
@@ -840,7 +877,9 @@ fn world_plane(x: &Isometry3<f64>, n: &Vector3<f64>, off: f64) -> (Vector3<f64>,
     (nw, off + nw.dot(&x.translation.vector))
 }
 
-/// Signed distance of two convex parts at world poses, if below `cap`.
+/// Signed distance of two convex parts at world poses, if below `cap`
+/// (paddings included: the shapes' distance less both paddings, the witness
+/// points moved onto the grown surfaces along the normal).
 /// `sep` receives, when GJK proves the parts farther apart than `cap`, its
 /// separating direction (world frame, from `a` toward `b`; see
 /// [`CollisionScene::pair_query`]); the result itself does not depend on it.
@@ -858,7 +897,8 @@ fn part_proximity(
     }
     let pa = xa * a.local;
     let pb = xb * b.local;
-    let pred = cap.max(0.0);
+    let off = a.pad + b.pad;
+    let pred = (cap + off).max(0.0);
     // parry 0.25's (support map, half-space) contact measures from the wrong
     // side (found by tests/collision.rs); the (half-space, support map) order
     // is right, so a half-space always goes first and the result is flipped.
@@ -878,14 +918,15 @@ fn part_proximity(
             }
         }
     };
-    if c.dist > cap {
+    if c.dist - off > cap {
         return None;
     }
+    let normal = c.normal1.into_inner();
     Some(Proximity {
-        distance: c.dist,
-        p1: c.point1,
-        p2: c.point2,
-        normal: c.normal1.into_inner(),
+        distance: c.dist - off,
+        p1: c.point1 + normal * a.pad,
+        p2: c.point2 - normal * b.pad,
+        normal,
     })
 }
 

@@ -85,6 +85,11 @@ struct RobotFile {
     /// Collision shapes per link (DH robots; added to a URDF's own).
     #[serde(default)]
     collision: Vec<CollisionShapeSpec>,
+    /// Padding per link (m): its collision shapes grown by a ball of this
+    /// radius, e.g. so that they hold the vendor's full (visual) meshes,
+    /// which reach beyond the hulls of the collision meshes.
+    #[serde(default)]
+    collision_padding: std::collections::BTreeMap<String, f64>,
     /// Pairs never checked, each with its reason.
     #[serde(default)]
     allowed_collision: Vec<super::collision::AllowedCollision>,
@@ -384,6 +389,23 @@ fn collision_geometry(path: &Path, f: &RobotFile, robot: &Robot, ctx: &str) -> R
         };
         let b = Body::new(&c.link, &[spec], mode, &format!("{ctx}: {field}"))?;
         bodies[idx].merge(&b, &at);
+    }
+    for (link, &pad) in &f.collision_padding {
+        let field = format!("collision_padding.{link}");
+        if !(pad.is_finite() && (0.0..=0.1).contains(&pad)) {
+            return Err(Error::invalid(ctx, &field, format!("{pad} m: expected a padding between 0 and 0.1 m")));
+        }
+        let Some(i) = members.iter().position(|m| m.iter().any(|x| x == link)) else {
+            return Err(Error::invalid(
+                ctx,
+                &field,
+                format!(
+                    "no link named `{link}`; links are: base, {}",
+                    robot.links.iter().map(|l| l.name.as_str()).collect::<Vec<_>>().join(", ")
+                ),
+            ));
+        };
+        bodies[i].pad_parts(pad);
     }
     let known = |name: &str| members.iter().any(|m| m.iter().any(|x| x == name));
     let mut allowed = Vec::new();
