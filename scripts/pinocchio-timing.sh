@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Pinocchio side by side with idexp's kernels (README, "Performance"): the same
+# Pinocchio side by side with idexp's kernels (docs/performance.md): the same
 # UR5 and Panda URDFs, the same states, one thread. Builds a small C++ timing
 # program against the headers and libraries of the PyPI wheel `pin`
 # (Pinocchio) in the Python venv, runs idexp's criterion bench `robot` for

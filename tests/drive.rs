@@ -339,13 +339,13 @@ fn pick_and_place_with_dwell_tanh_model_beats_sign_model_at_standstill() {
         );
     }
     // with q̇ from the positions (this run logs no qd*), the standstill acceptance
-    // is not met (README "Drives"): the velocity estimated at rest is off by
+    // is not met (docs/robots.md, "Drives"): the velocity estimated at rest is off by
     // amounts comparable to v_s, so the tanh estimate is biased beyond 3σ and
     // its standstill error is above the noise on joints 1 and 3 (see
     // `standstill_torque_error_of_the_tanh_model_comes_from_the_velocity_estimate`);
     // with the drive's logged velocities it is met
     // (`pick_and_place_with_logged_drive_velocities_meets_the_standstill_acceptance`)
-    assert!(zt > 3.0, "max|z| {zt}: the acceptance is met now, update README \"Drives\"");
+    assert!(zt > 3.0, "max|z| {zt}: the acceptance is met now, update docs/robots.md \"Drives\"");
     assert!(rt[0] > 2.0 * ft[0] && rt[2] > 2.0 * ft[2] && rt[1] < 2.0 * ft[1], "{rt:?} vs {ft:?}");
     for j in 0..3 {
         // over the whole motion and at standstill, the tanh model predicts better
@@ -526,7 +526,7 @@ fn bad_drive_inputs_are_errors_naming_file_and_joint() {
 }
 
 /// Why the tanh model misses the standstill acceptance on the shipped
-/// pick-and-place (measured, see README "Drives"): the arm is not at rest
+/// pick-and-place (measured, see docs/robots.md, "Drives"): the arm is not at rest
 /// during the dwell (it creeps at 0.1–1 v_s, so q̇ = q̈ = 0 is no fix), and
 /// the estimated q̇ there is off by amounts comparable to v_s, where
 /// ∂τ/∂q̇ = Fc/v_s is 300–4000 N·m·s/rad: the true model evaluated at the
@@ -704,7 +704,7 @@ fn simulate_edited(name: &str, edit: impl Fn(&mut idexp::sim::SimDesign)) -> ide
 /// 1.7e-5 rad/s; q and τ are the same samples as without them). Identified
 /// with the logged q̇ (q̈ from it, low-pass 40 Hz), the tanh model on every
 /// row meets the standstill acceptance; the sign model on the same data does
-/// not. Measured, not tuned: the numbers are printed (README "Drives").
+/// not. Measured, not tuned: the numbers are printed (docs/robots.md, "Drives").
 #[test]
 fn pick_and_place_with_logged_drive_velocities_meets_the_standstill_acceptance() {
     use idexp::ident::{Filter, FilterChoice, IdentOptions, Standstill, VelocityFrom, VelocitySource};

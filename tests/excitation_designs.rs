@@ -2,7 +2,7 @@
 //! the restrained workspace against the full one (paper 000), infeasible
 //! settings reported by constraint, the `idexp excite` / `idexp assess`
 //! commands and their outputs. Budgets are small so the default run stays
-//! short; the full-budget studies are `#[ignore]`d (see the README).
+//! short; the full-budget studies are `#[ignore]`d (see docs/testing.md).
 
 use idexp::excitation::design::ExciteDesign;
 use idexp::excitation::{run, ExciteResult, Problem, Status};

@@ -11,7 +11,7 @@
 //! Seeded (the sequence of mutants is fixed) and bounded: at most
 //! `MUTANTS_PER_FILE` mutants per file and `BUDGET` of wall time overall, so
 //! a loaded machine runs a prefix of the same sequence. Longer, coverage-
-//! guided runs: the `cargo fuzz` target in fuzz/ (README, "Fuzzing").
+//! guided runs: the `cargo fuzz` target in fuzz/ (docs/testing.md).
 
 mod common;
 use common::root;

@@ -2,7 +2,7 @@
 //! with the inertial parameters of every link, or a pointer to a URDF; either
 //! way with the drive side URDF lacks (rotor inertia, gear ratio, friction,
 //! acceleration limits), a joint coupling matrix and named frames.
-//! The format is documented in the README ("Robot files").
+//! The format is documented in docs/robots.md.
 
 use super::model::{Coulomb, Drive, Frame, Friction, Inertial, Joint, JointKind, JointLimits, Link, Robot, RobotParts};
 use super::urdf::{load_urdf, pose_to_iso};
