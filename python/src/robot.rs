@@ -9,6 +9,9 @@ use pyo3::prelude::*;
 use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
 
+/// A pair of (n, n) float64 arrays (∂τ/∂q, ∂τ/∂q̇).
+type MatrixPair<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
+
 /// Pinocchio's order of a body's 10 dynamic parameters
 /// `[m, mcx, mcy, mcz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz]` as indices into idexp's
 /// `[XX, XY, XZ, YY, YZ, ZZ, MX, MY, MZ, M]` (both about the body frame origin).
@@ -232,7 +235,7 @@ impl Robot {
         qd: Arg,
         qdd: Arg,
         theta: Option<Arg>,
-    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>)> {
+    ) -> PyResult<MatrixPair<'py>> {
         let r = &self.inner;
         let n = r.dof();
         let theta = self.theta_arg(theta.as_ref())?;
