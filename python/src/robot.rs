@@ -228,14 +228,7 @@ impl Robot {
     /// ∂τ/∂q̇, each (n, n), entry [j, i] = ∂τ_j/∂x_i (the recursive RNEA
     /// derivatives, friction slopes included in ∂τ/∂q̇).
     #[pyo3(signature = (q, qd, qdd, theta = None))]
-    fn id_derivatives<'py>(
-        &self,
-        py: Python<'py>,
-        q: Arg,
-        qd: Arg,
-        qdd: Arg,
-        theta: Option<Arg>,
-    ) -> PyResult<MatrixPair<'py>> {
+    fn id_derivatives<'py>(&self, py: Python<'py>, q: Arg, qd: Arg, qdd: Arg, theta: Option<Arg>) -> PyResult<MatrixPair<'py>> {
         let r = &self.inner;
         let n = r.dof();
         let theta = self.theta_arg(theta.as_ref())?;
