@@ -19,12 +19,17 @@ pin = pytest.importorskip("pinocchio")
 coal = pytest.importorskip("coal")
 
 
-def replay_module():
-    spec = importlib.util.spec_from_file_location("safety_replay", ROOT / "scripts" / "safety-replay.py")
+def load_script(file, name):
+    """A script of scripts/ as a module."""
+    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / file)
     mod = importlib.util.module_from_spec(spec)
-    sys.modules["safety_replay"] = mod
+    sys.modules[name] = mod
     spec.loader.exec_module(mod)
     return mod
+
+
+def replay_module():
+    return load_script("safety-replay.py", "safety_replay")
 
 
 @pytest.fixture(scope="module")
@@ -170,11 +175,7 @@ def test_safety_replay_one_joint_exclusion_holds_for_the_merged_shapes(design, m
 
 
 def padding_module():
-    spec = importlib.util.spec_from_file_location("full_mesh_padding", ROOT / "scripts" / "full-mesh-padding.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["full_mesh_padding"] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("full-mesh-padding.py", "full_mesh_padding")
 
 
 @pytest.mark.parametrize("robot", ["ur5", "panda"])
