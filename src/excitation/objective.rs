@@ -346,16 +346,7 @@ impl Objective {
             let col = &w.c[j * rows..(j + 1) * rows];
             let nrm = col.iter().map(|v| v * v).sum::<f64>().sqrt();
             w.col_norm[j] = nrm;
-            let f = match self.scaling {
-                Scaling::UnitColumn => {
-                    if nrm > 0.0 {
-                        1.0 / nrm
-                    } else {
-                        0.0
-                    }
-                }
-                _ => self.fixed_scale[j],
-            };
+            let f = self.column_factor(j, nrm);
             for r in j * rows..(j + 1) * rows {
                 w.cs[r] = w.c[r] * f;
             }
@@ -461,6 +452,16 @@ impl Objective {
         })
     }
 
+    /// The factor D_jj of column j whose norm over the samples is `nrm`:
+    /// 1/‖c_j‖ for unit columns (0 for a zero column), else the fixed factor.
+    fn column_factor(&self, j: usize, nrm: f64) -> f64 {
+        match self.scaling {
+            Scaling::UnitColumn if nrm > 0.0 => 1.0 / nrm,
+            Scaling::UnitColumn => 0.0,
+            _ => self.fixed_scale[j],
+        }
+    }
+
     /// Everything one evaluation of trajectory `tr` is made of, for the report
     /// and its replay from the written files: the samples exactly as the
     /// criterion uses them (t_i of [`Objective::times`], q̇ entries below
@@ -471,13 +472,7 @@ impl Objective {
         let mut w = self.workspace();
         let spectrum = self.spectrum(tr, &mut w)?;
         let m = self.n_cols();
-        let scale = (0..m)
-            .map(|j| match self.scaling {
-                Scaling::UnitColumn if w.col_norm[j] > 0.0 => 1.0 / w.col_norm[j],
-                Scaling::UnitColumn => 0.0,
-                _ => self.fixed_scale[j],
-            })
-            .collect();
+        let scale = (0..m).map(|j| self.column_factor(j, w.col_norm[j])).collect();
         let samples = crate::io::States {
             t: Some(self.times.clone()),
             q: w.states.iter().map(|s| s[0].clone()).collect(),
