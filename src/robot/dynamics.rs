@@ -1266,13 +1266,6 @@ pub fn id_derivatives_into(
 /// A symmetric 3×3 matrix as its upper triangle [xx, xy, xz, yy, yz, zz].
 type Sym3 = [f64; 6];
 
-/// Entry (r, c) of a [`Sym3`].
-#[inline(always)]
-fn sym_at(s: &Sym3, r: usize, c: usize) -> f64 {
-    const IDX: [[usize; 3]; 3] = [[0, 1, 2], [1, 3, 4], [2, 4, 5]];
-    s[IDX[r][c]]
-}
-
 /// s·x for a [`Sym3`] s.
 #[inline(always)]
 fn sym_mul(s: &Sym3, x: &Vector3<f64>) -> Vector3<f64> {
@@ -1382,8 +1375,12 @@ impl Axis {
     /// Sᵀ (n, f).
     #[inline(always)]
     fn dot(&self, n: &Vector3<f64>, f: &Vector3<f64>) -> f64 {
+        // literal components: a runtime index would send the vector
+        // through memory (a store-forwarding stall on every call)
         match self {
-            Axis::Coord(k) => n[*k],
+            Axis::Coord(0) => n.x,
+            Axis::Coord(1) => n.y,
+            Axis::Coord(_) => n.z,
             Axis::General(a, l) => a.dot(n) + l.dot(f),
         }
     }
@@ -1392,13 +1389,10 @@ impl Axis {
     #[inline(always)]
     fn force(&self, t: &Ten) -> (Vector3<f64>, Vector3<f64>) {
         match self {
-            Axis::Coord(k) => {
-                let k = *k;
-                let n = Vector3::new(sym_at(&t.i, 0, k), sym_at(&t.i, 1, k), sym_at(&t.i, 2, k));
-                let mut e = Vector3::zeros();
-                e[k] = 1.0;
-                (n, e.cross(&t.h))
-            }
+            // the k-th column of I and e_k × h, written out per k
+            Axis::Coord(0) => (Vector3::new(t.i[0], t.i[1], t.i[2]), Vector3::new(0.0, -t.h.z, t.h.y)),
+            Axis::Coord(1) => (Vector3::new(t.i[1], t.i[3], t.i[4]), Vector3::new(t.h.z, 0.0, -t.h.x)),
+            Axis::Coord(_) => (Vector3::new(t.i[2], t.i[4], t.i[5]), Vector3::new(-t.h.y, t.h.x, 0.0)),
             Axis::General(a, l) => t.times(a, l),
         }
     }
@@ -1432,7 +1426,17 @@ fn crba_into(robot: &Robot, ws: &mut Workspace, inert: Inertials<'_>, ia: impl F
     let kin = &ws.kin;
     let axes = &ws.axes;
     assert_eq!(axes.len(), n, "workspace made for another robot");
+    // The composite of link i's chain child (parent i) is handed over in
+    // `carry`, not through ws.crb: reading back a Ten just written field by
+    // field stalls on store forwarding. Other children (branches) add into
+    // ws.crb[par] as before.
+    let mut carry: Option<Ten> = None;
     for i in (0..n).rev() {
+        let mut t = ws.crb[i];
+        if let Some(c) = carry.take() {
+            t.add(&c);
+            ws.crb[i] = t;
+        }
         if let Some(par) = robot.joints[i].parent {
             let (r, p) = (&kin.rot[i], &kin.pos[i]);
             match (robot.joints[par].parent, axes[par]) {
@@ -1440,15 +1444,18 @@ fn crba_into(robot: &Robot, ws: &mut Workspace, inert: Inertials<'_>, ia: impl F
                 // (M_par,par; its column's force n = I^c e_k is read only at k):
                 // (R I Rᵀ)_kk + 2 p·g − 2 g_k p_k, g = R h + (m/2) p
                 (None, Axis::Coord(k)) => {
-                    let t = &ws.crb[i];
                     let rk = Vector3::new(r[(k, 0)], r[(k, 1)], r[(k, 2)]);
                     let g = r * t.h + p * (0.5 * t.m);
                     let v = rk.dot(&sym_mul(&t.i, &rk)) + 2.0 * p.dot(&g) - 2.0 * g[k] * p[k];
                     ws.crb[par].i[[0, 3, 5][k]] += v;
                 }
                 _ => {
-                    let t = ws.crb[i].in_frame(r, p);
-                    ws.crb[par].add(&t);
+                    let c = t.in_frame(r, p);
+                    if par + 1 == i {
+                        carry = Some(c);
+                    } else {
+                        ws.crb[par].add(&c);
+                    }
                 }
             }
         }
