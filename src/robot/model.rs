@@ -482,6 +482,8 @@ pub(crate) struct JointGeometry {
     pub po_r: Matrix3<f64>,
     pub po_p: Vector3<f64>,
     pub post_identity: bool,
+    /// The joint axis is exactly ±e_k: (k, ±1) (the kernels' shortcut).
+    pub coord: Option<(usize, f64)>,
 }
 
 impl JointGeometry {
@@ -493,6 +495,7 @@ impl JointGeometry {
             po_r: j.post.rotation.to_rotation_matrix().into_inner(),
             po_p: j.post.translation.vector,
             post_identity: j.post == Isometry3::identity(),
+            coord: crate::robot::kinematics::coordinate_axis(&j.axis.into_inner()),
         }
     }
 }
