@@ -42,6 +42,10 @@ pub struct Workspace {
     crb: Vec<Ten>,
     /// The joints' motion subspaces, classified once ([`Axis`]).
     axes: Vec<Axis>,
+    /// The joints' rotations, classified once ([`Placed`]).
+    placed: Vec<Placed>,
+    /// Most non-root joints are [`Placed::RxZ`]: the CRBA dispatches on them.
+    rxz_crba: bool,
     /// Per-link quantities of [`id_derivatives_into`].
     dl: Vec<DerivLink>,
     /// Mass matrix / Cholesky factor of forward dynamics.
@@ -66,6 +70,12 @@ impl Workspace {
             theta_inertials: robot.links.iter().map(|l| l.inertial).collect(),
             crb: vec![Ten::default(); n],
             axes: (0..n).map(|i| Axis::of(robot, i)).collect(),
+            placed: (0..n).map(|i| Placed::of(robot, i)).collect(),
+            rxz_crba: {
+                let non_root = (0..n).filter(|&i| robot.joints[i].parent.is_some());
+                let rxz = non_root.clone().filter(|&i| matches!(Placed::of(robot, i), Placed::RxZ(_))).count();
+                2 * rxz > non_root.count()
+            },
             dl: vec![DerivLink::default(); n],
             fd_m: DMatrix::zeros(n, n),
             fd_rhs: vec![0.0; n],
@@ -1322,19 +1332,57 @@ impl Ten {
         ];
         let a = [sym_mul(&self.i, &rows[0]), sym_mul(&self.i, &rows[1]), sym_mul(&self.i, &rows[2])];
         let rir = |x: usize, y: usize| a[x].dot(&rows[y]);
-        let u = r * self.h;
+        let ri = [rir(0, 0), rir(0, 1), rir(0, 2), rir(1, 1), rir(1, 2), rir(2, 2)];
+        self.shifted(&ri, &(r * self.h), p)
+    }
+
+    /// [`Ten::in_frame`] for a joint rotation R = Rx(α) Rz(θ) of
+    /// [`Placed::RxZ`]: I and h turned about z (c = cos θ, s = sin θ), then
+    /// the exact quarter or half turn about x, a permutation with signs.
+    #[inline(always)]
+    fn in_frame_rxz(&self, alpha: i8, (c, s): (f64, f64), p: &Vector3<f64>) -> Ten {
+        let [xx, xy, xz, yy, yz, zz] = self.i;
+        // Rz I Rzᵀ
+        let (cc, ss, cs) = (c * c, s * s, c * s);
+        let cs2 = 2.0 * cs * xy;
+        let z = [
+            cc * xx - cs2 + ss * yy,
+            cs * (xx - yy) + (cc - ss) * xy,
+            c * xz - s * yz,
+            ss * xx + cs2 + cc * yy,
+            s * xz + c * yz,
+            zz,
+        ];
+        let u = Vector3::new(c * self.h.x - s * self.h.y, s * self.h.x + c * self.h.y, self.h.z);
+        let (ri, u) = match alpha {
+            0 => (z, u),
+            // (x, y, z) → (x, −z, y)
+            1 => ([z[0], -z[2], z[1], z[5], -z[4], z[3]], Vector3::new(u.x, -u.z, u.y)),
+            // (x, y, z) → (x, z, −y)
+            -1 => ([z[0], z[2], -z[1], z[5], -z[4], z[3]], Vector3::new(u.x, u.z, -u.y)),
+            // (x, y, z) → (x, −y, −z)
+            _ => ([z[0], -z[1], -z[2], z[3], z[4], z[5]], Vector3::new(u.x, -u.y, -u.z)),
+        };
+        self.shifted(&ri, &u, p)
+    }
+
+    /// The parallel-axis part of [`Ten::in_frame`], given the turned
+    /// inertia `ri` = R I Rᵀ and first moment `u` = R h: h' = u + m p and,
+    /// with g = u + (m/2) p, I' = R I Rᵀ + 2 (p·g) 1 − g pᵀ − p gᵀ.
+    #[inline(always)]
+    fn shifted(&self, ri: &Sym3, u: &Vector3<f64>, p: &Vector3<f64>) -> Ten {
         let g = u + p * (0.5 * self.m);
         let d = 2.0 * p.dot(&g);
         Ten {
             m: self.m,
             h: u + p * self.m,
             i: [
-                rir(0, 0) + d - 2.0 * g.x * p.x,
-                rir(0, 1) - (g.x * p.y + p.x * g.y),
-                rir(0, 2) - (g.x * p.z + p.x * g.z),
-                rir(1, 1) + d - 2.0 * g.y * p.y,
-                rir(1, 2) - (g.y * p.z + p.y * g.z),
-                rir(2, 2) + d - 2.0 * g.z * p.z,
+                ri[0] + d - 2.0 * g.x * p.x,
+                ri[1] - (g.x * p.y + p.x * g.y),
+                ri[2] - (g.x * p.z + p.x * g.z),
+                ri[3] + d - 2.0 * g.y * p.y,
+                ri[4] - (g.y * p.z + p.y * g.z),
+                ri[5] + d - 2.0 * g.z * p.z,
             ],
         }
     }
@@ -1345,6 +1393,63 @@ impl Ten {
     #[inline(always)]
     fn times(&self, a: &Vector3<f64>, l: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
         (sym_mul(&self.i, a) + self.h.cross(l), l * self.m + a.cross(&self.h))
+    }
+}
+
+/// A joint's rotation R(q) in its parent, for the CRBA's transforms. A
+/// revolute joint about +e_z, without post-rotation, whose placement
+/// rotation is Rx(α) with α ∈ {0, π/2, −π/2, π} to 1e-15 (the modified-DH
+/// placements of most arms) has R = Rx(α) Rz(θ): a turn about z, then a
+/// permutation with signs (`RxZ`, α coded 0, 1, −1, 2; cos θ and sin θ
+/// read back from the joint transform). Any other joint is `General`.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Placed {
+    RxZ(i8),
+    General,
+}
+
+impl Placed {
+    fn of(robot: &Robot, i: usize) -> Self {
+        let g = &robot.geo[i];
+        if robot.joints[i].kind != super::model::JointKind::Revolute || g.coord != Some((2, 1.0)) || !g.post_identity {
+            return Placed::General;
+        }
+        let rx = |c: f64, s: f64| Matrix3::new(1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c);
+        [(0, rx(1.0, 0.0)), (1, rx(0.0, 1.0)), (-1, rx(0.0, -1.0)), (2, rx(-1.0, 0.0))]
+            .into_iter()
+            .find(|(_, m)| (m - g.pl_r).amax() <= 1e-15)
+            .map_or(Placed::General, |(a, _)| Placed::RxZ(a))
+    }
+
+    /// (cos θ, sin θ) of R = Rx(α) Rz(θ): c = R₀₀, and s = R₁₀, R₂₀, −R₂₀,
+    /// −R₁₀ for α = 0, π/2, −π/2, π.
+    #[inline(always)]
+    fn cs(alpha: i8, r: &Matrix3<f64>) -> (f64, f64) {
+        let s = match alpha {
+            0 => r[(1, 0)],
+            1 => r[(2, 0)],
+            -1 => -r[(2, 0)],
+            _ => -r[(1, 0)],
+        };
+        (r[(0, 0)], s)
+    }
+
+    /// R v.
+    #[inline(always)]
+    fn apply(self, r: &Matrix3<f64>, v: &Vector3<f64>) -> Vector3<f64> {
+        match self {
+            Placed::General => r * v,
+            Placed::RxZ(alpha) => {
+                let (c, s) = Placed::cs(alpha, r);
+                let (x, y, z) = (c * v.x - s * v.y, s * v.x + c * v.y, v.z);
+                match alpha {
+                    0 => Vector3::new(x, y, z),
+                    1 => Vector3::new(x, -z, y),
+                    -1 => Vector3::new(x, z, -y),
+                    _ => Vector3::new(x, -y, -z),
+                }
+            }
+        }
     }
 }
 
@@ -1413,6 +1518,18 @@ impl Axis {
 /// root only that component is computed). A root joint about e_k reads only
 /// the (k, k) entry of its composite, so only that entry is accumulated.
 fn crba_into(robot: &Robot, ws: &mut Workspace, inert: Inertials<'_>, ia: impl Fn(usize) -> Option<f64>, q: &[f64], m: &mut DMatrix<f64>) {
+    // the per-joint dispatch on [`Placed`] pays only when most joints take
+    // the Rx(α) Rz(θ) shortcut; otherwise every transform is general
+    if ws.rxz_crba {
+        crba_placed::<true>(robot, ws, inert, ia, q, m)
+    } else {
+        crba_placed::<false>(robot, ws, inert, ia, q, m)
+    }
+}
+
+/// [`crba_into`], with ([`Placed`]) or without (`RXZ` false) the joint
+/// rotations' shortcut.
+fn crba_placed<const RXZ: bool>(robot: &Robot, ws: &mut Workspace, inert: Inertials<'_>, ia: impl Fn(usize) -> Option<f64>, q: &[f64], m: &mut DMatrix<f64>) {
     let n = robot.dof();
     assert!(m.nrows() == n && m.ncols() == n, "mass matrix output must be n×n");
     joint_transforms(robot, q, &mut ws.kin);
@@ -1450,7 +1567,10 @@ fn crba_into(robot: &Robot, ws: &mut Workspace, inert: Inertials<'_>, ia: impl F
                     ws.crb[par].i[[0, 3, 5][k]] += v;
                 }
                 _ => {
-                    let c = t.in_frame(r, p);
+                    let c = match if RXZ { ws.placed[i] } else { Placed::General } {
+                        Placed::RxZ(alpha) => t.in_frame_rxz(alpha, Placed::cs(alpha, r), p),
+                        Placed::General => t.in_frame(r, p),
+                    };
                     if par + 1 == i {
                         carry = Some(c);
                     } else {
@@ -1468,7 +1588,8 @@ fn crba_into(robot: &Robot, ws: &mut Workspace, inert: Inertials<'_>, ia: impl F
         let mut j = i;
         while let Some(par) = robot.joints[j].parent {
             let (r, p) = (&kin.rot[j], &kin.pos[j]);
-            let rf = r * ff;
+            let rot = if RXZ { ws.placed[j] } else { Placed::General };
+            let rf = rot.apply(r, &ff);
             let v = if robot.joints[par].parent.is_none() {
                 if let Axis::Coord(k) = axes[par] {
                     // only the k-th moment component: (R n)_k + (p × R f)_k
@@ -1480,11 +1601,11 @@ fn crba_into(robot: &Robot, ws: &mut Workspace, inert: Inertials<'_>, ia: impl F
                     ms[i * n + j] = v;
                     break;
                 }
-                nn = r * nn + p.cross(&rf);
+                nn = rot.apply(r, &nn) + p.cross(&rf);
                 ff = rf;
                 axes[par].dot(&nn, &ff)
             } else {
-                nn = r * nn + p.cross(&rf);
+                nn = rot.apply(r, &nn) + p.cross(&rf);
                 ff = rf;
                 axes[par].dot(&nn, &ff)
             };

@@ -17,10 +17,18 @@ pub trait Real: RealField + Copy {
     /// Plain f64 (no derivative parts): kernels may then take shortcuts
     /// that are exact in f64 arithmetic.
     const IS_F64: bool = false;
+    /// (sin x, cos x) of the joint angles, by the `libm` crate's sincos
+    /// (musl's kernels, no rounding-mode switches: about half the time of
+    /// the platform's), the same arithmetic in every scalar type.
+    fn sincos(self) -> (Self, Self);
 }
 
 impl Real for f64 {
     const IS_F64: bool = true;
+    #[inline(always)]
+    fn sincos(self) -> (f64, f64) {
+        libm::sincos(self)
+    }
     #[inline(always)]
     fn re_(&self) -> f64 {
         *self
@@ -32,6 +40,11 @@ impl Real for f64 {
 }
 
 impl Real for Dual64 {
+    #[inline(always)]
+    fn sincos(self) -> (Dual64, Dual64) {
+        let (s, c) = libm::sincos(self.re);
+        (Dual64::new(s, c * self.eps), Dual64::new(c, -s * self.eps))
+    }
     #[inline(always)]
     fn re_(&self) -> f64 {
         self.re
@@ -111,7 +124,7 @@ pub(crate) fn lift33<T: Real>(m: &Matrix3<f64>) -> Matrix3<T> {
 /// Rotation matrix about unit axis `a` by angle `th` (Rodrigues).
 #[inline]
 pub(crate) fn axis_angle<T: Real>(a: &Vector3<f64>, th: T) -> Matrix3<T> {
-    let (s, c) = th.sin_cos();
+    let (s, c) = th.sincos();
     let v = T::one() - c;
     let (x, y, z) = (T::c(a.x), T::c(a.y), T::c(a.z));
     Matrix3::new(
@@ -145,7 +158,7 @@ pub(crate) fn coordinate_axis(a: &Vector3<f64>) -> Option<(usize, f64)> {
 /// the matrix through memory (a store-forwarding stall on every call).
 #[inline]
 fn placed_rotation_axis<T: Real>(p: &Matrix3<f64>, k: usize, sign: f64, th: T) -> Matrix3<T> {
-    let (s, c) = th.sin_cos();
+    let (s, c) = th.sincos();
     let s = s * T::c(sign);
     let col = |x: usize| Vector3::new(T::c(p[(0, x)]), T::c(p[(1, x)]), T::c(p[(2, x)]));
     let (pi, pj, pk) = match k {
