@@ -305,3 +305,63 @@ fn excite_export_and_idexp_export_write_the_same_files_holding_the_trajectory_ro
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("ur, ros2 or csv"));
 }
+
+/// The segment column switches exactly on the sample grid: for every lead-in
+/// and lead-out duration on the quantum ladder (k × 40 ms, whose sums are
+/// not exact in binary: 35 × 0.04 = 1.4000000000000001) and every usual
+/// controller rate, the lead-in has round(T_in · rate) rows, every period
+/// period · rate rows, and the first row of period p is at phase 0 (its
+/// state is the periodic trajectory's at t = 0, the criterion's first
+/// sample). Before, the sample at t = 1.4 s was labelled lead-in and period
+/// 1 started one sample late.
+#[test]
+fn segments_switch_on_the_sample_grid_for_every_lead_duration() {
+    use idexp::trajectory::lead::{Quintic, State};
+    use idexp::trajectory::FourierTrajectory;
+    let w = 2.0 * std::f64::consts::PI * 0.5;
+    let periodic = FourierTrajectory::new(w, vec![0.1, -0.2], vec![vec![0.3, 0.1], vec![-0.2, 0.05]], vec![vec![0.1, 0.0], vec![0.0, 0.2]]).unwrap();
+    let (mut q, mut qd, mut qdd) = (vec![0.0; 2], vec![0.0; 2], vec![0.0; 2]);
+    periodic.eval(0.0, &mut q, &mut qd, &mut qdd);
+    let start = State {
+        q: q.clone(),
+        qd: qd.clone(),
+        qdd: qdd.clone(),
+    };
+    let home = State {
+        q: vec![0.0; 2],
+        qd: vec![0.0; 2],
+        qdd: vec![0.0; 2],
+    };
+    let mut checked = 0;
+    for k_in in 1..=60 {
+        let t_in = (0..k_in).fold(0.0, |t, _| t + 0.04); // as the ladder sums it
+        let t_out = (k_in % 7 + 1) as f64 * 0.04;
+        let d = Delivered {
+            home: home.q.clone(),
+            lead_in: Some(Quintic::new(&home, &start, t_in)),
+            periodic: periodic.clone(),
+            periods: 3,
+            lead_out: Some(Quintic::new(&start, &home, t_out)),
+        };
+        for rate in [1000.0, 500.0, 250.0, 125.0, 100.0] {
+            let s = d.sample(rate).unwrap();
+            let count = |seg: i64| s.segment.iter().filter(|&&x| x == seg).count();
+            let n_in = (t_in * rate).round() as usize;
+            let per = (periodic.period() * rate).round() as usize;
+            assert_eq!(count(0), n_in, "lead-in {t_in} s at {rate} Hz");
+            for p in 1..=3 {
+                assert_eq!(count(p), per, "period {p}, lead-in {t_in} s at {rate} Hz");
+                let first = s.segment.iter().position(|&x| x == p).unwrap();
+                assert_eq!(first, n_in + (p as usize - 1) * per);
+                for j in 0..2 {
+                    assert!(
+                        (s.q[first][j] - q[j]).abs() < 1e-12 && (s.qdd[first][j] - qdd[j]).abs() < 1e-9,
+                        "period {p} starts at phase 0"
+                    );
+                }
+            }
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 300);
+}

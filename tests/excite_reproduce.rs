@@ -96,15 +96,29 @@ fn printed(text: &str, label: &str) -> f64 {
     tok.parse().unwrap_or_else(|_| panic!("`{label}` followed by {tok:?}"))
 }
 
+/// The `segment` column of a trajectory.csv, one value per data row.
+fn segments(path: &Path) -> Vec<i64> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let col = lines.next().unwrap().split(',').position(|c| c == "segment").expect("a segment column");
+    lines.map(|l| l.split(',').nth(col).unwrap().parse().unwrap()).collect()
+}
+
 /// The samples a figure names, read back from `dir` (or the path as given).
 fn read_samples(dir: &Path, samples: &Value, n: usize) -> States {
     let file = samples["file"].as_str().unwrap();
     let path = if Path::new(file).is_absolute() { PathBuf::from(file) } else { dir.join(file) };
     let all = States::read(&path, n).unwrap();
     let every = samples["every"].as_u64().unwrap() as usize;
-    let keep = |v: &Vec<Vec<f64>>| v.iter().step_by(every).cloned().collect::<Vec<_>>();
+    // `segment`: only the rows whose segment column holds it, then every k-th
+    let rows: Vec<usize> = match samples.get("segment").and_then(|v| v.as_i64()) {
+        None => (0..all.len()).collect(),
+        Some(k) => segments(&path).iter().enumerate().filter(|(_, s)| **s == k).map(|(i, _)| i).collect(),
+    };
+    let rows: Vec<usize> = rows.into_iter().step_by(every).collect();
+    let keep = |v: &Vec<Vec<f64>>| rows.iter().map(|&i| v[i].clone()).collect::<Vec<_>>();
     let s = States {
-        t: all.t.as_ref().map(|t| t.iter().step_by(every).copied().collect()),
+        t: all.t.as_ref().map(|t| rows.iter().map(|&i| t[i]).collect()),
         q: keep(&all.q),
         qd: keep(&all.qd),
         qdd: keep(&all.qdd),
@@ -274,7 +288,7 @@ fn excite_and_replay(name: &str, objective: &str) {
         .collect();
     assert_eq!(report["identifiability"]["names"], serde_json::json!(names));
     let figs = rec["figures"].as_array().unwrap();
-    assert_eq!(figs.len(), 3);
+    assert_eq!(figs.len(), 4);
 
     // 1. the criterion on its own samples
     let f0 = &figs[0];
@@ -365,6 +379,81 @@ fn excite_and_replay(name: &str, objective: &str) {
     assert!((printed(&stdout, "delivered trajectory: condition number") - dcond).abs() <= 5e-5, "{stdout}");
     // the two are different figures (different samples): both labelled
     assert!((dcond - cond).abs() > 1e-6 || kind != "cond");
+
+    // 4. the criterion's samples read from trajectory.csv: segment 1 (period
+    // 1, after the lead-in), every k-th row; the same figure as 2 to rounding
+    let f3 = &figs[3];
+    assert_eq!(
+        (&f3["samples"]["file"], &f3["samples"]["segment"], &f3["samples"]["every"]),
+        (&"trajectory.csv".into(), &1.into(), &every.into())
+    );
+    let s3 = read_samples(&dir, &f3["samples"], n);
+    assert_eq!(s3.len(), s0.len());
+    let lead_in = s3.t.as_ref().unwrap()[0];
+    assert!(lead_in > 0.0, "period 1 starts after the lead-in");
+    for i in 0..s0.len() {
+        assert!(
+            (s3.t.as_ref().unwrap()[i] - lead_in - t0[i]).abs() < 1e-9,
+            "trajectory.csv period 1 sample {i}: the criterion's phase"
+        );
+        for jn in 0..n {
+            assert!(
+                (s3.q[i][jn] - s0.q[i][jn]).abs() < 1e-9,
+                "trajectory.csv period 1 sample {i} joint {jn}: {} vs criterion sample {}",
+                s3.q[i][jn],
+                s0.q[i][jn]
+            );
+        }
+    }
+    let c3 = stack(&robot, &rec, &s3);
+    let r3 = recompute("period 1 of trajectory.csv", &c3, &noise, f3, &nom);
+    check_identifiability("period 1", &report["period_identifiability"], &c3, &r3, &nom);
+    let pcond = r3.sv[0] / r3.sv[r3.sv.len() - 1];
+    let icond = r1.sv[0] / r1.sv[r1.sv.len() - 1];
+    assert!(
+        (pcond - icond).abs() <= 1e-8 * icond,
+        "period 1 of trajectory.csv {pcond} vs the criterion's samples {icond}"
+    );
+    let line = text
+        .lines()
+        .find(|l| l.contains("the same samples in trajectory.csv"))
+        .expect("report.txt names the period in trajectory.csv");
+    assert!((printed(line, "condition number") - pcond).abs() <= 5e-5, "{line}");
+    assert!(line.contains(&format!("--segment 1 --every {every}")), "{line}");
+    // the reading this guards against: trajectory.csv's first period-long
+    // stretch from t = 0 is the lead-in from rest and part of period 1, not
+    // a period; its cond is another number
+    let all = States::read(&dir.join("trajectory.csv"), n).unwrap();
+    let first = States {
+        t: None,
+        q: (0..s0.len()).map(|i| all.q[i * every].clone()).collect(),
+        qd: (0..s0.len()).map(|i| all.qd[i * every].clone()).collect(),
+        qdd: (0..s0.len()).map(|i| all.qdd[i * every].clone()).collect(),
+    };
+    let cf = stack(&robot, &rec, &first);
+    let rf = recompute_unchecked(&cf, &noise);
+    assert!(
+        (rf - icond).abs() > 1e-3 * icond,
+        "first {period} s of trajectory.csv: {rf} vs one period {icond}"
+    );
+}
+
+/// cond of W½·C with unit columns (no reported figure to compare with).
+fn recompute_unchecked(c: &DMatrix<f64>, noise: &[f64]) -> f64 {
+    let n = noise.len();
+    let mut w = c.clone();
+    for r in 0..w.nrows() {
+        let s = noise[r % n];
+        w.row_mut(r).scale_mut(1.0 / s);
+    }
+    for mut col in w.column_iter_mut() {
+        let norm = col.norm();
+        if norm > 0.0 {
+            col /= norm;
+        }
+    }
+    let sv = w.singular_values();
+    sv.max() / sv.min()
 }
 
 #[test]

@@ -50,7 +50,7 @@ fn streamed_assess_equals_the_direct_svd() {
     let s = random_states(&r, 2500, &path);
     let noise = [1.0, 2.0, 0.5, 1.0, 0.3, 0.7];
     let a = assess(&r, &base, &s, &noise).unwrap();
-    let b = assess_file(&r, &base, &path, 1, &noise).unwrap();
+    let b = assess_file(&r, &base, &path, None, 1, &noise).unwrap();
     assert_eq!(a.samples, 2500);
     assert_eq!(b.samples, 2500);
     // the direct computation
@@ -95,7 +95,7 @@ fn streamed_assess_equals_the_direct_svd() {
         assert!((x - y).abs() <= 1e-12 * x.abs().max(1e-300));
     }
     // every k-th row
-    let c3 = assess_file(&r, &base, &path, 3, &noise).unwrap();
+    let c3 = assess_file(&r, &base, &path, None, 3, &noise).unwrap();
     assert_eq!(c3.samples, 2500_usize.div_ceil(3));
 }
 
@@ -113,7 +113,7 @@ fn streamed_reader_names_the_bad_row() {
     cells[3] = "abc".into();
     lines[4500] = cells.join(",");
     std::fs::write(&path, lines.join("\n")).unwrap();
-    let e = assess_file(&r, &base, &path, 1, &[1.0; 6]).unwrap_err().to_string();
+    let e = assess_file(&r, &base, &path, None, 1, &[1.0; 6]).unwrap_err().to_string();
     assert!(e.contains("4500") && e.contains("q3") && e.contains("abc"), "{e}");
     let mut out = Vec::new();
     let e = stream_table(&r, &path, TableKind::Torques, &mut out).unwrap_err().to_string();

@@ -26,6 +26,9 @@ def read_samples(folder, samples, n):
     path = samples["file"]
     path = path if path.startswith("/") else str(folder / path)
     a = np.genfromtxt(path, delimiter=",", names=True)
+    if "segment" in samples:
+        # only the rows of that segment (trajectory.csv: 0 lead-in, k period k, -1 lead-out)
+        a = a[a["segment"] == samples["segment"]]
     a = a[:: samples["every"]]
     assert len(a) == samples["count"]
     t = a["t"]
@@ -112,7 +115,7 @@ def test_excite_ur5_criterion_is_recomputed_with_pinocchio(cli, tmp_path):
     report = json.loads((out / "report.json").read_text())
     text = (out / "report.txt").read_text()
     model, data = model_for(rec)
-    grid, ident, delivered = rec["figures"]
+    grid, ident, delivered, period = rec["figures"]
 
     # the criterion: one period, 100 samples at 10 Hz (criterion_samples.csv)
     assert grid["samples"]["file"] == "criterion_samples.csv"
@@ -143,6 +146,23 @@ def test_excite_ur5_criterion_is_recomputed_with_pinocchio(cli, tmp_path):
     assert f"delivered trajectory: condition number {dcond:.4f}" in stdout
     # two figures, two sets of samples: not the same number
     assert abs(dcond - cond) > 1e-3
+
+    # the criterion's samples read from trajectory.csv: segment 1 (period 1,
+    # which starts after the lead-in), every 100th row: the same number
+    assert period["samples"]["file"] == "trajectory.csv"
+    assert (period["samples"]["segment"], period["samples"]["every"]) == (1, 100)
+    pcond, _ = replay(model, data, out, rec, period)
+    assert pcond == pytest.approx(cond, rel=1e-8)
+    assert "--segment 1 --every 100" in text
+    # and the reading that gives another number: the first 10 s of
+    # trajectory.csv from t = 0 (the lead-in from rest, then most of period 1)
+    a = np.genfromtxt(out / "trajectory.csv", delimiter=",", names=True)
+    assert a["segment"][0] == 0 and a["t"][0] == 0.0
+    q, qd, qdd = (np.stack([a[f"{p}{j + 1}"][:10000:100] for j in range(model.nv)], axis=1) for p in ("q", "qd", "qdd"))
+    c = stack(model, data, rec, q, qd, qdd)
+    c = c / np.tile(np.array(rec["noise"]), len(q))[:, None]
+    s = np.linalg.svd(c / np.linalg.norm(c, axis=0), compute_uv=False)
+    assert abs(s[0] / s[-1] - cond) > 1e-3 * cond
 
 
 def test_assess_cond_is_recomputed_with_pinocchio(cli, tmp_path):

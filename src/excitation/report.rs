@@ -89,7 +89,12 @@ pub struct SampleSet {
     /// The CSV file holding them (`t`, q1..qn, qd1..qdn, qdd1..qddn), relative
     /// to the output folder when it is one of its files.
     pub file: String,
-    /// Keep every `every`-th data row of the file, starting with the first.
+    /// Only the rows whose `segment` column holds this value (trajectory.csv:
+    /// 0 lead-in, k period k, −1 lead-out); absent: every row.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub segment: Option<i64>,
+    /// Keep every `every`-th data row of the file (of the segment's rows when
+    /// `segment` is given), starting with the first.
     pub every: usize,
     /// Number of samples N (rows of C: N·n).
     pub count: usize,
@@ -236,6 +241,7 @@ impl SampleSet {
         }
         SampleSet {
             file: file.to_string(),
+            segment: None,
             every,
             count,
             rate_hz,
@@ -314,9 +320,14 @@ pub fn assess(robot: &Robot, base: &BaseParams, states: &States, noise: &[f64]) 
 
 /// [`assess`] of a states CSV read block by block ([`read_states`]'s format
 /// and checks, every `every`-th row): memory independent of the file length.
-pub fn assess_file(robot: &Robot, base: &BaseParams, path: &Path, every: usize, noise: &[f64]) -> Result<Identifiability> {
+/// `segment`: only the rows whose `segment` column holds this value
+/// (trajectory.csv of `idexp excite`: 0 lead-in, k period k, −1 lead-out).
+pub fn assess_file(robot: &Robot, base: &BaseParams, path: &Path, segment: Option<i64>, every: usize, noise: &[f64]) -> Result<Identifiability> {
     let n = robot.dof();
     let mut rdr = crate::io::states::StatesReader::open(path, n)?;
+    if let Some(k) = segment {
+        rdr.only_segment(k)?;
+    }
     let mut acc = AssessAccumulator::new(robot, base, noise)?;
     let mut block = crate::io::states::StateBlock::default();
     let mut times = TimeStats::default();
@@ -330,23 +341,31 @@ pub fn assess_file(robot: &Robot, base: &BaseParams, path: &Path, every: usize, 
         }
     }
     if acc.samples == 0 {
-        return Err(Error::Data {
-            path: path.to_path_buf(),
-            row: 0,
-            column: "q1".into(),
-            msg: "the file has no data rows".into(),
+        return Err(match segment {
+            None => Error::Data {
+                path: path.to_path_buf(),
+                row: 0,
+                column: "q1".into(),
+                msg: "the file has no data rows".into(),
+            },
+            Some(k) => Error::Data {
+                path: path.to_path_buf(),
+                row: 0,
+                column: "segment".into(),
+                msg: format!("no row has segment {k} (trajectory.csv of idexp excite: 0 lead-in, 1 … P the periods, -1 lead-out)"),
+            },
         });
     }
     let samples = acc.samples;
     let mut id = acc.finish()?;
-    id.source = Some(SampleSet::from_parts(
-        &path.display().to_string(),
-        every,
-        samples,
-        times.range(),
-        times.rate(),
-        "",
-    ));
+    let note = segment.map_or(String::new(), |k| match k {
+        0 => "segment 0 only: the lead-in".to_string(),
+        -1 => "segment -1 only: the lead-out".to_string(),
+        k => format!("segment {k} only: period {k}"),
+    });
+    let mut set = SampleSet::from_parts(&path.display().to_string(), every, samples, times.range(), times.rate(), &note);
+    set.segment = segment;
+    id.source = Some(set);
     Ok(id)
 }
 
@@ -646,6 +665,9 @@ struct ExciteReport<'a> {
     result: &'a ExciteResult,
     identifiability: &'a Identifiability,
     delivered_identifiability: &'a Identifiability,
+    /// The criterion's samples read from trajectory.csv (segment 1).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    period_identifiability: Option<&'a Identifiability>,
     criterion_samples: &'a SampleSet,
     verification_rate: f64,
     applied_limits: &'a [super::limits::AppliedLimit],
@@ -743,6 +765,33 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Writte
     r.trajectory.sample(d.trajectory.controller_rate)?.write(&dir.join("periodic.csv"))?;
     grid.samples.write(&dir.join("criterion_samples.csv"))?;
     let delivered_set = delivered_sample_set(&ds.t, delivered.periods);
+    // the criterion's samples as rows of trajectory.csv: period 1 (segment 1,
+    // which starts after the lead-in, not at t = 0), every k-th row, when the
+    // criterion's rate divides the controller's
+    let ratio = d.trajectory.controller_rate / d.objective.sample_rate;
+    let period_ident = match ratio.round() as usize {
+        k if k >= 1 && (ratio - k as f64).abs() < 1e-9 => {
+            let rows: Vec<usize> = (0..ds.t.len()).filter(|&i| ds.segment[i] == 1).step_by(k).collect();
+            let states = crate::io::States {
+                t: None,
+                q: rows.iter().map(|&i| ds.q[i].clone()).collect(),
+                qd: rows.iter().map(|&i| ds.qd[i].clone()).collect(),
+                qdd: rows.iter().map(|&i| ds.qdd[i].clone()).collect(),
+            };
+            let t: Vec<f64> = rows.iter().map(|&i| ds.t[i]).collect();
+            let mut set = SampleSet::new(
+                "trajectory.csv",
+                k,
+                Some(&t),
+                "segment 1 only: period 1 of the delivered trajectory, which starts after the lead-in (trajectory.csv's t = 0 is the start of the lead-in, not of a period); the criterion's samples",
+            );
+            set.segment = Some(1);
+            let mut id = assess(&p.robot, &p.base, &states, &noise)?;
+            id.source = Some(set);
+            (!rows.is_empty()).then_some(id)
+        }
+        _ => None,
+    };
     let mut delivered_ident = {
         let states = crate::io::States {
             t: None,
@@ -789,6 +838,14 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Writte
             &delivered_ident,
         ),
     ];
+    if let (Some(id), Some(set)) = (&period_ident, period_ident.as_ref().and_then(|id| id.source.clone())) {
+        record.figures.push(ident_figure(
+            "the criterion's samples read from trajectory.csv (report.txt `the same samples in trajectory.csv`; \
+             report.json period_identifiability): segment 1 (period 1), every k-th row",
+            set,
+            id,
+        ));
+    }
     crate::io::write_json(&dir.join("criterion.json"), &record)?;
     crate::io::write_json(&dir.join("design.json"), d)?;
     let summary = serde_json::json!({
@@ -826,12 +883,16 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Writte
             result: r,
             identifiability: &ident,
             delivered_identifiability: &delivered_ident,
+            period_identifiability: period_ident.as_ref(),
             criterion_samples: &grid_set,
             verification_rate: d.limits.check_rate,
             applied_limits: &p.applied_limits,
         },
     )?;
-    crate::io::write_atomic(&dir.join("report.txt"), excite_report_text(p, r, &ident, Some(&delivered_ident)).as_bytes())?;
+    crate::io::write_atomic(
+        &dir.join("report.txt"),
+        excite_report_text(p, r, &ident, Some(&delivered_ident), period_ident.as_ref()).as_bytes(),
+    )?;
     spectrum_svg(
         &dir.join("singular_values.svg"),
         &r.spectrum.singular_values,
@@ -873,12 +934,19 @@ pub fn unit_scale(norms: &[f64]) -> Vec<f64> {
 /// The text summary of a design run (report.txt) without the delivered
 /// trajectory's identifiability ([`excite_report_text`]).
 pub fn excite_text(p: &Problem, r: &ExciteResult, ident: &Identifiability) -> String {
-    excite_report_text(p, r, ident, None)
+    excite_report_text(p, r, ident, None, None)
 }
 
 /// The text summary of a design run (report.txt): `ident` on the criterion's
 /// samples, `delivered` on every row of the delivered trajectory.
-pub fn excite_report_text(p: &Problem, r: &ExciteResult, ident: &Identifiability, delivered: Option<&Identifiability>) -> String {
+/// `period`: the criterion's samples read from trajectory.csv (segment 1).
+pub fn excite_report_text(
+    p: &Problem,
+    r: &ExciteResult,
+    ident: &Identifiability,
+    delivered: Option<&Identifiability>,
+    period: Option<&Identifiability>,
+) -> String {
     let d = &p.design;
     let mut s = String::new();
     let _ = writeln!(s, "excitation design `{}` for robot `{}` ({})", d.name, p.robot.name, d.robot.display());
@@ -944,6 +1012,22 @@ pub fn excite_report_text(p: &Problem, r: &ExciteResult, ident: &Identifiability
     );
     let _ = writeln!(s, "criterion value: {}", fmt_num(r.criterion));
     let _ = writeln!(s, "condition number: {} (on the criterion's samples above)", fmt_num(r.spectrum.cond));
+    if let Some(pi) = period {
+        if let Some(src) = &pi.source {
+            let _ = writeln!(
+                s,
+                "  the same samples in trajectory.csv: segment 1, every {} row, t = {} s: condition number {} (unit columns; \
+                 `idexp assess {} trajectory.csv --segment 1 --every {}`). trajectory.csv starts with the lead-in at t = 0: \
+                 its first {} s are not a period",
+                ordinal(src.every),
+                src.t_range.map_or("?".to_string(), |[a, b]| format!("{a} … {b}")),
+                fmt_num(pi.cond),
+                p.design.robot.display(),
+                src.every,
+                r.trajectory.period()
+            );
+        }
+    }
     if let Some(dl) = delivered {
         let _ = writeln!(
             s,

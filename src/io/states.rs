@@ -91,6 +91,10 @@ pub struct StatesReader {
     idx: [Vec<usize>; 3],
     it: Option<usize>,
     row: usize,
+    /// Only the rows whose `segment` column (index) holds this value.
+    segment: Option<(usize, i64)>,
+    /// Rows that passed the segment filter so far.
+    selected: usize,
     rec: csv::StringRecord,
 }
 
@@ -160,8 +164,30 @@ impl StatesReader {
             columns,
             idx,
             row: 0,
+            segment: None,
+            selected: 0,
             rec: csv::StringRecord::new(),
         })
+    }
+
+    /// Keeps only the rows whose `segment` column equals `k` (`every` then
+    /// counts those rows): in `idexp excite`'s trajectory.csv, 0 is the
+    /// lead-in, k ≥ 1 period k, −1 the lead-out. Errors when the file has no
+    /// `segment` column.
+    pub fn only_segment(&mut self, k: i64) -> Result<()> {
+        let Some(i) = self.columns.iter().position(|c| c == "segment") else {
+            return Err(crate::error::Error::Data {
+                path: self.path.clone(),
+                row: 0,
+                column: "segment".into(),
+                msg: format!(
+                    "segment {k} asked for, but the file has no `segment` column (idexp excite's trajectory.csv has one: \
+                     0 lead-in, k period k, -1 lead-out)"
+                ),
+            });
+        };
+        self.segment = Some((i, k));
+        Ok(())
     }
 
     /// True if the file has a `t` column.
@@ -170,7 +196,8 @@ impl StatesReader {
     }
 
     /// Reads up to `max_rows` rows into `block` (cleared first), keeping every
-    /// `every`-th data row (rows 1, 1 + every, …). Returns the number of rows
+    /// `every`-th data row (rows 1, 1 + every, …; of the segment's rows only,
+    /// after [`StatesReader::only_segment`]). Returns the number of rows
     /// read into the block (0 at the end of the file). Errors name the file,
     /// the 1-based data row and the column.
     pub fn next_block(&mut self, max_rows: usize, every: usize, block: &mut StateBlock) -> Result<usize> {
@@ -222,7 +249,13 @@ impl StatesReader {
                 }
                 vals[c] = v;
             }
-            if (r - 1) % every != 0 {
+            if let Some((i, k)) = self.segment {
+                if vals[i] != k as f64 {
+                    continue;
+                }
+            }
+            self.selected += 1;
+            if (self.selected - 1) % every != 0 {
                 continue;
             }
             if got == 0 {

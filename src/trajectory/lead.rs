@@ -214,11 +214,17 @@ impl Delivered {
 
     /// Evaluates at time t (after the end: home at rest) and returns the
     /// segment ([`LEAD_IN`], period 1..N, [`LEAD_OUT`]).
+    ///
+    /// A time within [`BOUNDARY_TOL`] of a boundary (lead-in end, period
+    /// end, periodic end) belongs to the part that starts there: the
+    /// durations are sums of decimal steps (1.4 s is 35 × 0.04 s =
+    /// 1.4000000000000001), and the sample at t = 1400/1000 is the first of
+    /// period 1, not the last of the lead-in.
     pub fn eval(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) -> i64 {
         let t_in = self.lead_in_duration();
         let t_end = self.periodic_end();
         let period = self.periodic.period();
-        if t < t_in {
+        if t < t_in - BOUNDARY_TOL {
             if let Some(p) = &self.lead_in {
                 if t <= 0.0 {
                     // exactly home at rest
@@ -231,12 +237,12 @@ impl Delivered {
             }
             return LEAD_IN;
         }
-        if t < t_end {
-            let s = t - t_in;
-            let k = ((s / period).floor() as usize).min(self.periods - 1);
+        if t < t_end - BOUNDARY_TOL {
+            let s = (t - t_in).max(0.0);
+            let k = (((s + BOUNDARY_TOL) / period).floor() as usize).min(self.periods - 1);
             // evaluate at the time within the period: the series is periodic,
             // and the phase stays exact however many periods are played
-            self.periodic.eval(s - k as f64 * period, q, qd, qdd);
+            self.periodic.eval((s - k as f64 * period).max(0.0), q, qd, qdd);
             return k as i64 + 1;
         }
         match &self.lead_out {
@@ -296,6 +302,11 @@ impl Delivered {
         Ok(out)
     }
 }
+
+/// Times this close to a part's boundary (s) belong to the part that
+/// starts there ([`Delivered::eval`]): far below any controller's sample
+/// interval, far above the rounding of sums of durations.
+pub const BOUNDARY_TOL: f64 = 1e-9;
 
 /// Largest number of samples a delivered trajectory is sampled into (about
 /// 28 h at 1 kHz): bounds the memory before anything is allocated.

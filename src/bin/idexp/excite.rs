@@ -46,6 +46,9 @@ pub struct AssessArgs {
     /// Use every k-th row only.
     #[arg(long, default_value_t = 1)]
     pub every: usize,
+    /// Only the rows of this segment (column `segment` of idexp excite's trajectory.csv: 0 lead-in, k period k, -1 lead-out); --every then counts those rows.
+    #[arg(long, allow_hyphen_values = true)]
+    pub segment: Option<i64>,
     /// Rigid-body (inertial) base parameters only, no drive/friction columns.
     #[arg(long)]
     pub inertial: bool,
@@ -201,7 +204,7 @@ pub fn run_assess(a: &AssessArgs, _ctl: &Control) -> anyhow::Result<Outcome> {
         BaseParams::with_columns(&robot, &a.base_columns, &bopts)?
     };
     // streamed: memory independent of the trajectory length
-    let id = assess_file(&robot, &base, &a.trajectory, a.every, &noise)?;
+    let id = assess_file(&robot, &base, &a.trajectory, a.segment, a.every, &noise)?;
     let title = format!("identifiability of {} on robot `{}`", a.trajectory.display(), robot.name);
     if let Some(dir) = &a.out {
         idexp::io::folder::begin(dir, "assess", "")?;
@@ -212,6 +215,7 @@ pub fn run_assess(a: &AssessArgs, _ctl: &Control) -> anyhow::Result<Outcome> {
             "trajectory": a.trajectory.display().to_string(),
             "noise": noise,
             "every": a.every,
+            "segment": a.segment,
             "inertial": a.inertial,
             "status": if id.unexcited.is_empty() { "every base parameter excited" } else { "some base parameters not excited" },
         });
