@@ -150,3 +150,19 @@ def test_time_limit_and_errors(tmp_path):
         idexp.excite(bad)
     with pytest.raises(ValueError, match="design: expected a path"):
         idexp.excite(42)
+
+
+def test_period_one_of_the_delivered_trajectory_gives_the_criterion(designed):
+    """`idexp assess --segment 1 --every 100` in Python: the rows of period 1
+    (segment 1, after the lead-in) at 10 Hz are the criterion's samples."""
+    _, r = designed
+    d = r.delivered_sample(1000.0)
+    assert d["segment"][0] == 0 and d["t"][0] == 0.0
+    m = d["segment"] == 1
+    assert m.sum() == 10000
+    robot = idexp.Robot.load(ROBOTS / "ur5.toml")
+    ident = idexp.assess(robot, d["t"][m][::100], d["q"][m][::100], d["qd"][m][::100], d["qdd"][m][::100])
+    assert ident.cond == pytest.approx(r.cond, rel=1e-8)
+    # from t = 0 instead (the lead-in, then most of period 1): another number
+    first = idexp.assess(robot, d["t"][:10000:100], d["q"][:10000:100], d["qd"][:10000:100], d["qdd"][:10000:100])
+    assert abs(first.cond - r.cond) > 1e-3 * r.cond

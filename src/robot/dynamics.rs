@@ -46,6 +46,8 @@ pub struct Workspace {
     placed: Vec<Placed>,
     /// Most non-root joints are [`Placed::RxZ`]: the CRBA dispatches on them.
     rxz_crba: bool,
+    /// A serial chain: joint i's parent is i − 1 (the CRBA's index walk).
+    chain: bool,
     /// Per-link quantities of [`id_derivatives_into`].
     dl: Vec<DerivLink>,
     /// Mass matrix / Cholesky factor of forward dynamics.
@@ -71,6 +73,7 @@ impl Workspace {
             crb: vec![Ten::default(); n],
             axes: (0..n).map(|i| Axis::of(robot, i)).collect(),
             placed: (0..n).map(|i| Placed::of(robot, i)).collect(),
+            chain: (0..n).all(|i| robot.joints[i].parent == i.checked_sub(1)),
             rxz_crba: {
                 let non_root = (0..n).filter(|&i| robot.joints[i].parent.is_some());
                 let rxz = non_root.clone().filter(|&i| matches!(Placed::of(robot, i), Placed::RxZ(_))).count();
@@ -1517,19 +1520,32 @@ impl Axis {
 /// ancestor's S_j (the k-th moment component for a joint about e_k; at the
 /// root only that component is computed). A root joint about e_k reads only
 /// the (k, k) entry of its composite, so only that entry is accumulated.
+/// Column i holds the upper triangle M_ji (j ≤ i), mirrored at the end.
+/// Rotations R = Rx(α) Rz(θ) ([`Placed::RxZ`], most arms' modified-DH
+/// placements) are applied as a turn about z and a signed permutation when
+/// most joints have one; on a serial chain the path is walked by index.
 fn crba_into(robot: &Robot, ws: &mut Workspace, inert: Inertials<'_>, ia: impl Fn(usize) -> Option<f64>, q: &[f64], m: &mut DMatrix<f64>) {
     // the per-joint dispatch on [`Placed`] pays only when most joints take
     // the Rx(α) Rz(θ) shortcut; otherwise every transform is general
-    if ws.rxz_crba {
-        crba_placed::<true>(robot, ws, inert, ia, q, m)
-    } else {
-        crba_placed::<false>(robot, ws, inert, ia, q, m)
+    match (ws.rxz_crba, ws.chain) {
+        (true, true) => crba_placed::<true, true>(robot, ws, inert, ia, q, m),
+        (true, false) => crba_placed::<true, false>(robot, ws, inert, ia, q, m),
+        (false, true) => crba_placed::<false, true>(robot, ws, inert, ia, q, m),
+        (false, false) => crba_placed::<false, false>(robot, ws, inert, ia, q, m),
     }
 }
 
 /// [`crba_into`], with ([`Placed`]) or without (`RXZ` false) the joint
-/// rotations' shortcut.
-fn crba_placed<const RXZ: bool>(robot: &Robot, ws: &mut Workspace, inert: Inertials<'_>, ia: impl Fn(usize) -> Option<f64>, q: &[f64], m: &mut DMatrix<f64>) {
+/// rotations' shortcut, for a serial chain (`CHAIN`: joint i's parent is
+/// i − 1) or any tree.
+fn crba_placed<const RXZ: bool, const CHAIN: bool>(
+    robot: &Robot,
+    ws: &mut Workspace,
+    inert: Inertials<'_>,
+    ia: impl Fn(usize) -> Option<f64>,
+    q: &[f64],
+    m: &mut DMatrix<f64>,
+) {
     let n = robot.dof();
     assert!(m.nrows() == n && m.ncols() == n, "mass matrix output must be n×n");
     joint_transforms(robot, q, &mut ws.kin);
@@ -1582,36 +1598,47 @@ fn crba_placed<const RXZ: bool>(robot: &Robot, ws: &mut Workspace, inert: Inerti
     }
     let ms = m.as_mut_slice(); // column-major: ms[col * n + row]
     ms.fill(0.0);
+    let (crb, rot, pos, placed) = (&ws.crb[..n], &kin.rot[..n], &kin.pos[..n], &ws.placed[..n]);
+    // column i's force carried up its path; the upper triangle M[j, i]
+    // (j ≤ i) goes into column i, mirrored below at the end. On a chain the
+    // path is i, i − 1, …, 0 (indices the compiler can bound).
     for i in 0..n {
-        let (mut nn, mut ff) = axes[i].force(&ws.crb[i]);
-        ms[i * n + i] = axes[i].dot(&nn, &ff);
+        let col = &mut ms[i * n..(i + 1) * n];
+        let (mut nn, mut ff) = axes[i].force(&crb[i]);
+        col[i] = axes[i].dot(&nn, &ff);
         let mut j = i;
-        while let Some(par) = robot.joints[j].parent {
-            let (r, p) = (&kin.rot[j], &kin.pos[j]);
-            let rot = if RXZ { ws.placed[j] } else { Placed::General };
-            let rf = rot.apply(r, &ff);
-            let v = if robot.joints[par].parent.is_none() {
-                if let Axis::Coord(k) = axes[par] {
-                    // only the k-th moment component: (R n)_k + (p × R f)_k
-                    let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
-                    let rn = r[(k, 0)] * nn.x + r[(k, 1)] * nn.y + r[(k, 2)] * nn.z;
-                    let v = rn + (p[k1] * rf[k2] - p[k2] * rf[k1]);
-                    j = par;
-                    ms[j * n + i] = v;
-                    ms[i * n + j] = v;
+        loop {
+            let par = if CHAIN {
+                if j == 0 {
                     break;
                 }
-                nn = rot.apply(r, &nn) + p.cross(&rf);
-                ff = rf;
-                axes[par].dot(&nn, &ff)
+                j - 1
             } else {
-                nn = rot.apply(r, &nn) + p.cross(&rf);
-                ff = rf;
-                axes[par].dot(&nn, &ff)
+                match robot.joints[j].parent {
+                    Some(p) => p,
+                    None => break,
+                }
             };
+            let root = if CHAIN { par == 0 } else { robot.joints[par].parent.is_none() };
+            let (r, p) = (&rot[j], &pos[j]);
+            let turn = if RXZ { placed[j] } else { Placed::General };
+            let rf = turn.apply(r, &ff);
+            if let (true, Axis::Coord(k)) = (root, axes[par]) {
+                // only the k-th moment component: (R n)_k + (p × R f)_k
+                let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
+                let rn = r[(k, 0)] * nn.x + r[(k, 1)] * nn.y + r[(k, 2)] * nn.z;
+                col[par] = rn + (p[k1] * rf[k2] - p[k2] * rf[k1]);
+                break;
+            }
+            nn = turn.apply(r, &nn) + p.cross(&rf);
+            ff = rf;
+            col[par] = axes[par].dot(&nn, &ff);
             j = par;
-            ms[j * n + i] = v;
-            ms[i * n + j] = v;
+        }
+    }
+    for i in 0..n {
+        for j in 0..i {
+            ms[j * n + i] = ms[i * n + j];
         }
     }
     // rotor inertias: Cᵀ diag(Ia) C
