@@ -2045,7 +2045,7 @@ mod tests {
     /// prismatic joint, a branching tree.
     fn test_robots() -> Vec<(String, Robot)> {
         let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
-        ["coupled6_modified.toml", "rpr_standard.toml", "tree.urdf"]
+        ["coupled6_modified.toml", "rpr_standard.toml", "tree.urdf", "rxz_chain.urdf"]
             .iter()
             .map(|f| (f.to_string(), crate::robot::load(&data.join(f)).unwrap()))
             .collect()
@@ -2094,6 +2094,27 @@ mod tests {
             }
         }
         assert!(checked >= 10 * 306, "{checked} configurations");
+    }
+
+    /// The test chain exercises every Rx(α) Rz(θ) case of the CRBA's
+    /// shortcut (α = 0, π/2, π, −π/2) on a chain walked by index, and the
+    /// tree the general walk; `crba_equals_the_dense_products` checks them.
+    #[test]
+    fn crba_paths_are_exercised_by_the_test_robots() {
+        let robots = test_robots();
+        let ws = |name: &str| Workspace::new(&robots.iter().find(|(n, _)| n == name).unwrap().1);
+        let chain = ws("rxz_chain.urdf");
+        assert!(chain.chain && chain.rxz_crba);
+        let alphas: Vec<i8> = chain
+            .placed
+            .iter()
+            .filter_map(|p| if let Placed::RxZ(a) = p { Some(*a) } else { None })
+            .collect();
+        assert_eq!(alphas, vec![0, 1, 2, -1, 0]);
+        let tree = ws("tree.urdf");
+        assert!(!tree.chain && !tree.rxz_crba);
+        let panda = Workspace::new(&crate::robot::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/robots/panda.toml")).unwrap());
+        assert!(panda.chain && panda.rxz_crba);
     }
 
     /// ∂τ/∂q and ∂τ/∂q̇ by forward-mode dual numbers: 2n dual passes of the
