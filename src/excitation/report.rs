@@ -770,8 +770,11 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Writte
     // criterion's rate divides the controller's
     let ratio = d.trajectory.controller_rate / d.objective.sample_rate;
     let period_ident = match ratio.round() as usize {
-        k if k >= 1 && (ratio - k as f64).abs() < 1e-9 => {
+        k if k >= 1 && (ratio - k as f64).abs() < 1e-9 => 'period: {
             let rows: Vec<usize> = (0..ds.t.len()).filter(|&i| ds.segment[i] == 1).step_by(k).collect();
+            if rows.is_empty() {
+                break 'period None;
+            }
             let states = crate::io::States {
                 t: None,
                 q: rows.iter().map(|&i| ds.q[i].clone()).collect(),
@@ -788,7 +791,7 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Writte
             set.segment = Some(1);
             let mut id = assess(&p.robot, &p.base, &states, &noise)?;
             id.source = Some(set);
-            (!rows.is_empty()).then_some(id)
+            Some(id)
         }
         _ => None,
     };
@@ -838,11 +841,11 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Writte
             &delivered_ident,
         ),
     ];
-    if let (Some(id), Some(set)) = (&period_ident, period_ident.as_ref().and_then(|id| id.source.clone())) {
+    if let Some((id, set)) = period_ident.as_ref().and_then(|id| id.source.as_ref().map(|s| (id, s))) {
         record.figures.push(ident_figure(
             "the criterion's samples read from trajectory.csv (report.txt `the same samples in trajectory.csv`; \
              report.json period_identifiability): segment 1 (period 1), every k-th row",
-            set,
+            set.clone(),
             id,
         ));
     }

@@ -65,6 +65,10 @@ impl Workspace {
     pub fn new(robot: &Robot) -> Self {
         let n = robot.dof();
         let p = robot.n_params();
+        let placed: Vec<Placed> = (0..n).map(|i| Placed::of(robot, i)).collect();
+        // the dispatch on `placed` pays when most non-root joints take the shortcut
+        let non_root: Vec<usize> = (0..n).filter(|&i| robot.joints[i].parent.is_some()).collect();
+        let rxz = non_root.iter().filter(|&&i| matches!(placed[i], Placed::RxZ(_))).count();
         Workspace {
             kin: Kin::new(n),
             y: vec![0.0; n * p],
@@ -72,13 +76,9 @@ impl Workspace {
             theta_inertials: robot.links.iter().map(|l| l.inertial).collect(),
             crb: vec![Ten::default(); n],
             axes: (0..n).map(|i| Axis::of(robot, i)).collect(),
-            placed: (0..n).map(|i| Placed::of(robot, i)).collect(),
+            placed,
             chain: (0..n).all(|i| robot.joints[i].parent == i.checked_sub(1)),
-            rxz_crba: {
-                let non_root = (0..n).filter(|&i| robot.joints[i].parent.is_some());
-                let rxz = non_root.clone().filter(|&i| matches!(Placed::of(robot, i), Placed::RxZ(_))).count();
-                2 * rxz > non_root.count()
-            },
+            rxz_crba: 2 * rxz > non_root.len(),
             dl: vec![DerivLink::default(); n],
             fd_m: DMatrix::zeros(n, n),
             fd_rhs: vec![0.0; n],

@@ -14,9 +14,6 @@ pub trait Real: RealField + Copy {
     fn re_(&self) -> f64;
     /// Lifts a constant.
     fn c(x: f64) -> Self;
-    /// Plain f64 (no derivative parts): kernels may then take shortcuts
-    /// that are exact in f64 arithmetic.
-    const IS_F64: bool = false;
     /// (sin x, cos x) of the joint angles, by the `libm` crate's sincos
     /// (musl's kernels, no rounding-mode switches: about half the time of
     /// the platform's), the same arithmetic in every scalar type.
@@ -24,7 +21,6 @@ pub trait Real: RealField + Copy {
 }
 
 impl Real for f64 {
-    const IS_F64: bool = true;
     #[inline(always)]
     fn sincos(self) -> (f64, f64) {
         libm::sincos(self)
