@@ -196,12 +196,17 @@ struct Recomputed {
 
 /// W½ C D of a figure, with D from the figure's scaling rule (recomputed, then
 /// compared with the written `scale`), and its SVD.
-fn recompute(what: &str, c: &DMatrix<f64>, noise: &[f64], fig: &Value, nominal: &[f64]) -> Recomputed {
-    let n = noise.len();
+/// W½·C: every joint row divided by its torque noise σ_j.
+fn weighted(c: &DMatrix<f64>, noise: &[f64]) -> DMatrix<f64> {
     let mut cw = c.clone();
     for i in 0..cw.nrows() {
-        cw.row_mut(i).scale_mut(1.0 / noise[i % n]);
+        cw.row_mut(i).scale_mut(1.0 / noise[i % noise.len()]);
     }
+    cw
+}
+
+fn recompute(what: &str, c: &DMatrix<f64>, noise: &[f64], fig: &Value, nominal: &[f64]) -> Recomputed {
+    let mut cw = weighted(c, noise);
     let norms: Vec<f64> = cw.column_iter().map(|c| c.norm()).collect();
     close_all(&format!("{what}: column norms"), &norms, &floats(&fig["column_norms"]));
     let maxn = norms.iter().fold(0.0f64, |m, v| m.max(*v));
@@ -440,12 +445,7 @@ fn excite_and_replay(name: &str, objective: &str) {
 
 /// cond of W½·C with unit columns (no reported figure to compare with).
 fn recompute_unchecked(c: &DMatrix<f64>, noise: &[f64]) -> f64 {
-    let n = noise.len();
-    let mut w = c.clone();
-    for r in 0..w.nrows() {
-        let s = noise[r % n];
-        w.row_mut(r).scale_mut(1.0 / s);
-    }
+    let mut w = weighted(c, noise);
     for mut col in w.column_iter_mut() {
         let norm = col.norm();
         if norm > 0.0 {
