@@ -104,6 +104,9 @@ class BaseParameters:
 class ExciteResult:
     status: str
     feasible: bool
+    safety: dict[str, Any]
+    """collisions ("imposed", "checked_afterwards", "not_checked"), safe (bool or None),
+    closest (pair, distance m, cap m, t s, segment; or None), statement."""
     stopped_by: Optional[str]
     coefficients: dict[str, Any]
     x: F64

@@ -105,6 +105,15 @@ impl ExciteResult {
     fn feasible(&self) -> bool {
         self.result.status == idexp::excitation::Status::Feasible
     }
+    /// Whether the delivered trajectory may be played: dict with
+    /// collisions ("imposed", "checked_afterwards", "not_checked"), safe
+    /// (True, False, or None when nothing could be checked), closest (pair,
+    /// distance in m, cap, t in s, segment; for "checked_afterwards") and
+    /// statement.
+    #[getter]
+    fn safety<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_dict(py, &self.result.execution.safety)
+    }
     /// What cut the run short (time limit, evaluation budget), or None.
     #[getter]
     fn stopped_by(&self) -> Option<String> {
@@ -251,15 +260,12 @@ impl ExciteResult {
         };
         let p = &self.problem;
         let o = a.options(f, p.design.trajectory.controller_rate, &p.design.name)?;
-        let d = match (&self.result.execution.delivered, self.result.status) {
-            (Some(d), idexp::excitation::Status::Feasible) => d,
-            _ => {
-                return Err(IdexpError::new_err(format!(
-                    "export: design `{}` is INFEASIBLE or not playable rest to rest: nothing safe to play (see result.violated and result.report)",
-                    p.design.name
-                )))
-            }
-        };
+        let d = self.result.playable().map_err(|why| {
+            IdexpError::new_err(format!(
+                "export: design `{}`: {why} (see result.safety, result.violated and result.report)",
+                p.design.name
+            ))
+        })?;
         let names: Vec<String> = p.robot.joints.iter().map(|j| j.name.clone()).collect();
         let revolute: Vec<bool> = p.robot.joints.iter().map(|j| j.kind == idexp::robot::JointKind::Revolute).collect();
         py.detach(|| idexp::trajectory::export::write_exports(&folder, &names, &revolute, d, &o)).py()

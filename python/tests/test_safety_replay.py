@@ -220,3 +220,62 @@ def test_visual_replay_ur5_keeps_the_margin_and_idexp_bounds_it(ur5_run, tmp_pat
     for i, p in enumerate(pairs):
         hull = worst[p.label]["worst"]
         assert dist[:, i].min() >= min(hull, cap) - 1e-9, f"{p.label}: visual mesh {dist[:, i].min()} < idexp's {hull}"
+
+
+@pytest.fixture(scope="module")
+def bench_run(cli, tmp_path_factory):
+    out = tmp_path_factory.mktemp("excite_ur5_bench")
+    cli("excite", DESIGNS / "excite_ur5_bench.toml", "--time-limit", "2", "--out", out)
+    return out
+
+
+def test_benchmark_design_without_collision_constraints_is_unsafe_for_idexp_and_the_replay(bench_run, tmp_path):
+    # the benchmark designs impose no collision constraint ([collision]
+    # enabled = false) and start at q = 0 (wrist below the mounting plane):
+    # every constraint they impose holds, but idexp's check afterwards and the
+    # replay on the vendor's meshes both call the delivered trajectory unsafe
+    sr = replay_module()
+    report = json.loads((bench_run / "report.json").read_text())
+    assert report["result"]["status"] == "feasible"
+    safety = report["result"]["execution"]["safety"]
+    assert safety["collisions"] == "checked_afterwards" and safety["safe"] is False, safety
+    assert "NOT safe to play" in (bench_run / "report.txt").read_text()
+    closest = safety["closest"]
+    assert closest["distance"] < 0.0
+
+    # the replay of the delivered trajectory (every 20th sample): UNSAFE
+    s, _ = sr.replay(DESIGNS / "excite_ur5_bench.toml", bench_run, stride=20, cap=0.05)
+    assert s["margin"] == 0.0
+    assert s["verdict"] == "UNSAFE"
+    replay_below = sum(p["below_margin"] for p in s["pairs"])
+    assert replay_below > 0
+
+    # idexp's deepest sample replayed alone: the same pair in collision on the
+    # vendor's meshes, and idexp's hull distance a lower bound of the mesh distance
+    with open(bench_run / "trajectory.csv", newline="") as f:
+        rows = list(csv.reader(f))
+    k = int(round(closest["t"] * 1000.0))
+    assert abs(float(rows[1 + k][0]) - closest["t"]) < 1e-9
+    with open(tmp_path / "trajectory.csv", "w", newline="") as f:
+        csv.writer(f).writerows([rows[0], rows[1 + k]])
+    one, _ = sr.replay(DESIGNS / "excite_ur5_bench.toml", tmp_path, cap=0.05)
+    mesh = {p["pair"]: p["min"] for p in one["pairs"]}
+    assert mesh[closest["pair"]] < 0.0, (closest, mesh)
+    assert mesh[closest["pair"]] >= closest["distance"] - 1e-9, (closest, mesh)
+
+
+def test_python_result_carries_the_verdict_and_refuses_the_export(tmp_path):
+    import idexp
+
+    r = idexp.excite(str(DESIGNS / "excite_ur5_bench.toml"), time_limit=1.0)
+    assert r.feasible
+    assert r.safety["safe"] is False and r.safety["collisions"] == "checked_afterwards"
+    assert r.safety["closest"]["distance"] < 0.0
+    with pytest.raises(idexp.IdexpError, match="NOT safe to play"):
+        r.export(tmp_path, "csv")
+    r.write(tmp_path / "bench")
+    with pytest.raises(idexp.IdexpError, match=r"coefficients.json.*safety.*NOT safe to play"):
+        idexp.export_trajectory(tmp_path / "bench" / "coefficients.json", "csv")
+    r = idexp.excite(str(DESIGNS / "excite_ur5.toml"), time_limit=1.0)
+    if r.feasible:
+        assert r.safety == {**r.safety, "collisions": "imposed", "safe": True}

@@ -218,6 +218,220 @@ pub struct Execution {
     pub verified: bool,
     /// Verification grid (Hz).
     pub check_rate: f64,
+    /// Whether the delivered trajectory keeps the robot clear of itself,
+    /// the floor and the cell ([`Safety`]).
+    pub safety: Safety,
+}
+
+/// How collisions were checked on the delivered trajectory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CollisionCheck {
+    /// The design's collision constraints (minimum distance `margin`) held
+    /// at every sample of the delivered trajectory on the `check_rate` grid.
+    Imposed,
+    /// `[collision] enabled = false`: the search ignored collisions; the
+    /// delivered trajectory was checked afterwards on the `check_rate` grid
+    /// against the robot's collision geometry (self, floor, the design's
+    /// obstacles and attached shapes), without a margin.
+    CheckedAfterwards,
+    /// The robot file gives no collision geometry and the design no
+    /// obstacle: nothing could be checked.
+    NotChecked,
+}
+
+/// The least distance found on the delivered trajectory.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Closest {
+    /// `self: a – b` or `world: a – floor`.
+    pub pair: String,
+    /// Signed distance (m; negative: penetration), capped at `cap`.
+    pub distance: f64,
+    /// Distances above this were not resolved (m).
+    pub cap: f64,
+    /// Time in the delivered trajectory (s).
+    pub t: f64,
+    /// Segment of that time ([`crate::trajectory::lead::LEAD_IN`], period
+    /// 1..N, [`crate::trajectory::lead::LEAD_OUT`]).
+    pub segment: i64,
+    /// Samples in contact or collision (least distance ≤ 0).
+    pub colliding_samples: usize,
+    /// Samples checked.
+    pub samples: usize,
+}
+
+/// Whether the delivered trajectory may be played: the verdict a user
+/// reads before running it on the robot.
+///
+/// Collision distances are between the convex hulls of the collision
+/// meshes grown by the robot file's `collision_padding` (and the design's
+/// primitives): lower bounds of the distances between the vendor's meshes.
+/// A design whose search ignored collisions (`[collision] enabled = false`,
+/// e.g. a benchmark against a reference without collision checks) is
+/// still checked here, and called unsafe when any pair touches.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Safety {
+    /// How collisions were checked.
+    pub collisions: CollisionCheck,
+    /// `Some(true)`: every sample is within the limits and collision-free
+    /// (for `Imposed`: at least the margin apart); `Some(false)`: not;
+    /// `None`: collisions could not be checked.
+    pub safe: Option<bool>,
+    /// The least distance over the delivered trajectory
+    /// (`CheckedAfterwards` only; for `Imposed` the report's per-pair
+    /// margins hold the least distances over the period).
+    pub closest: Option<Closest>,
+    /// One sentence: the verdict and why.
+    pub statement: String,
+}
+
+impl Safety {
+    fn none(why: &str) -> Safety {
+        Safety {
+            collisions: CollisionCheck::NotChecked,
+            safe: Some(false),
+            closest: None,
+            statement: format!("NOT safe to play: {why}"),
+        }
+    }
+}
+
+/// Distances above this are not resolved in the after-the-fact check (m).
+pub const SAFETY_CAP: f64 = 0.1;
+
+/// The safety verdict of a delivered trajectory `d` (verified against the
+/// design's limits or not, `verified`).
+fn safety(p: &Problem, d: Option<&Delivered>, verified: Option<&str>, rate: f64) -> Result<Safety> {
+    let Some(d) = d else {
+        return Ok(Safety::none("no delivered trajectory"));
+    };
+    if let Some(e) = verified {
+        return Ok(Safety {
+            collisions: if p.constraints.scene().is_some() {
+                CollisionCheck::Imposed
+            } else {
+                CollisionCheck::NotChecked
+            },
+            safe: Some(false),
+            closest: None,
+            statement: format!("NOT safe to play: {e}"),
+        });
+    }
+    if let Some(sc) = p.constraints.scene() {
+        return Ok(Safety {
+            collisions: CollisionCheck::Imposed,
+            safe: Some(true),
+            closest: None,
+            statement: format!(
+                "safe to play by idexp's check: every sample on the {rate} Hz grid within the limits, and every checked pair at least {} m apart",
+                sc.margin
+            ),
+        });
+    }
+    let spec = crate::robot::collision::CollisionSpec {
+        enabled: true,
+        margin: 0.0,
+        ..p.design.collision.clone()
+    };
+    let scene = crate::robot::collision::CollisionScene::new(&p.robot, &spec, std::path::Path::new(""), &p.design.name)?;
+    let Some(sc) = scene.filter(|s| !s.is_empty()) else {
+        return Ok(Safety {
+            collisions: CollisionCheck::NotChecked,
+            safe: None,
+            closest: None,
+            statement: format!(
+                "collisions NOT checked: the robot file gives no collision geometry{}; every sample on the {rate} Hz grid is within the limits",
+                if p.design.collision.enabled { "" } else { " and [collision] is off" }
+            ),
+        });
+    };
+    let closest = closest_on(p, &sc, d, rate);
+    let safe = closest.as_ref().is_none_or(|c| c.distance > 0.0);
+    let statement = match (&closest, safe) {
+        (Some(c), false) => format!(
+            "NOT safe to play: the design imposes no collision constraint ([collision] enabled = false), and the delivered \
+             trajectory is in collision at {} of its {} samples ({rate} Hz); deepest: `{}` at t = {:.3} s ({}), distance {:.4} m",
+            c.colliding_samples,
+            c.samples,
+            c.pair,
+            c.t,
+            segment_name(c.segment),
+            c.distance
+        ),
+        (Some(c), true) => format!(
+            "collision-free by idexp's check although the design imposes no collision constraint ([collision] enabled = false): \
+             least distance {} m (`{}` at t = {:.3} s, {}); no margin was kept",
+            if c.distance >= c.cap {
+                format!("≥ {}", c.cap)
+            } else {
+                format!("{:.4}", c.distance)
+            },
+            c.pair,
+            c.t,
+            segment_name(c.segment)
+        ),
+        (None, _) => "collision-free by idexp's check (no checked pair)".to_string(),
+    };
+    Ok(Safety {
+        collisions: CollisionCheck::CheckedAfterwards,
+        safe: Some(safe),
+        closest,
+        statement,
+    })
+}
+
+/// `lead-in`, `period 2`, `lead-out`.
+pub fn segment_name(seg: i64) -> String {
+    match seg {
+        lead::LEAD_IN => "lead-in".to_string(),
+        lead::LEAD_OUT => "lead-out".to_string(),
+        k => format!("period {k}"),
+    }
+}
+
+/// The least capped distance of `sc` over every sample of `d` at `rate`
+/// Hz (the first sample of least distance on ties). Samples are checked in
+/// chunks in parallel; the reduction is in time order, so the result does
+/// not depend on the thread count.
+fn closest_on(p: &Problem, sc: &crate::robot::collision::CollisionScene, d: &Delivered, rate: f64) -> Option<Closest> {
+    use rayon::prelude::*;
+    let n = d.home.len();
+    let m = (d.duration() * rate - 1e-6).ceil().max(0.0) as usize;
+    const CHUNK: usize = 512;
+    let chunks: Vec<usize> = (0..=m).step_by(CHUNK).collect();
+    let best = chunks
+        .par_iter()
+        .map(|&k0| {
+            let mut kin = crate::robot::kinematics::Kin::new(p.robot.dof());
+            let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            let mut best: Option<(usize, i64, crate::robot::collision::PairDistance)> = None;
+            let mut colliding = 0;
+            for k in k0..(k0 + CHUNK).min(m + 1) {
+                let seg = d.eval(k as f64 / rate, &mut q, &mut qd, &mut qdd);
+                if let Some(w) = sc.worst_at(&p.robot, &mut kin, &q, SAFETY_CAP) {
+                    colliding += usize::from(w.distance <= 0.0);
+                    if best.as_ref().is_none_or(|b| w.distance < b.2.distance) {
+                        best = Some((k, seg, w));
+                    }
+                }
+            }
+            (best, colliding)
+        })
+        .collect::<Vec<_>>();
+    let colliding_samples = best.iter().map(|b| b.1).sum();
+    let (k, segment, w) = best
+        .into_iter()
+        .filter_map(|b| b.0)
+        .reduce(|a, b| if b.2.distance < a.2.distance { b } else { a })?;
+    Some(Closest {
+        pair: w.label,
+        distance: w.distance,
+        cap: SAFETY_CAP,
+        t: k as f64 / rate,
+        segment,
+        colliding_samples,
+        samples: m + 1,
+    })
 }
 
 /// The home pose of a design: `execution.home`, else the trajectory's q0.
@@ -242,11 +456,14 @@ pub fn deliver(p: &Problem, tr: &FourierTrajectory) -> Result<Execution> {
             periods: e.periods,
             lead_out: None,
         };
+        let verified = verify(&d, rate, &mut check);
+        let safety = safety(p, Some(&d), verified.as_ref().err().map(|s| s.as_str()), rate)?;
         return Ok(Execution {
-            verified: verify(&d, rate, &mut check).is_ok(),
+            verified: verified.is_ok(),
             delivered: Some(d),
             problem: None,
             check_rate: rate,
+            safety,
         });
     }
     let home = home_of(p, tr);
@@ -277,11 +494,13 @@ pub fn deliver(p: &Problem, tr: &FourierTrajectory) -> Result<Execution> {
         lead_out,
     };
     let verified = verify(&d, rate, &mut check);
+    let safety = safety(p, Some(&d), verified.as_ref().err().map(|s| s.as_str()), rate)?;
     Ok(Execution {
         verified: verified.is_ok(),
         problem: verified.err(),
         delivered: Some(d),
         check_rate: rate,
+        safety,
     })
 }
 
@@ -291,6 +510,7 @@ fn failed(problem: String, rate: f64) -> Execution {
         problem: Some(problem),
         verified: false,
         check_rate: rate,
+        safety: Safety::none("no delivered trajectory is playable rest to rest"),
     }
 }
 

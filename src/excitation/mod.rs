@@ -138,6 +138,18 @@ impl Serialize for StoppedBy {
 }
 
 impl ExciteResult {
+    /// The delivered trajectory when it may be sent to the robot (the
+    /// controller exports): the design is feasible and the delivered
+    /// trajectory was not found colliding ([`execution::Safety`]). `Err`
+    /// says why not.
+    pub fn playable(&self) -> std::result::Result<&crate::trajectory::lead::Delivered, String> {
+        match (&self.execution.delivered, self.status) {
+            (Some(_), Status::Infeasible) | (None, _) => Err("the design is INFEASIBLE or not playable rest to rest: nothing safe to play".to_string()),
+            (Some(_), _) if self.execution.safety.safe == Some(false) => Err(self.execution.safety.statement.clone()),
+            (Some(d), _) => Ok(d),
+        }
+    }
+
     /// Why the best design found excites no usable set of parameters: its
     /// regressor is rank-deficient (condition number at [`objective::COND_CAP`]),
     /// typically because the limits leave too little motion (e.g. a tiny

@@ -746,6 +746,7 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Writte
         "revolute": p.robot.joints.iter().map(|j| j.kind == crate::robot::JointKind::Revolute).collect::<Vec<_>>(),
         "controller_rate": d.trajectory.controller_rate,
         "delivered": r.execution.delivered,
+        "safety": r.execution.safety,
     });
     crate::io::write_json(&dir.join("coefficients.json"), &coeff)?;
     // trajectory.csv: the delivered trajectory (lead-in, periods, lead-out)
@@ -859,6 +860,7 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Writte
         "seconds": r.seconds,
         "execution_problem": r.execution.problem,
         "delivered_seconds": r.execution.delivered.as_ref().map(|dl| dl.duration()),
+        "safe_to_play": r.execution.safety.safe,
     });
     let interrupted = r
         .stopped_by
@@ -874,7 +876,18 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Writte
             },
         ),
         (super::Status::Feasible, true) => (RunState::Interrupted, "interrupted; the best feasible design so far".to_string()),
-        (super::Status::Feasible, false) => (RunState::Complete, format!("feasible, condition number {:.4}", r.spectrum.cond)),
+        (super::Status::Feasible, false) => (
+            RunState::Complete,
+            format!(
+                "feasible, condition number {:.4}{}",
+                r.spectrum.cond,
+                if r.execution.safety.safe == Some(false) {
+                    "; NOT safe to play (collides: see report.txt)"
+                } else {
+                    ""
+                }
+            ),
+        ),
     };
     let started = std::time::SystemTime::now().checked_sub(std::time::Duration::from_secs_f64(r.seconds.max(0.0)));
     let robot_path = d.robot.display().to_string();
@@ -1013,6 +1026,9 @@ pub fn excite_report_text(
         "status: {status}{}",
         r.stopped_by.as_ref().map(|b| format!(" (stopped early: {b})")).unwrap_or_default()
     );
+    if r.execution.delivered.is_some() && r.status == Status::Feasible {
+        let _ = writeln!(s, "safety: {}", r.execution.safety.statement);
+    }
     let _ = writeln!(s, "criterion value: {}", fmt_num(r.criterion));
     let _ = writeln!(s, "condition number: {} (on the criterion's samples above)", fmt_num(r.spectrum.cond));
     if let Some(pi) = period {

@@ -468,6 +468,12 @@ impl Designed {
                 "`delivered` is null: the design has no playable rest-to-rest trajectory (see its report.txt)",
             )
         })?;
+        // a trajectory found colliding is not sent to a robot (files written
+        // before the verdict existed carry no `safety` field)
+        if v.pointer("/safety/safe") == Some(&serde_json::Value::Bool(false)) {
+            let why = v.pointer("/safety/statement").and_then(|s| s.as_str()).unwrap_or("NOT safe to play");
+            return Err(Error::invalid(path.display().to_string(), "safety", format!("{why}: no controller export")));
+        }
         let controller_rate = v.get("controller_rate").and_then(|r| r.as_f64()).unwrap_or(1000.0);
         let design = v.get("design").and_then(|d| d.as_str()).unwrap_or("trajectory").to_string();
         let n = names.len();

@@ -140,10 +140,13 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         if let Some(e) = &r.execution.problem {
             println!("  not playable rest to rest: {e}");
         }
+        if r.execution.delivered.is_some() && r.status == Status::Feasible {
+            println!("  {}", r.execution.safety.statement);
+        }
     }
     if let Some(f) = formats {
-        match &r.execution.delivered {
-            Some(dl) if r.status == Status::Feasible => {
+        match r.playable() {
+            Ok(dl) => {
                 let names: Vec<String> = p.robot.joints.iter().map(|j| j.name.clone()).collect();
                 let revolute: Vec<bool> = p.robot.joints.iter().map(|j| j.kind == idexp::robot::JointKind::Revolute).collect();
                 for path in crate::export::export(
@@ -159,7 +162,7 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
                     eprintln!("  wrote {}", path.display());
                 }
             }
-            _ => eprintln!("no controller export: the design is INFEASIBLE (nothing safe to play)"),
+            Err(why) => eprintln!("no controller export: {why}"),
         }
     }
     let interrupted = r
