@@ -299,12 +299,9 @@ impl Safety {
 /// Distances above this are not resolved in the after-the-fact check (m).
 pub const SAFETY_CAP: f64 = 0.1;
 
-/// The safety verdict of a delivered trajectory `d` (verified against the
-/// design's limits or not, `verified`).
-fn safety(p: &Problem, d: Option<&Delivered>, verified: Option<&str>, rate: f64) -> Result<Safety> {
-    let Some(d) = d else {
-        return Ok(Safety::none("no delivered trajectory"));
-    };
+/// The safety verdict of a delivered trajectory `d`; `verified`: why it
+/// failed the check of the design's limits (None: it passed).
+fn safety(p: &Problem, d: &Delivered, verified: Option<&str>, rate: f64) -> Result<Safety> {
     if let Some(e) = verified {
         return Ok(Safety {
             collisions: if p.constraints.scene().is_some() {
@@ -457,7 +454,7 @@ pub fn deliver(p: &Problem, tr: &FourierTrajectory) -> Result<Execution> {
             lead_out: None,
         };
         let verified = verify(&d, rate, &mut check);
-        let safety = safety(p, Some(&d), verified.as_ref().err().map(|s| s.as_str()), rate)?;
+        let safety = safety(p, &d, verified.as_ref().err().map(|s| s.as_str()), rate)?;
         return Ok(Execution {
             verified: verified.is_ok(),
             delivered: Some(d),
@@ -494,7 +491,7 @@ pub fn deliver(p: &Problem, tr: &FourierTrajectory) -> Result<Execution> {
         lead_out,
     };
     let verified = verify(&d, rate, &mut check);
-    let safety = safety(p, Some(&d), verified.as_ref().err().map(|s| s.as_str()), rate)?;
+    let safety = safety(p, &d, verified.as_ref().err().map(|s| s.as_str()), rate)?;
     Ok(Execution {
         verified: verified.is_ok(),
         problem: verified.err(),
