@@ -46,6 +46,10 @@ pub struct Workspace {
     placed: Vec<Placed>,
     /// Most non-root joints are [`Placed::RxZ`]: the CRBA dispatches on them.
     rxz_crba: bool,
+    /// What the Rx(α) Rz(θ) CRBA needs of each joint's transform ([`Need`]).
+    need: Vec<Need>,
+    /// (cos θ, sin θ) of the [`Need::Turn`] joints (the CRBA's scratch).
+    cs: Vec<(f64, f64)>,
     /// A serial chain: joint i's parent is i − 1 (the CRBA's index walk).
     chain: bool,
     /// Per-link quantities of [`id_derivatives_into`].
@@ -69,6 +73,7 @@ impl Workspace {
         // the dispatch on `placed` pays when most non-root joints take the shortcut
         let non_root: Vec<usize> = (0..n).filter(|&i| robot.joints[i].parent.is_some()).collect();
         let rxz = non_root.iter().filter(|&&i| matches!(placed[i], Placed::RxZ(_))).count();
+        let need = (0..n).map(|i| Need::of(robot, &placed, i)).collect();
         Workspace {
             kin: Kin::new(n),
             y: vec![0.0; n * p],
@@ -79,6 +84,8 @@ impl Workspace {
             placed,
             chain: (0..n).all(|i| robot.joints[i].parent == i.checked_sub(1)),
             rxz_crba: 2 * rxz > non_root.len(),
+            need,
+            cs: vec![(1.0, 0.0); n],
             dl: vec![DerivLink::default(); n],
             fd_m: DMatrix::zeros(n, n),
             fd_rhs: vec![0.0; n],
@@ -1437,13 +1444,12 @@ impl Placed {
         (r[(0, 0)], s)
     }
 
-    /// R v.
+    /// R v, from `r` (General) or from (c, s) = (cos θ, sin θ) (RxZ).
     #[inline(always)]
-    fn apply(self, r: &Matrix3<f64>, v: &Vector3<f64>) -> Vector3<f64> {
+    fn apply(self, r: &Matrix3<f64>, (c, s): (f64, f64), v: &Vector3<f64>) -> Vector3<f64> {
         match self {
             Placed::General => r * v,
             Placed::RxZ(alpha) => {
-                let (c, s) = Placed::cs(alpha, r);
                 let (x, y, z) = (c * v.x - s * v.y, s * v.x + c * v.y, v.z);
                 match alpha {
                     0 => Vector3::new(x, y, z),
@@ -1452,6 +1458,28 @@ impl Placed {
                     _ => Vector3::new(x, -y, -z),
                 }
             }
+        }
+    }
+}
+
+/// What the CRBA with the [`Placed::RxZ`] shortcut reads of joint i's
+/// transform: nothing for a root (its column ends at itself); the whole
+/// rotation for a child of a root (the root's entry reads rows of it) and
+/// for a [`Placed::General`] joint; otherwise only cos θ and sin θ (the turn
+/// about z; the position is the constant placement of a revolute joint).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Need {
+    Nothing,
+    Full,
+    Turn,
+}
+
+impl Need {
+    fn of(robot: &Robot, placed: &[Placed], i: usize) -> Self {
+        match (robot.joints[i].parent, placed[i]) {
+            (None, _) => Need::Nothing,
+            (Some(par), Placed::RxZ(_)) if robot.joints[par].parent.is_some() => Need::Turn,
+            _ => Need::Full,
         }
     }
 }
@@ -1548,7 +1576,40 @@ fn crba_placed<const RXZ: bool, const CHAIN: bool>(
 ) {
     let n = robot.dof();
     assert!(m.nrows() == n && m.ncols() == n, "mass matrix output must be n×n");
-    joint_transforms(robot, q, &mut ws.kin);
+    assert!(q.len() == n && ws.need.len() == n, "workspace made for another robot");
+    if RXZ {
+        // only what the passes below read ([`Need`]): a turn's (cos θ, sin θ)
+        // are the bits `joint_transform` would have put in R₀₀ and R₁₀/R₂₀
+        for i in 0..n {
+            match ws.need[i] {
+                Need::Nothing => {}
+                Need::Turn => {
+                    let (s, c) = (q[i] + robot.joints[i].offset).sincos();
+                    // R's first column is P e_x c + P e_y s (`joint_transform`
+                    // about +e_z): its entries, the same products, signed zeros
+                    // included
+                    let pl = &robot.geo[i].pl_r;
+                    let r0 = |x: usize| pl[(x, 0)] * c + pl[(x, 1)] * s;
+                    let alpha = if let Placed::RxZ(a) = ws.placed[i] { a } else { 0 };
+                    ws.cs[i] = Placed::cs(
+                        alpha,
+                        &Matrix3::from_columns(&[Vector3::new(r0(0), r0(1), r0(2)), Vector3::zeros(), Vector3::zeros()]),
+                    );
+                    ws.kin.pos[i] = robot.geo[i].pl_p;
+                }
+                Need::Full => {
+                    let (r, p) = joint_transform(robot, i, q[i]);
+                    if let Placed::RxZ(alpha) = ws.placed[i] {
+                        ws.cs[i] = Placed::cs(alpha, &r);
+                    }
+                    ws.kin.rot[i] = r;
+                    ws.kin.pos[i] = p;
+                }
+            }
+        }
+    } else {
+        joint_transforms(robot, q, &mut ws.kin);
+    }
     for i in 0..n {
         let ine = match inert {
             Inertials::Nominal => &robot.links[i].inertial,
@@ -1584,7 +1645,7 @@ fn crba_placed<const RXZ: bool, const CHAIN: bool>(
                 }
                 _ => {
                     let c = match if RXZ { ws.placed[i] } else { Placed::General } {
-                        Placed::RxZ(alpha) => t.in_frame_rxz(alpha, Placed::cs(alpha, r), p),
+                        Placed::RxZ(alpha) => t.in_frame_rxz(alpha, ws.cs[i], p),
                         Placed::General => t.in_frame(r, p),
                     };
                     if par + 1 == i {
@@ -1598,7 +1659,7 @@ fn crba_placed<const RXZ: bool, const CHAIN: bool>(
     }
     let ms = m.as_mut_slice(); // column-major: ms[col * n + row]
     ms.fill(0.0);
-    let (crb, rot, pos, placed) = (&ws.crb[..n], &kin.rot[..n], &kin.pos[..n], &ws.placed[..n]);
+    let (crb, rot, pos, placed, cs) = (&ws.crb[..n], &kin.rot[..n], &kin.pos[..n], &ws.placed[..n], &ws.cs[..n]);
     // column i's force carried up its path; the upper triangle M[j, i]
     // (j ≤ i) goes into column i, mirrored below at the end. On a chain the
     // path is i, i − 1, …, 0 (indices the compiler can bound).
@@ -1621,8 +1682,8 @@ fn crba_placed<const RXZ: bool, const CHAIN: bool>(
             };
             let root = if CHAIN { par == 0 } else { robot.joints[par].parent.is_none() };
             let (r, p) = (&rot[j], &pos[j]);
-            let turn = if RXZ { placed[j] } else { Placed::General };
-            let rf = turn.apply(r, &ff);
+            let (turn, cj) = if RXZ { (placed[j], cs[j]) } else { (Placed::General, (1.0, 0.0)) };
+            let rf = turn.apply(r, cj, &ff);
             if let (true, Axis::Coord(k)) = (root, axes[par]) {
                 // only the k-th moment component: (R n)_k + (p × R f)_k
                 let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
@@ -1630,7 +1691,7 @@ fn crba_placed<const RXZ: bool, const CHAIN: bool>(
                 col[par] = rn + (p[k1] * rf[k2] - p[k2] * rf[k1]);
                 break;
             }
-            nn = turn.apply(r, &nn) + p.cross(&rf);
+            nn = turn.apply(r, cj, &nn) + p.cross(&rf);
             ff = rf;
             col[par] = axes[par].dot(&nn, &ff);
             j = par;
@@ -2115,6 +2176,46 @@ mod tests {
         assert!(!tree.chain && !tree.rxz_crba);
         let panda = Workspace::new(&crate::robot::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/robots/panda.toml")).unwrap());
         assert!(panda.chain && panda.rxz_crba);
+    }
+
+    /// The CRBA with the Rx(α) Rz(θ) shortcut computes of each joint's
+    /// transform only what it reads ([`Need`]): M is the same to the bit as
+    /// with every transform computed in full, and a turn's (cos θ, sin θ)
+    /// are the bits the full transform holds (signed zeros included), on
+    /// every shipped and test robot that takes the shortcut.
+    #[test]
+    fn crba_reads_of_the_transforms_only_what_it_needs() {
+        let mut robots = shipped_robots();
+        robots.extend(test_robots());
+        let (mut shortcut, mut turns) = (0, 0);
+        for (name, r) in robots {
+            let n = r.dof();
+            let mut ws = Workspace::new(&r);
+            if !ws.rxz_crba {
+                continue;
+            }
+            shortcut += 1;
+            let need = ws.need.clone();
+            let (mut a, mut b) = (DMatrix::zeros(n, n), DMatrix::zeros(n, n));
+            for q in test_configurations(n, 100) {
+                ws.need.clone_from(&need);
+                mass_matrix_into(&r, &mut ws, &q, &mut a);
+                for i in (0..n).filter(|&i| ws.need[i] == Need::Turn) {
+                    let Placed::RxZ(alpha) = ws.placed[i] else {
+                        panic!("{name}: turn {i} is not RxZ")
+                    };
+                    let (c, s) = ws.cs[i];
+                    let (rc, rs) = Placed::cs(alpha, &joint_transform(&r, i, q[i]).0);
+                    assert_eq!((c.to_bits(), s.to_bits()), (rc.to_bits(), rs.to_bits()), "{name}: joint {i} at {}", q[i]);
+                    turns += 1;
+                }
+                ws.need.iter_mut().for_each(|x| *x = Need::Full);
+                mass_matrix_into(&r, &mut ws, &q, &mut b);
+                let bits = |m: &DMatrix<f64>| m.iter().map(|v| v.to_bits()).collect::<Vec<u64>>();
+                assert_eq!(bits(&a), bits(&b), "{name}: at q = {q:?}: {a} vs {b}");
+            }
+        }
+        assert!(shortcut >= 2 && turns >= 1000, "{shortcut} robots, {turns} turns");
     }
 
     /// ∂τ/∂q and ∂τ/∂q̇ by forward-mode dual numbers: 2n dual passes of the

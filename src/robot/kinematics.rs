@@ -181,8 +181,9 @@ pub fn joint_transforms<T: Real>(robot: &Robot, q: &[T], kin: &mut Kin<T>) {
 }
 
 /// Orientation and position of joint `i`'s child frame in its parent's at
-/// joint coordinate `qi`.
-#[inline]
+/// joint coordinate `qi`. Always inlined: an outlined call returns the
+/// matrix through memory (measured: the CRBA 12 % slower on the UR5).
+#[inline(always)]
 pub(crate) fn joint_transform<T: Real>(robot: &Robot, i: usize, qi: T) -> (Matrix3<T>, Vector3<T>) {
     let j = &robot.joints[i];
     let g = &robot.geo[i];
