@@ -1431,17 +1431,17 @@ impl Placed {
             .map_or(Placed::General, |(a, _)| Placed::RxZ(a))
     }
 
-    /// (cos θ, sin θ) of R = Rx(α) Rz(θ): c = R₀₀, and s = R₁₀, R₂₀, −R₂₀,
-    /// −R₁₀ for α = 0, π/2, −π/2, π.
+    /// (cos θ, sin θ) of R = Rx(α) Rz(θ) from its first column `r0`:
+    /// c = R₀₀, and s = R₁₀, R₂₀, −R₂₀, −R₁₀ for α = 0, π/2, −π/2, π.
     #[inline(always)]
-    fn cs(alpha: i8, r: &Matrix3<f64>) -> (f64, f64) {
+    fn cs(alpha: i8, r0: &Vector3<f64>) -> (f64, f64) {
         let s = match alpha {
-            0 => r[(1, 0)],
-            1 => r[(2, 0)],
-            -1 => -r[(2, 0)],
-            _ => -r[(1, 0)],
+            0 => r0.y,
+            1 => r0.z,
+            -1 => -r0.z,
+            _ => -r0.y,
         };
-        (r[(0, 0)], s)
+        (r0.x, s)
     }
 
     /// R v, from `r` (General) or from (c, s) = (cos θ, sin θ) (RxZ).
@@ -1581,26 +1581,21 @@ fn crba_placed<const RXZ: bool, const CHAIN: bool>(
         // only what the passes below read ([`Need`]): a turn's (cos θ, sin θ)
         // are the bits `joint_transform` would have put in R₀₀ and R₁₀/R₂₀
         for i in 0..n {
-            match ws.need[i] {
-                Need::Nothing => {}
-                Need::Turn => {
+            match (ws.need[i], ws.placed[i]) {
+                (Need::Nothing, _) => {}
+                (Need::Turn, Placed::RxZ(alpha)) => {
                     let (s, c) = (q[i] + robot.joints[i].offset).sincos();
                     // R's first column is P e_x c + P e_y s (`joint_transform`
-                    // about +e_z): its entries, the same products, signed zeros
-                    // included
+                    // about +e_z): the same products, signed zeros included
                     let pl = &robot.geo[i].pl_r;
                     let r0 = |x: usize| pl[(x, 0)] * c + pl[(x, 1)] * s;
-                    let alpha = if let Placed::RxZ(a) = ws.placed[i] { a } else { 0 };
-                    ws.cs[i] = Placed::cs(
-                        alpha,
-                        &Matrix3::from_columns(&[Vector3::new(r0(0), r0(1), r0(2)), Vector3::zeros(), Vector3::zeros()]),
-                    );
+                    ws.cs[i] = Placed::cs(alpha, &Vector3::new(r0(0), r0(1), r0(2)));
                     ws.kin.pos[i] = robot.geo[i].pl_p;
                 }
-                Need::Full => {
+                (_, placed) => {
                     let (r, p) = joint_transform(robot, i, q[i]);
-                    if let Placed::RxZ(alpha) = ws.placed[i] {
-                        ws.cs[i] = Placed::cs(alpha, &r);
+                    if let Placed::RxZ(alpha) = placed {
+                        ws.cs[i] = Placed::cs(alpha, &r.column(0).into_owned());
                     }
                     ws.kin.rot[i] = r;
                     ws.kin.pos[i] = p;
@@ -2205,7 +2200,7 @@ mod tests {
                         panic!("{name}: turn {i} is not RxZ")
                     };
                     let (c, s) = ws.cs[i];
-                    let (rc, rs) = Placed::cs(alpha, &joint_transform(&r, i, q[i]).0);
+                    let (rc, rs) = Placed::cs(alpha, &joint_transform(&r, i, q[i]).0.column(0).into_owned());
                     assert_eq!((c.to_bits(), s.to_bits()), (rc.to_bits(), rs.to_bits()), "{name}: joint {i} at {}", q[i]);
                     turns += 1;
                 }
