@@ -8,9 +8,9 @@ use std::path::Path;
 /// One recorded experiment: samples of motor torques u and motor positions y.
 #[derive(Debug, Clone)]
 pub struct MotorRecord {
-    /// Motor torques u[t][i] (N·m).
+    /// Motor torques `u[t][i]` (N·m).
     pub u: Vec<Vec<f64>>,
-    /// Motor positions y[t][i] (rad).
+    /// Motor positions `y[t][i]` (rad).
     pub y: Vec<Vec<f64>>,
 }
 

@@ -576,7 +576,7 @@ pub fn frf(model: &ElasticModel, op: &OperatingPoint, theta: &[f64], omegas: &[f
 /// FRFs per line and their Jacobians per line and parameter.
 pub type FrfWithJacobian = (Vec<DMatrix<C64>>, Vec<Vec<DMatrix<C64>>>);
 
-/// G(ω_k, θ) and its Jacobian: `(g[k], dg[k][i])` with dg[k][i] = ∂G(ω_k)/∂θ_i
+/// G(ω_k, θ) and its Jacobian: `(g[k], dg[k][i])` with `dg[k][i]` = ∂G(ω_k)/∂θ_i
 /// (physical units of θ), i over the model's unknowns.
 pub fn frf_jacobian(model: &ElasticModel, op: &OperatingPoint, theta: &[f64], omegas: &[f64], output: Output) -> Result<FrfWithJacobian> {
     let vals = model.full_values(theta)?;

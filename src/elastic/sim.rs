@@ -49,7 +49,7 @@ pub struct SimSettings {
     pub bandwidth_hz: f64,
 }
 
-/// One period of references: speed r[i][t] (rad/s) and position ∫r (rad, zero mean).
+/// One period of references: speed `r[i][t]` (rad/s) and position ∫r (rad, zero mean).
 #[derive(Debug, Clone)]
 pub struct Reference {
     /// Speed references per motor.

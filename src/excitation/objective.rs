@@ -15,7 +15,7 @@
 //! diag(1/σ_j) the optional per-joint torque-noise weights. The criterion is
 //! evaluated on the scaled matrix C̃ = C D:
 //!
-//! * [`Scaling::UnitColumn`] (default, Sun & Hollerbach / paper 000 ref. [15]):
+//! * [`Scaling::UnitColumn`] (default, Sun & Hollerbach / paper 000 ref. \[15\]):
 //!   D = diag(1/‖c_j‖), every column of unit norm — D depends on x;
 //! * [`Scaling::Nominal`]: D = diag(|θ_b,j|), each column weighted by its
 //!   nominal base-parameter value (its torque contribution); values below
@@ -662,7 +662,7 @@ impl Objective {
     /// `bottom` smallest (i = m−bottom+1..m), d ln λ_i = (2/λ_i) v_iᵀ C̃ᵀ dC̃ v_i,
     /// exact wherever λ_i is simple. `vals` gets top + bottom values, `grads`
     /// (top + bottom) × n_vars (one gradient after the other); the regressor
-    /// derivatives are shared by all of them ([`Objective::contract`]).
+    /// derivatives are shared by all of them (`Objective::contract`).
     /// Returns the criterion J(x) (+∞, zero gradients and values +∞ when C̃
     /// is not finite). Used by the refinement's epigraph form
     /// (`refine.bundle`). σ_i below σ_1/[`COND_CAP`] count as that floor.

@@ -373,7 +373,7 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
 /// `smooth = Some(p)`, a first stage (60 % of the evaluations) minimises the
 /// smooth surrogate L_p of 2 ln κ, and a second stage polishes ln κ itself
 /// from the best feasible point of the first. With `bundle = k > 0` (cond
-/// or 1/σ_min), the main stage is the epigraph form of [`stage_epigraph`]
+/// or 1/σ_min), the main stage is the epigraph form of `stage_epigraph`
 /// over the k eigenvalues at each end of the spectrum.
 ///
 /// `spec` gives the algorithm, the evaluation budget and the tolerances,

@@ -18,7 +18,7 @@
 //!   line instead of solving again ([`SolveCache`]);
 //! * the derivatives are not stored as p matrices n×n: a rank-one parameter
 //!   i keeps the two factors (f_i v_i and v_i, f_i = −s^r c_i) and
-//!   ∂G_ab/∂θ_i = (f_i v_i[a]) v_i[b] is formed where the estimator needs it;
+//!   ∂G_ab/∂θ_i = (f_i `v_i[a]`) `v_i[b]` is formed where the estimator needs it;
 //!   parameters sharing a direction b (a spring and its damper) share v.
 
 use crate::elastic::linear::solve_in_place;

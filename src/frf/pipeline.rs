@@ -43,7 +43,7 @@ pub struct MultisineSummary {
     pub samples: usize,
     /// Sample rate (Hz).
     pub rate: f64,
-    /// Crest factors [block][experiment][motor] of the speed references.
+    /// Crest factors `[block][experiment][motor]` of the speed references.
     pub crest_factors: Vec<Vec<Vec<f64>>>,
     /// Largest crest factor.
     pub max_crest_factor: f64,

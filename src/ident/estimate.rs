@@ -223,7 +223,7 @@ const QR_BLOCK: usize = 512;
 
 /// The triangular factor R (k × k, k = columns; fewer rows when `a` has fewer
 /// rows than columns) of the QR decomposition of `a`, computed blockwise
-/// (TSQR): fixed blocks of [`QR_BLOCK`] rows are factorised (in parallel),
+/// (TSQR): fixed blocks of `QR_BLOCK` rows are factorised (in parallel),
 /// then their factors are stacked and re-factorised one after the other in
 /// block order. The floating-point operations do not depend on the number of
 /// threads, so neither do the results (RᵀR = aᵀa, and R has the singular

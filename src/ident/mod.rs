@@ -1,8 +1,8 @@
 //! Identification from measured runs (paper 000 §II-B, §III-C, §III-D, §IV;
 //! paper 002 §2.2, §3.2–3.5).
 //!
-//! Pipeline ([`identify`]): read the repetitions ([`run`]), average them and
-//! filter the positions ([`process`]: Fourier filtering with analytic
+//! Pipeline ([`identify`]): read the repetitions ([`Run`]), average them and
+//! filter the positions ([`process()`]: Fourier filtering with analytic
 //! derivatives for Fourier references, else zero-phase low-pass and central
 //! differences), stack the base-parameter regressor ([`estimate::Dataset`]),
 //! estimate by OLS, WLS (paper 000 eq. 5, 8–9), the projection method or

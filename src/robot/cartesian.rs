@@ -31,7 +31,7 @@ pub enum Shape {
     },
     /// On the side of the plane where normal·p ≥ offset (the normal need not be unit;
     /// it is normalised, so the margin is a distance). "Above a table at z = h":
-    /// normal = [0,0,1], offset = h.
+    /// normal = `[0, 0, 1]`, offset = h.
     HalfSpace {
         /// Plane normal, pointing into the allowed side.
         normal: [f64; 3],
@@ -49,8 +49,8 @@ pub enum Shape {
         clearance: f64,
     },
     /// Cylindrical sector about the vertical axis through `center`: azimuth
-    /// φ = atan2(y − cy, x − cx) in [azimuth[0], azimuth[1]] (rad, within (−π, π]),
-    /// horizontal distance ρ in [radius[0], radius[1]], height z − cz in [z[0], z[1]].
+    /// φ = atan2(y − cy, x − cx) in `[azimuth[0], azimuth[1]]` (rad, within (−π, π]),
+    /// horizontal distance ρ in `[radius[0], radius[1]]`, height z − cz in `[z[0], z[1]]`.
     Sector {
         /// Axis position.
         #[serde(default)]

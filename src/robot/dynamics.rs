@@ -645,7 +645,7 @@ pub fn regressor_rows(robot: &Robot, ws: &mut Workspace, q: &[f64], qd: &[f64], 
 /// ∂Y/∂q_k, ∂Y/∂q̇_k, ∂Y/∂q̈_k (each row-major n×p, in slices of length n·p),
 /// and `y` receives Y itself. Sign-function columns have zero derivative.
 ///
-/// Forward-mode derivatives written out in f64 ([`Tangents`]): one f64 pass
+/// Forward-mode derivatives written out in f64 (`Tangents`): one f64 pass
 /// for Y and the quantities every direction shares (joint transforms, link
 /// velocities and accelerations, the motion subspaces S_j carried down the
 /// tree), then per direction only the tangents, only where they are not zero

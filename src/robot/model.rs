@@ -228,8 +228,8 @@ pub enum Coulomb {
         velocity_scale: f64,
         /// v_st > 0, fixed (not identified).
         stribeck_velocity: f64,
-        /// Nominal Stribeck coefficients: [Fs] (symmetric model, second entry
-        /// unused) or [Fs⁺, Fs⁻] (asymmetric model; Fs⁻ ≤ 0 for the usual sign).
+        /// Nominal Stribeck coefficients: `[Fs]` (symmetric model, second entry
+        /// unused) or `[Fs⁺, Fs⁻]` (asymmetric model; Fs⁻ ≤ 0 for the usual sign).
         fs: [f64; 2],
     },
 }

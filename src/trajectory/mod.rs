@@ -399,8 +399,8 @@ impl FourierLayout {
         x
     }
 
-    /// Pulls a gradient with respect to the full coefficients (g_q0[j],
-    /// g_a[j][k0], g_b[j][k0]) back to the design vector (chain rule through
+    /// Pulls a gradient with respect to the full coefficients (`g_q0[j]`,
+    /// `g_a[j][k0]`, `g_b[j][k0]`) back to the design vector (chain rule through
     /// the linear map, including the at-rest elimination).
     pub fn pullback(&self, g_q0: &[f64], g_a: &[Vec<f64>], g_b: &[Vec<f64>], gx: &mut [f64]) {
         for j in 0..self.n {
