@@ -26,6 +26,7 @@ use crate::io::States;
 use crate::optim::Termination;
 use crate::params::BaseParams;
 use crate::robot::{regressor_rows, Robot, Workspace};
+use crate::trajectory::seconds_text;
 use nalgebra::DMatrix;
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -234,7 +235,7 @@ impl SampleSet {
             let _ = write!(description, " at {r} Hz");
         }
         if let Some([a, b]) = t_range {
-            let _ = write!(description, ", t = {a} … {b} s");
+            let _ = write!(description, ", t = {} … {} s", seconds_text(a), seconds_text(b));
         }
         if !note.is_empty() {
             let _ = write!(description, " ({note})");
@@ -971,7 +972,7 @@ pub fn excite_report_text(
         "trajectory: {} harmonics of {} Hz (period {} s), {} design variables{}{}",
         d.trajectory.harmonics,
         d.trajectory.frequency,
-        1.0 / d.trajectory.frequency,
+        seconds_text(1.0 / d.trajectory.frequency),
         p.layout.n_vars(),
         if d.trajectory.vary_q0 { ", q0 free" } else { "" },
         if d.trajectory.at_rest { ", starts and ends at rest" } else { "" }
@@ -1039,11 +1040,12 @@ pub fn excite_report_text(
                  `idexp assess {} trajectory.csv --segment 1 --every {}`). trajectory.csv starts with the lead-in at t = 0: \
                  its first {} s are not a period",
                 ordinal(src.every),
-                src.t_range.map_or("?".to_string(), |[a, b]| format!("{a} … {b}")),
+                src.t_range
+                    .map_or("?".to_string(), |[a, b]| format!("{} … {}", seconds_text(a), seconds_text(b))),
                 fmt_num(pi.cond),
                 p.design.robot.display(),
                 src.every,
-                r.trajectory.period()
+                r.trajectory.period_text()
             );
         }
     }
@@ -1087,7 +1089,7 @@ pub fn excite_report_text(
                 fmt_list(&dl.home),
                 dl.lead_in_duration(),
                 dl.periods,
-                dl.periodic.period(),
+                dl.periodic.period_text(),
                 dl.lead_out_duration(),
                 dl.duration()
             );

@@ -128,6 +128,12 @@ impl FourierTrajectory {
         std::f64::consts::TAU / self.omega
     }
 
+    /// The period for a report: [`seconds_text`] of [`FourierTrajectory::period`]
+    /// (2π/ω of a 0.01 Hz trajectory is 99.99999999999999 s; this says 100).
+    pub fn period_text(&self) -> String {
+        seconds_text(self.period())
+    }
+
     /// Fills `out` with the basis values at time t (allocates only if `out`
     /// has the wrong length).
     pub fn basis(&self, t: f64, out: &mut Basis) {
@@ -418,6 +424,31 @@ impl FourierLayout {
                 gx[ib] = gb;
             }
         }
+    }
+}
+
+/// A duration for a report: at most six decimals, trailing zeros dropped
+/// (`100`, `33.333333`, `0.5`), so that the last bits of a computed period
+/// do not show.
+///
+/// ```
+/// use idexp::trajectory::seconds_text;
+/// assert_eq!(seconds_text(99.99999999999999), "100"); // 2π/ω at 0.01 Hz
+/// assert_eq!(seconds_text(1.0 / 0.03), "33.333333");
+/// assert_eq!(seconds_text(1.1600000000000001), "1.16");
+/// assert_eq!(seconds_text(0.5), "0.5");
+/// assert_eq!(seconds_text(-1e-9), "0");
+/// ```
+pub fn seconds_text(v: f64) -> String {
+    if !v.is_finite() {
+        return format!("{v}");
+    }
+    let t = format!("{v:.6}");
+    let t = t.trim_end_matches('0').trim_end_matches('.');
+    if t == "-0" {
+        "0".to_string()
+    } else {
+        t.to_string()
     }
 }
 

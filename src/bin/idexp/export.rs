@@ -122,7 +122,7 @@ pub fn run(a: &ExportArgs, _ctl: &Control) -> anyhow::Result<Outcome> {
         des.design,
         des.delivered.duration(),
         des.delivered.periods,
-        des.delivered.periodic.period()
+        des.delivered.periodic.period_text()
     );
     for p in export(&dir, &des.design, &des.names, &des.revolute, &des.delivered, f, des.controller_rate, &a.opts)? {
         println!("  wrote {}", p.display());
