@@ -158,3 +158,54 @@ fn a_levenberg_marquardt_fit_stops_on_request() {
     let r = run(Line, vec![0.0], 100, tol, &ctl).unwrap();
     assert_eq!((r.status, r.z, r.iterations), (LmStatus::Interrupted, vec![0.0], 0));
 }
+
+/// A phase: its name, its number of steps and the progress reported in it.
+type Phase = (String, Option<u64>, Vec<(u64, String)>);
+
+/// Records the phases and the progress of a run; requests a stop once the
+/// GA reports `after` generations.
+struct PhaseLog {
+    stop: idexp::optim::StopFlag,
+    after: u64,
+    log: std::sync::Mutex<Vec<Phase>>,
+}
+impl idexp::optim::Observer for PhaseLog {
+    fn phase(&self, name: &str, total: Option<u64>) {
+        self.log.lock().unwrap().push((name.to_string(), total, Vec::new()));
+    }
+    fn progress(&self, done: u64, msg: &str) {
+        let mut log = self.log.lock().unwrap();
+        let last = log.last_mut().expect("progress outside a phase");
+        if last.0 == "excite GA" && done >= self.after {
+            self.stop.request();
+        }
+        last.2.push((done, msg.to_string()));
+    }
+}
+
+/// The checks after the search have a phase of their own: one step per
+/// candidate tried on the check grid, then the delivered trajectory, ending
+/// at its total (an interrupted search still checks what it returns).
+#[test]
+fn an_excitation_reports_its_checks_as_a_phase() {
+    let designs = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("designs");
+    let p = idexp::excitation::Problem::from_file(&designs.join("excite_ur5.toml")).unwrap();
+    let ctl = Control::new();
+    let obs = std::sync::Arc::new(PhaseLog {
+        stop: ctl.stop_flag().clone(),
+        after: 2,
+        log: Default::default(),
+    });
+    let r = idexp::excitation::run(&p, &ctl.with_observer(obs.clone())).unwrap();
+    assert!(r.execution.delivered.is_some());
+    let log = obs.log.lock().unwrap();
+    let names: Vec<&str> = log.iter().map(|l| l.0.as_str()).collect();
+    assert_eq!(names, ["excite GA", "excite check"], "{log:?}");
+    let (_, total, steps) = &log[1];
+    // the GA's best is the only candidate (no refinement after the stop)
+    assert_eq!(*total, Some(2));
+    let rate = p.design.limits.check_rate;
+    assert_eq!(steps[0], (0, format!("ga on the {rate} Hz grid")));
+    assert_eq!(steps[1], (1, format!("the delivered trajectory at {rate} Hz")));
+    assert_eq!(steps.last().unwrap().0, 2);
+}

@@ -462,8 +462,9 @@ const RESTART_ROUND: usize = 2;
 /// `ctl` stops the run (stop request, deadline, evaluation budget); the
 /// design's own `time_limit` is applied on top of it: the GA gets the
 /// fraction `ga.time_fraction`, the refinement the rest up to 97 % (3 % are
-/// left for the verification). Progress goes to `ctl.observer()` in two
-/// phases, `"excite GA"` and `"excite refine"`.
+/// left for the verification). Progress goes to `ctl.observer()` in three
+/// phases, `"excite GA"`, `"excite refine"` and `"excite check"` (the
+/// candidates on the check grid, then the delivered trajectory).
 pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
     let t0 = Instant::now();
     let d = &p.design;
@@ -608,8 +609,14 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
     // best first by the search's own measure; the first candidate that passes
     // the check grid wins (later ones are worse), else the least violating
     cands.sort_by(|a, b| a.1.cmp_fitness(&b.1));
+    // the checks take a while on a long trajectory: a phase of their own
+    // (steps: the candidates tried, then the delivered trajectory)
+    let rate = d.limits.check_rate;
+    let checks = cands.len() as u64 + 1;
+    obs.phase("excite check", Some(checks));
     let mut best: Option<(String, Finalised)> = None;
-    for (name, ind) in cands {
+    for (k, (name, ind)) in cands.into_iter().enumerate() {
+        obs.progress(k as u64, &format!("{name} on the {rate} Hz grid"));
         let f = finalise(p, &ind.x)?;
         let better = match &best {
             None => true,
@@ -638,7 +645,10 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
         chosen_from
     };
     // the delivered trajectory: lead-in, periods, lead-out, every sample checked
+    obs.progress(checks - 1, &format!("the delivered trajectory at {rate} Hz"));
     let execution = execution::deliver(p, &trajectory)?;
+    obs.progress(checks, "");
+    obs.phase_done();
     // a regressor at the condition-number cap does not excite every base
     // parameter: not a usable design, whatever the constraints say
     let status = if violated.is_empty() && execution.verified && spectrum.cond < objective::COND_CAP {

@@ -104,7 +104,11 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         Some(crate::export::formats(&a.export)?)
     };
     let r = run(&p, ctl)?;
-    let written = write_outputs(&p, &r, &out)?;
+    ctl.observer().phase("excite write", Some(1));
+    ctl.observer().progress(0, &format!("report, trajectories and plots into {}", out.display()));
+    let written = write_outputs(&p, &r, &out);
+    ctl.observer().phase_done();
+    let written = written?;
     if a.json {
         print!("{}", idexp::io::read_to_string(&out.join("report.json"))?);
     } else {

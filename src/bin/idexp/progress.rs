@@ -39,7 +39,11 @@ impl Observer for Bars {
             Some(n) => ProgressBar::new(n),
             None => ProgressBar::new_spinner(),
         };
-        if !self.visible {
+        if self.visible {
+            // redrawn four times a second: the elapsed time and the spinner
+            // stay live through a long step (a check of a long trajectory)
+            pb.enable_steady_tick(std::time::Duration::from_millis(250));
+        } else {
             pb.set_draw_target(ProgressDrawTarget::hidden());
         }
         let template = if total.is_some() {
