@@ -60,8 +60,8 @@ def run(binary, design, seed, out, threads):
     return c["criterion"], float(c["criterion_value"]), c.get("status", "?")
 
 
-def mean_of(rows, pick, seeds):
-    vals = [pick(r) for r in rows if r["seed"] in seeds]
+def mean_of(rows, key, seeds):
+    vals = [r[key] for r in rows if r["seed"] in seeds]
     return statistics.fmean(vals) if vals else None
 
 
@@ -99,14 +99,15 @@ def main():
     print(f"\n{len(rows)} seeds of {a.design}; runs and seeds.csv in {out}")
     print(f"moved (|relative change| > {MOVED:g}): {len(moved)}; worse {sum(x > 0 for x in moved)}, better {sum(x < 0 for x in moved)}")
     print(f"median relative change {100 * statistics.median(r['relative'] for r in rows):+.3f} %")
-    all_seeds = set(seeds)
-    for label, ss in (("seeds 1-5", set(range(1, 6)) & all_seeds), ("all seeds", all_seeds)):
-        mb, ma = mean_of(rows, lambda r: r["before"], ss), mean_of(rows, lambda r: r["after"], ss)
+    all_seeds, first = set(seeds), set(range(1, 6))
+    means = {}
+    for label, ss in (("seeds 1-5", first & all_seeds), ("all seeds", all_seeds)):
+        mb, ma = mean_of(rows, "before", ss), mean_of(rows, "after", ss)
+        means[label] = (mb, ma)
         if mb is not None:
             print(f"mean over {label} ({len(ss)}): before {mb:.6g}, after {ma:.6g} ({100 * (ma / mb - 1):+.3f} %)")
-    first = set(range(1, 6))
     if first <= all_seeds:
-        mb, ma = mean_of(rows, lambda r: r["before"], first), mean_of(rows, lambda r: r["after"], first)
+        mb, ma = means["seeds 1-5"]
         print("rule (seeds 1-5 no worse on average): " + ("met" if ma <= mb else "NOT met"))
     else:
         print("rule (seeds 1-5 no worse on average): not judged (seeds 1-5 not all run)")
