@@ -111,6 +111,25 @@ pub fn col_piv_qr_diag(m: &DMatrix<f64>) -> (Vec<f64>, Vec<usize>) {
     (d, fwd)
 }
 
+/// The triangular factor R (c×c, upper) of a QR factorisation of `a`
+/// (r×c, r ≥ c), through faer's blocked Householder QR on one thread (the
+/// tall, narrow blocks of a streamed regressor are too small for faer's
+/// threads to pay: they cost more in synchronisation than they save). R has the singular values, right
+/// singular vectors and column norms of `a`; the signs of its rows are
+/// those of faer's reflections.
+pub fn qr_r(mut a: faer::Mat<f64>) -> DMatrix<f64> {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::linalg::qr::no_pivoting::factor::{qr_in_place, qr_in_place_scratch, recommended_block_size};
+    let (r, c) = (a.nrows(), a.ncols());
+    let k = r.min(c);
+    let bs = recommended_block_size::<f64>(r, c).max(1);
+    let mut q_coeff = faer::Mat::<f64>::zeros(bs, k);
+    let seq = faer::Par::Seq;
+    let mut buf = MemBuffer::new(qr_in_place_scratch::<f64>(r, c, bs, seq, Default::default()));
+    qr_in_place(a.as_mut(), q_coeff.as_mut(), seq, MemStack::new(&mut buf), Default::default());
+    DMatrix::from_fn(k, c, |i, j| if j >= i { a[(i, j)] } else { 0.0 })
+}
+
 /// Removes from `v` its components along the orthonormal vectors `basis`:
 /// two passes of modified Gram–Schmidt (the second re-orthogonalises against
 /// the rounding left by the first), v ← v − Σ_b (bᵀv) b each pass. The norm of

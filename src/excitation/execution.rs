@@ -453,7 +453,7 @@ pub fn deliver(p: &Problem, tr: &FourierTrajectory) -> Result<Execution> {
             periods: e.periods,
             lead_out: None,
         };
-        let verified = verify(&d, rate, &mut check);
+        let verified = verify(p, &d, rate)?;
         let safety = safety(p, &d, verified.as_ref().err().map(|s| s.as_str()), rate)?;
         return Ok(Execution {
             verified: verified.is_ok(),
@@ -490,7 +490,7 @@ pub fn deliver(p: &Problem, tr: &FourierTrajectory) -> Result<Execution> {
         periods: e.periods,
         lead_out,
     };
-    let verified = verify(&d, rate, &mut check);
+    let verified = verify(p, &d, rate)?;
     let safety = safety(p, &d, verified.as_ref().err().map(|s| s.as_str()), rate)?;
     Ok(Execution {
         verified: verified.is_ok(),
@@ -511,17 +511,31 @@ fn failed(problem: String, rate: f64) -> Execution {
     }
 }
 
-/// Checks every sample of the delivered trajectory at `rate` Hz.
-fn verify(d: &Delivered, rate: f64, check: &mut StateCheck) -> std::result::Result<(), String> {
+/// Checks every sample of the delivered trajectory at `rate` Hz: the first
+/// violation in time (`Err` its sentence). Samples are checked in chunks in
+/// parallel, each with its own check from [`StateCheck::new`]; the first
+/// failing chunk in time gives the answer, so it does not depend on the
+/// thread count.
+fn verify(p: &Problem, d: &Delivered, rate: f64) -> Result<std::result::Result<(), String>> {
+    use rayon::prelude::*;
     let n = d.home.len();
-    let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let m = (d.duration() * rate - 1e-6).ceil().max(0.0) as usize;
-    for k in 0..=m {
-        let t = k as f64 / rate;
-        let seg = d.eval(t, &mut q, &mut qd, &mut qdd);
-        check
-            .check(&q, &qd, &qdd)
-            .map_err(|e| format!("delivered trajectory at t = {t:.3} s (segment {seg}): {e}"))?;
-    }
-    Ok(())
+    const CHUNK: usize = 1024;
+    let chunks: Vec<usize> = (0..=m).step_by(CHUNK).collect();
+    let results = chunks
+        .par_iter()
+        .map(|&k0| -> Result<std::result::Result<(), String>> {
+            let mut check = StateCheck::new(p)?;
+            let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            for k in k0..(k0 + CHUNK).min(m + 1) {
+                let t = k as f64 / rate;
+                let seg = d.eval(t, &mut q, &mut qd, &mut qdd);
+                if let Err(e) = check.check(&q, &qd, &qdd) {
+                    return Ok(Err(format!("delivered trajectory at t = {t:.3} s (segment {seg}): {e}")));
+                }
+            }
+            Ok(Ok(()))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(results.into_iter().find(|r| r.is_err()).unwrap_or(Ok(())))
 }

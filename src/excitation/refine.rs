@@ -31,6 +31,10 @@ fn set_stops<F: nlopt::ObjFn<T>, T>(opt: &mut nlopt::Nlopt<F, T>, s: &RefineSpec
     }
 }
 
+/// What the objective callbacks return once a stop is asked for (a constant:
+/// a flat objective, which SLSQP and MMA take as converged).
+const STOPPED_F: f64 = 0.0;
+
 /// Feasibility tolerance of nlopt on the scaled constraints; the
 /// constraints are imposed as c + 2·tol ≤ 0, so accepted points have c < 0.
 const TOL: f64 = 1e-9;
@@ -131,7 +135,17 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
     });
     let crit = obj.criterion;
     let stop_now = || ctl.should_stop();
+    // once a stop is asked for, the callbacks return at once (nothing
+    // evaluated, nothing recorded): a flat objective and constraints that
+    // hold with zero gradients, which ends SLSQP's iteration at its next
+    // step instead of after its remaining evaluations
     let f_cb = |x: &[f64], grad: Option<&mut [f64]>, w: &mut super::objective::ObjectiveWorkspace| -> f64 {
+        if stop_now() {
+            if let Some(g) = grad {
+                g.iter_mut().for_each(|v| *v = 0.0);
+            }
+            return STOPPED_F;
+        }
         let (j, internal_j) = match (grad, soft) {
             (Some(g), Some(p)) => {
                 let l = obj.soft_log_cond_grad(x, w, g, p);
@@ -191,6 +205,13 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
     set_stops(&mut opt, s, max_evals, ctl);
     if m > 0 {
         let c_cb = |res: &mut [f64], x: &[f64], grad: Option<&mut [f64]>, cw: &mut super::constraints::ConstraintWorkspace| {
+            if stop_now() {
+                res.iter_mut().for_each(|v| *v = -1.0);
+                if let Some(g) = grad {
+                    g.iter_mut().for_each(|v| *v = 0.0);
+                }
+                return;
+            }
             cons.eval(x, cw, res, grad);
             // shifted by 2·tol so that a point accepted within nlopt's tolerance is strictly feasible
             res.iter_mut().for_each(|v| *v += 2.0 * TOL);
@@ -314,6 +335,14 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
     let _ = opt.set_upper_bounds(&upper);
     set_stops(&mut opt, s, max_evals, ctl);
     let c_cb = |res: &mut [f64], z: &[f64], grad: Option<&mut [f64]>, e: &mut EpiBuffers| {
+        // a stop asked for: nothing evaluated (see `stage`)
+        if stop_now() {
+            res.iter_mut().for_each(|v| *v = -1.0);
+            if let Some(g) = grad {
+                g.iter_mut().for_each(|v| *v = 0.0);
+            }
+            return;
+        }
         let x = &z[..nv];
         let want = grad.is_some();
         cons.eval(x, &mut e.cw, &mut e.c, if want { Some(&mut e.jac) } else { None });
@@ -378,9 +407,10 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
 ///
 /// `spec` gives the algorithm, the evaluation budget and the tolerances,
 /// [lower, upper] the box; `ctl` stops it (deadline → nlopt's `maxtime`;
-/// a stop request, the deadline or the evaluation budget make the callbacks
-/// return a zero gradient, so nlopt ends at its next step; every objective
-/// evaluation is counted on `ctl`).
+/// once a stop request, the deadline or the evaluation budget stops it, the
+/// callbacks return at once, flat and feasible with zero gradients, so that
+/// nlopt ends at its next step; every objective evaluation is counted on
+/// `ctl`).
 pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], spec: &RefineSpec, lower: &[f64], upper: &[f64], ctl: &Control) -> RefineOutcome {
     let b = Bounds { spec, lower, upper, ctl };
     let s = spec;

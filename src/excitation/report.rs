@@ -443,9 +443,13 @@ impl<'a> AssessAccumulator<'a> {
             return;
         }
         let prev = self.r.as_ref().map(|r| r.nrows()).unwrap_or(0);
-        let mut a = DMatrix::zeros(prev + nr, m);
+        let mut a = faer::Mat::<f64>::zeros(prev + nr, m);
         if let Some(r) = &self.r {
-            a.view_mut((0, 0), (prev, m)).copy_from(r);
+            for j in 0..m {
+                for i in 0..prev {
+                    a[(i, j)] = r[(i, j)];
+                }
+            }
         }
         for i in 0..nr {
             for j in 0..m {
@@ -453,7 +457,11 @@ impl<'a> AssessAccumulator<'a> {
             }
         }
         self.rows.clear();
-        let r = if a.nrows() >= m { a.qr().r() } else { a };
+        let r = if prev + nr >= m {
+            crate::linalg::qr_r(a)
+        } else {
+            DMatrix::from_fn(prev + nr, m, |i, j| a[(i, j)])
+        };
         self.r = Some(r);
     }
 
@@ -763,9 +771,26 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Writte
         },
     };
     let ds = delivered.sample(d.trajectory.controller_rate)?;
-    ds.write_csv(&dir.join("trajectory.csv"))?;
-    r.trajectory.sample(d.trajectory.controller_rate)?.write(&dir.join("periodic.csv"))?;
-    grid.samples.write(&dir.join("criterion_samples.csv"))?;
+    // the delivered trajectory's identifiability (every row) while its CSV
+    // is written: the two longest steps of the writing, side by side
+    let (written_csv, delivered_ident) = rayon::join(
+        || -> Result<()> {
+            ds.write_csv(&dir.join("trajectory.csv"))?;
+            r.trajectory.sample(d.trajectory.controller_rate)?.write(&dir.join("periodic.csv"))?;
+            grid.samples.write(&dir.join("criterion_samples.csv"))
+        },
+        || {
+            let states = crate::io::States {
+                t: None,
+                q: ds.q.clone(),
+                qd: ds.qd.clone(),
+                qdd: ds.qdd.clone(),
+            };
+            assess(&p.robot, &p.base, &states, &noise)
+        },
+    );
+    written_csv?;
+    let mut delivered_ident = delivered_ident?;
     let delivered_set = delivered_sample_set(&ds.t, delivered.periods);
     // the criterion's samples as rows of trajectory.csv: period 1 (segment 1,
     // which starts after the lead-in, not at t = 0), every k-th row, when the
@@ -796,15 +821,6 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Writte
             Some(id)
         }
         _ => None,
-    };
-    let mut delivered_ident = {
-        let states = crate::io::States {
-            t: None,
-            q: ds.q,
-            qd: ds.qd,
-            qdd: ds.qdd,
-        };
-        assess(&p.robot, &p.base, &states, &noise)?
     };
     delivered_ident.source = Some(delivered_set.clone());
     let mut record = CriterionRecord::new(

@@ -63,6 +63,7 @@ pub fn write_json<T: serde::Serialize + ?Sized>(path: &Path, value: &T) -> Resul
 /// Writes a numeric CSV (header + rows) atomically. Values are written with
 /// full precision (`{:e}` round-trips f64 exactly).
 pub fn write_csv<R: AsRef<[f64]>>(path: &Path, header: &[String], rows: impl IntoIterator<Item = R>) -> Result<()> {
+    use std::fmt::Write as _;
     let mut out = String::with_capacity(1024);
     out.push_str(&header.join(","));
     out.push('\n');
@@ -75,11 +76,35 @@ pub fn write_csv<R: AsRef<[f64]>>(path: &Path, header: &[String], rows: impl Int
             if i > 0 {
                 out.push(',');
             }
-            out.push_str(&format_f64(*v));
+            let _ = write!(out, "{v}");
         }
         out.push('\n');
     }
     write_atomic(path, out.as_bytes())
+}
+
+/// The text of a CSV of `rows` rows after `header` (a line, without its
+/// newline): `row(k, s)` appends row k, newline included, to `s`. Rows are
+/// formatted in blocks in parallel and joined in order, so the text does
+/// not depend on the thread count.
+pub fn csv_text(header: &str, rows: usize, row: impl Fn(usize, &mut String) + Sync) -> String {
+    use rayon::prelude::*;
+    const BLOCK: usize = 4096;
+    let blocks: Vec<String> = (0..rows.div_ceil(BLOCK))
+        .into_par_iter()
+        .map(|b| {
+            let mut s = String::new();
+            for k in b * BLOCK..((b + 1) * BLOCK).min(rows) {
+                row(k, &mut s);
+            }
+            s
+        })
+        .collect();
+    let mut out = String::with_capacity(header.len() + 1 + blocks.iter().map(String::len).sum::<usize>());
+    out.push_str(header);
+    out.push('\n');
+    blocks.iter().for_each(|b| out.push_str(b));
+    out
 }
 
 /// Shortest representation of `v` that reads back to the same f64.

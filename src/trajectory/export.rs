@@ -329,24 +329,23 @@ pub fn csv(s: &Samples, revolute: &[bool], o: CsvOptions) -> Result<String> {
     } else {
         &[("", "")]
     };
-    let mut out = String::with_capacity(s.t.len() * (1 + blocks.len() * s.dof()) * 20 + 256);
-    out.push_str("t[s]");
+    let mut header = String::from("t[s]");
     for (suffix, per) in blocks {
         for (j, n) in s.names.iter().enumerate() {
-            out.push_str(&format!(",{n}{suffix}[{}{per}]", unit(j)));
+            header.push_str(&format!(",{n}{suffix}[{}{per}]", unit(j)));
         }
     }
-    out.push('\n');
-    for k in 0..s.t.len() {
-        out.push_str(&format!("{}", s.t[k]));
+    let out = crate::io::csv_text(&header, s.t.len(), |k, out| {
+        use std::fmt::Write as _;
+        let _ = write!(out, "{}", s.t[k]);
         let rows: [&Vec<f64>; 3] = [&s.q[k], &s.qd[k], &s.qdd[k]];
         for b in rows.iter().take(blocks.len()) {
             for (j, v) in b.iter().enumerate() {
-                out.push_str(&format!(",{}", v * factor(j)));
+                let _ = write!(out, ",{}", v * factor(j));
             }
         }
         out.push('\n');
-    }
+    });
     Ok(out)
 }
 

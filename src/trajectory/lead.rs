@@ -350,19 +350,16 @@ impl DeliveredSamples {
             header.extend((1..=n).map(|j| format!("{p}{j}")));
         }
         header.push("segment".into());
-        let mut s = String::with_capacity(self.len() * (20 * 3 * n + 24) + 64);
-        s.push_str(&header.join(","));
-        s.push('\n');
-        for k in 0..self.len() {
-            s.push_str(&format!("{}", self.t[k]));
+        let s = crate::io::csv_text(&header.join(","), self.len(), |k, s| {
+            use std::fmt::Write as _;
+            let _ = write!(s, "{}", self.t[k]);
             for b in [&self.q[k], &self.qd[k], &self.qdd[k]] {
                 for v in b {
-                    s.push(',');
-                    s.push_str(&format!("{v}"));
+                    let _ = write!(s, ",{v}");
                 }
             }
-            s.push_str(&format!(",{}\n", self.segment[k]));
-        }
+            let _ = writeln!(s, ",{}", self.segment[k]);
+        });
         crate::io::write_atomic(path, s.as_bytes())
     }
 }
