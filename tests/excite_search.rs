@@ -170,3 +170,65 @@ fn parallel_and_restarted_refinements_do_not_change_a_starts_result() {
     assert_ne!(y, refine::perturb(&x, &lo, &hi, 0.1, 4));
     assert!(y.iter().all(|v| (v - 0.5).abs() <= 0.05 + 1e-15), "{y:?}");
 }
+
+#[test]
+fn a_refinement_stopped_by_its_budget_evaluates_nothing_more() {
+    // once the run-control says stop (here: its evaluation budget; Ctrl-C
+    // and the deadline take the same path), the callbacks return without
+    // evaluating, so nlopt's remaining iterations cost nothing: the run
+    // counts exactly the budget, and the point it returns was evaluated
+    let p = bench_problem(|_| {});
+    let ga = run(
+        &bench_problem(|d| d.refine.algorithm = idexp::excitation::design::RefineAlgorithm::None),
+        &Control::new(),
+    )
+    .unwrap();
+    for bundle in [0, 4] {
+        let mut spec = p.design.refine.clone();
+        spec.max_evals = 300;
+        spec.bundle = bundle;
+        let free = refine::refine(&p.objective, &p.constraints, &ga.x, &spec, &p.lower, &p.upper, &Control::new());
+        assert!(free.evaluations > 40, "bundle {bundle}: {} evaluations without a budget", free.evaluations);
+        let ctl = Control::new().with_max_evals(Some(25));
+        let r = refine::refine(&p.objective, &p.constraints, &ga.x, &spec, &p.lower, &p.upper, &ctl);
+        assert_eq!(ctl.evaluations(), 25, "bundle {bundle}: {r:?}");
+        let mut w = p.objective.workspace();
+        assert_eq!(r.f, p.objective.value(&r.x, &mut w), "bundle {bundle}");
+        assert!(r.f <= r.start_f, "bundle {bundle}: {} → {}", r.start_f, r.f);
+    }
+}
+
+#[test]
+fn restarts_leave_a_stalled_basin_for_the_next_ga_individuals() {
+    let edit = |stall: usize, par: usize| {
+        move |d: &mut ExciteDesign| {
+            d.refine.starts = 2;
+            d.refine.max_evals = 40;
+            d.refine.bundle = 4;
+            d.refine.restarts = 6;
+            d.refine.stall = stall;
+            d.refine.parallel = par;
+        }
+    };
+    let never = run(&bench_problem(edit(0, 2)), &Control::new()).unwrap();
+    assert_eq!(never.refinements.len(), 8);
+    // a stall limit the restarts never reach changes nothing, to the bit
+    let late = run(&bench_problem(edit(4, 2)), &Control::new()).unwrap();
+    assert_eq!(late.x, never.x);
+    assert_eq!(late.refinements.len(), 8);
+    // after every round without a better point, two fresh GA individuals
+    // are refined: more refinements than restarts, the same for any
+    // `parallel`, and the design is the best of them all
+    let a = run(&bench_problem(edit(1, 1)), &Control::new()).unwrap();
+    let b = run(&bench_problem(edit(1, 2)), &Control::new()).unwrap();
+    assert!(a.refinements.len() > 8, "{} refinements", a.refinements.len());
+    assert_eq!(a.refinements.len() % 2, 0);
+    assert_eq!(a.x, b.x);
+    for (ra, rb) in a.refinements.iter().zip(&b.refinements) {
+        assert_eq!(ra.end.to_bits(), rb.end.to_bits());
+    }
+    let best = a.refinements.iter().filter(|r| r.violation == 0.0).map(|r| r.end).fold(f64::INFINITY, f64::min);
+    assert!(a.criterion <= best * (1.0 + 1e-9), "design {} vs best refinement {best}", a.criterion);
+    // the first restarts are the same (same centre, same seeds) until the first stall
+    assert_eq!(a.refinements[2].end.to_bits(), never.refinements[2].end.to_bits());
+}

@@ -79,6 +79,8 @@
 //! parallel = 1                      # starts refined at the same time (results per start unchanged)
 //! restarts = 0                      # then restarts from the best refined point perturbed by ...
 //! perturb = 0.05                    # ... this fraction of each variable's half range (uniform)
+//! stall = 0                         # > 0: after this many rounds of restarts without a better point,
+//!                                   # the restarts move on to the next two GA individuals, refined (0: never)
 //! ```
 
 use super::objective::{Columns, Criterion, Scaling};
@@ -287,6 +289,11 @@ pub struct RefineSpec {
     pub restarts: usize,
     /// Size of a restart's perturbation, a fraction of each variable's half range.
     pub perturb: f64,
+    /// Rounds of restarts without a better point after which the restarts
+    /// leave their basin: the next two distinct GA individuals not yet
+    /// refined are refined and the better becomes the point the restarts
+    /// perturb (0: never; the restarts always perturb the best point so far).
+    pub stall: usize,
 }
 
 impl Default for RefineSpec {
@@ -303,6 +310,7 @@ impl Default for RefineSpec {
             parallel: 1,
             restarts: 0,
             perturb: 0.05,
+            stall: 0,
         }
     }
 }
@@ -445,6 +453,12 @@ impl ExciteDesign {
         }
         if !(r.perturb > 0.0 && r.perturb <= 1.0) {
             return bad("refine.perturb", format!("expected a fraction in (0, 1], got {}", r.perturb));
+        }
+        if r.stall > 1_000_000 {
+            return bad(
+                "refine.stall",
+                format!("expected 0 (never) or a number of rounds up to 1000000, got {}", r.stall),
+            );
         }
         if r.parallel == 0 || r.parallel > 64 {
             return bad("refine.parallel", format!("expected 1..=64 starts at a time, got {}", r.parallel));

@@ -546,38 +546,61 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
             refinements.extend(refine_batch(chunk));
             obs.progress(refinements.len() as u64, "");
         }
-        // `refine.restarts` perturbed copies of the best refined point so far,
-        // in rounds of RESTART_ROUND from the best before the round (so that
-        // the starts do not depend on `refine.parallel`; seeded by the
-        // design's seed and the restart index)
+        // `refine.restarts` perturbed copies of a centre, in rounds of
+        // RESTART_ROUND from the centre before the round (so that the starts
+        // do not depend on `refine.parallel`; seeded by the design's seed and
+        // the restart index). The centre is the best refined point so far;
+        // with `refine.stall = s > 0`, after s rounds without a better point
+        // the next RESTART_ROUND GA individuals not yet refined are refined and
+        // the better becomes the centre (a new basin); the best point over all
+        // is kept
+        let fitness = |r: &refine::RefineOutcome| ga::Individual {
+            x: r.x.clone(),
+            f: r.f,
+            violation: r.violation,
+        };
+        let mut next_ga = first;
+        let mut centre = refinements.iter().map(fitness).min_by(|a, b| a.cmp_fitness(b));
+        let mut stalled = 0;
         let mut k = 0;
         while k < d.refine.restarts && !ctl_all.should_stop() {
-            let Some(best) = refinements
-                .iter()
-                .map(|r| ga::Individual {
-                    x: r.x.clone(),
-                    f: r.f,
-                    violation: r.violation,
-                })
-                .min_by(|a, b| a.cmp_fitness(b))
-            else {
+            let Some(c) = centre.as_ref() else {
                 break;
             };
             let xs: Vec<Vec<f64>> = (k..(k + RESTART_ROUND).min(d.refine.restarts))
                 .map(|i| {
-                    let mut x = refine::perturb(&best.x, &p.lower, &p.upper, d.refine.perturb, crate::rng::mix(d.seed, i as u64, 7));
+                    let mut x = refine::perturb(&c.x, &p.lower, &p.upper, d.refine.perturb, crate::rng::mix(d.seed, i as u64, 7));
                     p.constraints.repair_joints(&mut x, &p.limits, 1e-6);
                     x
                 })
                 .collect();
             k += xs.len();
+            let from = refinements.len();
             for chunk in xs.chunks(batch) {
                 refinements.extend(refine_batch(chunk));
+            }
+            let round = refinements[from..].iter().map(fitness).min_by(|a, b| a.cmp_fitness(b));
+            match round {
+                Some(r) if r.cmp_fitness(c) == std::cmp::Ordering::Less => {
+                    centre = Some(r);
+                    stalled = 0;
+                }
+                _ => stalled += 1,
+            }
+            if d.refine.stall > 0 && stalled >= d.refine.stall && next_ga < ga_x.len() && !ctl_all.should_stop() {
+                let to = (next_ga + RESTART_ROUND).min(ga_x.len());
+                let from = refinements.len();
+                for chunk in ga_x[next_ga..to].chunks(batch) {
+                    refinements.extend(refine_batch(chunk));
+                }
+                next_ga = to;
+                centre = refinements[from..].iter().map(fitness).min_by(|a, b| a.cmp_fitness(b));
+                stalled = 0;
             }
             obs.progress(refinements.len() as u64, "");
         }
         if ctl_all.deadline().is_some() {
-            for chunk in ga_x[first..].chunks(batch) {
+            for chunk in ga_x[next_ga..].chunks(batch) {
                 if ctl_all.should_stop() {
                     break;
                 }
