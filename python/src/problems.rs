@@ -52,8 +52,17 @@ fn source(obj: &Bound<'_, PyAny>) -> PyResult<Source> {
 }
 
 /// Deserialises a design dict; errors name the field like the file readers do.
+/// A dict input as T; an error names the field it fails on (`field
+/// `refine.stall`: invalid value: integer `-1`, expected usize`).
 fn from_dict<T: serde::de::DeserializeOwned>(v: serde_json::Value, what: &str) -> PyResult<T> {
-    serde_json::from_value(v).map_err(|e| IdexpError::new_err(format!("{what} (dict): {e}")))
+    serde_path_to_error::deserialize(v).map_err(|e| {
+        let path = e.path().to_string();
+        if path == "." {
+            IdexpError::new_err(format!("{what} (dict): {}", e.inner()))
+        } else {
+            IdexpError::new_err(format!("{what} (dict): field `{path}`: {}", e.inner()))
+        }
+    })
 }
 
 fn base_dir(b: Option<PathBuf>) -> PathBuf {

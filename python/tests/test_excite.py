@@ -166,3 +166,24 @@ def test_period_one_of_the_delivered_trajectory_gives_the_criterion(designed):
     # from t = 0 instead (the lead-in, then most of period 1): another number
     first = idexp.assess(robot, d["t"][:10000:100], d["q"][:10000:100], d["qd"][:10000:100], d["qdd"][:10000:100])
     assert abs(first.cond - r.cond) > 1e-3 * r.cond
+
+
+def test_restarts_and_stall_from_a_dict(tmp_path):
+    """refine.restarts / perturb / stall pass through a dict design: with
+    stall = 1, a round of restarts without a better point brings in the next
+    GA individuals, so there are more refinements than 1 start + restarts."""
+    spec = tomllib.loads(small_design(tmp_path).read_text())
+    spec["refine"].update(restarts=6, perturb=0.2)
+    plain = idexp.excite(spec, seed=3)
+    n_plain = len(plain.report["refinements"])
+    assert n_plain == 1 + 6
+    spec["refine"]["stall"] = 1
+    moved = idexp.excite(spec, seed=3)
+    refs = moved.report["refinements"]
+    assert len(refs) > n_plain
+    # the design is the best of every refinement (feasible ones)
+    best = min(r["end"] for r in refs if r["violation"] == 0.0)
+    assert moved.criterion <= best * (1 + 1e-9)
+    spec["refine"]["stall"] = -1
+    with pytest.raises(idexp.IdexpError, match="stall"):
+        idexp.excite(spec)
