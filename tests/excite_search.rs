@@ -109,15 +109,17 @@ fn bench_problem(edit: impl FnOnce(&mut ExciteDesign)) -> Problem {
     Problem::new(d, robot, "bench").unwrap()
 }
 
+/// The GA's best point of the bench problem (no refinement): the start of
+/// the refinements below.
+fn ga_point() -> Vec<f64> {
+    let d = bench_problem(|d| d.refine.algorithm = idexp::excitation::design::RefineAlgorithm::None);
+    run(&d, &Control::new()).unwrap().x
+}
+
 #[test]
 fn epigraph_refinement_reaches_a_lower_cond_than_the_direct_one() {
     let p = bench_problem(|_| {});
-    let ga = run(
-        &bench_problem(|d| d.refine.algorithm = idexp::excitation::design::RefineAlgorithm::None),
-        &Control::new(),
-    )
-    .unwrap();
-    let x0 = ga.x.clone();
+    let x0 = ga_point();
     let ctl = Control::new();
     let mut spec = p.design.refine.clone();
     spec.max_evals = 300;
@@ -178,19 +180,15 @@ fn a_refinement_stopped_by_its_budget_evaluates_nothing_more() {
     // evaluating, so nlopt's remaining iterations cost nothing: the run
     // counts exactly the budget, and the point it returns was evaluated
     let p = bench_problem(|_| {});
-    let ga = run(
-        &bench_problem(|d| d.refine.algorithm = idexp::excitation::design::RefineAlgorithm::None),
-        &Control::new(),
-    )
-    .unwrap();
+    let x0 = ga_point();
     for bundle in [0, 4] {
         let mut spec = p.design.refine.clone();
         spec.max_evals = 300;
         spec.bundle = bundle;
-        let free = refine::refine(&p.objective, &p.constraints, &ga.x, &spec, &p.lower, &p.upper, &Control::new());
+        let free = refine::refine(&p.objective, &p.constraints, &x0, &spec, &p.lower, &p.upper, &Control::new());
         assert!(free.evaluations > 40, "bundle {bundle}: {} evaluations without a budget", free.evaluations);
         let ctl = Control::new().with_max_evals(Some(25));
-        let r = refine::refine(&p.objective, &p.constraints, &ga.x, &spec, &p.lower, &p.upper, &ctl);
+        let r = refine::refine(&p.objective, &p.constraints, &x0, &spec, &p.lower, &p.upper, &ctl);
         assert_eq!(ctl.evaluations(), 25, "bundle {bundle}: {r:?}");
         let mut w = p.objective.workspace();
         assert_eq!(r.f, p.objective.value(&r.x, &mut w), "bundle {bundle}");
