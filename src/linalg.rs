@@ -114,9 +114,9 @@ pub fn col_piv_qr_diag(m: &DMatrix<f64>) -> (Vec<f64>, Vec<usize>) {
 /// The triangular factor R (c×c, upper) of a QR factorisation of `a`
 /// (r×c, r ≥ c), through faer's blocked Householder QR on one thread (the
 /// tall, narrow blocks of a streamed regressor are too small for faer's
-/// threads to pay: they cost more in synchronisation than they save). R has the singular values, right
-/// singular vectors and column norms of `a`; the signs of its rows are
-/// those of faer's reflections.
+/// threads to pay: they cost more in synchronisation than they save). R
+/// has the singular values, right singular vectors and column norms of
+/// `a`; the signs of its rows are those of faer's reflections.
 pub fn qr_r(mut a: faer::Mat<f64>) -> DMatrix<f64> {
     use faer::dyn_stack::{MemBuffer, MemStack};
     use faer::linalg::qr::no_pivoting::factor::{qr_in_place, qr_in_place_scratch, recommended_block_size};

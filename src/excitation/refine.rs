@@ -35,6 +35,15 @@ fn set_stops<F: nlopt::ObjFn<T>, T>(opt: &mut nlopt::Nlopt<F, T>, s: &RefineSpec
 /// a flat objective, which SLSQP and MMA take as converged).
 const STOPPED_F: f64 = 0.0;
 
+/// What the constraint callbacks return once a stop is asked for: every
+/// constraint holds, with zero gradients.
+fn stopped_constraints(res: &mut [f64], grad: Option<&mut [f64]>) {
+    res.iter_mut().for_each(|v| *v = -1.0);
+    if let Some(g) = grad {
+        g.iter_mut().for_each(|v| *v = 0.0);
+    }
+}
+
 /// Feasibility tolerance of nlopt on the scaled constraints; the
 /// constraints are imposed as c + 2·tol ≤ 0, so accepted points have c < 0.
 const TOL: f64 = 1e-9;
@@ -206,11 +215,7 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
     if m > 0 {
         let c_cb = |res: &mut [f64], x: &[f64], grad: Option<&mut [f64]>, cw: &mut super::constraints::ConstraintWorkspace| {
             if stop_now() {
-                res.iter_mut().for_each(|v| *v = -1.0);
-                if let Some(g) = grad {
-                    g.iter_mut().for_each(|v| *v = 0.0);
-                }
-                return;
+                return stopped_constraints(res, grad);
             }
             cons.eval(x, cw, res, grad);
             // shifted by 2·tol so that a point accepted within nlopt's tolerance is strictly feasible
@@ -337,11 +342,7 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
     let c_cb = |res: &mut [f64], z: &[f64], grad: Option<&mut [f64]>, e: &mut EpiBuffers| {
         // a stop asked for: nothing evaluated (see `stage`)
         if stop_now() {
-            res.iter_mut().for_each(|v| *v = -1.0);
-            if let Some(g) = grad {
-                g.iter_mut().for_each(|v| *v = 0.0);
-            }
-            return;
+            return stopped_constraints(res, grad);
         }
         let x = &z[..nv];
         let want = grad.is_some();

@@ -445,11 +445,7 @@ impl<'a> AssessAccumulator<'a> {
         let prev = self.r.as_ref().map(|r| r.nrows()).unwrap_or(0);
         let mut a = faer::Mat::<f64>::zeros(prev + nr, m);
         if let Some(r) = &self.r {
-            for j in 0..m {
-                for i in 0..prev {
-                    a[(i, j)] = r[(i, j)];
-                }
-            }
+            a.submatrix_mut(0, 0, prev, m).copy_from(crate::linalg::to_faer(r));
         }
         for i in 0..nr {
             for j in 0..m {
