@@ -382,3 +382,36 @@ fn smooth_condition_surrogate_gradient_matches_finite_differences_and_bounds_the
         assert!((fd - g[i]).abs() < 1e-5 * gmax, "var {i}: {} vs {fd}", g[i]);
     }
 }
+
+#[test]
+fn the_row_wise_and_the_dual_number_gradients_agree() {
+    // A bundle of 1 + 1 eigenvalues takes the row-wise path (RNEA
+    // derivatives at one parameter vector per torque row), one of 4 + 4 the
+    // dual-number regressor passes: the gradients of the eigenvalues both
+    // bundles hold (the largest and the smallest) must agree, on a robot
+    // without and one with joint coupling
+    for name in ["ur5", "industrial6"] {
+        let r = load(name);
+        let lay = FourierLayout::new(vec![0.0; r.dof()], 3, std::f64::consts::TAU * 0.2, false, false).unwrap();
+        let (o, _) = objective(&r, &lay, 8.0, Criterion::Cond, Scaling::UnitColumn, &vec![1.0; r.dof()]);
+        let mut w = o.workspace();
+        let x = random_x(lay.n_vars(), 0.5, 13);
+        let nv = x.len();
+        let (mut v2, mut g2) = (vec![0.0; 2], vec![0.0; 2 * nv]);
+        o.log_eigen_bundle(&x, &mut w, 1, 1, &mut v2, &mut g2);
+        let (mut v8, mut g8) = (vec![0.0; 8], vec![0.0; 8 * nv]);
+        o.log_eigen_bundle(&x, &mut w, 4, 4, &mut v8, &mut g8);
+        for (a, b) in [(0, 0), (1, 7)] {
+            let (ga, gb) = (&g2[a * nv..(a + 1) * nv], &g8[b * nv..(b + 1) * nv]);
+            let scale = gb.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for i in 0..nv {
+                assert!(
+                    (ga[i] - gb[i]).abs() <= 1e-10 * scale,
+                    "{name}: eigenvalue {a}, var {i}: row-wise {} dual {}",
+                    ga[i],
+                    gb[i]
+                );
+            }
+        }
+    }
+}

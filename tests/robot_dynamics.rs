@@ -7,6 +7,7 @@ mod common;
 use common::*;
 use idexp::robot::{self, Robot, Workspace};
 use nalgebra::{DMatrix, DVector};
+use rand::RngExt;
 
 fn rel(a: f64, b: f64, scale: f64) -> f64 {
     (a - b).abs() / scale.max(1.0)
@@ -260,6 +261,44 @@ fn frame_jacobian_matches_finite_differences() {
                 for i in 0..3 {
                     assert!((dp[i] - j[(i, k)]).abs() < 1e-6, "{}: linear Jacobian", r.name);
                     assert!((dr[i] - j[(3 + i, k)]).abs() < 1e-6, "{}: angular Jacobian", r.name);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn row_wise_derivatives_equal_the_regressor_derivatives_contracted_row_by_row() {
+    // ∂τ_r(θ_r)/∂x = Σ_c ∂Y_rc/∂x θ_r,c for arbitrary (non-physical) θ_r:
+    // the row kernel (RNEA derivatives) against the forward tangents of the
+    // regressor, two independent computations, on every robot (a coupled
+    // one, a tree, smooth friction among them)
+    for r in all_robots() {
+        let (n, p) = (r.dof(), r.n_params());
+        let mut ws = Workspace::new(&r);
+        let mut g = rng(11);
+        for _ in 0..10 {
+            let (q, qd, qdd) = random_state(&r, &mut g);
+            let thetas: Vec<f64> = (0..n * p).map(|_| g.random_range(-2.0..2.0)).collect();
+            let (mut rq, mut rqd, mut rqdd) = (vec![0.0; n * n], vec![0.0; n * n], vec![0.0; n * n]);
+            robot::id_derivative_rows(&r, &mut ws, &thetas, &q, &qd, &qdd, &mut rq, &mut rqd, &mut rqdd);
+            let mut y = vec![0.0; n * p];
+            let mk = || vec![vec![0.0; n * p]; n];
+            let (mut dq, mut dqd, mut dqdd) = (mk(), mk(), mk());
+            robot::regressor_derivatives(&r, &mut ws, &q, &qd, &qdd, &mut y, &mut dq, &mut dqd, &mut dqdd);
+            for row in 0..n {
+                let th = &thetas[row * p..(row + 1) * p];
+                for k in 0..n {
+                    for (name, dy, got) in [("q", &dq, &rq), ("qd", &dqd, &rqd), ("qdd", &dqdd, &rqdd)] {
+                        let want: f64 = (0..p).map(|c| dy[k][row * p + c] * th[c]).sum();
+                        let scale: f64 = (0..p).map(|c| (dy[k][row * p + c] * th[c]).abs()).sum();
+                        let v = got[row * n + k];
+                        assert!(
+                            (v - want).abs() <= 1e-11 * (1.0 + scale),
+                            "{}: row {row}, d/d{name}_{k}: rows kernel {v}, contracted regressor derivative {want}",
+                            r.name
+                        );
+                    }
                 }
             }
         }

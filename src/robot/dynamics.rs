@@ -54,6 +54,8 @@ pub struct Workspace {
     chain: bool,
     /// Per-link quantities of [`id_derivatives_into`].
     dl: Vec<DerivLink>,
+    /// `s * n + i`: link i is in the subtree of joint s (s itself included).
+    sub: Vec<bool>,
     /// Mass matrix / Cholesky factor of forward dynamics.
     fd_m: DMatrix<f64>,
     /// Right-hand side and scratch of forward dynamics.
@@ -87,6 +89,20 @@ impl Workspace {
             need,
             cs: vec![(1.0, 0.0); n],
             dl: vec![DerivLink::default(); n],
+            sub: (0..n * n)
+                .map(|si| {
+                    let (s, mut i) = (si / n, si % n);
+                    loop {
+                        if i == s {
+                            break true;
+                        }
+                        match robot.joints[i].parent {
+                            Some(a) => i = a,
+                            None => break false,
+                        }
+                    }
+                })
+                .collect(),
             fd_m: DMatrix::zeros(n, n),
             fd_rhs: vec![0.0; n],
             fd_tmp: vec![0.0; n],
@@ -1125,88 +1141,9 @@ pub fn id_derivatives_into(
     );
     assert_eq!(ws.dl.len(), n, "workspace made for another robot");
     joint_transforms(robot, q, &mut ws.kin);
-    let kin = &ws.kin;
-    let dl = &mut ws.dl;
-    let z = Vector3::zeros();
-    let a0: Mv = (z, -robot.gravity);
-    for i in 0..n {
-        let (prot, ppos, pv, pa) = match robot.joints[i].parent {
-            None => (Matrix3::identity(), z, (z, z), a0),
-            Some(p) => (dl[p].rot, dl[p].pos, dl[p].v, dl[p].a),
-        };
-        let (rot, pos) = match robot.joints[i].parent {
-            None => (kin.rot[i], kin.pos[i]),
-            Some(_) => (prot * kin.rot[i], ppos + prot * kin.pos[i]),
-        };
-        let ja = rot * robot.s_ang[i];
-        let j: Mv = (ja, rot * robot.s_lin[i] + pos.cross(&ja));
-        let v: Mv = (pv.0 + j.0 * qd[i], pv.1 + j.1 * qd[i]);
-        let w = mcross(&pv, &j);
-        let a: Mv = (pa.0 + j.0 * qdd[i] + w.0 * qd[i], pa.1 + j.1 * qdd[i] + w.1 * qd[i]);
-        let ja_x_pa = mcross(&j, &pa);
-        let w_x_pv = mcross(&w, &pv);
-        let c: Mv = (-ja_x_pa.0 - w_x_pv.0, -ja_x_pa.1 - w_x_pv.1);
-        let o = robot.link_param_offset(i);
-        let t = &theta[o..o + 10];
-        let local = Ten {
-            m: t[9],
-            h: Vector3::new(t[6], t[7], t[8]),
-            i: [t[0], t[1], t[2], t[3], t[4], t[5]],
-        };
-        let y = local.in_frame(&rot, &pos);
-        let hm = y.times(&v.0, &v.1);
-        let ya = y.times(&a.0, &a.1);
-        let vxh = fcross(&v, &hm);
-        let f: Mv = (ya.0 + vxh.0, ya.1 + vxh.1);
-        // the symmetric part of Y [v]×: I[ω]× + ([ω]×)ᵀ I + [h]×[u]× + [u]×[h]×, and h × ω − m u
-        let (om, u) = &v;
-        let ii = &y.i;
-        // M = I [ω]×, column c = I (ω × e_c)
-        let m0 = sym_mul(ii, &Vector3::new(0.0, om.z, -om.y));
-        let m1 = sym_mul(ii, &Vector3::new(-om.z, 0.0, om.x));
-        let m2 = sym_mul(ii, &Vector3::new(om.y, -om.x, 0.0));
-        let hh = &y.h;
-        let hu = 2.0 * hh.dot(u);
-        let ul = [
-            2.0 * m0.x + 2.0 * u.x * hh.x - hu,
-            m1.x + m0.y + u.x * hh.y + hh.x * u.y,
-            m2.x + m0.z + u.x * hh.z + hh.x * u.z,
-            2.0 * m1.y + 2.0 * u.y * hh.y - hu,
-            m2.y + m1.z + u.y * hh.z + hh.y * u.z,
-            2.0 * m2.z + 2.0 * u.z * hh.z - hu,
-        ];
-        let g = hh.cross(om) - u * y.m;
-        dl[i] = DerivLink {
-            rot,
-            pos,
-            j,
-            v,
-            a,
-            w,
-            c,
-            y,
-            f,
-            hm,
-            ul,
-            g,
-        };
-    }
-    // subtree sums, leaves first
-    for i in (0..n).rev() {
-        if let Some(p) = robot.joints[i].parent {
-            let d = dl[i];
-            let e = &mut dl[p];
-            e.y.add(&d.y);
-            e.f.0 += d.f.0;
-            e.f.1 += d.f.1;
-            e.hm.0 += d.hm.0;
-            e.hm.1 += d.hm.1;
-            for k in 0..6 {
-                e.ul[k] += d.ul[k];
-            }
-            e.g += d.g;
-        }
-    }
+    deriv_motion(robot, &ws.kin, qd, qdd, &mut ws.dl);
+    deriv_inertial(robot, theta, &mut ws.dl, |_| true);
+    let dl = &ws.dl;
     let (mq, mqd) = (dq.as_mut_slice(), dqd.as_mut_slice()); // column-major: [col * n + row]
     mq.fill(0.0);
     mqd.fill(0.0);
@@ -1279,6 +1216,217 @@ pub fn id_derivatives_into(
                     dqd[(jm, c)] += slope * x;
                 }
             }
+        }
+    }
+}
+
+/// The θ-independent part of [`id_derivatives_into`]: every link's world
+/// placement, J, v, a, w and c (`kin` holds the joint transforms at q).
+fn deriv_motion(robot: &Robot, kin: &Kin<f64>, qd: &[f64], qdd: &[f64], dl: &mut [DerivLink]) {
+    let z = Vector3::zeros();
+    let a0: Mv = (z, -robot.gravity);
+    for i in 0..dl.len() {
+        let (prot, ppos, pv, pa) = match robot.joints[i].parent {
+            None => (Matrix3::identity(), z, (z, z), a0),
+            Some(p) => (dl[p].rot, dl[p].pos, dl[p].v, dl[p].a),
+        };
+        let (rot, pos) = match robot.joints[i].parent {
+            None => (kin.rot[i], kin.pos[i]),
+            Some(_) => (prot * kin.rot[i], ppos + prot * kin.pos[i]),
+        };
+        let ja = rot * robot.s_ang[i];
+        let j: Mv = (ja, rot * robot.s_lin[i] + pos.cross(&ja));
+        let v: Mv = (pv.0 + j.0 * qd[i], pv.1 + j.1 * qd[i]);
+        let w = mcross(&pv, &j);
+        let a: Mv = (pa.0 + j.0 * qdd[i] + w.0 * qd[i], pa.1 + j.1 * qdd[i] + w.1 * qd[i]);
+        let ja_x_pa = mcross(&j, &pa);
+        let w_x_pv = mcross(&w, &pv);
+        let c: Mv = (-ja_x_pa.0 - w_x_pv.0, -ja_x_pa.1 - w_x_pv.1);
+        let d = &mut dl[i];
+        (d.rot, d.pos, d.j, d.v, d.a, d.w, d.c) = (rot, pos, j, v, a, w, c);
+    }
+}
+
+/// The θ-dependent part of [`id_derivatives_into`]: each link's inertia Y,
+/// force f, momentum Y v and the pieces of B, then their sums over the
+/// subtrees (leaves first). Links for which `used` is false count with zero
+/// parameters (they are outside every subtree the caller reads).
+fn deriv_inertial(robot: &Robot, theta: &[f64], dl: &mut [DerivLink], used: impl Fn(usize) -> bool) {
+    let n = dl.len();
+    for i in 0..n {
+        let d = &mut dl[i];
+        if !used(i) {
+            (d.y, d.f, d.hm, d.ul, d.g) = (
+                Ten::default(),
+                (Vector3::zeros(), Vector3::zeros()),
+                (Vector3::zeros(), Vector3::zeros()),
+                [0.0; 6],
+                Vector3::zeros(),
+            );
+            continue;
+        }
+        let o = robot.link_param_offset(i);
+        let t = &theta[o..o + 10];
+        let local = Ten {
+            m: t[9],
+            h: Vector3::new(t[6], t[7], t[8]),
+            i: [t[0], t[1], t[2], t[3], t[4], t[5]],
+        };
+        let y = local.in_frame(&d.rot, &d.pos);
+        let v = d.v;
+        let hm = y.times(&v.0, &v.1);
+        let ya = y.times(&d.a.0, &d.a.1);
+        let vxh = fcross(&v, &hm);
+        let f: Mv = (ya.0 + vxh.0, ya.1 + vxh.1);
+        // the symmetric part of Y [v]×: I[ω]× + ([ω]×)ᵀ I + [h]×[u]× + [u]×[h]×, and h × ω − m u
+        let (om, u) = &v;
+        let ii = &y.i;
+        // M = I [ω]×, column c = I (ω × e_c)
+        let m0 = sym_mul(ii, &Vector3::new(0.0, om.z, -om.y));
+        let m1 = sym_mul(ii, &Vector3::new(-om.z, 0.0, om.x));
+        let m2 = sym_mul(ii, &Vector3::new(om.y, -om.x, 0.0));
+        let hh = &y.h;
+        let hu = 2.0 * hh.dot(u);
+        let ul = [
+            2.0 * m0.x + 2.0 * u.x * hh.x - hu,
+            m1.x + m0.y + u.x * hh.y + hh.x * u.y,
+            m2.x + m0.z + u.x * hh.z + hh.x * u.z,
+            2.0 * m1.y + 2.0 * u.y * hh.y - hu,
+            m2.y + m1.z + u.y * hh.z + hh.y * u.z,
+            2.0 * m2.z + 2.0 * u.z * hh.z - hu,
+        ];
+        let g = hh.cross(om) - u * y.m;
+        (d.y, d.f, d.hm, d.ul, d.g) = (y, f, hm, ul, g);
+    }
+    // subtree sums, leaves first
+    for i in (0..n).rev() {
+        if let Some(p) = robot.joints[i].parent {
+            let d = dl[i];
+            let e = &mut dl[p];
+            e.y.add(&d.y);
+            e.f.0 += d.f.0;
+            e.f.1 += d.f.1;
+            e.hm.0 += d.hm.0;
+            e.hm.1 += d.hm.1;
+            for k in 0..6 {
+                e.ul[k] += d.ul[k];
+            }
+            e.g += d.g;
+        }
+    }
+}
+
+/// Row-wise inverse-dynamics derivatives, one parameter vector per row: for
+/// every joint r, with θ_r = `thetas[r·p..(r+1)·p]` (any values: the
+/// dynamics are linear in θ), row r of ∂τ/∂q, ∂τ/∂q̇ and ∂τ/∂q̈ (motor side,
+/// as [`id_derivatives_into`] and [`motor_inertia`]) at the parameters θ_r,
+/// into `dq`, `dqd`, `dqdd` (each n×n row-major, entry r·n + k =
+/// ∂τ_r(θ_r)/∂x_k). Since τ = Y θ, Σ_r of these rows is the derivative of
+/// ⟨H, Y⟩ for the matrix H with rows θ_r: the gradient of a function of
+/// the regressor without the regressor's derivatives (the excitation
+/// criterion's, `excitation::objective`).
+///
+/// The motion pass is shared by every row; per row only the links in the
+/// subtrees of the rigid-body rows that τ_r combines (r itself without
+/// coupling) get inertias, and only those rows are formed: the ancestors'
+/// columns and the descendants' ones of [`id_derivatives_into`], and the
+/// mass-matrix row from the same composite inertias (M_si = J_iᵀ Y^c_s J_s
+/// for i an ancestor of s or s itself). Allocation-free.
+#[allow(clippy::too_many_arguments)] // kernel: robot, workspace, θ rows, state (q, q̇, q̈), three outputs
+pub fn id_derivative_rows(
+    robot: &Robot,
+    ws: &mut Workspace,
+    thetas: &[f64],
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    dq: &mut [f64],
+    dqd: &mut [f64],
+    dqdd: &mut [f64],
+) {
+    check_state(robot, q, qd, qdd);
+    let n = robot.dof();
+    let p = robot.n_params();
+    assert_eq!(thetas.len(), n * p, "one parameter vector per row: n·p values");
+    assert!(dq.len() == n * n && dqd.len() == n * n && dqdd.len() == n * n, "row outputs must be n·n");
+    assert_eq!(ws.dl.len(), n, "workspace made for another robot");
+    joint_transforms(robot, q, &mut ws.kin);
+    deriv_motion(robot, &ws.kin, qd, qdd, &mut ws.dl);
+    let w = &mut ws.kin.s2;
+    couple(robot, qd, w);
+    let sub = &ws.sub;
+    for r in 0..n {
+        let theta = &thetas[r * p..(r + 1) * p];
+        // the rigid-body rows s (with weights x) that τ_r combines
+        let coupled = robot.coupling.is_some();
+        let rows = || {
+            let own = (!coupled).then_some((r, r, 1.0));
+            own.into_iter()
+                .chain(robot.cinvt_sparse.iter().copied().filter(move |&(rr, _, _)| coupled && rr == r))
+        };
+        deriv_inertial(robot, theta, &mut ws.dl, |i| rows().any(|(_, s, _)| sub[s * n + i]));
+        let dl = &ws.dl;
+        let (oq, oqd, oqdd) = (&mut dq[r * n..(r + 1) * n], &mut dqd[r * n..(r + 1) * n], &mut dqdd[r * n..(r + 1) * n]);
+        oq.fill(0.0);
+        oqd.fill(0.0);
+        oqdd.fill(0.0);
+        for (_, s, x) in rows() {
+            let d = &dl[s];
+            let pj = d.y_mul(&d.j);
+            let qj = d.bt_mul(&d.j);
+            // s and its ancestors i
+            let mut i = s;
+            loop {
+                let e = &dl[i];
+                oq[i] += x * (mdot(&e.c, &pj) + mdot(&e.w, &qj));
+                oqd[i] += x * (2.0 * mdot(&e.w, &pj) + mdot(&e.j, &qj));
+                oqdd[i] += x * mdot(&e.j, &pj);
+                match robot.joints[i].parent {
+                    Some(a) => i = a,
+                    None => break,
+                }
+            }
+            // the strict descendants k of s
+            let js = &d.j;
+            for k in s + 1..n {
+                if !sub[s * n + k] {
+                    continue;
+                }
+                let d = &dl[k];
+                let jxf = fcross(&d.j, &d.f);
+                let yc = d.y_mul(&d.c);
+                let bw = d.b_mul(&d.w);
+                let gi: Mv = (jxf.0 + yc.0 + bw.0, jxf.1 + yc.1 + bw.1);
+                let yw = d.y_mul(&d.w);
+                let bj = d.b_mul(&d.j);
+                let hi: Mv = (2.0 * yw.0 + bj.0, 2.0 * yw.1 + bj.1);
+                let pk = d.y_mul(&d.j);
+                oq[k] += x * mdot(js, &gi);
+                oqd[k] += x * mdot(js, &hi);
+                oqdd[k] += x * mdot(js, &pk);
+            }
+        }
+        // the drive of row r: friction slopes on the motor velocity, rotor inertia
+        let drive = &robot.drives[r];
+        let mut k0 = robot.drive_param_offset(r);
+        let ia = drive.rotor_inertia.map(|_| theta[k0]);
+        if ia.is_some() {
+            k0 += 1;
+        }
+        let mut cols = [0.0; MAX_FRICTION_COLUMNS];
+        let mcount = friction_slopes(drive, w[r], &mut cols);
+        let slope: f64 = cols[..mcount].iter().enumerate().map(|(c, v)| v * theta[k0 + c]).sum();
+        let ia = ia.unwrap_or(0.0);
+        if coupled {
+            for &(rr, c, v) in &robot.c_sparse {
+                if rr == r {
+                    oqd[c] += slope * v;
+                    oqdd[c] += ia * v;
+                }
+            }
+        } else {
+            oqd[r] += slope;
+            oqdd[r] += ia;
         }
     }
 }
