@@ -1,7 +1,9 @@
 //! Kernel benchmarks, single thread: RNEA calls, regressor rows (one n×p block
 //! per state), regressor derivatives, mass matrix (allocating and into a
 //! buffer), allocation-free forward dynamics, the derivatives of inverse
-//! dynamics into buffers (`id_derivatives`), for a 6-axis (UR5, PUMA 560,
+//! dynamics into buffers (`id_derivatives`) and row by row, one parameter
+//! vector per torque row (`id_derivative_rows`, the excitation gradient's
+//! kernel), for a 6-axis (UR5, PUMA 560,
 //! the coupled-wrist industrial arm) and a 7-axis (iiwa 14, Panda) robot.
 //!
 //! Run: `cargo bench --bench robot`. Each run also writes its states, one
@@ -117,6 +119,17 @@ fn bench(c: &mut Criterion) {
                 k += 1;
                 robot::dynamics::id_derivatives_into(&r, &mut ws, theta.as_slice(), &s.0, &s.1, &s.2, &mut gq, &mut gqd);
                 black_box((&gq, &gqd));
+            })
+        });
+        // one parameter vector per torque row (the excitation gradient's kernel)
+        let thetas: Vec<f64> = (0..n).flat_map(|_| theta.iter().copied()).collect();
+        let (mut rq, mut rqd, mut rqdd) = (vec![0.0; n * n], vec![0.0; n * n], vec![0.0; n * n]);
+        g.bench_function("id_derivative_rows", |b| {
+            b.iter(|| {
+                let s = &st[k % st.len()];
+                k += 1;
+                robot::id_derivative_rows(&r, &mut ws, &thetas, &s.0, &s.1, &s.2, &mut rq, &mut rqd, &mut rqdd);
+                black_box((&rq, &rqd, &rqdd));
             })
         });
         g.finish();
