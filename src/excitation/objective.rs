@@ -611,8 +611,10 @@ impl Objective {
     }
 
     /// The design-vector gradients Σ ⟨H_t, ∂C/∂x⟩ of several matrices H_t
-    /// (each = ∂J_t/∂C, column-major) at once: the regressor derivatives of
-    /// each sample are computed once and contracted with every H_t. The
+    /// (each = ∂J_t/∂C, column-major) at once, per sample
+    /// ([`Self::sample_gradient`]: row by row through the inverse-dynamics
+    /// derivatives for up to [`ROW_WISE_MAX`] matrices, else the regressor
+    /// derivatives computed once and contracted with every H_t). The
     /// per-sample work runs in fixed chunks of samples in parallel and is
     /// summed in chunk order (the result does not depend on the thread
     /// count). `out` holds one gradient of `n_vars` values per H_t.
@@ -671,8 +673,9 @@ impl Objective {
     /// ln λ_i, with their gradients: the `top` largest (i = 1..top) then the
     /// `bottom` smallest (i = m−bottom+1..m), d ln λ_i = (2/λ_i) v_iᵀ C̃ᵀ dC̃ v_i,
     /// exact wherever λ_i is simple. `vals` gets top + bottom values, `grads`
-    /// (top + bottom) × n_vars (one gradient after the other); the regressor
-    /// derivatives are shared by all of them (`Objective::contract`).
+    /// (top + bottom) × n_vars (one gradient after the other), through
+    /// `Objective::contract` (row by row for up to [`ROW_WISE_MAX`] of them,
+    /// else the dual passes shared by all).
     /// Returns the criterion J(x) (+∞, zero gradients and values +∞ when C̃
     /// is not finite). Used by the refinement's epigraph form
     /// (`refine.bundle`). σ_i below σ_1/[`COND_CAP`] count as that floor.

@@ -1090,6 +1090,19 @@ impl DerivLink {
     fn y_mul(&self, x: &Mv) -> Mv {
         self.y.times(&x.0, &x.1)
     }
+
+    /// What link i (this one, subtree sums in place) gives every strict
+    /// ancestor j: ∂τ_j/∂q_i = J_jᵀ g, ∂τ_j/∂q̇_i = J_jᵀ h with
+    /// g = J_i ×* F_i + Y^c_i c_i + B_i w_i and h = 2 Y^c_i w_i + B_i J_i.
+    #[inline(always)]
+    fn descendant_terms(&self) -> (Mv, Mv) {
+        let jxf = fcross(&self.j, &self.f);
+        let yc = self.y_mul(&self.c);
+        let bw = self.b_mul(&self.w);
+        let yw = self.y_mul(&self.w);
+        let bj = self.b_mul(&self.j);
+        ((jxf.0 + yc.0 + bw.0, jxf.1 + yc.1 + bw.1), (2.0 * yw.0 + bj.0, 2.0 * yw.1 + bj.1))
+    }
 }
 
 /// [`id_derivatives`] into `dq` = ∂τ/∂q and `dqd` = ∂τ/∂q̇ (each n×n,
@@ -1164,13 +1177,7 @@ pub fn id_derivatives_into(
         }
         // the strict ancestors j' of jj (in the role of j), jj in the role of i
         if robot.joints[jj].parent.is_some() {
-            let jxf = fcross(&d.j, &d.f);
-            let yc = d.y_mul(&d.c);
-            let bw = d.b_mul(&d.w);
-            let gi: Mv = (jxf.0 + yc.0 + bw.0, jxf.1 + yc.1 + bw.1);
-            let yw = d.y_mul(&d.w);
-            let bj = d.b_mul(&d.j);
-            let hi: Mv = (2.0 * yw.0 + bj.0, 2.0 * yw.1 + bj.1);
+            let (gi, hi) = d.descendant_terms();
             let mut k = jj;
             while let Some(p) = robot.joints[k].parent {
                 let jp = &dl[p].j;
@@ -1393,13 +1400,7 @@ pub fn id_derivative_rows(
                     continue;
                 }
                 let d = &dl[k];
-                let jxf = fcross(&d.j, &d.f);
-                let yc = d.y_mul(&d.c);
-                let bw = d.b_mul(&d.w);
-                let gi: Mv = (jxf.0 + yc.0 + bw.0, jxf.1 + yc.1 + bw.1);
-                let yw = d.y_mul(&d.w);
-                let bj = d.b_mul(&d.j);
-                let hi: Mv = (2.0 * yw.0 + bj.0, 2.0 * yw.1 + bj.1);
+                let (gi, hi) = d.descendant_terms();
                 let pk = d.y_mul(&d.j);
                 oq[k] += x * mdot(js, &gi);
                 oqd[k] += x * mdot(js, &hi);
