@@ -674,7 +674,7 @@ impl Objective {
     /// `bottom` smallest (i = m−bottom+1..m), d ln λ_i = (2/λ_i) v_iᵀ C̃ᵀ dC̃ v_i,
     /// exact wherever λ_i is simple. `vals` gets top + bottom values, `grads`
     /// (top + bottom) × n_vars (one gradient after the other), through
-    /// `Objective::contract` (row by row for up to [`ROW_WISE_MAX`] of them,
+    /// `Objective::contract` (row by row for up to 6 of them,
     /// else the dual passes shared by all).
     /// Returns the criterion J(x) (+∞, zero gradients and values +∞ when C̃
     /// is not finite). Used by the refinement's epigraph form
