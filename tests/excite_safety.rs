@@ -79,6 +79,12 @@ fn benchmark_design_without_collision_constraints_is_not_safe_to_play() {
     let (least, label) = brute_min(&p, &sc, &q);
     assert!((least - c.distance).abs() < 1e-12, "{least} vs {c:?}");
     assert_eq!(label, c.pair);
+    // the count of colliding samples: every sample of the 1 kHz grid (whose
+    // periods 2, 3 repeat period 1 bitwise) with every pair computed exactly
+    let s1k = d.sample(1000.0).unwrap();
+    assert_eq!(s1k.len(), c.samples);
+    let colliding = (0..s1k.len()).filter(|&k| brute_min(&p, &sc, &s1k.q[k]).0 <= 0.0).count();
+    assert_eq!(colliding, c.colliding_samples);
     // no sample of a 20 ms subgrid is closer than the reported minimum
     let mut t = 0.0;
     while t <= d.duration() {

@@ -250,3 +250,20 @@ fn an_interrupted_run_folder_needs_allow_incomplete() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+#[test]
+#[cfg(unix)]
+fn results_get_the_mode_of_an_ordinary_file_not_of_a_temporary_one() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ur5");
+    run_ok(&["excite", "designs/excite_ur5_bench.toml", "--time-limit", "0.2", "--out", out.to_str().unwrap()]);
+    // the oracle: what this process's umask gives a file created the ordinary way
+    let plain = dir.path().join("plain.txt");
+    std::fs::write(&plain, "x").unwrap();
+    let want = std::fs::metadata(&plain).unwrap().permissions().mode() & 0o777;
+    for f in ["report.txt", "trajectory.csv", "coefficients.json", "status.json", "joints.svg"] {
+        let mode = std::fs::metadata(out.join(f)).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, want, "{f}: mode {mode:o}, a file created here gets {want:o}");
+    }
+}

@@ -394,6 +394,7 @@ fn closest_on(p: &Problem, sc: &crate::robot::collision::CollisionScene, d: &Del
     use rayon::prelude::*;
     let n = d.home.len();
     let m = (d.duration() * rate - 1e-6).ceil().max(0.0) as usize;
+    let plan = d.rows(rate);
     const CHUNK: usize = 512;
     let chunks: Vec<usize> = (0..=m).step_by(CHUNK).collect();
     let best = chunks
@@ -404,9 +405,15 @@ fn closest_on(p: &Problem, sc: &crate::robot::collision::CollisionScene, d: &Del
             let mut best: Option<(usize, i64, crate::robot::collision::PairDistance)> = None;
             let mut colliding = 0;
             for k in k0..(k0 + CHUNK).min(m + 1) {
+                // a sample repeated bitwise in later periods counts once per
+                // repetition; the first of least distance is never a repetition
+                let times = plan.multiplicity(d, k);
+                if times == 0 {
+                    continue;
+                }
                 let seg = d.eval(k as f64 / rate, &mut q, &mut qd, &mut qdd);
                 if let Some(w) = sc.worst_at(&p.robot, &mut kin, &q, SAFETY_CAP) {
-                    colliding += usize::from(w.distance <= 0.0);
+                    colliding += times * usize::from(w.distance <= 0.0);
                     if best.as_ref().is_none_or(|b| w.distance < b.2.distance) {
                         best = Some((k, seg, w));
                     }
@@ -512,7 +519,9 @@ fn failed(problem: String, rate: f64) -> Execution {
 }
 
 /// Checks every sample of the delivered trajectory at `rate` Hz: the first
-/// violation in time (`Err` its sentence). Samples are checked in chunks in
+/// violation in time (`Err` its sentence). A sample that repeats an earlier
+/// one bitwise ([`lead::RowPlan`]: periods 2 and later) passes or fails with
+/// it, so only the samples it repeats are checked. Samples are checked in chunks in
 /// parallel, each with its own check from [`StateCheck::new`]; the first
 /// failing chunk in time gives the answer, so it does not depend on the
 /// thread count.
@@ -520,6 +529,7 @@ fn verify(p: &Problem, d: &Delivered, rate: f64) -> Result<std::result::Result<(
     use rayon::prelude::*;
     let n = d.home.len();
     let m = (d.duration() * rate - 1e-6).ceil().max(0.0) as usize;
+    let plan = d.rows(rate);
     const CHUNK: usize = 1024;
     let chunks: Vec<usize> = (0..=m).step_by(CHUNK).collect();
     let results = chunks
@@ -528,6 +538,9 @@ fn verify(p: &Problem, d: &Delivered, rate: f64) -> Result<std::result::Result<(
             let mut check = StateCheck::new(p)?;
             let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
             for k in k0..(k0 + CHUNK).min(m + 1) {
+                if plan.row(d, k).1 != k {
+                    continue;
+                }
                 let t = k as f64 / rate;
                 let seg = d.eval(t, &mut q, &mut qd, &mut qdd);
                 if let Err(e) = check.check(&q, &qd, &qdd) {

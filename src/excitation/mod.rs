@@ -61,7 +61,7 @@ use std::time::Instant;
 
 pub use design::{GaSpec, LimitsSpec, ObjectiveSpec, RefineSpec, TrajectorySpec};
 pub use objective::{Criterion, Scaling};
-pub use report::{assess, Identifiability};
+pub use report::{assess, assess_delivered, Identifiability};
 
 /// A design resolved against its robot: objective, constraints, bounds.
 #[derive(Debug, Clone)]

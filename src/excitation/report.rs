@@ -26,6 +26,7 @@ use crate::io::States;
 use crate::optim::Termination;
 use crate::params::BaseParams;
 use crate::robot::{regressor_rows, Robot, Workspace};
+use crate::trajectory::lead::DeliveredSamples;
 use crate::trajectory::seconds_text;
 use nalgebra::DMatrix;
 use serde::Serialize;
@@ -319,6 +320,37 @@ pub fn assess(robot: &Robot, base: &BaseParams, states: &States, noise: &[f64]) 
     acc.finish()
 }
 
+/// [`assess`] of every row of a delivered trajectory's samples: a row that
+/// repeats another bitwise ([`DeliveredSamples::source`]) is counted with
+/// the row it repeats instead of being stacked again (the same CᵀC).
+pub fn assess_delivered(robot: &Robot, base: &BaseParams, ds: &DeliveredSamples, noise: &[f64]) -> Result<Identifiability> {
+    let n = robot.dof();
+    if ds.source.len() != ds.len() {
+        return Err(Error::dim("sources of the delivered samples", ds.len(), ds.source.len()));
+    }
+    let mut times = vec![0usize; ds.len()];
+    for (k, &src) in ds.source.iter().enumerate() {
+        if src > k || ds.source[src] != src {
+            return Err(Error::invalid(
+                "assess",
+                "source",
+                format!("sample {k} repeats sample {src}, which is not an earlier sample of its own"),
+            ));
+        }
+        times[src] += 1;
+    }
+    let mut acc = AssessAccumulator::new(robot, base, noise)?;
+    for (i, &w) in times.iter().enumerate() {
+        for (what, v) in [("q", &ds.q[i]), ("qd", &ds.qd[i]), ("qdd", &ds.qdd[i])] {
+            if v.len() != n {
+                return Err(Error::dim(format!("{what} of sample {i}"), n, v.len()));
+            }
+        }
+        acc.add_times(&ds.q[i], &ds.qd[i], &ds.qdd[i], w);
+    }
+    acc.finish()
+}
+
 /// [`assess`] of a states CSV read block by block ([`read_states`]'s format
 /// and checks, every `every`-th row): memory independent of the file length.
 /// `segment`: only the rows whose `segment` column holds this value
@@ -413,6 +445,17 @@ impl<'a> AssessAccumulator<'a> {
     }
 
     fn add(&mut self, q: &[f64], qd: &[f64], qdd: &[f64]) {
+        self.add_times(q, qd, qdd, 1);
+    }
+
+    /// [`Self::add`] of a sample that occurs `times` times: its rows scaled
+    /// by √times, which adds to CᵀC (and so to R's singular values, right
+    /// singular vectors and column norms) what `times` copies add.
+    fn add_times(&mut self, q: &[f64], qd: &[f64], qdd: &[f64], times: usize) {
+        if times == 0 {
+            return;
+        }
+        let (w, root) = (times as f64, (times as f64).sqrt());
         let n = self.robot.dof();
         let p = self.robot.n_params();
         self.qd.copy_from_slice(qd);
@@ -425,11 +468,11 @@ impl<'a> AssessAccumulator<'a> {
         for r in 0..n {
             for (j, &col) in self.base.independent.iter().enumerate() {
                 let c = self.y[r * p + col];
-                self.abs_sum[j] += c.abs();
-                self.rows.push(c / self.noise[r]);
+                self.abs_sum[j] += w * c.abs();
+                self.rows.push(root * (c / self.noise[r]));
             }
         }
-        self.samples += 1;
+        self.samples += times;
         if self.rows.len() >= ASSESS_BLOCK * self.base.n_base() {
             self.flush();
         }
@@ -775,15 +818,7 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Writte
             r.trajectory.sample(d.trajectory.controller_rate)?.write(&dir.join("periodic.csv"))?;
             grid.samples.write(&dir.join("criterion_samples.csv"))
         },
-        || {
-            let states = crate::io::States {
-                t: None,
-                q: ds.q.clone(),
-                qd: ds.qd.clone(),
-                qdd: ds.qdd.clone(),
-            };
-            assess(&p.robot, &p.base, &states, &noise)
-        },
+        || assess_delivered(&p.robot, &p.base, &ds, &noise),
     );
     written_csv?;
     let mut delivered_ident = delivered_ident?;

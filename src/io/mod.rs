@@ -36,11 +36,18 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         return Err(Error::io(path, std::io::Error::other("is a folder, cannot write a file there")));
     }
     let file_name = path.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let mut tmp = tempfile::Builder::new()
-        .prefix(&folder::temp_prefix(&file_name))
-        .suffix(folder::TEMP_SUFFIX)
-        .tempfile_in(&dir)
-        .map_err(|e| Error::io(&dir, e))?;
+    let prefix = folder::temp_prefix(&file_name);
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(&prefix).suffix(folder::TEMP_SUFFIX);
+    // the mode of a file created the ordinary way (0666 less the umask, as
+    // `File::create` gives), not the 0600 of a temporary file: results in a
+    // shared folder are readable by whom the user's umask lets read them
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt as _;
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    let mut tmp = builder.tempfile_in(&dir).map_err(|e| Error::io(&dir, e))?;
     let tmp_path = tmp.path().to_path_buf();
     folder::register_temp(&tmp_path);
     let result = (|| {

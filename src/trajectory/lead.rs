@@ -212,53 +212,78 @@ impl Delivered {
         self.periodic_end() + self.lead_out_duration()
     }
 
-    /// Evaluates at time t (after the end: home at rest) and returns the
-    /// segment ([`LEAD_IN`], period 1..N, [`LEAD_OUT`]).
+    /// The segment time t belongs to ([`LEAD_IN`], period 1..N,
+    /// [`LEAD_OUT`]), as [`Self::eval`] assigns it.
     ///
     /// A time within [`BOUNDARY_TOL`] of a boundary (lead-in end, period
     /// end, periodic end) belongs to the part that starts there: the
     /// durations are sums of decimal steps (1.4 s is 35 × 0.04 s =
     /// 1.4000000000000001), and the sample at t = 1400/1000 is the first of
     /// period 1, not the last of the lead-in.
-    pub fn eval(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) -> i64 {
+    pub fn segment_at(&self, t: f64) -> i64 {
         let t_in = self.lead_in_duration();
-        let t_end = self.periodic_end();
-        let period = self.periodic.period();
         if t < t_in - BOUNDARY_TOL {
-            if let Some(p) = &self.lead_in {
-                if t <= 0.0 {
-                    // exactly home at rest
+            return LEAD_IN;
+        }
+        if t < self.periodic_end() - BOUNDARY_TOL {
+            let s = (t - t_in).max(0.0);
+            let k = (((s + BOUNDARY_TOL) / self.periodic.period()).floor() as usize).min(self.periods - 1);
+            return k as i64 + 1;
+        }
+        LEAD_OUT
+    }
+
+    /// Evaluates at time t (after the end: home at rest) and returns the
+    /// segment ([`Self::segment_at`]).
+    pub fn eval(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) -> i64 {
+        let seg = self.segment_at(t);
+        match seg {
+            LEAD_IN => {
+                if let Some(p) = &self.lead_in {
+                    if t <= 0.0 {
+                        // exactly home at rest
+                        q.copy_from_slice(&self.home);
+                        qd.fill(0.0);
+                        qdd.fill(0.0);
+                    } else {
+                        p.eval_into(t, q, qd, qdd);
+                    }
+                }
+            }
+            LEAD_OUT => match &self.lead_out {
+                Some(_) if t >= self.duration() - 1e-9 => {
+                    // exactly home at rest (the quintic's end value up to rounding)
                     q.copy_from_slice(&self.home);
                     qd.fill(0.0);
                     qdd.fill(0.0);
-                } else {
-                    p.eval_into(t, q, qd, qdd);
                 }
-            }
-            return LEAD_IN;
-        }
-        if t < t_end - BOUNDARY_TOL {
-            let s = (t - t_in).max(0.0);
-            let k = (((s + BOUNDARY_TOL) / period).floor() as usize).min(self.periods - 1);
-            // evaluate at the time within the period: the series is periodic,
-            // and the phase stays exact however many periods are played
-            self.periodic.eval((s - k as f64 * period).max(0.0), q, qd, qdd);
-            return k as i64 + 1;
-        }
-        match &self.lead_out {
-            Some(_) if t >= self.duration() - 1e-9 => {
-                // exactly home at rest (the quintic's end value up to rounding)
-                q.copy_from_slice(&self.home);
-                qd.fill(0.0);
-                qdd.fill(0.0);
-            }
-            Some(p) => p.eval_into(t - t_end, q, qd, qdd),
-            None => {
-                // no lead-out: the periodic part ends at rest at home
-                self.periodic.eval(0.0, q, qd, qdd);
+                Some(p) => p.eval_into(t - self.periodic_end(), q, qd, qdd),
+                None => {
+                    // no lead-out: the periodic part ends at rest at home
+                    self.periodic.eval(0.0, q, qd, qdd);
+                }
+            },
+            k => {
+                // evaluate at the time within the period: the series is
+                // periodic, and the phase stays exact however many periods
+                // are played
+                let s = (t - self.lead_in_duration()).max(0.0);
+                self.periodic.eval((s - (k - 1) as f64 * self.periodic.period()).max(0.0), q, qd, qdd);
             }
         }
-        LEAD_OUT
+        seg
+    }
+
+    /// The rows of the `rate` Hz grid (t_k = k/rate) and which of them
+    /// repeat another ([`RowPlan`]).
+    pub fn rows(&self, rate: f64) -> RowPlan {
+        // a period of a whole number of samples (to rounding): the rows of
+        // period s ≥ 2 are at the phases of period 1's rows, (s − 1)·N rows
+        // earlier
+        let nf = self.periodic.period() * rate;
+        let per = nf.round();
+        let period_rows = (self.periods > 1 && per >= 1.0 && (nf - per).abs() <= 1e-9 * per).then_some(per as usize);
+        RowPlan { rate, period_rows }
     }
 
     /// Samples at `rate` Hz: t_k = k/rate from 0 up to the first grid point
@@ -288,16 +313,28 @@ impl Delivered {
             qd: Vec::with_capacity(m),
             qdd: Vec::with_capacity(m),
             segment: Vec::with_capacity(m),
+            source: Vec::with_capacity(m),
         };
+        let plan = self.rows(rate);
         let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
         for k in 0..m {
             let t = k as f64 / rate;
-            let seg = self.eval(t, &mut q, &mut qd, &mut qdd);
+            let (seg, src) = plan.row(self, k);
+            if src == k {
+                let s = self.eval(t, &mut q, &mut qd, &mut qdd);
+                debug_assert_eq!(s, seg);
+                out.q.push(q.clone());
+                out.qd.push(qd.clone());
+                out.qdd.push(qdd.clone());
+            } else {
+                // bitwise the state of the row it repeats
+                out.q.push(out.q[src].clone());
+                out.qd.push(out.qd[src].clone());
+                out.qdd.push(out.qdd[src].clone());
+            }
             out.t.push(t);
-            out.q.push(q.clone());
-            out.qd.push(qd.clone());
-            out.qdd.push(qdd.clone());
             out.segment.push(seg);
+            out.source.push(src);
         }
         Ok(out)
     }
@@ -311,6 +348,69 @@ pub const BOUNDARY_TOL: f64 = 1e-9;
 /// Largest number of samples a delivered trajectory is sampled into (about
 /// 28 h at 1 kHz): bounds the memory before anything is allocated.
 pub const MAX_SAMPLES: usize = 100_000_000;
+
+/// The rows t_k = k/rate of a [`Delivered`] trajectory's grid
+/// ([`Delivered::rows`]) and which of them repeat another.
+///
+/// When a period is a whole number N of samples (period × rate within 10⁻⁹
+/// relative of an integer), the rows of period s ≥ 2 lie at the phases of
+/// the rows of period 1, (s − 1)·N rows earlier: such a row takes that row's
+/// state bitwise instead of evaluating the series at a phase that differs
+/// from it only by rounding. So every period of trajectory.csv holds the
+/// same numbers, and what is computed from a period's rows (limits,
+/// collision distances, regressor rows) is computed once: a check of
+/// period 1 is a check of every period, and the identifiability of the
+/// delivered rows is that of the distinct rows counted with their
+/// [`RowPlan::multiplicity`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RowPlan {
+    /// Sample rate (Hz).
+    pub rate: f64,
+    /// Rows per period when a period is a whole number of samples (and more
+    /// than one period is played).
+    pub period_rows: Option<usize>,
+}
+
+impl RowPlan {
+    /// Segment of row k and the row whose state it takes: k itself, or the
+    /// row (s − 1)·N earlier when row k is in period s ≥ 2 and that row is in
+    /// period 1 (rows at a boundary, which rounding may put in a
+    /// neighbouring segment, are evaluated).
+    pub fn row(&self, d: &Delivered, k: usize) -> (i64, usize) {
+        let seg = d.segment_at(k as f64 / self.rate);
+        if let Some(n) = self.period_rows {
+            if seg >= 2 {
+                let shift = (seg as usize - 1) * n;
+                if let Some(k1) = k.checked_sub(shift) {
+                    if d.segment_at(k1 as f64 / self.rate) == 1 {
+                        return (seg, k1);
+                    }
+                }
+            }
+        }
+        (seg, k)
+    }
+
+    /// How many rows take row k's state (itself included; 0 when row k
+    /// repeats another).
+    pub fn multiplicity(&self, d: &Delivered, k: usize) -> usize {
+        let (seg, src) = self.row(d, k);
+        if src != k {
+            return 0;
+        }
+        match (seg, self.period_rows) {
+            (1, Some(n)) => {
+                1 + (2..=d.periods)
+                    .filter(|&s| {
+                        let r = k + (s - 1) * n;
+                        self.row(d, r) == (s as i64, k)
+                    })
+                    .count()
+            }
+            _ => 1,
+        }
+    }
+}
 
 /// A [`Delivered`] trajectory on a uniform grid, with the segment of every row.
 #[derive(Debug, Clone, PartialEq)]
@@ -327,6 +427,10 @@ pub struct DeliveredSamples {
     pub qdd: Vec<Vec<f64>>,
     /// Segment per sample: 0 lead-in, k period k, −1 lead-out.
     pub segment: Vec<i64>,
+    /// Per sample, the sample whose state it repeats bitwise (its own index
+    /// unless it lies in period 2 or later of a period of a whole number of
+    /// samples: [`RowPlan`]).
+    pub source: Vec<usize>,
 }
 
 impl DeliveredSamples {
@@ -350,13 +454,39 @@ impl DeliveredSamples {
             header.extend((1..=n).map(|j| format!("{p}{j}")));
         }
         header.push("segment".into());
-        let s = crate::io::csv_text(&header.join(","), self.len(), |k, s| {
-            use std::fmt::Write as _;
-            let _ = write!(s, "{}", self.t[k]);
+        use std::fmt::Write as _;
+        let state = |k: usize, s: &mut String| {
             for b in [&self.q[k], &self.qd[k], &self.qdd[k]] {
                 for v in b {
                     let _ = write!(s, ",{v}");
                 }
+            }
+        };
+        // the text of the rows others repeat ([`Self::source`]), formatted
+        // once: the same bytes as formatting each repetition
+        let (lo, hi) = self
+            .source
+            .iter()
+            .enumerate()
+            .filter(|&(k, &src)| src != k)
+            .fold((usize::MAX, 0), |(lo, hi), (_, &src)| (lo.min(src), hi.max(src + 1)));
+        let repeated: Vec<String> = {
+            use rayon::prelude::*;
+            (lo..hi.max(lo))
+                .into_par_iter()
+                .map(|k| {
+                    let mut s = String::new();
+                    state(k, &mut s);
+                    s
+                })
+                .collect()
+        };
+        let s = crate::io::csv_text(&header.join(","), self.len(), |k, s| {
+            let _ = write!(s, "{}", self.t[k]);
+            let src = self.source.get(k).copied().unwrap_or(k);
+            match repeated.get(src.wrapping_sub(lo)) {
+                Some(text) => s.push_str(text),
+                None => state(k, s),
             }
             let _ = writeln!(s, ",{}", self.segment[k]);
         });
