@@ -144,6 +144,21 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
     });
     let crit = obj.criterion;
     let stop_now = || ctl.should_stop();
+    // SLSQP asks for the objective and then the constraints at the same
+    // point, both with gradients: the objective's callback computes the
+    // constraints beside it (rayon::join: the two parallel workloads share
+    // the threads instead of each waiting on its slowest part) and keeps them
+    // for the constraints' callback, which takes them when the point and the
+    // request match bit for bit. The constraint values do not depend on the
+    // thread that computes them, so the result is the same as computing them
+    // in their own callback.
+    let ahead = RefCell::new(Ahead {
+        cw: cons.workspace(),
+        x: Vec::new(),
+        c: vec![0.0; m],
+        jac: vec![0.0; m * nv],
+        valid: false,
+    });
     // once a stop is asked for, the callbacks return at once (nothing
     // evaluated, nothing recorded): a flat objective and constraints that
     // hold with zero gradients, which ends SLSQP's iteration at its next
@@ -162,6 +177,23 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
                     g.iter_mut().for_each(|v| *v = 0.0);
                 }
                 (l, l)
+            }
+            (Some(g), None) if m > 0 => {
+                let mut a = ahead.borrow_mut();
+                let a = &mut *a;
+                a.valid = false;
+                let (j, ()) = rayon::join(|| obj.value_grad(x, w, g), || cons.eval(x, &mut a.cw, &mut a.c, Some(&mut a.jac)));
+                a.x.clear();
+                a.x.extend_from_slice(x);
+                a.valid = true;
+                if crit != Criterion::LogDet {
+                    let jj = j.max(1e-300);
+                    g.iter_mut().for_each(|v| *v /= jj);
+                }
+                if stop_now() || !j.is_finite() {
+                    g.iter_mut().for_each(|v| *v = 0.0);
+                }
+                (j, internal(crit, j))
             }
             (Some(g), None) => {
                 let j = obj.value_grad(x, w, g);
@@ -217,7 +249,16 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
             if stop_now() {
                 return stopped_constraints(res, grad);
             }
-            cons.eval(x, cw, res, grad);
+            let a = ahead.borrow();
+            if a.valid && a.x.as_slice() == x {
+                res.copy_from_slice(&a.c);
+                if let Some(g) = grad {
+                    g.copy_from_slice(&a.jac);
+                }
+            } else {
+                drop(a);
+                cons.eval(x, cw, res, grad);
+            }
             // shifted by 2·tol so that a point accepted within nlopt's tolerance is strictly feasible
             res.iter_mut().for_each(|v| *v += 2.0 * TOL);
             let feasible = res.iter().all(|v| *v <= TOL);
@@ -237,6 +278,16 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
     drop(opt);
     let t = tracker.into_inner();
     (x, t.best, status, t.evals)
+}
+
+/// The constraints computed beside the objective at its last point
+/// ([`stage`]), for the constraints' callback at the same point.
+struct Ahead {
+    cw: super::constraints::ConstraintWorkspace,
+    x: Vec<f64>,
+    c: Vec<f64>,
+    jac: Vec<f64>,
+    valid: bool,
 }
 
 /// Buffers of the epigraph stage's constraint callback.
