@@ -178,25 +178,19 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
                 }
                 (l, l)
             }
-            (Some(g), None) if m > 0 => {
-                let mut a = ahead.borrow_mut();
-                let a = &mut *a;
-                a.valid = false;
-                let (j, ()) = rayon::join(|| obj.value_grad(x, w, g), || cons.eval(x, &mut a.cw, &mut a.c, Some(&mut a.jac)));
-                a.x.clear();
-                a.x.extend_from_slice(x);
-                a.valid = true;
-                if crit != Criterion::LogDet {
-                    let jj = j.max(1e-300);
-                    g.iter_mut().for_each(|v| *v /= jj);
-                }
-                if stop_now() || !j.is_finite() {
-                    g.iter_mut().for_each(|v| *v = 0.0);
-                }
-                (j, internal(crit, j))
-            }
             (Some(g), None) => {
-                let j = obj.value_grad(x, w, g);
+                let j = if m > 0 {
+                    let mut a = ahead.borrow_mut();
+                    let a = &mut *a;
+                    a.valid = false;
+                    let (j, ()) = rayon::join(|| obj.value_grad(x, w, g), || cons.eval(x, &mut a.cw, &mut a.c, Some(&mut a.jac)));
+                    a.x.clear();
+                    a.x.extend_from_slice(x);
+                    a.valid = true;
+                    j
+                } else {
+                    obj.value_grad(x, w, g)
+                };
                 if crit != Criterion::LogDet {
                     let jj = j.max(1e-300);
                     g.iter_mut().for_each(|v| *v /= jj);
