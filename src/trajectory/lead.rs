@@ -277,12 +277,13 @@ impl Delivered {
     /// The rows of the `rate` Hz grid (t_k = k/rate) and which of them
     /// repeat another ([`RowPlan`]).
     pub fn rows(&self, rate: f64) -> RowPlan {
-        // a period of a whole number of samples (to rounding): the rows of
-        // period s ≥ 2 are at the phases of period 1's rows, (s − 1)·N rows
-        // earlier
+        // a period of a whole number of samples (to rounding, 10⁻¹²
+        // relative: over 1000 periods of 10 s a phase error below 10⁻⁸ s):
+        // the rows of period s ≥ 2 are at the phases of period 1's rows,
+        // (s − 1)·N rows earlier
         let nf = self.periodic.period() * rate;
         let per = nf.round();
-        let period_rows = (self.periods > 1 && per >= 1.0 && (nf - per).abs() <= 1e-9 * per).then_some(per as usize);
+        let period_rows = (self.periods > 1 && per >= 1.0 && (nf - per).abs() <= 1e-12 * per).then_some(per as usize);
         RowPlan { rate, period_rows }
     }
 
@@ -352,7 +353,7 @@ pub const MAX_SAMPLES: usize = 100_000_000;
 /// The rows t_k = k/rate of a [`Delivered`] trajectory's grid
 /// ([`Delivered::rows`]) and which of them repeat another.
 ///
-/// When a period is a whole number N of samples (period × rate within 10⁻⁹
+/// When a period is a whole number N of samples (period × rate within 10⁻¹²
 /// relative of an integer), the rows of period s ≥ 2 lie at the phases of
 /// the rows of period 1, (s − 1)·N rows earlier: such a row takes that row's
 /// state bitwise instead of evaluating the series at a phase that differs
