@@ -150,4 +150,8 @@ fn the_identifiability_of_repeated_rows_counted_equals_that_of_every_row_stacked
     let k = bad.source.iter().enumerate().find(|(k, src)| *k != **src).unwrap().0;
     bad.source[k + 1] = k;
     assert!(assess_delivered(&robot, &base, &bad, &noise).is_err());
+    // rows missing: an error, not a panic
+    let mut bad = s.clone();
+    bad.qd.pop();
+    assert!(assess_delivered(&robot, &base, &bad, &noise).is_err());
 }

@@ -325,8 +325,10 @@ pub fn assess(robot: &Robot, base: &BaseParams, states: &States, noise: &[f64]) 
 /// the row it repeats instead of being stacked again (the same CᵀC).
 pub fn assess_delivered(robot: &Robot, base: &BaseParams, ds: &DeliveredSamples, noise: &[f64]) -> Result<Identifiability> {
     let n = robot.dof();
-    if ds.source.len() != ds.len() {
-        return Err(Error::dim("sources of the delivered samples", ds.len(), ds.source.len()));
+    for (what, len) in [("q", ds.q.len()), ("qd", ds.qd.len()), ("qdd", ds.qdd.len()), ("source", ds.source.len())] {
+        if len != ds.len() {
+            return Err(Error::dim(format!("{what} rows of the delivered samples (one per time)"), ds.len(), len));
+        }
     }
     let mut times = vec![0usize; ds.len()];
     for (k, &src) in ds.source.iter().enumerate() {
