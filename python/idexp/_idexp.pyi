@@ -126,7 +126,10 @@ class ExciteResult:
     def delivered(self) -> Optional[dict[str, Any]]:
         """The delivered trajectory (trajectory.csv): home at rest → lead-in → periods → lead-out →
         home at rest, at the controller rate: t (N,), q, qd, qdd (N, n), segment (N,) int64
-        (0 lead-in, k period k, −1 lead-out), labels {code: label}, phases [(label, start, end)],
+        (0 lead-in, k period k, −1 lead-out), source (N,) int64 (the row whose state a row
+        repeats bitwise: its own index, or period 1's row at the same phase for the rows of
+        periods 2, 3, … when a period is a whole number of samples), labels {code: label},
+        phases [(label, start, end)],
         home, periods, period, lead_in_duration, lead_out_duration, duration, rate.
         None when the design is not playable rest to rest."""
     def delivered_sample(self, rate: float) -> Optional[dict[str, Any]]:

@@ -121,6 +121,8 @@ pub fn delivered_dict<'py>(py: Python<'py>, d: &Delivered, rate: f64, n: usize) 
     out.set_item("qd", out_rows(py, &s.qd, n))?;
     out.set_item("qdd", out_rows(py, &s.qdd, n))?;
     out.set_item("segment", Array1::from_vec(s.segment).into_pyarray(py))?;
+    let source: Vec<i64> = s.source.iter().map(|&k| k as i64).collect();
+    out.set_item("source", Array1::from_vec(source).into_pyarray(py))?;
     let labels = PyDict::new(py);
     let phases = PyList::empty(py);
     let mut codes = Vec::new();

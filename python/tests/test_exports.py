@@ -45,6 +45,16 @@ def test_delivered_equals_trajectory_csv(designed, cli, tmp_path):
             np.testing.assert_array_equal(dl[k][:, j], csv[f"{k}{j + 1}"])
     np.testing.assert_array_equal(dl["t"], csv["t"])
     np.testing.assert_array_equal(dl["segment"], csv["segment"].astype(np.int64))
+    # periods 2, 3, … repeat period 1's rows bitwise (a period of a whole
+    # number of samples): `source` names the row, trajectory.csv holds the copy
+    src = dl["source"]
+    assert src.dtype == np.int64 and src.shape == (n_rows,)
+    rep = np.flatnonzero(src != np.arange(n_rows))
+    period_rows = int(round(dl["period"] * dl["rate"]))
+    assert len(rep) == (dl["periods"] - 1) * period_rows
+    assert (dl["segment"][rep] >= 2).all() and (dl["segment"][src[rep]] == 1).all()
+    for k in ("q", "qd", "qdd"):
+        np.testing.assert_array_equal(dl[k][rep], dl[k][src[rep]])
     # rest to rest at home
     np.testing.assert_allclose(dl["q"][0], dl["home"], atol=1e-12)
     np.testing.assert_allclose(dl["q"][-1], dl["home"], atol=1e-12)
