@@ -244,7 +244,7 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
                 return stopped_constraints(res, grad);
             }
             let a = ahead.borrow();
-            if a.valid && a.x.as_slice() == x {
+            if a.valid && a.x.len() == x.len() && a.x.iter().zip(x).all(|(p, q)| p.to_bits() == q.to_bits()) {
                 res.copy_from_slice(&a.c);
                 if let Some(g) = grad {
                     g.copy_from_slice(&a.jac);
