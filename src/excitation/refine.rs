@@ -157,7 +157,6 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
         x: Vec::new(),
         c: vec![0.0; m],
         jac: vec![0.0; m * nv],
-        valid: false,
     });
     // once a stop is asked for, the callbacks return at once (nothing
     // evaluated, nothing recorded): a flat objective and constraints that
@@ -182,11 +181,10 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
                 let j = if m > 0 {
                     let mut a = ahead.borrow_mut();
                     let a = &mut *a;
-                    a.valid = false;
-                    let (j, ()) = rayon::join(|| obj.value_grad(x, w, g), || cons.eval(x, &mut a.cw, &mut a.c, Some(&mut a.jac)));
+                    // no point held while the constraints are computed
                     a.x.clear();
+                    let (j, ()) = rayon::join(|| obj.value_grad(x, w, g), || cons.eval(x, &mut a.cw, &mut a.c, Some(&mut a.jac)));
                     a.x.extend_from_slice(x);
-                    a.valid = true;
                     j
                 } else {
                     obj.value_grad(x, w, g)
@@ -244,7 +242,7 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
                 return stopped_constraints(res, grad);
             }
             let a = ahead.borrow();
-            if a.valid && a.x.len() == x.len() && a.x.iter().zip(x).all(|(p, q)| p.to_bits() == q.to_bits()) {
+            if a.x.len() == x.len() && a.x.iter().zip(x).all(|(p, q)| p.to_bits() == q.to_bits()) {
                 res.copy_from_slice(&a.c);
                 if let Some(g) = grad {
                     g.copy_from_slice(&a.jac);
@@ -275,13 +273,13 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
 }
 
 /// The constraints computed beside the objective at its last point
-/// ([`stage`]), for the constraints' callback at the same point.
+/// ([`stage`]), for the constraints' callback at the same point (`x`
+/// empty: none held).
 struct Ahead {
     cw: super::constraints::ConstraintWorkspace,
     x: Vec<f64>,
     c: Vec<f64>,
     jac: Vec<f64>,
-    valid: bool,
 }
 
 /// Buffers of the epigraph stage's constraint callback.

@@ -307,15 +307,9 @@ impl TimeStats {
 /// Stacks the base regressor of `states` and computes the report.
 /// `noise`: σ_j per joint (N·m).
 pub fn assess(robot: &Robot, base: &BaseParams, states: &States, noise: &[f64]) -> Result<Identifiability> {
-    let n = robot.dof();
     let mut acc = AssessAccumulator::new(robot, base, noise)?;
     for i in 0..states.len() {
-        for (what, v) in [("q", &states.q[i]), ("qd", &states.qd[i]), ("qdd", &states.qdd[i])] {
-            if v.len() != n {
-                return Err(Error::dim(format!("{what} of sample {i}"), n, v.len()));
-            }
-        }
-        acc.add(&states.q[i], &states.qd[i], &states.qdd[i]);
+        acc.add_sample(i, &states.q[i], &states.qd[i], &states.qdd[i], 1)?;
     }
     acc.finish()
 }
@@ -324,7 +318,6 @@ pub fn assess(robot: &Robot, base: &BaseParams, states: &States, noise: &[f64]) 
 /// repeats another bitwise ([`DeliveredSamples::source`]) is counted with
 /// the row it repeats instead of being stacked again (the same CᵀC).
 pub fn assess_delivered(robot: &Robot, base: &BaseParams, ds: &DeliveredSamples, noise: &[f64]) -> Result<Identifiability> {
-    let n = robot.dof();
     for (what, len) in [("q", ds.q.len()), ("qd", ds.qd.len()), ("qdd", ds.qdd.len()), ("source", ds.source.len())] {
         if len != ds.len() {
             return Err(Error::dim(format!("{what} rows of the delivered samples (one per time)"), ds.len(), len));
@@ -343,12 +336,7 @@ pub fn assess_delivered(robot: &Robot, base: &BaseParams, ds: &DeliveredSamples,
     }
     let mut acc = AssessAccumulator::new(robot, base, noise)?;
     for (i, &w) in times.iter().enumerate() {
-        for (what, v) in [("q", &ds.q[i]), ("qd", &ds.qd[i]), ("qdd", &ds.qdd[i])] {
-            if v.len() != n {
-                return Err(Error::dim(format!("{what} of sample {i}"), n, v.len()));
-            }
-        }
-        acc.add_times(&ds.q[i], &ds.qd[i], &ds.qdd[i], w);
+        acc.add_sample(i, &ds.q[i], &ds.qd[i], &ds.qdd[i], w)?;
     }
     acc.finish()
 }
@@ -448,6 +436,19 @@ impl<'a> AssessAccumulator<'a> {
 
     fn add(&mut self, q: &[f64], qd: &[f64], qdd: &[f64]) {
         self.add_times(q, qd, qdd, 1);
+    }
+
+    /// [`Self::add_times`] of sample `i` of a caller's states, its lengths
+    /// checked first (an error naming the sample, not a panic).
+    fn add_sample(&mut self, i: usize, q: &[f64], qd: &[f64], qdd: &[f64], times: usize) -> Result<()> {
+        let n = self.robot.dof();
+        for (what, v) in [("q", q), ("qd", qd), ("qdd", qdd)] {
+            if v.len() != n {
+                return Err(Error::dim(format!("{what} of sample {i}"), n, v.len()));
+            }
+        }
+        self.add_times(q, qd, qdd, times);
+        Ok(())
     }
 
     /// [`Self::add`] of a sample that occurs `times` times: its rows scaled
