@@ -389,8 +389,14 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
         }
         let x = &z[..nv];
         let want = grad.is_some();
-        cons.eval(x, &mut e.cw, &mut e.c, if want { Some(&mut e.jac) } else { None });
-        let j = obj.log_eigen_bundle(x, &mut e.ow, top, bottom, &mut e.vals, &mut e.grads);
+        // the design's constraints beside the eigenvalues (rayon::join, as
+        // in `stage`: each is parallel inside and leaves a thread idle at its
+        // end; neither result depends on the thread that computes it)
+        let EpiBuffers { ow, cw, c, jac, vals, grads } = e;
+        let ((), j) = rayon::join(
+            || cons.eval(x, cw, c, if want { Some(jac) } else { None }),
+            || obj.log_eigen_bundle(x, ow, top, bottom, vals, grads),
+        );
         ctl.count(1);
         let ok = j.is_finite() && !stop_now();
         // the design's constraints, shifted by 2·tol as in the direct stage
