@@ -1,7 +1,8 @@
 //! The excitation search: the eigenvalue bundle behind the
 //! epigraph refinement against finite differences and the spectrum, the
 //! epigraph refinement against the direct one, and the parallel / restarted
-//! refinements against the sequential ones (bit-identical per start).
+//! refinements against the sequential ones (bit-identical per start), the
+//! epigraph refinement with collision constraints on one thread and on two.
 
 use idexp::excitation::design::ExciteDesign;
 use idexp::excitation::objective::{BaseColumns, Criterion, Objective, Scaling, Scoring};
@@ -229,4 +230,44 @@ fn restarts_leave_a_stalled_basin_for_the_next_ga_individuals() {
     assert!(a.criterion <= best * (1.0 + 1e-9), "design {} vs best refinement {best}", a.criterion);
     // the first restarts are the same (same centre, same seeds) until the first stall
     assert_eq!(a.refinements[2].end.to_bits(), never.refinements[2].end.to_bits());
+}
+
+#[test]
+fn epigraph_refinement_with_collision_is_the_same_on_one_thread_and_on_two() {
+    // the epigraph stage computes the design's constraints (collision
+    // distances, parallel over the pairs) beside the eigenvalue bundle
+    // (parallel over the samples): neither may depend on the threads
+    let design = |d: &mut ExciteDesign| {
+        d.ga.population = 12;
+        d.ga.generations = 3;
+        d.refine.starts = 2;
+        d.refine.max_evals = 60;
+        d.refine.bundle = 2;
+    };
+    let problem = || {
+        let mut d = ExciteDesign::load(&root("designs/excite_ur5.toml")).unwrap();
+        design(&mut d);
+        let robot = robot::load(&d.robot).unwrap();
+        Problem::new(d, robot, "ur5").unwrap()
+    };
+    let in_pool = |threads: usize| {
+        let p = problem();
+        assert!(p.constraints.scene().is_some(), "the UR5 design checks collisions");
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| run(&p, &Control::new()).unwrap())
+    };
+    let (one, two) = (in_pool(1), in_pool(2));
+    assert_eq!(one.refinements.len(), 2);
+    assert!(one.refinements.iter().any(|r| r.end < r.start), "no refinement moved: {:?}", one.refinements);
+    for (a, b) in one.refinements.iter().zip(&two.refinements) {
+        assert_eq!(a.end.to_bits(), b.end.to_bits());
+        assert_eq!(a.evaluations, b.evaluations);
+    }
+    assert_eq!(
+        one.x.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+        two.x.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+    );
 }
