@@ -100,14 +100,18 @@ fn eigenvalue_bundle_matches_the_spectrum_and_finite_differences() {
 /// The like-for-like bench design without its time limit and with a small
 /// GA, so that the runs below are reproducible.
 fn bench_problem(edit: impl FnOnce(&mut ExciteDesign)) -> Problem {
-    let path = root("designs/excite_ur5_bench_pi.toml");
-    let mut d = ExciteDesign::load(&path).unwrap();
+    shipped_problem("excite_ur5_bench_pi", edit)
+}
+
+/// A shipped design without time limit, with a GA of 12 × 3, edited.
+fn shipped_problem(name: &str, edit: impl FnOnce(&mut ExciteDesign)) -> Problem {
+    let mut d = ExciteDesign::load(&root(&format!("designs/{name}.toml"))).unwrap();
     d.time_limit = None;
     d.ga.population = 12;
     d.ga.generations = 3;
     edit(&mut d);
     let robot = robot::load(&d.robot).unwrap();
-    Problem::new(d, robot, "bench").unwrap()
+    Problem::new(d, robot, name).unwrap()
 }
 
 /// The GA's best point of the bench problem (no refinement): the start of
@@ -237,21 +241,12 @@ fn epigraph_refinement_with_collision_is_the_same_on_one_thread_and_on_two() {
     // the epigraph stage computes the design's constraints (collision
     // distances, parallel over the pairs) beside the eigenvalue bundle
     // (parallel over the samples): neither may depend on the threads
-    let design = |d: &mut ExciteDesign| {
-        d.ga.population = 12;
-        d.ga.generations = 3;
-        d.refine.starts = 2;
-        d.refine.max_evals = 60;
-        d.refine.bundle = 2;
-    };
-    let problem = || {
-        let mut d = ExciteDesign::load(&root("designs/excite_ur5.toml")).unwrap();
-        design(&mut d);
-        let robot = robot::load(&d.robot).unwrap();
-        Problem::new(d, robot, "ur5").unwrap()
-    };
     let in_pool = |threads: usize| {
-        let p = problem();
+        let p = shipped_problem("excite_ur5", |d| {
+            d.refine.starts = 2;
+            d.refine.max_evals = 60;
+            d.refine.bundle = 2;
+        });
         assert!(p.constraints.scene().is_some(), "the UR5 design checks collisions");
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
