@@ -398,9 +398,9 @@ fn the_row_wise_and_the_dual_number_gradients_agree() {
         let x = random_x(lay.n_vars(), 0.5, 13);
         let nv = x.len();
         let (mut v2, mut g2) = (vec![0.0; 2], vec![0.0; 2 * nv]);
-        o.log_eigen_bundle(&x, &mut w, 1, 1, &mut v2, &mut g2);
+        o.log_eigen_bundle(&x, &mut w, 1, 1, &mut v2, Some(&mut g2));
         let (mut v8, mut g8) = (vec![0.0; 8], vec![0.0; 8 * nv]);
-        o.log_eigen_bundle(&x, &mut w, 4, 4, &mut v8, &mut g8);
+        o.log_eigen_bundle(&x, &mut w, 4, 4, &mut v8, Some(&mut g8));
         for (a, b) in [(0, 0), (1, 7)] {
             let (ga, gb) = (&g2[a * nv..(a + 1) * nv], &g8[b * nv..(b + 1) * nv]);
             let scale = gb.iter().fold(0.0f64, |m, v| m.max(v.abs()));

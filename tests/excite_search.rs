@@ -59,7 +59,7 @@ fn eigenvalue_bundle_matches_the_spectrum_and_finite_differences() {
         let nt = top + bottom;
         let mut vals = vec![0.0; nt];
         let mut grads = vec![0.0; nt * nv];
-        let j = o.log_eigen_bundle(&x, &mut w, top, bottom, &mut vals, &mut grads);
+        let j = o.log_eigen_bundle(&x, &mut w, top, bottom, &mut vals, Some(&mut grads));
         // values: ln σ_i² of the spectrum, and J the exact criterion
         let sp = o.spectrum(&lay.trajectory(&x), &mut w).unwrap();
         let m = sp.singular_values.len();
@@ -69,6 +69,13 @@ fn eigenvalue_bundle_matches_the_spectrum_and_finite_differences() {
             assert!((vals[t] - want).abs() < 1e-10, "{scaling:?} λ_{i}: {} vs {want}", vals[t]);
         }
         assert_eq!(j, sp.cond);
+        // without gradients (the line search's evaluations): the same bits
+        let mut only = vec![0.0; nt];
+        assert_eq!(o.log_eigen_bundle(&x, &mut w, top, bottom, &mut only, None).to_bits(), j.to_bits());
+        assert_eq!(
+            only.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+            vals.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+        );
         // gradients: central differences of ln λ_i
         let (mut vp, mut vm) = (vec![0.0; nt], vec![0.0; nt]);
         let mut gt = vec![0.0; nt * nv];
@@ -77,8 +84,8 @@ fn eigenvalue_bundle_matches_the_spectrum_and_finite_differences() {
             let (mut xp, mut xm) = (x.clone(), x.clone());
             xp[k] += h;
             xm[k] -= h;
-            o.log_eigen_bundle(&xp, &mut w, top, bottom, &mut vp, &mut gt);
-            o.log_eigen_bundle(&xm, &mut w, top, bottom, &mut vm, &mut gt);
+            o.log_eigen_bundle(&xp, &mut w, top, bottom, &mut vp, Some(&mut gt));
+            o.log_eigen_bundle(&xm, &mut w, top, bottom, &mut vm, Some(&mut gt));
             for t in 0..nt {
                 let fd = (vp[t] - vm[t]) / (2.0 * h);
                 let an = grads[t * nv + k];

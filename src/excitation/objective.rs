@@ -673,31 +673,41 @@ impl Objective {
     /// ln λ_i, with their gradients: the `top` largest (i = 1..top) then the
     /// `bottom` smallest (i = m−bottom+1..m), d ln λ_i = (2/λ_i) v_iᵀ C̃ᵀ dC̃ v_i,
     /// exact wherever λ_i is simple. `vals` gets top + bottom values, `grads`
-    /// (top + bottom) × n_vars (one gradient after the other), through
-    /// `Objective::contract` (row by row for up to 6 of them,
-    /// else the dual passes shared by all).
+    /// (when given) (top + bottom) × n_vars (one gradient after the other),
+    /// through `Objective::contract` (row by row for up to 6 of them,
+    /// else the dual passes shared by all); without `grads` only the values
+    /// (the same bits: the same decomposition).
     /// Returns the criterion J(x) (+∞, zero gradients and values +∞ when C̃
     /// is not finite). Used by the refinement's epigraph form
     /// (`refine.bundle`). σ_i below σ_1/[`COND_CAP`] count as that floor.
-    pub fn log_eigen_bundle(&self, x: &[f64], w: &mut ObjectiveWorkspace, top: usize, bottom: usize, vals: &mut [f64], grads: &mut [f64]) -> f64 {
+    pub fn log_eigen_bundle(&self, x: &[f64], w: &mut ObjectiveWorkspace, top: usize, bottom: usize, vals: &mut [f64], grads: Option<&mut [f64]>) -> f64 {
         let m = self.n_cols();
         let nv = self.layout.n_vars();
         let nt = top + bottom;
         assert!(top <= m && bottom <= m, "bundle larger than the spectrum");
-        assert!(vals.len() == nt && grads.len() == nt * nv, "bundle buffer lengths");
+        assert!(vals.len() == nt && grads.as_ref().is_none_or(|g| g.len() == nt * nv), "bundle buffer lengths");
         w.evaluations += 1;
-        w.gradients += 1;
         let tr = self.layout.trajectory(x);
         self.fill(&tr, w);
         if !self.decompose(w, true) {
-            grads.iter_mut().for_each(|g| *g = 0.0);
+            if let Some(g) = grads {
+                g.iter_mut().for_each(|g| *g = 0.0);
+            }
             vals.iter_mut().for_each(|v| *v = f64::INFINITY);
             return f64::INFINITY;
         }
         let jval = self.criterion_value(w);
-        let rows = self.n_rows();
         let floor = (w.s[0] / COND_CAP).max(1e-300);
         let which: Vec<usize> = (0..top).chain(m - bottom..m).collect();
+        let Some(grads) = grads else {
+            for (t, &i) in which.iter().enumerate() {
+                let si = w.s[i].max(floor);
+                vals[t] = (si * si).ln();
+            }
+            return jval;
+        };
+        w.gradients += 1;
+        let rows = self.n_rows();
         w.hb.resize_with(nt, Vec::new);
         // C̃ V_sel (rows × nt), then G_t = (2/λ_i) (C̃ v_i) v_iᵀ
         let mut vsel = Mat::<f64>::zeros(m, nt);

@@ -326,7 +326,7 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
         vals: vec![0.0; nt],
         grads: vec![0.0; nt * nv],
     };
-    let j0 = obj.log_eigen_bundle(x0, &mut buf.ow, top, bottom, &mut buf.vals, &mut buf.grads);
+    let j0 = obj.log_eigen_bundle(x0, &mut buf.ow, top, bottom, &mut buf.vals, None);
     ctl.count(1);
     let tracker = RefCell::new(Tracker {
         last_x: Vec::new(),
@@ -391,11 +391,12 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
         let want = grad.is_some();
         // the design's constraints beside the eigenvalues (rayon::join, as
         // in `stage`: each is parallel inside and leaves a thread idle at its
-        // end; neither result depends on the thread that computes it)
+        // end; neither result depends on the thread that computes it); the
+        // gradients only when SLSQP asks for them (not in its line search)
         let EpiBuffers { ow, cw, c, jac, vals, grads } = e;
         let ((), j) = rayon::join(
             || cons.eval(x, cw, c, if want { Some(jac) } else { None }),
-            || obj.log_eigen_bundle(x, ow, top, bottom, vals, grads),
+            || obj.log_eigen_bundle(x, ow, top, bottom, vals, if want { Some(grads) } else { None }),
         );
         ctl.count(1);
         let ok = j.is_finite() && !stop_now();
