@@ -13,7 +13,9 @@
 //! threaded except the gradient's per-sample work, which uses the rayon pool):
 //! the criterion alone, the criterion with its analytic gradient, the
 //! constraints with their Jacobian, one GA evaluation (repair + criterion +
-//! constraints).
+//! constraints), and the epigraph refinement's eigenvalue bundle (`bundle =
+//! 2`: the 2 largest and 2 smallest eigenvalues) with their gradients and
+//! without (SLSQP's line search asks for values alone).
 //!
 //! Run: `cargo bench --bench excitation -- --warm-up-time 1 --measurement-time 3`.
 
@@ -117,6 +119,14 @@ fn bench(c: &mut Criterion) {
             let mut y = x.clone();
             black_box(p.evaluate(&mut y, &mut ow, &mut cw, &mut cbuf))
         })
+    });
+    let mut vals = vec![0.0; 4];
+    let mut bgrads = vec![0.0; 4 * nv];
+    grp.bench_function("eigen_bundle_2_with_gradients", |b| {
+        b.iter(|| black_box(p.objective.log_eigen_bundle(black_box(&x), &mut ow, 2, 2, &mut vals, Some(&mut bgrads))))
+    });
+    grp.bench_function("eigen_bundle_2_values", |b| {
+        b.iter(|| black_box(p.objective.log_eigen_bundle(black_box(&x), &mut ow, 2, 2, &mut vals, None)))
     });
     grp.finish();
 }
