@@ -699,11 +699,15 @@ impl Objective {
         let jval = self.criterion_value(w);
         let floor = (w.s[0] / COND_CAP).max(1e-300);
         let which: Vec<usize> = (0..top).chain(m - bottom..m).collect();
-        let Some(grads) = grads else {
-            for (t, &i) in which.iter().enumerate() {
+        let lams: Vec<f64> = which
+            .iter()
+            .map(|&i| {
                 let si = w.s[i].max(floor);
-                vals[t] = (si * si).ln();
-            }
+                si * si
+            })
+            .collect();
+        vals.iter_mut().zip(&lams).for_each(|(v, l)| *v = l.ln());
+        let Some(grads) = grads else {
             return jval;
         };
         w.gradients += 1;
@@ -721,10 +725,7 @@ impl Objective {
             let cs = MatRef::from_column_major_slice(&w.cs, rows, m);
             faer::linalg::matmul::matmul(cv.as_mut(), faer::Accum::Replace, cs, vsel.as_ref(), 1.0, Par::Seq);
         }
-        for (t, &i) in which.iter().enumerate() {
-            let si = w.s[i].max(floor);
-            let lam = si * si;
-            vals[t] = lam.ln();
+        for (t, &lam) in lams.iter().enumerate() {
             let h = &mut w.hb[t];
             h.resize(rows * m, 0.0);
             for j in 0..m {
