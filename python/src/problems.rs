@@ -577,7 +577,7 @@ pub struct Identification {
 impl Identification {
     fn identified_model(&self) -> PyResult<idexp::robot::Robot> {
         match &self.inner.estimate.consistent {
-            Some(c) if c.status == "ok" => self.robot.with_params(&c.standard).py(),
+            Some(c) if c.status.is_ok() => self.robot.with_params(&c.standard).py(),
             Some(c) => Err(IdexpError::new_err(format!(
                 "export: the consistent fit ended with status `{}`: no identified model to write",
                 c.status
@@ -594,7 +594,7 @@ impl Identification {
     /// `ok`, `rank_deficient`, or the solver's status (ML).
     #[getter]
     fn status(&self) -> String {
-        self.inner.estimate.status.clone()
+        self.inner.estimate.status.to_string()
     }
     /// Base parameter names.
     #[getter]
@@ -689,7 +689,7 @@ impl Identification {
             .estimate
             .consistent
             .as_ref()
-            .filter(|c| c.status == "ok")
+            .filter(|c| c.status.is_ok())
             .map(|c| out1(py, c.standard.clone()))
     }
     /// The identified model: the robot with the consistent standard
@@ -738,16 +738,7 @@ impl Identification {
         py.detach(|| -> idexp::Result<()> {
             self.inner.write(&folder)?;
             idexp::io::write_json(&folder.join("options.json"), &self.options)?;
-            let st = &self.inner.estimate.status;
-            let consistent_failed = self.inner.estimate.consistent.as_ref().is_some_and(|c| c.status != "ok");
-            let state = match st.as_str() {
-                _ if consistent_failed => RunState::Failed,
-                "rank_deficient" | "Failure" | "InvalidArgs" | "OutOfMemory" | "RoundoffLimited" => RunState::Failed,
-                _ => RunState::Complete,
-            };
-            let summary = serde_json::json!({ "method": self.inner.estimate.method, "estimate_status": st });
-            let detail = format!("{}: {}", self.inner.estimate.method.words(), st);
-            write_status(&folder, "identify", state, detail, None, fingerprint_of(&self.options)?, summary)
+            self.inner.write_status(&folder, None, &self.options, false).map(|_| ())
         })
         .py()?;
         Ok(folder)

@@ -12,9 +12,11 @@
 //!   (`truth.json`).
 
 pub mod motor;
+pub mod resample;
 pub mod run;
 pub mod truth;
 
 pub use motor::MotorRecord;
-pub use run::{expand, Averaged, Coordinates, Repetition, Run, TorqueFrom, TorqueSource, CURRENT_TOLERANCE};
+pub use resample::Sampling;
+pub use run::{expand, Averaged, Coordinates, Repetition, Run, SamplingOptions, TorqueFrom, TorqueSource, CURRENT_TOLERANCE};
 pub use truth::Truth;

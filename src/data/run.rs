@@ -122,8 +122,14 @@ impl Repetition {
         Self::from_table(&t, n)
     }
 
-    /// Extracts a repetition from a parsed table.
+    /// Extracts a repetition from a parsed table (uniform time steps required).
     pub fn from_table(t: &Table, n: usize) -> Result<Repetition> {
+        Self::from_table_timed(t, n, false)
+    }
+
+    /// [`Repetition::from_table`]; with `irregular`, time stamps need only
+    /// increase strictly (the caller resamples them, [`super::resample`]).
+    pub fn from_table_timed(t: &Table, n: usize, irregular: bool) -> Result<Repetition> {
         let path = &t.path;
         for c in &t.columns {
             if !known_column(c, n) {
@@ -197,7 +203,10 @@ impl Repetition {
                 msg: "time must increase".into(),
             });
         }
-        for (k, w) in times.windows(2).enumerate() {
+        if irregular {
+            super::resample::check_increasing(path, &times)?;
+        }
+        for (k, w) in times.windows(2).enumerate().filter(|_| !irregular) {
             let d = w[1] - w[0];
             if (d - dt).abs() > 1e-3 * dt {
                 return Err(Error::Data {
@@ -281,6 +290,21 @@ impl std::str::FromStr for Coordinates {
             "motor" => Ok(Coordinates::Motor),
             _ => Err(Error::invalid("--coordinates", "coordinates", format!("expected joint or motor, found `{s}`"))),
         }
+    }
+}
+
+/// Irregular time stamps accepted and resampled ([`Run::read_drives_sampled`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SamplingOptions {
+    /// Uniform rate (Hz) to resample to; None: the inverse median logged step.
+    pub rate: Option<f64>,
+    /// Largest number of samples per repetition after resampling.
+    pub limit: usize,
+}
+
+impl Default for SamplingOptions {
+    fn default() -> Self {
+        SamplingOptions { rate: None, limit: 50_000_000 }
     }
 }
 
@@ -464,6 +488,23 @@ impl Run {
     /// must agree within `tolerance` (relative RMS per file and joint).
     /// Returns the run and what was done.
     pub fn read_drives(paths: &[PathBuf], robot: &Robot, repetitions: Option<usize>, from: TorqueFrom, tolerance: f64) -> Result<(Run, TorqueSource)> {
+        let (run, src, _) = Run::read_drives_sampled(paths, robot, repetitions, from, tolerance, None)?;
+        Ok((run, src))
+    }
+
+    /// [`Run::read_drives`] with irregular time stamps accepted when
+    /// `sampling` is given: every repetition is then resampled to a uniform
+    /// grid at `sampling.rate` Hz (default: the inverse median logged step;
+    /// [`super::resample`]), at most `sampling.limit` samples each. Returns
+    /// what was done with the time stamps too.
+    pub fn read_drives_sampled(
+        paths: &[PathBuf],
+        robot: &Robot,
+        repetitions: Option<usize>,
+        from: TorqueFrom,
+        tolerance: f64,
+        sampling: Option<SamplingOptions>,
+    ) -> Result<(Run, TorqueSource, Option<super::resample::Sampling>)> {
         if !(tolerance.is_finite() && tolerance > 0.0) {
             return Err(Error::invalid(
                 "identify",
@@ -581,7 +622,7 @@ impl Run {
                 agreement = Some(worst);
             }
         }
-        let run = Run::from_tables(files, tables, n, repetitions)?;
+        let (run, sampled) = Run::from_tables_sampled(files, tables, n, repetitions, sampling)?;
         Ok((
             run,
             TorqueSource {
@@ -591,11 +632,47 @@ impl Run {
                 tolerance,
                 note,
             },
+            sampled,
         ))
     }
 
     /// A run from parsed tables (see [`Run::read_with`]).
     fn from_tables(files: Vec<PathBuf>, tables: Vec<Table>, n: usize, repetitions: Option<usize>) -> Result<Run> {
+        Ok(Run::from_tables_sampled(files, tables, n, repetitions, None)?.0)
+    }
+
+    /// [`Run::from_tables`], irregular times resampled when `sampling` is given.
+    fn from_tables_sampled(
+        files: Vec<PathBuf>,
+        tables: Vec<Table>,
+        n: usize,
+        repetitions: Option<usize>,
+        sampling: Option<SamplingOptions>,
+    ) -> Result<(Run, Option<super::resample::Sampling>)> {
+        if sampling.is_none() {
+            return Ok((Run::from_tables_uniform(files, tables, n, repetitions)?, None));
+        }
+        let has_var = tables.iter().any(|t| t.columns.iter().any(|c| c.starts_with("var_")));
+        if has_var {
+            let run = Run::from_tables_uniform(files, tables, n, repetitions)?;
+            let info = super::resample::resample_run(&mut run.reps.clone(), &run.files, None, usize::MAX)?;
+            return Ok((run, Some(info)));
+        }
+        if let Some(r) = repetitions {
+            return Err(Error::invalid(
+                files[0].display().to_string(),
+                "repetitions",
+                format!("repetitions = {r} is for an averaged run (one CSV with var_tau1..var_taun columns); this run has {} raw repetition file(s) and no variance columns", files.len()),
+            ));
+        }
+        let so = sampling.unwrap_or_default();
+        let mut reps = tables.iter().map(|t| Repetition::from_table_timed(t, n, true)).collect::<Result<Vec<_>>>()?;
+        let info = super::resample::resample_run(&mut reps, &files, so.rate, so.limit)?;
+        Ok((Run::new(files, reps)?, Some(info)))
+    }
+
+    /// [`Run::from_tables`] with uniform time steps required.
+    fn from_tables_uniform(files: Vec<PathBuf>, tables: Vec<Table>, n: usize, repetitions: Option<usize>) -> Result<Run> {
         let has_var = |t: &Table| t.columns.iter().any(|c| c.starts_with("var_"));
         if let Some(i) = tables.iter().position(has_var) {
             let t = &tables[i];

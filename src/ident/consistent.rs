@@ -360,11 +360,51 @@ pub fn to_pinocchio(p: &[f64]) -> [f64; 10] {
     [p[9], p[6], p[7], p[8], p[0], p[1], p[3], p[2], p[4], p[5]]
 }
 
+/// How the consistent fit ended (`status` in estimate.json: `ok` or `failed: <Clarabel status>`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ConsistentStatus {
+    /// Clarabel solved the program (or almost: within its reduced tolerances).
+    Ok,
+    /// Clarabel ended with this status: the result is not a usable estimate.
+    Failed(String),
+}
+
+impl ConsistentStatus {
+    /// True for [`ConsistentStatus::Ok`].
+    pub fn is_ok(&self) -> bool {
+        matches!(self, ConsistentStatus::Ok)
+    }
+
+    /// From Clarabel's status.
+    pub fn of(s: SolverStatus) -> ConsistentStatus {
+        if matches!(s, SolverStatus::Solved | SolverStatus::AlmostSolved) {
+            ConsistentStatus::Ok
+        } else {
+            ConsistentStatus::Failed(format!("{s:?}"))
+        }
+    }
+}
+
+impl std::fmt::Display for ConsistentStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ConsistentStatus::Ok => f.write_str("ok"),
+            ConsistentStatus::Failed(s) => write!(f, "failed: {s}"),
+        }
+    }
+}
+
+impl Serialize for ConsistentStatus {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
 /// The consistent estimate (the `consistent` block of `estimate.json`).
 #[derive(Debug, Clone, Serialize)]
 pub struct Consistent {
-    /// `ok`, or `failed: <Clarabel status>`.
-    pub status: String,
+    /// How the fit ended.
+    pub status: ConsistentStatus,
     /// Options used.
     pub options: ConsistentOptions,
     /// λ of the regularisation in the scaled problem (`regularization` · σ²_min).
@@ -399,6 +439,36 @@ pub struct Consistent {
     pub iterations: u32,
     /// Solver time (s).
     pub solve_time: f64,
+}
+
+/// The constraints of a consistent solution at their bound: pseudo-inertias
+/// whose smallest eigenvalue is within 1e-5 of their largest of `margin`,
+/// drive parameters within 1e-6 of their scale of zero.
+pub fn active_constraints(robot: &Robot, kinds: &[Kind], links: &[usize], sol: &Solution, margin: f64, scale: &DVector<f64>) -> Vec<Active> {
+    let names = robot.param_names();
+    let mut active = Vec::new();
+    for (i, &l) in links.iter().enumerate() {
+        let blk = &sol.theta.as_slice()[l..l + 10];
+        let e = sol.min_eig[i] - margin;
+        let big = SymmetricEigen::new(pseudo_inertia(blk)).eigenvalues.max().abs();
+        if e <= 1e-5 * big + 1e-12 {
+            active.push(Active {
+                constraint: "pseudo_inertia".into(),
+                what: robot.links[i].name.clone(),
+                value: e,
+            });
+        }
+    }
+    for (j, &k) in kinds.iter().enumerate() {
+        if matches!(k, Kind::NonNegative | Kind::NonPositive) && sol.theta[j].abs() <= 1e-6 * scale[j] {
+            active.push(Active {
+                constraint: "sign".into(),
+                what: names[j].clone(),
+                value: sol.theta[j],
+            });
+        }
+    }
+    active
 }
 
 /// The consistent fit of the base-parameter dataset `ds` (every base column)
@@ -438,29 +508,7 @@ pub fn fit(robot: &Robot, base: &BaseParams, ds: &super::Dataset, sw: &DVector<f
     let resid_c = (&ds.y - &ds.c * &sol.base).component_mul(sw);
     let dof = ds.y.len().saturating_sub(base.n_base()).max(1) as f64;
     let names = robot.param_names();
-    let mut active = Vec::new();
-    for (i, &l) in links.iter().enumerate() {
-        let blk = &sol.theta.as_slice()[l..l + 10];
-        let e = sol.min_eig[i] - o.margin;
-        let big = SymmetricEigen::new(pseudo_inertia(blk)).eigenvalues.max().abs();
-        if e <= 1e-5 * big + 1e-12 {
-            active.push(Active {
-                constraint: "pseudo_inertia".into(),
-                what: robot.links[i].name.clone(),
-                value: e,
-            });
-        }
-    }
-    for (j, &k) in kinds.iter().enumerate() {
-        if matches!(k, Kind::NonNegative | Kind::NonPositive) && sol.theta[j].abs() <= 1e-6 * scale[j] {
-            active.push(Active {
-                constraint: "sign".into(),
-                what: names[j].clone(),
-                value: sol.theta[j],
-            });
-        }
-    }
-    let ok = matches!(sol.status, SolverStatus::Solved | SolverStatus::AlmostSolved);
+    let active = active_constraints(robot, &kinds, &links, &sol, o.margin, &scale);
     let zero = super::Errors {
         e: vec![],
         e_rel: vec![],
@@ -468,7 +516,7 @@ pub fn fit(robot: &Robot, base: &BaseParams, ds: &super::Dataset, sw: &DVector<f
         noise_floor: None,
     };
     let c = Consistent {
-        status: if ok { "ok".into() } else { format!("failed: {:?}", sol.status) },
+        status: ConsistentStatus::of(sol.status),
         options: *o,
         lambda: sol.lambda,
         standard_names: names,

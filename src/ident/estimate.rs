@@ -156,7 +156,7 @@ impl Dataset {
 }
 
 /// Weights of the WLS estimator (`--weights`: `sample`, `joint`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Weights {
     /// Per joint and time step, the inverse sample variances (paper 000 eq. 7–9).
@@ -289,8 +289,8 @@ pub fn cond_normalized(c: &DMatrix<f64>) -> Result<f64> {
     cond(&cn)
 }
 
-/// (θ, (AᵀA)⁺ = V S⁻² Vᵀ, rank) of [`weighted_svd_solve`].
-type SvdSolution = (DVector<f64>, DMatrix<f64>, usize);
+/// (θ, (AᵀA)⁺ = V S⁻² Vᵀ, rank) of [`solve_factor`].
+pub type SvdSolution = (DVector<f64>, DMatrix<f64>, usize);
 
 /// Solves min ‖√w ⊙ (y − C θ)‖² with A = √W C: the blockwise R factor of
 /// [A | √W y] ([`r_factor`], independent of the thread count), then the SVD of
@@ -308,7 +308,14 @@ fn weighted_svd_solve(c: &DMatrix<f64>, y: &DVector<f64>, sw: &DVector<f64>) -> 
     if a.iter().any(|v| !v.is_finite()) {
         return Err(Error::Numerical("the weighted design matrix has non-finite entries".into()));
     }
-    let ra = r_factor(&a);
+    solve_factor(&r_factor(&a), k)
+}
+
+/// The least-squares solution from the triangular factor `ra` of [A | b]
+/// (k + 1 columns, any number of rows ≥ 0): the SVD of its k × k part
+/// R = U S Vᵀ; θ = V S⁻¹ Uᵀ (Qᵀb) on the directions with singular values
+/// above 1e-10·σ_max (minimum-norm otherwise). Returns (θ, (AᵀA)⁺, rank).
+pub fn solve_factor(ra: &DMatrix<f64>, k: usize) -> Result<SvdSolution> {
     let kr = ra.nrows().min(k);
     let r = ra.view((0, 0), (kr, k)).into_owned();
     let qtb = ra.view((0, k), (kr, 1)).into_owned();
@@ -333,7 +340,9 @@ fn weighted_svd_solve(c: &DMatrix<f64>, y: &DVector<f64>, sw: &DVector<f64>) -> 
     Ok((theta, cov, rank))
 }
 
-fn finish(theta: DVector<f64>, cov: DMatrix<f64>, rank: usize, c: &DMatrix<f64>, chi2_dof: f64) -> Result<LsFit> {
+/// The fit of an estimate with its covariance: σ_i, σ*_i, the condition
+/// numbers of `c` (as given and with unit-norm columns) and χ²/dof.
+pub fn finish(theta: DVector<f64>, cov: DMatrix<f64>, rank: usize, c: &DMatrix<f64>, chi2_dof: f64) -> Result<LsFit> {
     let std: Vec<f64> = (0..theta.len()).map(|i| cov[(i, i)].max(0.0).sqrt()).collect();
     let rel_std = std
         .iter()

@@ -18,17 +18,20 @@ pub mod consistent;
 pub mod estimate;
 pub mod experiments;
 pub mod output;
+pub mod prior;
 pub mod process;
 pub mod reduce;
+pub mod study;
 
 pub use crate::data::{Coordinates, Repetition, Run, TorqueFrom, TorqueSource, CURRENT_TOLERANCE};
 pub use closed_loop::{MlOptions, ProjectionOptions};
-pub use consistent::{Consistent, ConsistentOptions};
+pub use consistent::{Consistent, ConsistentOptions, ConsistentStatus};
 pub use estimate::{Dataset, Errors, LsFit, Weights};
 pub use process::{process, process_with, Filter, Processed, VelocityFrom, VelocitySource};
 pub use reduce::{Essential, ReduceOptions, Reduction};
 
 use crate::error::{Error, Result};
+use crate::io::status::RunState;
 use crate::params::BaseParams;
 use crate::robot::Robot;
 use crate::trajectory::FourierTrajectory;
@@ -106,7 +109,7 @@ pub enum FilterChoice {
 
 /// Which slow rows (standstill, |q̇_j| below `slow_ratio`·max|q̇_j| or
 /// `min_speed`) identification leaves out (`--standstill`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Standstill {
     /// Follow the model: drop the slow rows of joints whose friction is
@@ -225,6 +228,53 @@ impl Default for IdentOptions {
     }
 }
 
+/// How an estimate ended (`status` in estimate.json: `ok`, `rank_deficient`,
+/// or nlopt's word for the maximum-likelihood stage).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EstimateStatus {
+    /// Full rank, estimated.
+    Ok,
+    /// The design matrix is rank deficient: the minimum-norm solution is not an estimate.
+    RankDeficient,
+    /// The maximum-likelihood stage ended with this nlopt status.
+    Ml(crate::optim::nlopt::NloptStatus),
+}
+
+impl EstimateStatus {
+    /// The word written in estimate.json and reports.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            EstimateStatus::Ok => "ok",
+            EstimateStatus::RankDeficient => "rank_deficient",
+            EstimateStatus::Ml(s) => s.as_str(),
+        }
+    }
+
+    /// What status.json says of a run that ended so: a rank-deficient design
+    /// or an ML failure is not usable, a forced stop is an interruption.
+    pub fn state(self) -> RunState {
+        use crate::optim::nlopt::NloptStatus as N;
+        match self {
+            EstimateStatus::RankDeficient => RunState::Failed,
+            EstimateStatus::Ml(N::Failure | N::InvalidArgs | N::OutOfMemory | N::RoundoffLimited) => RunState::Failed,
+            EstimateStatus::Ml(N::ForcedStop) => RunState::Interrupted,
+            _ => RunState::Complete,
+        }
+    }
+}
+
+impl std::fmt::Display for EstimateStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl Serialize for EstimateStatus {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
 /// A base parameter that must be positive but was estimated negative.
 #[derive(Debug, Clone, Serialize)]
 pub struct Implausible {
@@ -254,8 +304,8 @@ pub struct TruthRow {
 /// The result of an identification (written as `estimate.json`).
 #[derive(Debug, Clone, Serialize)]
 pub struct Estimate {
-    /// `ok`, `rank_deficient`, or the solver's status for ML.
-    pub status: String,
+    /// How the estimate ended.
+    pub status: EstimateStatus,
     /// Estimator.
     pub method: Method,
     /// Names of the estimated base parameters.
@@ -393,16 +443,7 @@ pub fn identify(
             "the physically consistent fit uses the least-squares fit of every base parameter: run it with method wls or ols and without --reduce",
         ));
     }
-    let mapped;
-    let run = match opts.coordinates {
-        Coordinates::Joint => run,
-        Coordinates::Motor => {
-            let mut r = run.clone();
-            r.to_joint_coordinates(&robot.coupling_matrix())?;
-            mapped = r;
-            &mapped
-        }
-    };
+    let run = &*in_joint_coordinates(robot, run, opts.coordinates)?;
     if opts.reduce.is_some() && !matches!(opts.method, Method::Wls) {
         return Err(Error::invalid(
             "identify",
@@ -410,50 +451,17 @@ pub fn identify(
             "model reduction (paper 000 Algorithm 1) uses WLS: run it with method wls",
         ));
     }
-    let filter = resolve_filter(&opts.filter, trajectory, opts.harmonics);
-    let pr = process_with(run, &filter, opts.velocity_from)?.decimated(opts.decimate);
-    if !(opts.slow_ratio.is_finite() && (0.0..1.0).contains(&opts.slow_ratio)) {
-        return Err(Error::invalid("identify", "slow_ratio", "expected a fraction in [0, 1)"));
-    }
-    if !(opts.min_speed.is_finite() && opts.min_speed >= 0.0) {
-        return Err(Error::invalid("identify", "min_speed", "expected a speed ≥ 0"));
-    }
-    let (slow, vmin) = if matches!(opts.method, Method::Projection) {
-        (0.0, 0.0)
-    } else {
-        (opts.slow_ratio, opts.min_speed)
-    };
     let uses_sample_weights = matches!(opts.method, Method::Wls | Method::Ml) && opts.weights == Weights::Sample;
-    if uses_sample_weights && pr.tau_var.is_none() {
-        let file = run.files.first().map(|f| f.display().to_string()).unwrap_or_else(|| "run".into());
-        return Err(Error::invalid(
-            file,
-            "--weights",
-            format!(
-                "the run has {} repetition and no variance columns, so sample weights (paper 000 eq. 7–9) are not possible; use --weights joint (per-joint residual variance of an OLS fit), --method ols, more repetitions, or an averaged run with var_tau1..var_tau{} columns and --repetitions N",
-                run.reps.len(),
-                robot.dof()
-            ),
-        ));
-    }
-    let drop: Vec<bool> = robot
-        .drives
-        .iter()
-        .map(|d| match opts.standstill {
-            Standstill::Auto => d.discontinuous_at_rest(),
-            Standstill::Drop => true,
-            Standstill::Keep => false,
-        })
-        .collect();
-    let every = Dataset::every_row(robot, base, &pr);
-    let full = every.moving_rows_of(&pr, slow, vmin, &drop);
-    if full.c.nrows() <= full.c.ncols() && every.c.nrows() > every.c.ncols() {
-        let vmax: Vec<String> = (0..robot.dof())
-            .map(|j| format!("{:.3e}", pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max)))
-            .collect();
-        return Err(Error::invalid(run.files.first().map_or_else(|| "identify".to_string(), |f| f.display().to_string()), "min_speed", format!("no row is fast enough: {} of {} rows left after the speed rule |q̇_j| ≥ max({slow} · max |q̇_j|, {vmin} rad/s) (--slow-ratio, --min-speed), more than {} needed; largest |q̇_j| of the run: [{}] rad/s", full.c.nrows(), every.c.nrows(), full.c.ncols(), vmax.join(", "))));
-    }
-    let rows_used = rows_used(robot, &full, pr.len(), &drop, slow, vmin, opts);
+    let Prepared {
+        pr,
+        filter,
+        every,
+        full,
+        drop,
+        rows_used,
+        slow,
+        vmin,
+    } = prepare(robot, base, run, trajectory, opts, uses_sample_weights)?;
     let moving: Vec<bool> = (0..robot.dof())
         .map(|j| pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max) > opts.reduce.as_ref().map_or(0.05, |r| r.moving_speed))
         .collect();
@@ -505,16 +513,7 @@ pub fn identify(
             if vrun.n_joints() != robot.dof() {
                 return Err(Error::dim("joints in the validation run", robot.dof(), vrun.n_joints()));
             }
-            let vmapped;
-            let vrun = match opts.coordinates {
-                Coordinates::Joint => vrun,
-                Coordinates::Motor => {
-                    let mut r = vrun.clone();
-                    r.to_joint_coordinates(&robot.coupling_matrix())?;
-                    vmapped = r;
-                    &vmapped
-                }
-            };
+            let vrun = &*in_joint_coordinates(robot, vrun, opts.coordinates)?;
             let vf = match (&opts.filter, vtraj) {
                 (FilterChoice::Given(f), _) if !matches!(f, Filter::Fourier { .. }) => f.clone(),
                 (_, Some(t)) => resolve_filter(&FilterChoice::Auto, Some(t), opts.harmonics),
@@ -559,11 +558,11 @@ pub fn identify(
         })
         .collect();
     let status = if let Some(m) = &ml {
-        m.status.to_string()
+        EstimateStatus::Ml(m.status)
     } else if fit.rank < cols.len() {
-        "rank_deficient".to_string()
+        EstimateStatus::RankDeficient
     } else {
-        "ok".to_string()
+        EstimateStatus::Ok
     };
     let estimate = Estimate {
         status,
@@ -616,6 +615,106 @@ pub fn identify(
     })
 }
 
+/// A run in joint coordinates (runs logged motor-side mapped through the coupling).
+pub fn in_joint_coordinates<'a>(robot: &Robot, run: &'a Run, coordinates: Coordinates) -> Result<std::borrow::Cow<'a, Run>> {
+    Ok(match coordinates {
+        Coordinates::Joint => std::borrow::Cow::Borrowed(run),
+        Coordinates::Motor => {
+            let mut r = run.clone();
+            r.to_joint_coordinates(&robot.coupling_matrix())?;
+            std::borrow::Cow::Owned(r)
+        }
+    })
+}
+
+/// A run ready for estimation ([`prepare`]).
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    /// The processed (averaged, filtered, decimated) run.
+    pub pr: Processed,
+    /// The filter used.
+    pub filter: Filter,
+    /// Every sample's rows (every base column).
+    pub every: Dataset,
+    /// The rows the standstill rule keeps.
+    pub full: Dataset,
+    /// Per joint: the standstill rule drops its slow rows.
+    pub drop: Vec<bool>,
+    /// Per joint: the rows used and why.
+    pub rows_used: Vec<RowsUsed>,
+    /// Slow-row fraction applied.
+    pub slow: f64,
+    /// Slow-row speed applied.
+    pub vmin: f64,
+}
+
+/// Processes a run (in joint coordinates) as `opts` says — filter, decimation,
+/// standstill rule — and stacks its base regressor. With
+/// `needs_sample_weights`, a run without repetitions or variances is an error
+/// that names the alternatives.
+pub fn prepare(
+    robot: &Robot,
+    base: &BaseParams,
+    run: &Run,
+    trajectory: Option<&FourierTrajectory>,
+    opts: &IdentOptions,
+    needs_sample_weights: bool,
+) -> Result<Prepared> {
+    let filter = resolve_filter(&opts.filter, trajectory, opts.harmonics);
+    let pr = process_with(run, &filter, opts.velocity_from)?.decimated(opts.decimate);
+    if !(opts.slow_ratio.is_finite() && (0.0..1.0).contains(&opts.slow_ratio)) {
+        return Err(Error::invalid("identify", "slow_ratio", "expected a fraction in [0, 1)"));
+    }
+    if !(opts.min_speed.is_finite() && opts.min_speed >= 0.0) {
+        return Err(Error::invalid("identify", "min_speed", "expected a speed ≥ 0"));
+    }
+    let (slow, vmin) = if matches!(opts.method, Method::Projection) {
+        (0.0, 0.0)
+    } else {
+        (opts.slow_ratio, opts.min_speed)
+    };
+    if needs_sample_weights && pr.tau_var.is_none() {
+        let file = run.files.first().map(|f| f.display().to_string()).unwrap_or_else(|| "run".into());
+        return Err(Error::invalid(
+            file,
+            "--weights",
+            format!(
+                "the run has {} repetition and no variance columns, so sample weights (paper 000 eq. 7–9) are not possible; use --weights joint (per-joint residual variance of an OLS fit), --method ols, more repetitions, or an averaged run with var_tau1..var_tau{} columns and --repetitions N",
+                run.reps.len(),
+                robot.dof()
+            ),
+        ));
+    }
+    let drop: Vec<bool> = robot
+        .drives
+        .iter()
+        .map(|d| match opts.standstill {
+            Standstill::Auto => d.discontinuous_at_rest(),
+            Standstill::Drop => true,
+            Standstill::Keep => false,
+        })
+        .collect();
+    let every = Dataset::every_row(robot, base, &pr);
+    let full = every.moving_rows_of(&pr, slow, vmin, &drop);
+    if full.c.nrows() <= full.c.ncols() && every.c.nrows() > every.c.ncols() {
+        let vmax: Vec<String> = (0..robot.dof())
+            .map(|j| format!("{:.3e}", pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max)))
+            .collect();
+        return Err(Error::invalid(run.files.first().map_or_else(|| "identify".to_string(), |f| f.display().to_string()), "min_speed", format!("no row is fast enough: {} of {} rows left after the speed rule |q̇_j| ≥ max({slow} · max |q̇_j|, {vmin} rad/s) (--slow-ratio, --min-speed), more than {} needed; largest |q̇_j| of the run: [{}] rad/s", full.c.nrows(), every.c.nrows(), full.c.ncols(), vmax.join(", "))));
+    }
+    let rows_used = rows_used(robot, &full, pr.len(), &drop, slow, vmin, opts);
+    Ok(Prepared {
+        pr,
+        filter,
+        every,
+        full,
+        drop,
+        rows_used,
+        slow,
+        vmin,
+    })
+}
+
 /// The rows of each joint in `full` and the standstill rule that chose them.
 fn rows_used(robot: &Robot, full: &Dataset, total: usize, drop: &[bool], slow: f64, vmin: f64, opts: &IdentOptions) -> Vec<RowsUsed> {
     (0..robot.dof())
@@ -656,7 +755,7 @@ fn rows_used(robot: &Robot, full: &Dataset, total: usize, drop: &[bool], slow: f
 }
 
 /// Joints whose filter residual exceeds 3× the noise of the averaged positions.
-fn filter_warnings(pr: &Processed) -> Vec<String> {
+pub(crate) fn filter_warnings(pr: &Processed) -> Vec<String> {
     let mut w = Vec::new();
     for (j, (res, noise)) in pr.filter_residual.iter().enumerate() {
         if let Some(nz) = noise {
@@ -903,38 +1002,58 @@ impl Estimate {
 }
 
 impl Identification {
+    /// What status.json says of this identification: the estimate's state,
+    /// failed when the consistent fit failed, interrupted when `interrupted`.
+    pub fn state(&self, interrupted: bool) -> RunState {
+        let e = &self.estimate;
+        if interrupted {
+            RunState::Interrupted
+        } else if e.consistent.as_ref().is_some_and(|c| !c.status.is_ok()) {
+            RunState::Failed
+        } else {
+            e.status.state()
+        }
+    }
+
+    /// Why the result is not usable (None when it is): the words of the
+    /// command line's exit-3 message.
+    pub fn unusable_reason(&self) -> Option<String> {
+        let e = &self.estimate;
+        match e.consistent.as_ref().map(|c| &c.status) {
+            Some(s) if !s.is_ok() => Some(format!("the consistent fit ended with status `{s}`")),
+            _ if e.status.state() == RunState::Failed => Some(format!("the {} estimate ended with status `{}`", e.method.words(), e.status)),
+            _ => None,
+        }
+    }
+
+    /// Writes `status.json` into `dir` (command `identify`) with the state of
+    /// [`Identification::state`]; `options` is what the run was asked
+    /// (fingerprinted). Returns the state written.
+    pub fn write_status(
+        &self,
+        dir: &std::path::Path,
+        started: Option<std::time::SystemTime>,
+        options: &serde_json::Value,
+        interrupted: bool,
+    ) -> Result<RunState> {
+        let e = &self.estimate;
+        let state = self.state(interrupted);
+        let detail = format!("{}: {}", e.method.words(), e.status);
+        let summary = serde_json::json!({ "method": e.method, "estimate_status": e.status });
+        crate::io::status::write_status(dir, "identify", state, detail, started, crate::io::status::fingerprint_of(options)?, summary)?;
+        Ok(state)
+    }
+
     /// Writes `estimate.json`, `report.txt`, `torques.svg`, `residuals.svg`,
     /// `params.svg` (and `validation.svg`, `reduction.csv` and `reduction.svg`
     /// when present) into `dir`.
     pub fn write(&self, dir: &std::path::Path) -> Result<()> {
-        use crate::io::plot::{write_svg, Panel, Series};
+        use crate::io::plot::write_svg;
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         crate::io::write_json(&dir.join("estimate.json"), &self.estimate)?;
         crate::io::write_atomic(&dir.join("report.txt"), self.estimate.text().as_bytes())?;
-        let torque_panels = |ds: &Dataset, t: &[f64], resid: bool| -> Vec<Panel> {
-            let pred = &ds.c * nalgebra::DVector::from_column_slice(&self.estimate.theta);
-            let step = ds.n_samples.div_ceil(1500).max(1);
-            (0..ds.n)
-                .map(|j| {
-                    let idx: Vec<usize> = (0..ds.y.len()).filter(|&i| ds.joint[i] == j && ds.sample[i] % step == 0).collect();
-                    let x: Vec<f64> = idx.iter().map(|&i| t.get(ds.sample[i]).copied().unwrap_or(ds.sample[i] as f64)).collect();
-                    let meas: Vec<f64> = idx.iter().map(|&i| ds.y[i]).collect();
-                    let pr: Vec<f64> = idx.iter().map(|&i| pred[i]).collect();
-                    let series = if resid {
-                        vec![Series::line("measured − predicted", x, meas.iter().zip(&pr).map(|(a, b)| a - b).collect())]
-                    } else {
-                        vec![Series::line("measured", x.clone(), meas), Series::line("predicted", x, pr)]
-                    };
-                    Panel {
-                        title: format!("joint {}", j + 1),
-                        x_label: "t (s)".into(),
-                        y_label: "torque (N·m)".into(),
-                        series,
-                        ..Default::default()
-                    }
-                })
-                .collect()
-        };
+        let th: &[f64] = &self.estimate.theta;
+        let torque_panels = |ds: &Dataset, t: &[f64], resid: bool| output::torque_panels(ds, t, &[("predicted", th)], resid);
         let t = &self.processed.t;
         write_svg(
             &dir.join("torques.svg"),

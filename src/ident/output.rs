@@ -216,9 +216,44 @@ pub fn write_friction(out: &Path, joint: usize, pr: &Processed, f: &FrictionFit,
 /// consistent value; std and σ* when it is a base parameter on its own, empty
 /// when the data only determine it in combination with others).
 pub fn params_csv(est: &super::Estimate) -> String {
+    let cons = est.consistent.as_ref().map(|c| (c.base.as_slice(), c.standard.as_slice()));
+    params_table(
+        &ParamsTable {
+            names: &est.names,
+            groupings: &est.groupings,
+            theta: &est.theta,
+            std: &est.std,
+            rel_std: &est.rel_std,
+            standard_names: &est.standard_names,
+            base_k: &est.base_k,
+        },
+        cons,
+    )
+}
+
+/// The columns of `params.csv` ([`params_table`]).
+#[derive(Debug, Clone, Copy)]
+pub struct ParamsTable<'a> {
+    /// Base parameter names.
+    pub names: &'a [String],
+    /// Their groupings.
+    pub groupings: &'a [String],
+    /// Estimates.
+    pub theta: &'a [f64],
+    /// Standard deviations.
+    pub std: &'a [f64],
+    /// Relative standard deviations.
+    pub rel_std: &'a [f64],
+    /// Standard parameter names.
+    pub standard_names: &'a [String],
+    /// K (rows: base parameters).
+    pub base_k: &'a [Vec<f64>],
+}
+
+/// `params.csv` of an estimate and its consistent (base, standard) values, if any.
+pub fn params_table(est: &ParamsTable, cons: Option<(&[f64], &[f64])>) -> String {
     let q = |s: &str| format!("\"{}\"", s.replace('"', "\"\""));
     let mut s = String::from("kind,name,value,std,rel_std,consistent,grouping\n");
-    let cons = est.consistent.as_ref();
     for i in 0..est.names.len() {
         s.push_str(&format!(
             "base,{},{},{},{},{},{}\n",
@@ -226,7 +261,7 @@ pub fn params_csv(est: &super::Estimate) -> String {
             est.theta[i],
             est.std[i],
             est.rel_std[i],
-            cons.map(|c| c.base[i].to_string()).unwrap_or_default(),
+            cons.map(|c| c.0[i].to_string()).unwrap_or_default(),
             q(&est.groupings[i])
         ));
     }
@@ -240,11 +275,47 @@ pub fn params_csv(est: &super::Estimate) -> String {
             Some(i) => (est.std[i].to_string(), est.rel_std[i].to_string()),
             None => (String::new(), String::new()),
         };
-        let v = cons.map(|c| c.standard[j].to_string()).unwrap_or_default();
+        let v = cons.map(|c| c.1[j].to_string()).unwrap_or_default();
         s.push_str(&format!(
             "standard,{nm},{v},{sd},{rs},{v},{}\n",
             q(if alone.is_some() { "identifiable alone" } else { "in combination only" })
         ));
     }
     s
+}
+
+/// Per joint, measured against predicted torques of `ds` (at most ~1500
+/// points per curve) for each labelled estimate of `fits`; with `resid`, the
+/// residual of the first fit ("measured − predicted").
+pub fn torque_panels(ds: &super::Dataset, t: &[f64], fits: &[(&str, &[f64])], resid: bool) -> Vec<Panel> {
+    let preds: Vec<nalgebra::DVector<f64>> = fits.iter().map(|(_, th)| &ds.c * nalgebra::DVector::from_column_slice(th)).collect();
+    let step = ds.n_samples.div_ceil(1500).max(1);
+    (0..ds.n)
+        .map(|j| {
+            let idx: Vec<usize> = (0..ds.y.len()).filter(|&i| ds.joint[i] == j && ds.sample[i] % step == 0).collect();
+            let x: Vec<f64> = idx.iter().map(|&i| t.get(ds.sample[i]).copied().unwrap_or(ds.sample[i] as f64)).collect();
+            let meas: Vec<f64> = idx.iter().map(|&i| ds.y[i]).collect();
+            let series = if resid {
+                let pr = &preds[0];
+                vec![Series::line(
+                    "measured − predicted",
+                    x,
+                    idx.iter().zip(&meas).map(|(&i, m)| m - pr[i]).collect(),
+                )]
+            } else {
+                let mut v = vec![Series::line("measured", x.clone(), meas)];
+                for ((label, _), pr) in fits.iter().zip(&preds) {
+                    v.push(Series::line(*label, x.clone(), idx.iter().map(|&i| pr[i]).collect()));
+                }
+                v
+            };
+            Panel {
+                title: format!("joint {}", j + 1),
+                x_label: "t (s)".into(),
+                y_label: "torque (N·m)".into(),
+                series,
+                ..Default::default()
+            }
+        })
+        .collect()
 }

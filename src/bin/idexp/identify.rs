@@ -50,13 +50,12 @@ pub enum ExportKind {
     Csv,
 }
 
-/// `idexp identify <robot> <run>...`
+/// `idexp identify <robot> <run>...` or `idexp identify <study.toml>`
 #[derive(clap::Args, Debug, Serialize)]
 pub struct IdentifyArgs {
-    /// Robot file (.toml or .urdf).
+    /// A study file (experiments, validation runs, prior: docs/identification.md), or the robot file (.toml or .urdf) of the one-run form.
     pub robot: PathBuf,
-    /// The run: a folder of repetition CSVs, or the files themselves.
-    #[arg(required = true)]
+    /// The run (one-run form): a folder of repetition CSVs, or the files themselves.
     pub run: Vec<PathBuf>,
     /// Validation run (folder or files).
     #[arg(long, num_args = 1..)]
@@ -205,20 +204,71 @@ fn parse_lags(s: &str) -> anyhow::Result<(usize, usize)> {
     Ok((parts[0].parse().map_err(|_| bad())?, parts[1].parse().map_err(|_| bad())?))
 }
 
-/// How an estimate's status word ends the run: `ok` and the ML solver's
-/// success words (`Success`, `FtolReached`, ...) are usable; `rank_deficient`
-/// and the solver's failure words (`Failure`, `RoundoffLimited`, ...) are not.
-fn estimate_state(status: &str) -> RunState {
-    match status {
-        "rank_deficient" | "Failure" | "InvalidArgs" | "OutOfMemory" | "RoundoffLimited" => RunState::Failed,
-        "ForcedStop" => RunState::Interrupted,
-        _ => RunState::Complete,
+/// The arguments of the one-run form left at their defaults (a study file
+/// takes its options from the file): the flags given anyway, by name.
+fn one_run_flags(a: &IdentifyArgs) -> anyhow::Result<Vec<String>> {
+    #[derive(clap::Parser)]
+    struct Wrap {
+        #[command(flatten)]
+        a: IdentifyArgs,
     }
+    let d = <Wrap as clap::Parser>::try_parse_from(["identify", "x"])?.a;
+    let (given, default) = (serde_json::to_value(a)?, serde_json::to_value(&d)?);
+    let keep = ["robot", "out"];
+    Ok(given
+        .as_object()
+        .map(|m| {
+            m.iter()
+                .filter(|(k, v)| !keep.contains(&k.as_str()) && default.get(k.as_str()) != Some(v))
+                .map(|(k, _)| format!("--{}", k.replace('_', "-")))
+                .collect()
+        })
+        .unwrap_or_default())
+}
+
+/// Runs `idexp identify study.toml`: the library runs the study and writes its folder.
+fn run_study(a: &IdentifyArgs, ctl: &Control, started: SystemTime) -> anyhow::Result<Outcome> {
+    let flags = one_run_flags(a)?;
+    if !flags.is_empty() {
+        bail!(
+            "identify {}: {} belong to the one-run form (idexp identify ROBOT RUN...); a study takes its options from the study file (docs/identification.md, \"Studies\")",
+            a.robot.display(),
+            flags.join(", ")
+        );
+    }
+    let design = idexp::ident::study::StudyDesign::read(&a.robot)?;
+    let dir = a.robot.parent().map(Path::to_path_buf).unwrap_or_default();
+    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&design.name));
+    idexp::io::folder::check_out_dir(&out)?;
+    let res = idexp::ident::study::run_study(&design, &dir, ctl)?;
+    idexp::io::folder::begin(&out, "identify", &fingerprint_of(&design)?)?;
+    let (files, state) = res.write(&out, Some(started))?;
+    if a.json {
+        crate::print_json(&res.estimate)?;
+    } else {
+        print!("{}", res.estimate.text());
+        println!("\n{} files written to {}", files.len(), out.display());
+    }
+    Ok(match (state, res.estimate.unusable_reason()) {
+        (RunState::Interrupted, _) => Outcome::Interrupted,
+        (_, Some(why)) => Outcome::Unusable(why),
+        _ => Outcome::Done,
+    })
 }
 
 /// Runs `idexp identify`.
 pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let started = SystemTime::now();
+    if a.run.is_empty() {
+        let text = idexp::io::read_to_string(&a.robot)?;
+        if idexp::ident::study::design::is_study_text(&text) {
+            return run_study(a, ctl, started);
+        }
+        bail!(
+            "identify {}: no run given. Give the runs after the robot file (idexp identify ROBOT RUN... [--validate RUN...]), or a study file with [[experiment]] entries (idexp identify study.toml)",
+            a.robot.display()
+        );
+    }
     let robot = idexp::robot::load(&a.robot)?;
     a.run
         .iter()
@@ -309,7 +359,7 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let vrun = if a.validate.is_empty() {
         None
     } else {
-        Some(Run::read_drives(&a.validate, &robot, None, a.torque_from, a.current_tolerance)?.0)
+        Some(Run::read_drives(&a.validate, &robot, a.repetitions, a.torque_from, a.current_tolerance)?.0)
     };
     let vtraj = match (&a.validate_trajectory, &vrun) {
         (Some(p), _) => Some(FourierTrajectory::load(p)?),
@@ -335,18 +385,7 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let exported = export(a, export_src.as_ref(), &robot, &id.estimate, &out)?;
     let options = serde_json::json!({ "arguments": a, "options": opts });
     idexp::io::write_json(&out.join("options.json"), &options)?;
-    let st = &id.estimate.status;
-    let consistent_failed = id.estimate.consistent.as_ref().is_some_and(|c| c.status != "ok");
-    let state = if crate::interrupted(ctl) {
-        RunState::Interrupted
-    } else if consistent_failed {
-        RunState::Failed
-    } else {
-        estimate_state(st)
-    };
-    let detail = format!("{}: {}", id.estimate.method.words(), st);
-    let summary = serde_json::json!({ "method": id.estimate.method, "estimate_status": st });
-    write_status(&out, "identify", state, detail, Some(started), fingerprint_of(&options)?, summary)?;
+    let state = id.write_status(&out, Some(started), &options, crate::interrupted(ctl))?;
     if a.json {
         crate::print_json(&id.estimate)?;
     } else {
@@ -356,13 +395,9 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         }
         println!("\nwritten to {}", out.display());
     }
-    Ok(match state {
-        RunState::Interrupted => Outcome::Interrupted,
-        RunState::Failed if consistent_failed => Outcome::Unusable(format!(
-            "the consistent fit ended with status `{}`",
-            id.estimate.consistent.as_ref().map(|c| c.status.as_str()).unwrap_or("")
-        )),
-        RunState::Failed => Outcome::Unusable(format!("the {} estimate ended with status `{st}`", id.estimate.method.words())),
+    Ok(match (state, id.unusable_reason()) {
+        (RunState::Interrupted, _) => Outcome::Interrupted,
+        (_, Some(why)) => Outcome::Unusable(why),
         _ => Outcome::Done,
     })
 }
@@ -383,7 +418,7 @@ fn export(
         files.push(p);
     }
     let model = match &est.consistent {
-        Some(c) if c.status == "ok" => Some(robot.with_params(&c.standard)?),
+        Some(c) if c.status.is_ok() => Some(robot.with_params(&c.standard)?),
         _ => None,
     };
     let wants = a.export.iter().any(|e| *e != ExportKind::Csv);

@@ -1,0 +1,532 @@
+//! The identification study file (TOML; `idexp identify study.toml`).
+//!
+//! ```toml
+//! name = "cobot"                     # output folder out/<name> (default: the file stem)
+//! robot = "robots/cobot.toml"        # relative to this file
+//! method = "wls"                     # wls | ols
+//! weights = "auto"                   # auto (repetitions where they exist, else residuals) | repetitions | residuals
+//! repetition_weights = "sample"      # sample (per sample, eq. 7) | joint (per-joint mean); default: sample from 10 repetitions on
+//! irls_iterations = 50               # reweighting iterations (residual weights)
+//! irls_tol = 1e-6                    # relative change of the block variances that ends them
+//! base_columns = []                  # fix the base columns by name (default: computed)
+//! truth = "sim/truth.json"           # optional: compare with the true base parameters
+//! export = ["urdf", "toml", "csv"]   # the identified model (urdf/toml need [consistent])
+//!
+//! [[experiment]]                     # any number (≥ 1); their rows are stacked
+//! name = "fourier_a"                 # default: the first file's (folder's) name
+//! files = ["runs/a"]                 # folders of repetition CSVs or the files
+//! kind = "excitation"                # excitation | gravity | friction | static
+//! filter = "auto"                    # auto | fourier | lowpass | none
+//! cutoff = 10.0                      # low-pass cut-off (Hz)
+//! trajectory = "runs/a/coefficients.json"   # Fourier reference (default: trajectory.json beside the run)
+//! harmonics = 20
+//! decimate = 1
+//! resample = 100.0                   # Hz; irregular time stamps are resampled (default rate: 1/median step)
+//! repetitions = 50                   # N_r of an averaged run (one CSV with var_tau*)
+//! coordinates = "joint"              # joint | motor
+//! torque_from = "auto"               # auto | torque | current
+//! current_tolerance = 0.05
+//! velocity_from = "auto"             # auto | log | positions
+//! standstill = "auto"                # auto (the friction model's rule) | drop | keep
+//! slow_ratio = 0.1
+//! min_speed = 0.01
+//!
+//! [[validation]]                     # any number; the same keys as an experiment
+//! name = "pose_1"
+//! files = ["val/pose_1.csv"]
+//! kind = "static"
+//!
+//! [consistent]                       # physically consistent estimate with a prior
+//! prior = "nominal"                  # nominal (the robot file) | a robot file (same links and drives)
+//! metric = "entropic"                # entropic | euclidean
+//! weight = 1.0                       # or "validation": chosen on the validation runs from `weight_grid`
+//! weight_grid = [1e-3, 1e-2, 0.1, 1, 10, 100, 1e3]
+//! scale = 0.5                        # prior std relative to the nominal value (floored per kind)
+//! margin = 0.0                       # pseudo-inertias ⪰ margin · I (kg·m²)
+//! plausible = [0.2, 5.0]             # flag masses, inertias and drive parameters outside these ratios to the prior
+//! ```
+
+use crate::data::{Coordinates, TorqueFrom};
+use crate::error::{Error, Result};
+use crate::ident::estimate::Weights;
+use crate::ident::prior::PriorMetric;
+use crate::ident::study::stack::WeightSource;
+use crate::ident::{Standstill, VelocityFrom};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The estimator of a study.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum StudyMethod {
+    /// Weighted least squares ([`super::stack`]).
+    #[default]
+    Wls,
+    /// Ordinary least squares (unit weights).
+    Ols,
+}
+
+/// What an experiment is; sets the defaults of its processing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ExperimentKind {
+    /// A dynamic excitation (Fourier or any trajectory): the standstill rule of the model.
+    #[default]
+    Excitation,
+    /// Slow motions or poses for the gravity terms (low-pass filtered).
+    Gravity,
+    /// Constant-velocity or bang-bang runs for friction (low-pass filtered).
+    Friction,
+    /// Poses held at rest (low-pass filtered; joints with smooth friction keep their rows).
+    Static,
+}
+
+impl ExperimentKind {
+    /// The name in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            ExperimentKind::Excitation => "excitation",
+            ExperimentKind::Gravity => "gravity",
+            ExperimentKind::Friction => "friction",
+            ExperimentKind::Static => "static",
+        }
+    }
+
+    /// The standstill rule used unless the entry gives one: the model's
+    /// (`auto`) for every kind. At rest a `sign` Coulomb term is undefined
+    /// (the drive holds anywhere within ±F_c), so the rows of such joints at
+    /// rest carry no usable equation even in a gravity or static experiment;
+    /// joints with smooth friction keep them. `standstill = "keep"` keeps
+    /// them anyway (friction negligible against gravity).
+    pub fn default_standstill(self) -> Standstill {
+        Standstill::Auto
+    }
+}
+
+/// The position filter of an experiment.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum FilterName {
+    /// Fourier filtering when the experiment's Fourier trajectory is known, else low-pass.
+    #[default]
+    Auto,
+    /// Fourier filtering at the trajectory's harmonics (needs the trajectory).
+    Fourier,
+    /// Zero-phase low-pass at `cutoff`, central differences.
+    Lowpass,
+    /// Central differences only.
+    None,
+}
+
+/// One experiment (or validation run) of a study.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExperimentSpec {
+    /// Name in reports and file names; default: the first file's (or folder's) stem.
+    #[serde(default)]
+    pub name: String,
+    /// Folders of repetition CSVs, or the files (relative to the study file).
+    pub files: Vec<PathBuf>,
+    /// What the experiment is.
+    #[serde(default)]
+    pub kind: ExperimentKind,
+    /// Position filter.
+    #[serde(default)]
+    pub filter: FilterName,
+    /// Low-pass cut-off (Hz).
+    #[serde(default = "ten")]
+    pub cutoff: f64,
+    /// Fourier trajectory (coefficients.json); default: trajectory.json beside the run.
+    #[serde(default)]
+    pub trajectory: Option<PathBuf>,
+    /// Harmonics kept by Fourier filtering.
+    #[serde(default)]
+    pub harmonics: Option<usize>,
+    /// Keep every k-th sample after filtering.
+    #[serde(default = "one")]
+    pub decimate: usize,
+    /// Uniform rate (Hz) for irregular time stamps; default: the inverse median step.
+    #[serde(default)]
+    pub resample: Option<f64>,
+    /// N_r of an averaged run.
+    #[serde(default)]
+    pub repetitions: Option<usize>,
+    /// Coordinates of the logged positions.
+    #[serde(default)]
+    pub coordinates: Coordinates,
+    /// Joint torques from torques or currents.
+    #[serde(default)]
+    pub torque_from: TorqueFrom,
+    /// Allowed disagreement between logged torques and currents.
+    #[serde(default = "current_tolerance")]
+    pub current_tolerance: f64,
+    /// Velocities from the logged `qd*` columns or the positions.
+    #[serde(default)]
+    pub velocity_from: VelocityFrom,
+    /// Which slow rows are left out (default by kind).
+    #[serde(default)]
+    pub standstill: Option<Standstill>,
+    /// Slow-row fraction of the joint's top speed.
+    #[serde(default = "slow_ratio")]
+    pub slow_ratio: f64,
+    /// Slow-row speed (rad/s or m/s).
+    #[serde(default = "min_speed")]
+    pub min_speed: f64,
+}
+
+/// How the prior's weight is set.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum WeightSpec {
+    /// This weight.
+    Value(f64),
+    /// A rule (`"validation"`).
+    Rule(WeightRule),
+}
+
+/// Rules for the prior's weight.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum WeightRule {
+    /// The weight of `weight_grid` with the smallest validation error.
+    Validation,
+}
+
+/// The consistent estimate's prior (`[consistent]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConsistentSpec {
+    /// `nominal` (the robot file's parameters) or a robot file with the same layout.
+    #[serde(default = "nominal")]
+    pub prior: String,
+    /// The prior's metric.
+    #[serde(default)]
+    pub metric: PriorMetric,
+    /// The prior's weight.
+    #[serde(default = "weight_one")]
+    pub weight: WeightSpec,
+    /// Candidate weights for `weight = "validation"`.
+    #[serde(default = "weight_grid")]
+    pub weight_grid: Vec<f64>,
+    /// Prior standard deviation relative to the nominal value.
+    #[serde(default = "half")]
+    pub scale: f64,
+    /// J_i ⪰ margin · I (kg·m²).
+    #[serde(default)]
+    pub margin: f64,
+    /// Ratios to the prior outside which masses, inertias and drive parameters are flagged.
+    #[serde(default = "plausible")]
+    pub plausible: [f64; 2],
+}
+
+impl Default for ConsistentSpec {
+    fn default() -> Self {
+        ConsistentSpec {
+            prior: nominal(),
+            metric: PriorMetric::default(),
+            weight: weight_one(),
+            weight_grid: weight_grid(),
+            scale: half(),
+            margin: 0.0,
+            plausible: plausible(),
+        }
+    }
+}
+
+/// Files the study writes of the identified model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ExportFormat {
+    /// `robot.urdf` (the robot's URDF with the consistent inertials).
+    Urdf,
+    /// `robot.toml` (the robot file with the consistent parameters).
+    Toml,
+    /// `params.csv` (every base and standard parameter).
+    Csv,
+}
+
+/// An identification study.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StudyDesign {
+    /// Name (output folder); default: the file stem.
+    #[serde(default)]
+    pub name: String,
+    /// Robot file, relative to the study file.
+    pub robot: PathBuf,
+    /// Estimator.
+    #[serde(default)]
+    pub method: StudyMethod,
+    /// Where the weights come from.
+    #[serde(default)]
+    pub weights: WeightSource,
+    /// Per-sample or per-joint weights from repetitions (default: per sample
+    /// from 10 repetitions on, per joint below).
+    #[serde(default)]
+    pub repetition_weights: Option<Weights>,
+    /// Largest number of reweighting iterations.
+    #[serde(default = "irls_iterations")]
+    pub irls_iterations: usize,
+    /// Relative change of the block variances that ends the reweighting.
+    #[serde(default = "irls_tol")]
+    pub irls_tol: f64,
+    /// Base columns by name (default: computed).
+    #[serde(default)]
+    pub base_columns: Vec<String>,
+    /// truth.json of a simulated study.
+    #[serde(default)]
+    pub truth: Option<PathBuf>,
+    /// Largest number of samples per repetition (bounds memory before reading).
+    #[serde(default = "sample_limit")]
+    pub sample_limit: usize,
+    /// The experiments whose rows are stacked.
+    #[serde(default)]
+    pub experiment: Vec<ExperimentSpec>,
+    /// The validation runs.
+    #[serde(default)]
+    pub validation: Vec<ExperimentSpec>,
+    /// The consistent estimate with a prior.
+    #[serde(default)]
+    pub consistent: Option<ConsistentSpec>,
+    /// Model files to write.
+    #[serde(default)]
+    pub export: Vec<ExportFormat>,
+}
+
+fn ten() -> f64 {
+    10.0
+}
+fn one() -> usize {
+    1
+}
+fn current_tolerance() -> f64 {
+    crate::data::CURRENT_TOLERANCE
+}
+fn slow_ratio() -> f64 {
+    0.1
+}
+fn min_speed() -> f64 {
+    0.01
+}
+fn nominal() -> String {
+    "nominal".into()
+}
+fn weight_one() -> WeightSpec {
+    WeightSpec::Value(1.0)
+}
+fn weight_grid() -> Vec<f64> {
+    vec![1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e3]
+}
+fn half() -> f64 {
+    0.5
+}
+fn plausible() -> [f64; 2] {
+    [0.2, 5.0]
+}
+fn irls_iterations() -> usize {
+    50
+}
+fn irls_tol() -> f64 {
+    1e-6
+}
+fn sample_limit() -> usize {
+    5_000_000
+}
+
+/// True when a TOML text is a study file (it has `[[experiment]]` entries).
+pub fn is_study_text(text: &str) -> bool {
+    text.parse::<toml::Table>().is_ok_and(|t| t.contains_key("experiment"))
+}
+
+impl ExperimentSpec {
+    /// Checks the entry (`ctx` names it: `experiment 2 (fourier_a)`).
+    fn validate(&self, ctx: &str) -> Result<()> {
+        let bad = |field: &str, msg: String| Err(Error::invalid(ctx, field, msg));
+        if self.files.is_empty() {
+            return bad("files", "expected at least one folder or CSV file".into());
+        }
+        if !(self.cutoff.is_finite() && self.cutoff > 0.0) {
+            return bad("cutoff", format!("expected a positive frequency in Hz, found {}", self.cutoff));
+        }
+        if self.decimate == 0 {
+            return bad("decimate", "expected ≥ 1".into());
+        }
+        if let Some(r) = self.resample {
+            if !(r.is_finite() && r > 0.0) {
+                return bad("resample", format!("expected a positive rate in Hz, found {r}"));
+            }
+        }
+        if let Some(r) = self.repetitions {
+            if r < 2 {
+                return bad("repetitions", format!("expected N_r ≥ 2 (the sample variance needs two), found {r}"));
+            }
+        }
+        if self.harmonics == Some(0) {
+            return bad("harmonics", "expected ≥ 1".into());
+        }
+        if !(self.current_tolerance.is_finite() && self.current_tolerance > 0.0) {
+            return bad(
+                "current_tolerance",
+                format!("expected a positive relative tolerance, found {}", self.current_tolerance),
+            );
+        }
+        if !(self.slow_ratio.is_finite() && (0.0..1.0).contains(&self.slow_ratio)) {
+            return bad("slow_ratio", format!("expected a fraction in [0, 1), found {}", self.slow_ratio));
+        }
+        if !(self.min_speed.is_finite() && self.min_speed >= 0.0) {
+            return bad("min_speed", format!("expected a speed ≥ 0, found {}", self.min_speed));
+        }
+        if self.filter == FilterName::Fourier && self.trajectory.is_none() && self.kind != ExperimentKind::Excitation {
+            return bad("filter", format!("\"fourier\" for a {} experiment needs `trajectory`", self.kind.name()));
+        }
+        Ok(())
+    }
+
+    /// The name, defaulted to the first file's stem.
+    pub fn resolved_name(&self) -> String {
+        if !self.name.is_empty() {
+            return self.name.clone();
+        }
+        self.files
+            .first()
+            .and_then(|f| f.file_stem())
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "run".into())
+    }
+}
+
+/// Characters allowed in experiment names (they name output files).
+fn name_ok(s: &str) -> bool {
+    !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.')) && !s.starts_with('.')
+}
+
+impl StudyDesign {
+    /// Reads and validates a study file.
+    pub fn read(path: &Path) -> Result<StudyDesign> {
+        let text = crate::io::read_to_string(path)?;
+        let mut d: StudyDesign = toml::from_str(&text).map_err(|e| Error::parse(path, e.to_string()))?;
+        if d.name.is_empty() {
+            d.name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "study".into());
+        }
+        d.validate(&path.display().to_string())?;
+        Ok(d)
+    }
+
+    /// Checks every field; errors name `ctx` (the file), the entry and the field.
+    pub fn validate(&self, ctx: &str) -> Result<()> {
+        if self.experiment.is_empty() {
+            return Err(Error::invalid(
+                ctx,
+                "experiment",
+                "expected at least one [[experiment]] entry (files = [...] of its runs)",
+            ));
+        }
+        if self.irls_iterations == 0 {
+            return Err(Error::invalid(ctx, "irls_iterations", "expected ≥ 1"));
+        }
+        if !(self.irls_tol.is_finite() && self.irls_tol > 0.0) {
+            return Err(Error::invalid(
+                ctx,
+                "irls_tol",
+                format!("expected a positive tolerance, found {}", self.irls_tol),
+            ));
+        }
+        if self.sample_limit < 3 {
+            return Err(Error::invalid(ctx, "sample_limit", format!("expected ≥ 3, found {}", self.sample_limit)));
+        }
+        let mut names: Vec<String> = Vec::new();
+        for (what, list) in [("experiment", &self.experiment), ("validation", &self.validation)] {
+            for (i, e) in list.iter().enumerate() {
+                let name = e.resolved_name();
+                let entry = format!("{ctx}: {what} {} ({name})", i + 1);
+                e.validate(&entry)?;
+                if !name_ok(&name) {
+                    return Err(Error::invalid(
+                        &entry,
+                        "name",
+                        format!("`{name}`: expected letters, digits, `_`, `-` or `.` (it names output files)"),
+                    ));
+                }
+                if names.contains(&name) {
+                    return Err(Error::invalid(
+                        &entry,
+                        "name",
+                        format!("`{name}` is used by another experiment or validation run: give each a name of its own"),
+                    ));
+                }
+                names.push(name);
+            }
+        }
+        if let Some(c) = &self.consistent {
+            let ctx = format!("{ctx}: [consistent]");
+            match c.weight {
+                WeightSpec::Value(w) if !(w.is_finite() && w > 0.0) => {
+                    return Err(Error::invalid(
+                        &ctx,
+                        "weight",
+                        format!("expected a positive weight or \"validation\", found {w}"),
+                    ));
+                }
+                WeightSpec::Rule(WeightRule::Validation) if self.validation.is_empty() => {
+                    return Err(Error::invalid(
+                        &ctx,
+                        "weight",
+                        "\"validation\" chooses the weight on the validation runs, but the study has no [[validation]] entry: add one or give a weight",
+                    ));
+                }
+                _ => {}
+            }
+            if c.weight_grid.is_empty() || c.weight_grid.iter().any(|w| !(w.is_finite() && *w > 0.0)) {
+                return Err(Error::invalid(
+                    &ctx,
+                    "weight_grid",
+                    format!("expected positive weights, found {:?}", c.weight_grid),
+                ));
+            }
+            if !(c.scale.is_finite() && c.scale > 0.0) {
+                return Err(Error::invalid(&ctx, "scale", format!("expected a positive relative scale, found {}", c.scale)));
+            }
+            if !(c.margin.is_finite() && c.margin >= 0.0) {
+                return Err(Error::invalid(&ctx, "margin", format!("expected a margin ≥ 0 (kg·m²), found {}", c.margin)));
+            }
+            let [lo, hi] = c.plausible;
+            if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < 1.0 && hi > 1.0) {
+                return Err(Error::invalid(
+                    &ctx,
+                    "plausible",
+                    format!("expected [low, high] with 0 ≤ low < 1 < high, found [{lo}, {hi}]"),
+                ));
+            }
+        }
+        if self.export.iter().any(|e| *e != ExportFormat::Csv) && self.consistent.is_none() {
+            return Err(Error::invalid(
+                ctx,
+                "export",
+                "\"urdf\" and \"toml\" write the physically consistent model: add a [consistent] table",
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn minimal_file_defaults_and_unknown_keys() {
+        let d: StudyDesign = toml::from_str("robot = \"r.toml\"\n[[experiment]]\nfiles = [\"a\"]\n").unwrap();
+        assert_eq!(d.experiment[0].kind, ExperimentKind::Excitation);
+        assert_eq!(d.experiment[0].resolved_name(), "a");
+        d.validate("s.toml").unwrap();
+        let e = toml::from_str::<StudyDesign>("robot = \"r.toml\"\n[[experiment]]\nfiles = [\"a\"]\ncutof = 3\n").unwrap_err();
+        assert!(e.to_string().contains("cutof"), "{e}");
+        let d: StudyDesign = toml::from_str("robot = \"r.toml\"\n[[experiment]]\nfiles = [\"a\"]\n[consistent]\nweight = \"validation\"\n").unwrap();
+        let e = d.validate("s.toml").unwrap_err().to_string();
+        assert!(e.contains("[consistent]") && e.contains("weight") && e.contains("[[validation]]"), "{e}");
+        let d: StudyDesign = toml::from_str("robot = \"r.toml\"\n[[experiment]]\nfiles = [\"a\"]\n[[validation]]\nfiles = [\"x/a\"]\n").unwrap();
+        let e = d.validate("s.toml").unwrap_err().to_string();
+        assert!(e.contains("`a` is used"), "{e}");
+        assert!(is_study_text("robot = \"r\"\n[[experiment]]\nfiles = []\n") && !is_study_text("name = \"x\"\n[[link]]\n"));
+    }
+}
