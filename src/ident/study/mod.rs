@@ -584,7 +584,7 @@ pub fn run_study(design: &StudyDesign, dir: &Path, ctl: &Control) -> Result<Stud
         warnings,
     };
     let mut interrupted = false;
-    if let (Some(cs), EstimateStatus::Ok) = (&design.consistent, status) {
+    if let Some(cs) = &design.consistent {
         match consistent_with_prior(&robot, &base, prior_robot.as_ref(), cs, &st, &experiments, &validations, ctl)? {
             Some(c) => {
                 for (v, ve) in estimate.validation.iter_mut().zip(&validations) {

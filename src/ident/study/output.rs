@@ -28,15 +28,16 @@ use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
 impl StudyEstimate {
-    /// What status.json says: failed when rank deficient or the consistent
-    /// fit failed, interrupted when `interrupted`.
+    /// What status.json says: with a consistent fit, its outcome (a
+    /// rank-deficient least-squares estimate is then usable: the prior
+    /// decides the directions the data do not see); without, the estimate's;
+    /// interrupted when `interrupted`.
     pub fn state(&self, interrupted: bool) -> RunState {
-        if interrupted {
-            RunState::Interrupted
-        } else if self.consistent.as_ref().is_some_and(|c| !c.status.is_ok()) {
-            RunState::Failed
-        } else {
-            self.status.state()
+        match &self.consistent {
+            _ if interrupted => RunState::Interrupted,
+            Some(c) if c.status.is_ok() => RunState::Complete,
+            Some(_) => RunState::Failed,
+            None => self.status.state(),
         }
     }
 
@@ -44,8 +45,9 @@ impl StudyEstimate {
     pub fn unusable_reason(&self) -> Option<String> {
         match (&self.status, self.consistent.as_ref().map(|c| &c.status)) {
             (_, Some(s)) if !s.is_ok() => Some(format!("the consistent fit ended with status `{s}`")),
-            (st, _) if st.state() == RunState::Failed => Some(format!(
-                "the stacked estimate ended with status `{st}`: the experiments together do not excite every base parameter (see each experiment's rank alone in the report)"
+            (_, Some(_)) => None,
+            (st, None) if st.state() == RunState::Failed => Some(format!(
+                "the stacked estimate ended with status `{st}`: the experiments together do not excite every base parameter (see each experiment's rank alone in the report; a [consistent] table with a prior decides the directions they do not see)"
             )),
             _ => None,
         }

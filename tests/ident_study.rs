@@ -1,0 +1,444 @@
+//! Identification studies (`idexp::ident::study`, `idexp identify study.toml`):
+//! several experiments of different lengths, noise levels and kinds stacked
+//! in one weighted fit, validation runs, the consistent estimate with a prior;
+//! checked against the known truth of simulated runs.
+
+mod ident_util;
+
+use idexp::data::Repetition;
+use idexp::ident::study::{run_study, StudyDesign, StudyResult};
+use idexp::ident::EstimateStatus;
+use idexp::optim::Control;
+use ident_util::{design, root, simulate};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// A simulation of the RPR arm (true parameters from truth seed 1) written to `dir/name`.
+fn sim(dir: &Path, name: &str, robot: &str, body: &str) -> PathBuf {
+    let d = design(&sim_text(robot, "", body));
+    let res = simulate(&d);
+    let out = dir.join(name);
+    res.write(&out, &d).unwrap();
+    out
+}
+
+/// A simulation design: `body` is "top-level keys @@ tables" ([`fourier`], [`slopes`]).
+fn sim_text(robot: &str, extra_top: &str, body: &str) -> String {
+    let (top, tables) = body.split_once("@@").unwrap();
+    format!("robot = \"{robot}\"\nrate = 1000.0\n{extra_top}{top}[truth]\nperturbation = 0.1\nseed = 1\n[controller]\nbandwidth = 10.0\n{tables}")
+}
+
+fn fourier(reps: usize, seed: u64, traj: u64, freq: f64, nh: usize, noise: f64, decimate: usize) -> String {
+    format!(
+        "decimate = {decimate}\nrepetitions = {reps}\nseed = {seed}\n@@[noise]\ntorque = {noise}\nposition = 2e-5\n[reference]\nkind = \"random_fourier\"\nn_h = {nh}\nfrequency = {freq}\namplitude = 0.6\nseed = {traj}\n"
+    )
+}
+
+fn slopes(reps: usize, seed: u64, joint: usize, decimate: usize) -> String {
+    format!(
+        "decimate = {decimate}\nrepetitions = {reps}\nseed = {seed}\n@@[noise]\ntorque = 0.05\nposition = 2e-5\n[reference]\nkind = \"gravity_slopes\"\njoint = {joint}\nfrom = -1.2\nto = 1.2\nvelocity = 0.3\nacceleration = 2.0\nq_rest = [0.4, 0.2, 0.0]\n"
+    )
+}
+
+/// The three experiments of the simulated study: 30 repetitions of a 10 s
+/// Fourier trajectory, one repetition of a 5 s one with 3× the noise, and a
+/// gravity experiment of the wrist (3 repetitions).
+fn three_experiments(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
+    let robot = "tests/data/ident/rpr_drives.toml";
+    let a = sim(dir, "a", robot, &fourier(30, 11, 3, 0.1, 5, 0.05, 5));
+    let b = sim(dir, "b", robot, &fourier(1, 12, 7, 0.2, 4, 0.15, 5));
+    let g = sim(dir, "g", robot, &slopes(3, 13, 3, 5));
+    (a, b, g)
+}
+
+fn study(dir: &Path, text: &str) -> StudyResult {
+    let p = dir.join("study.toml");
+    std::fs::write(&p, text).unwrap();
+    let d = StudyDesign::read(&p).unwrap_or_else(|e| panic!("{e}"));
+    run_study(&d, dir, &Control::new()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn head(robot: &str) -> String {
+    format!("robot = \"{}\"\ntruth = \"a/truth.json\"\n", root(robot).display())
+}
+
+const A: &str = "[[experiment]]\nname = \"a\"\nfiles = [\"a\"]\nharmonics = 40\n";
+const B: &str = "[[experiment]]\nname = \"b\"\nfiles = [\"b\"]\nharmonics = 16\n";
+const G: &str = "[[experiment]]\nname = \"g\"\nfiles = [\"g\"]\nkind = \"gravity\"\n";
+
+/// Σ ((θ̂ − θ*)/σ)² with the given σ.
+fn error_norm(r: &StudyResult, sigma: &[f64]) -> f64 {
+    let t = r.estimate.truth.as_ref().unwrap();
+    t.iter().zip(sigma).map(|(row, s)| ((row.estimate - row.truth) / s).powi(2)).sum()
+}
+
+#[test]
+fn stacked_study_is_within_its_uncertainty_of_the_truth_and_better_than_each_experiment_alone() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    three_experiments(dir);
+    let h = head("tests/data/ident/rpr_drives.toml");
+    let all = study(dir, &format!("{h}{A}{B}{G}"));
+    let e = &all.estimate;
+    assert_eq!(e.status, EstimateStatus::Ok);
+    let t = e.truth.as_ref().unwrap();
+    let zmax = t.iter().map(|r| r.z.abs()).fold(0.0, f64::max);
+    assert!(zmax < 4.0, "max |z| = {zmax}:\n{}", e.text());
+    // weights: repetitions for a (30: per sample) and g (3: per joint), residuals for b
+    let w = |i: usize| serde_json::to_value(&e.experiments[i].weights).unwrap();
+    assert_eq!(w(0), serde_json::json!(["sample", "sample", "sample"]));
+    assert_eq!(w(1), serde_json::json!(["residual", "residual", "residual"]));
+    assert_eq!(e.experiments[2].weights[2], idexp::ident::study::BlockWeight::Joint);
+    // b's residual σ_b is the RMS of its residuals (with its share of the degrees of
+    // freedom), at least its torque noise of 0.15 N·m (a single closed-loop
+    // repetition adds the controller's reaction to the encoder noise)
+    let rows: usize = e.experiments.iter().map(|x| x.rows_used.iter().map(|r| r.used).sum::<usize>()).sum();
+    let k = e.names.len() as f64;
+    for j in 0..3 {
+        let x = &e.experiments[1];
+        let s = x.sigma[j];
+        let expect = x.errors.rms[j] / (1.0 - k / rows as f64).sqrt();
+        assert!((s - expect).abs() < 1e-6 * expect, "b joint {}: σ = {s}, residual RMS {expect}", j + 1);
+        assert!(s > 0.15, "b joint {}: σ = {s}", j + 1);
+    }
+    // every experiment's rows at the noise its weights stand for
+    for x in &e.experiments {
+        assert!((x.chi2_per_row - 1.0).abs() < 0.25, "{}: χ²/row {}", x.name, x.chi2_per_row);
+    }
+    let shares: f64 = e.experiments.iter().map(|x| x.information_share).sum();
+    assert!((shares - 1.0).abs() < 1e-9, "{shares}");
+    // each experiment alone: a and b identify everything, less well (every σ larger,
+    // so a larger expected error in any metric); b alone (2 % of the information)
+    // is also further from the truth; g alone is rank deficient
+    let stacked = error_norm(&all, &e.std);
+    let expected = |r: &StudyResult| -> f64 { (0..e.std.len()).map(|i| (r.estimate.std[i] / e.std[i]).powi(2)).sum() };
+    for (name, x) in [("a", A), ("b", B)] {
+        let alone = study(dir, &format!("{h}{x}"));
+        assert_eq!(alone.estimate.status, EstimateStatus::Ok, "{name}");
+        for i in 0..e.std.len() {
+            assert!(e.std[i] <= 1.01 * alone.estimate.std[i], "{name}: σ of {} {} > {}", e.names[i], e.std[i], alone.estimate.std[i]);
+        }
+        assert!(expected(&alone) > 1.05 * e.std.len() as f64, "{name}: expected error {}", expected(&alone));
+        if name == "b" {
+            let err = error_norm(&alone, &e.std);
+            assert!(stacked < err, "{name}: stacked error {stacked} not below {err} of the experiment alone");
+        }
+    }
+    let g = study(dir, &format!("{h}{G}"));
+    assert_eq!(g.estimate.status, EstimateStatus::RankDeficient);
+    assert!(g.estimate.unusable_reason().unwrap().contains("rank_deficient"));
+}
+
+#[test]
+fn the_prior_decides_what_few_data_leave_open_and_does_not_bias_rich_data() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    three_experiments(dir);
+    let h = head("tests/data/ident/rpr_drives.toml");
+    for metric in ["entropic", "euclidean"] {
+        let cons = format!("[consistent]\nmetric = \"{metric}\"\nweight = 1.0\n");
+        // rich data: the prior moves the consistent estimate by less than one σ
+        // (against the same fit with a negligible prior: the constraints alone)
+        let rich = study(dir, &format!("{h}{A}{B}{G}{cons}"));
+        let free = study(dir, &format!("{h}{A}{B}{G}{}", cons.replace("weight = 1.0", "weight = 1e-9")));
+        let e = &rich.estimate;
+        let c = e.consistent.as_ref().unwrap();
+        let cf = free.estimate.consistent.as_ref().unwrap();
+        assert!(c.status.is_ok() && cf.status.is_ok());
+        // "rich": the base parameters the data know ten times better than the prior
+        let kmat = &e.base_k;
+        let mut rich_count = 0;
+        for i in 0..e.names.len() {
+            let prior_sd = kmat[i].iter().zip(&c.prior_scale).map(|(k, s)| (k * s).powi(2)).sum::<f64>().sqrt();
+            if e.std[i] > 0.1 * prior_sd {
+                continue;
+            }
+            rich_count += 1;
+            let d = (c.base[i] - cf.base[i]).abs() / e.std[i];
+            assert!(d < 1.0, "{metric}: {} moved {d:.2} σ by the prior\n{}", e.names[i], e.text());
+        }
+        assert!(rich_count >= 6, "{metric}: only {rich_count} base parameters known better than the prior");
+        // few data (the wrist's gravity experiment alone, rank 9 of 18): what it
+        // does not see is the prior's, and the estimate is nearer the prior
+        let few = study(dir, &format!("{h}{G}{cons}"));
+        assert_eq!(few.estimate.status, EstimateStatus::RankDeficient);
+        let fc = few.estimate.consistent.as_ref().unwrap();
+        assert!(fc.status.is_ok());
+        assert_eq!(few.estimate.state(false), idexp::io::status::RunState::Complete);
+        assert!(fc.unidentifiable > c.unidentifiable, "{} vs {}", fc.unidentifiable, c.unidentifiable);
+        let dist = |c: &idexp::ident::study::ConsistentReport| -> f64 {
+            (0..c.standard.len())
+                .map(|j| ((c.standard[j] - c.prior_standard[j]) / c.prior_scale[j]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        assert!(dist(fc) < 0.5 * dist(c), "{metric}: distance to the prior {} (few data) vs {} (rich)", dist(fc), dist(c));
+        // the drives of the base and the slide never move in the gravity experiment: the prior's values
+        let names = &fc.standard_names;
+        for p in ["Ia1", "Fc1", "Fv1", "Ia2", "Fc2", "Fv2"] {
+            let j = names.iter().position(|n| n == p).unwrap();
+            let rel = (fc.standard[j] - fc.prior_standard[j]).abs() / fc.prior_scale[j];
+            assert!(rel < 1e-4, "{metric}: {p} = {} vs prior {}", fc.standard[j], fc.prior_standard[j]);
+        }
+        // what it sees, it fits: the wrist's first moment MX3R of the truth within 2 %
+        let t = rich.estimate.truth.as_ref().unwrap();
+        let i = few.estimate.names.iter().position(|n| n == "MX3R").unwrap();
+        assert!((fc.base[i] - t[i].truth).abs() < 0.02 * t[i].truth.abs(), "MX3R {} vs {}", fc.base[i], t[i].truth);
+    }
+}
+
+#[test]
+fn weight_chosen_on_validation_runs_is_the_best_of_the_grid() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    three_experiments(dir);
+    sim(dir, "v", "tests/data/ident/rpr_drives.toml", &fourier(1, 14, 9, 0.125, 5, 0.05, 5));
+    let h = head("tests/data/ident/rpr_drives.toml");
+    let r = study(
+        dir,
+        &format!("{h}{A}{B}[[validation]]\nname = \"v\"\nfiles = [\"v\"]\nharmonics = 20\n[consistent]\nweight = \"validation\"\nweight_grid = [0.01, 1.0, 100.0, 10000.0]\n"),
+    );
+    let c = r.estimate.consistent.as_ref().unwrap();
+    assert_eq!(c.weight_curve.len(), 4);
+    let best = c.weight_curve.iter().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap();
+    assert_eq!(best.0, c.weight);
+    // the validation total of the chosen weight is the criterion it was chosen by
+    let v = r.estimate.validation_total.as_ref().unwrap();
+    let th: Vec<f64> = r.estimate.theta.clone();
+    assert_eq!(v.mean_relative_rms.to_bits(), {
+        let d = &r.validations[0].prep.every;
+        let pred = &d.c * nalgebra::DVector::from_column_slice(&th);
+        let n = d.n;
+        let mut rel = 0.0;
+        for j in 0..n {
+            let (mut a, mut b) = (0.0, 0.0);
+            for (i, &jj) in d.joint.iter().enumerate() {
+                if jj == j {
+                    a += (d.y[i] - pred[i]).powi(2);
+                    b += d.y[i].powi(2);
+                }
+            }
+            rel += (a / b).sqrt();
+        }
+        (rel / n as f64).to_bits()
+    });
+}
+
+/// Keeps the samples of a 1 kHz repetition at steps alternating 10 and 12 ms
+/// (a ~91 Hz recorder on a 2 ms controller clock), starting at `phase`, with
+/// the time stamps moved to a controller uptime of `offset` s.
+fn irregular(rep: &Repetition, phase: usize, offset: f64) -> Repetition {
+    let mut idx = vec![phase];
+    let mut k = 0;
+    loop {
+        let next = idx[idx.len() - 1] + if k % 2 == 0 { 10 } else { 12 };
+        if next >= rep.len() {
+            break;
+        }
+        idx.push(next);
+        k += 1;
+    }
+    let pick = |v: &Vec<Vec<f64>>| idx.iter().map(|&i| v[i].clone()).collect::<Vec<_>>();
+    Repetition {
+        t: idx.iter().map(|&i| rep.t[i] + offset).collect(),
+        q: pick(&rep.q),
+        tau: pick(&rep.tau),
+        r: None,
+        qd: rep.qd.as_ref().map(pick),
+        qdd: None,
+    }
+}
+
+#[test]
+fn real_data_shaped_study_irregular_currents_five_experiments_and_validation_runs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let robot_file = "tests/data/ident/rpr_drives_tanh.toml";
+    let robot = idexp::robot::load(&root(robot_file)).unwrap();
+    let scale: Vec<f64> = robot.drives.iter().map(|d| d.torque_per_ampere().unwrap()).collect();
+    // five experiments of different lengths and kinds, three validation runs, all at 1 kHz
+    let specs: Vec<(&str, String, usize)> = vec![
+        ("fa", fourier(1, 31, 3, 0.1, 5, 0.05, 1), 1),
+        ("fb", fourier(3, 32, 7, 0.2, 4, 0.1, 1), 3),
+        ("fc", fourier(1, 33, 5, 0.125, 5, 0.08, 1), 1),
+        ("grav3", slopes(1, 34, 3, 1), 1),
+        ("grav2", slopes(1, 35, 2, 1).replace("from = -1.2\nto = 1.2", "from = 0.05\nto = 0.45").replace("velocity = 0.3", "velocity = 0.05"), 1),
+        ("va", fourier(1, 36, 9, 0.125, 5, 0.05, 1), 1),
+        ("vb", fourier(1, 37, 11, 0.2, 3, 0.05, 1), 1),
+        ("vg", slopes(1, 38, 3, 1), 1),
+    ];
+    let mut truth = None;
+    for (name, body, reps) in &specs {
+        let d = design(&sim_text(robot_file, "substeps = 4\nrecord_velocity = true\n", body));
+        let res = simulate(&d);
+        truth.get_or_insert_with(|| res.truth().unwrap());
+        let out = dir.join("logs").join(name);
+        std::fs::create_dir_all(&out).unwrap();
+        for (k, rep) in res.reps.iter().enumerate().take(*reps) {
+            // logged as a recorder would: irregular steps, controller uptime, the
+            // drive's velocities, motor currents only
+            let r = irregular(rep, 3 * k, 1234.5678 + 100.0 * k as f64);
+            r.write_drive(&out.join(format!("rep{k}.csv")), Some(&scale), false).unwrap();
+        }
+    }
+    std::fs::write(dir.join("truth.json"), serde_json::to_string(truth.as_ref().unwrap()).unwrap()).unwrap();
+    let mut text = format!("name = \"shaped\"\nrobot = \"{}\"\ntruth = \"truth.json\"\n", root(robot_file).display());
+    for (name, kind) in [("fa", "excitation"), ("fb", "excitation"), ("fc", "excitation"), ("grav3", "gravity"), ("grav2", "gravity")] {
+        text += &format!("[[experiment]]\nname = \"{name}\"\nfiles = [\"logs/{name}\"]\nkind = \"{kind}\"\ncutoff = 5.0\nstandstill = \"drop\"\n");
+    }
+    for (name, kind) in [("va", "excitation"), ("vb", "excitation"), ("vg", "gravity")] {
+        text += &format!("[[validation]]\nname = \"{name}\"\nfiles = [\"logs/{name}\"]\nkind = \"{kind}\"\ncutoff = 5.0\n");
+    }
+    text += "[consistent]\nweight = 1.0\n";
+    let study_path = dir.join("study.toml");
+    std::fs::write(&study_path, &text).unwrap();
+    let out = dir.join("out");
+    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .args(["identify", study_path.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .env("IDEXP_NO_PROGRESS", "1")
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(o.status.code(), Some(0), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
+    let est: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("estimate.json")).unwrap()).unwrap();
+    let status: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("status.json")).unwrap()).unwrap();
+    assert_eq!(status["status"], "complete");
+    assert_eq!(status["command"], "identify");
+    let exps = est["experiments"].as_array().unwrap();
+    assert_eq!(exps.len(), 5);
+    for x in exps {
+        let s = &x["sampling"];
+        assert_eq!(s["irregular"], true, "{x}");
+        let rate = s["resampled_to"].as_f64().unwrap();
+        assert!((rate - 1.0 / s["median_step"].as_f64().unwrap()).abs() < 1e-9);
+        assert_eq!(x["torque_source"]["from"], "current");
+    }
+    assert_eq!(exps[1]["n_reps"], 3);
+    // lengths differ
+    let d: Vec<f64> = exps.iter().map(|x| x["duration"].as_f64().unwrap()).collect();
+    assert!(d[0] > 1.8 * d[1], "{d:?}");
+    // the estimate near the truth (low-pass filtering of ~91 Hz logs: a few σ at most)
+    for row in est["truth"].as_array().unwrap() {
+        let z = row["z"].as_f64().unwrap();
+        assert!(z.abs() < 6.0, "{row}\n{stdout}");
+    }
+    // every validation run reported, and the figures recomputed from the written files
+    let val = est["validation"].as_array().unwrap();
+    assert_eq!(val.len(), 3);
+    let theta: Vec<f64> = est["consistent"]["standard"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    let mut ws = idexp::robot::Workspace::new(&robot);
+    for v in val {
+        let name = v["name"].as_str().unwrap();
+        let t = idexp::io::Table::read(&out.join("validation").join(format!("{name}.csv"))).unwrap();
+        let n = 3;
+        let col = |p: &str, j: usize| t.index(&format!("{p}{j}")).unwrap();
+        let (mut e, mut mag) = (vec![0.0; n], vec![0.0; n]);
+        let mut worst = 0.0_f64;
+        for row in &t.rows {
+            let q: Vec<f64> = (1..=n).map(|j| row[col("q", j)]).collect();
+            let qd: Vec<f64> = (1..=n).map(|j| row[col("qd", j)]).collect();
+            let qdd: Vec<f64> = (1..=n).map(|j| row[col("qdd", j)]).collect();
+            let mut tau = vec![0.0; n];
+            idexp::robot::inverse_dynamics(&robot, &mut ws, &theta, &q, &qd, &qdd, &mut tau);
+            for j in 0..n {
+                let pred = row[col("tau_consistent", j + 1)];
+                worst = worst.max((tau[j] - pred).abs() / (1.0 + pred.abs()));
+                e[j] += (row[col("tau", j + 1)] - pred).abs();
+                mag[j] += row[col("tau", j + 1)].abs();
+            }
+        }
+        // the consistent standard parameters through the robot's own inverse dynamics reproduce the written predictions
+        assert!(worst < 1e-9, "{name}: {worst:e}");
+        for j in 0..n {
+            let written = v["consistent_all"]["e_rel"][j].as_f64().unwrap();
+            assert!((e[j] / mag[j] - written).abs() < 1e-9 * written.max(1e-12), "{name} joint {}: {} vs {written}", j + 1, e[j] / mag[j]);
+        }
+    }
+    for f in ["report.txt", "params.csv", "experiments.csv", "validation.csv", "prior.csv", "validation.svg", "study.json"] {
+        assert!(out.join(f).exists(), "{f}");
+    }
+    assert!(stdout.contains("irregular time stamps"), "{stdout}");
+}
+
+#[test]
+fn study_errors_name_the_file_the_entry_and_the_field_and_leave_no_folder() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let robot = root("tests/data/ident/rpr_drives.toml");
+    let run = |text: &str, extra: &[&str]| {
+        let p = dir.join("s.toml");
+        std::fs::write(&p, text).unwrap();
+        let out = dir.join("o");
+        let mut args = vec!["identify", p.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let o = Command::new(env!("CARGO_BIN_EXE_idexp")).args(&args).env("IDEXP_NO_PROGRESS", "1").output().unwrap();
+        assert!(!out.exists(), "an output folder was left behind for {text}");
+        (o.status.code(), String::from_utf8_lossy(&o.stderr).into_owned())
+    };
+    let h = format!("robot = \"{}\"\n", robot.display());
+    let (c, e) = run(&format!("{h}[[experiment]]\nfiles = [\"missing\"]\n"), &[]);
+    assert_eq!(c, Some(1));
+    assert!(e.contains("missing") && e.contains("no such file"), "{e}");
+    let (c, e) = run(&format!("{h}[[experiment]]\nfiles = [\"a\"]\ndecimate = 0\n"), &[]);
+    assert_eq!(c, Some(1));
+    assert!(e.contains("s.toml") && e.contains("experiment 1 (a)") && e.contains("decimate"), "{e}");
+    let (c, e) = run(&format!("{h}[[experiment]]\nfiles = [\"a\"]\nfilterr = \"none\"\n"), &[]);
+    assert_eq!(c, Some(1));
+    assert!(e.contains("filterr"), "{e}");
+    let (c, e) = run(&format!("{h}[[experiment]]\nfiles = [\"a\"]\n"), &["--method", "ols"]);
+    assert_eq!(c, Some(1));
+    assert!(e.contains("--method") && e.contains("study file"), "{e}");
+    let (c, e) = run(&format!("{h}[[experiment]]\nfiles = [\"a\"]\n[consistent]\nweight = -1\n"), &[]);
+    assert_eq!(c, Some(1));
+    assert!(e.contains("[consistent]") && e.contains("weight"), "{e}");
+    // a robot file alone (no runs, not a study) is a usage problem explained
+    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .args(["identify", robot.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no run given"));
+}
+
+#[test]
+fn repetitions_reach_an_averaged_validation_run() {
+    // an averaged validation run (means + var_tau*) without run.json: --repetitions gives N_r to it too
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let robot = "tests/data/ident/rpr_drives.toml";
+    let a = sim(dir, "a", robot, &fourier(5, 41, 3, 0.1, 5, 0.05, 5));
+    let v = sim(dir, "v", robot, &fourier(5, 42, 4, 0.1, 5, 0.05, 5));
+    let avg = |src: &Path, name: &str| -> PathBuf {
+        let run = idexp::ident::Run::read(&[src.to_path_buf()], 3).unwrap();
+        let pr = idexp::ident::process(&run, &idexp::ident::Filter::None).unwrap();
+        let var = pr.tau_var.clone().unwrap();
+        let mut header = vec!["t".to_string()];
+        for p in ["q", "tau", "var_tau"] {
+            header.extend((1..=3).map(|j| format!("{p}{j}")));
+        }
+        let rows = (0..pr.len()).map(|k| {
+            let mut r = vec![pr.t[k]];
+            r.extend((0..3).map(|j| run.reps.iter().map(|x| x.q[k][j]).sum::<f64>() / run.reps.len() as f64));
+            r.extend_from_slice(&pr.tau[k]);
+            r.extend_from_slice(&var[k]);
+            r
+        });
+        let d = dir.join(name);
+        std::fs::create_dir_all(&d).unwrap();
+        let f = d.join("mean.csv");
+        idexp::io::write_csv(&f, &header, rows).unwrap();
+        f
+    };
+    let fa = avg(&a, "a_avg");
+    let fv = avg(&v, "v_avg");
+    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .args(["identify", root(robot).to_str().unwrap(), fa.to_str().unwrap(), "--validate", fv.to_str().unwrap(), "--repetitions", "5"])
+        .args(["--out", dir.join("o").to_str().unwrap()])
+        .env("IDEXP_NO_PROGRESS", "1")
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let est: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("o/estimate.json")).unwrap()).unwrap();
+    assert!(est["validation_all"]["noise_floor"].is_array(), "{}", est["validation_all"]);
+}
+
