@@ -92,5 +92,76 @@ fn bench_sim(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench_consistent, bench_wls, bench_sim);
+/// A five-experiment study on the industrial 6-axis robot: 25,000 samples
+/// in all (five random Fourier trajectories of 3,000–7,000 samples × 6
+/// joints = 150,000 rows), one with repetition variances, four weighted from
+/// their residuals (iterated): the stacked WLS, then the consistent estimate
+/// with the entropic prior (one weight).
+fn bench_study(c: &mut Criterion) {
+    use idexp::ident::study::stack::{estimate, Rows, StackOptions};
+    let robot = idexp::robot::load(&root("designs/robots/industrial6.toml")).unwrap();
+    let base = BaseParams::compute(&robot, &BaseOptions::default()).unwrap();
+    let theta = base.base_values(robot.nominal_params().as_slice());
+    let lens = [3000usize, 4000, 5000, 6000, 7000];
+    let sets: Vec<Dataset> = lens
+        .iter()
+        .enumerate()
+        .map(|(e, &m)| {
+            let traj = idexp::trajectory::reference::random_fourier(&robot, 5, 0.1, 0.8, None, 10 + e as u64, "bench").unwrap();
+            let s = traj.sample(m as f64 / 10.0).unwrap();
+            let cmat = base_design(&robot, &base, &s.q, &s.qd, &s.qdd);
+            let rows = cmat.nrows();
+            let m = rows / 6;
+            let noise = 0.02 * (1.0 + e as f64);
+            let y = &cmat * &theta + DVector::from_fn(rows, |i, _| noise * ((i * 7919 % 1000) as f64 / 500.0 - 1.0));
+            Dataset {
+                n: 6,
+                n_samples: m,
+                var: (e == 0).then(|| DVector::from_element(rows, 1e-4)),
+                y,
+                names: base.names.clone(),
+                joint: (0..rows).map(|r| r / m).collect(),
+                sample: (0..rows).map(|r| r % m).collect(),
+                c: cmat,
+            }
+        })
+        .collect();
+    let total: usize = sets.iter().map(|d| d.n_samples).sum();
+    let rows: Vec<Rows> = sets
+        .iter()
+        .map(|d| Rows {
+            name: "e",
+            data: d,
+            n_reps: 20,
+        })
+        .collect();
+    let o = StackOptions::default();
+    let mut g = c.benchmark_group("ident/study");
+    g.sample_size(10);
+    g.bench_function(format!("stacked wls 5 experiments {total} samples x 6"), |b| {
+        b.iter(|| estimate(&rows, &o).unwrap())
+    });
+    let st = estimate(&rows, &o).unwrap();
+    let (kinds, links) = idexp::ident::consistent::kinds_of(&robot);
+    let (theta0, scale) = idexp::ident::prior::prior_of(&robot, None, 0.5).unwrap();
+    let names: Vec<String> = robot.links.iter().map(|l| l.name.clone()).collect();
+    let pb = idexp::ident::prior::PriorProblem {
+        r: &st.r,
+        theta_b: &st.theta,
+        k: &base.k,
+        links: &links,
+        link_names: &names,
+        kinds: &kinds,
+        prior: &theta0,
+        scale: &scale,
+    };
+    for metric in [idexp::ident::prior::PriorMetric::Entropic, idexp::ident::prior::PriorMetric::Euclidean] {
+        g.bench_function(format!("consistent with {} prior {} params", metric.name(), robot.n_params()), |b| {
+            b.iter(|| idexp::ident::prior::solve(&pb, metric, 1.0, 0.0).unwrap())
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench_consistent, bench_wls, bench_sim, bench_study);
 criterion_main!(benches);

@@ -45,7 +45,7 @@ fn puma560_wls_within_3_sigma_and_validation_at_noise_floor() {
     let e = &id.estimate;
     println!("{}", e.text());
     assert_eq!(base.n_base(), e.names.len());
-    assert_eq!(e.status, "ok");
+    assert_eq!(e.status, idexp::ident::EstimateStatus::Ok);
     for r in e.truth.as_ref().unwrap() {
         assert!(r.z.abs() < 3.0, "{} = {} vs truth {} (z = {:.2})", r.name, r.estimate, r.truth, r.z);
     }

@@ -5,11 +5,11 @@
 
 mod ident_util;
 
+use ident_util::{design, root, simulate};
 use idexp::data::Repetition;
 use idexp::ident::study::{run_study, StudyDesign, StudyResult};
 use idexp::ident::EstimateStatus;
 use idexp::optim::Control;
-use ident_util::{design, root, simulate};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -116,7 +116,13 @@ fn stacked_study_is_within_its_uncertainty_of_the_truth_and_better_than_each_exp
         let alone = study(dir, &format!("{h}{x}"));
         assert_eq!(alone.estimate.status, EstimateStatus::Ok, "{name}");
         for i in 0..e.std.len() {
-            assert!(e.std[i] <= 1.01 * alone.estimate.std[i], "{name}: σ of {} {} > {}", e.names[i], e.std[i], alone.estimate.std[i]);
+            assert!(
+                e.std[i] <= 1.01 * alone.estimate.std[i],
+                "{name}: σ of {} {} > {}",
+                e.names[i],
+                e.std[i],
+                alone.estimate.std[i]
+            );
         }
         assert!(expected(&alone) > 1.05 * e.std.len() as f64, "{name}: expected error {}", expected(&alone));
         if name == "b" {
@@ -172,7 +178,12 @@ fn the_prior_decides_what_few_data_leave_open_and_does_not_bias_rich_data() {
                 .sum::<f64>()
                 .sqrt()
         };
-        assert!(dist(fc) < 0.5 * dist(c), "{metric}: distance to the prior {} (few data) vs {} (rich)", dist(fc), dist(c));
+        assert!(
+            dist(fc) < 0.5 * dist(c),
+            "{metric}: distance to the prior {} (few data) vs {} (rich)",
+            dist(fc),
+            dist(c)
+        );
         // the drives of the base and the slide never move in the gravity experiment: the prior's values
         let names = &fc.standard_names;
         for p in ["Ia1", "Fc1", "Fv1", "Ia2", "Fc2", "Fv2"] {
@@ -183,7 +194,12 @@ fn the_prior_decides_what_few_data_leave_open_and_does_not_bias_rich_data() {
         // what it sees, it fits: the wrist's first moment MX3R of the truth within 2 %
         let t = rich.estimate.truth.as_ref().unwrap();
         let i = few.estimate.names.iter().position(|n| n == "MX3R").unwrap();
-        assert!((fc.base[i] - t[i].truth).abs() < 0.02 * t[i].truth.abs(), "MX3R {} vs {}", fc.base[i], t[i].truth);
+        assert!(
+            (fc.base[i] - t[i].truth).abs() < 0.02 * t[i].truth.abs(),
+            "MX3R {} vs {}",
+            fc.base[i],
+            t[i].truth
+        );
     }
 }
 
@@ -262,7 +278,13 @@ fn real_data_shaped_study_irregular_currents_five_experiments_and_validation_run
         ("fb", fourier(3, 32, 7, 0.2, 4, 0.1, 1), 3),
         ("fc", fourier(1, 33, 5, 0.125, 5, 0.08, 1), 1),
         ("grav3", slopes(1, 34, 3, 1), 1),
-        ("grav2", slopes(1, 35, 2, 1).replace("from = -1.2\nto = 1.2", "from = 0.05\nto = 0.45").replace("velocity = 0.3", "velocity = 0.05"), 1),
+        (
+            "grav2",
+            slopes(1, 35, 2, 1)
+                .replace("from = -1.2\nto = 1.2", "from = 0.05\nto = 0.45")
+                .replace("velocity = 0.3", "velocity = 0.05"),
+            1,
+        ),
         ("va", fourier(1, 36, 9, 0.125, 5, 0.05, 1), 1),
         ("vb", fourier(1, 37, 11, 0.2, 3, 0.05, 1), 1),
         ("vg", slopes(1, 38, 3, 1), 1),
@@ -283,7 +305,13 @@ fn real_data_shaped_study_irregular_currents_five_experiments_and_validation_run
     }
     std::fs::write(dir.join("truth.json"), serde_json::to_string(truth.as_ref().unwrap()).unwrap()).unwrap();
     let mut text = format!("name = \"shaped\"\nrobot = \"{}\"\ntruth = \"truth.json\"\n", root(robot_file).display());
-    for (name, kind) in [("fa", "excitation"), ("fb", "excitation"), ("fc", "excitation"), ("grav3", "gravity"), ("grav2", "gravity")] {
+    for (name, kind) in [
+        ("fa", "excitation"),
+        ("fb", "excitation"),
+        ("fc", "excitation"),
+        ("grav3", "gravity"),
+        ("grav2", "gravity"),
+    ] {
         text += &format!("[[experiment]]\nname = \"{name}\"\nfiles = [\"logs/{name}\"]\nkind = \"{kind}\"\ncutoff = 5.0\nstandstill = \"drop\"\n");
     }
     for (name, kind) in [("va", "excitation"), ("vb", "excitation"), ("vg", "gravity")] {
@@ -351,10 +379,23 @@ fn real_data_shaped_study_irregular_currents_five_experiments_and_validation_run
         assert!(worst < 1e-9, "{name}: {worst:e}");
         for j in 0..n {
             let written = v["consistent_all"]["e_rel"][j].as_f64().unwrap();
-            assert!((e[j] / mag[j] - written).abs() < 1e-9 * written.max(1e-12), "{name} joint {}: {} vs {written}", j + 1, e[j] / mag[j]);
+            assert!(
+                (e[j] / mag[j] - written).abs() < 1e-9 * written.max(1e-12),
+                "{name} joint {}: {} vs {written}",
+                j + 1,
+                e[j] / mag[j]
+            );
         }
     }
-    for f in ["report.txt", "params.csv", "experiments.csv", "validation.csv", "prior.csv", "validation.svg", "study.json"] {
+    for f in [
+        "report.txt",
+        "params.csv",
+        "experiments.csv",
+        "validation.csv",
+        "prior.csv",
+        "validation.svg",
+        "study.json",
+    ] {
         assert!(out.join(f).exists(), "{f}");
     }
     assert!(stdout.contains("irregular time stamps"), "{stdout}");
@@ -371,7 +412,11 @@ fn study_errors_name_the_file_the_entry_and_the_field_and_leave_no_folder() {
         let out = dir.join("o");
         let mut args = vec!["identify", p.to_str().unwrap(), "--out", out.to_str().unwrap()];
         args.extend_from_slice(extra);
-        let o = Command::new(env!("CARGO_BIN_EXE_idexp")).args(&args).env("IDEXP_NO_PROGRESS", "1").output().unwrap();
+        let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
+            .args(&args)
+            .env("IDEXP_NO_PROGRESS", "1")
+            .output()
+            .unwrap();
         assert!(!out.exists(), "an output folder was left behind for {text}");
         (o.status.code(), String::from_utf8_lossy(&o.stderr).into_owned())
     };
@@ -432,7 +477,15 @@ fn repetitions_reach_an_averaged_validation_run() {
     let fa = avg(&a, "a_avg");
     let fv = avg(&v, "v_avg");
     let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
-        .args(["identify", root(robot).to_str().unwrap(), fa.to_str().unwrap(), "--validate", fv.to_str().unwrap(), "--repetitions", "5"])
+        .args([
+            "identify",
+            root(robot).to_str().unwrap(),
+            fa.to_str().unwrap(),
+            "--validate",
+            fv.to_str().unwrap(),
+            "--repetitions",
+            "5",
+        ])
         .args(["--out", dir.join("o").to_str().unwrap()])
         .env("IDEXP_NO_PROGRESS", "1")
         .output()
@@ -441,4 +494,3 @@ fn repetitions_reach_an_averaged_validation_run() {
     let est: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("o/estimate.json")).unwrap()).unwrap();
     assert!(est["validation_all"]["noise_floor"].is_array(), "{}", est["validation_all"]);
 }
-

@@ -23,7 +23,7 @@ fn wls_recovers_true_base_parameters_within_3_sigma_several_seeds() {
         let (id, _) = ident(&res, Some(&val), &opts);
         let e = &id.estimate;
         println!("seed {seed}\n{}", e.text());
-        assert_eq!(e.status, "ok");
+        assert_eq!(e.status, idexp::ident::EstimateStatus::Ok);
         for r in e.truth.as_ref().unwrap() {
             assert!(
                 r.z.abs() < 3.0,

@@ -15,6 +15,8 @@ The problems:
 - :func:`excite` designs an excitation trajectory (Fourier series), :func:`assess`
   rates a given one;
 - :func:`simulate` runs the closed-loop simulation of a design (a rehearsal);
+- :func:`study` runs an identification study (many experiments, validation runs, a
+  prior) from a study file or dict, as ``idexp identify study.toml``;
 - :func:`identify` identifies the base parameters from a run (folder, arrays or
   a :class:`SimRun`);
 - :func:`positions` selects optimal measurement positions (with a
@@ -42,6 +44,7 @@ from ._idexp import (
     PositionsResult,
     Robot,
     SimRun,
+    Study,
     __version__,
     assess,
     excite,
@@ -52,6 +55,7 @@ from ._idexp import (
     multisine,
     positions,
     simulate,
+    study,
 )
 
 __all__ = [
@@ -64,6 +68,7 @@ __all__ = [
     "PositionsResult",
     "Robot",
     "SimRun",
+    "Study",
     "__version__",
     "assess",
     "excite",
@@ -74,4 +79,5 @@ __all__ = [
     "multisine",
     "positions",
     "simulate",
+    "study",
 ]

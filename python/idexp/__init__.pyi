@@ -8,6 +8,7 @@ from ._idexp import (
     PositionsResult as PositionsResult,
     Robot as Robot,
     SimRun as SimRun,
+    Study as Study,
     __version__ as __version__,
     assess as assess,
     excite as excite,
@@ -18,4 +19,5 @@ from ._idexp import (
     identify as identify,
     positions as positions,
     simulate as simulate,
+    study as study,
 )

@@ -271,6 +271,38 @@ def identify(
     current_tolerance: relative RMS by which logged torques and currents may disagree.
     velocity_from: auto (the logged qd1..qdn when the run has them), log or positions."""
 
+class Study:
+    """An identification study (idexp.study; `idexp identify study.toml`)."""
+    status: str
+    """`ok` or `rank_deficient` (the stacked least-squares estimate)."""
+    state: str
+    """What status.json says: complete, failed or interrupted."""
+    names: list[str]
+    theta: F64
+    std: F64
+    covariance: F64
+    experiments: list[dict]
+    """Per experiment: weights, σ per joint, errors, information share, rank and cond alone."""
+    validation: list[dict]
+    """Per validation run: e_j, e*_j, RMS of the least-squares and the consistent estimate."""
+    consistent: Optional[dict]
+    """The consistent estimate with its prior: per link beside the prior, flags, prior-decided directions."""
+    consistent_theta: Optional[F64]
+    report: dict
+    def model(self) -> Robot:
+        """The robot with the consistent standard parameters (needs a [consistent] table)."""
+    def text(self) -> str: ...
+    def write(self, folder: PathLike) -> str: ...
+
+def study(
+    design: Union[PathLike, dict],
+    base_dir: Optional[PathLike] = None,
+    time_limit: Optional[float] = None,
+    progress: Progress = None,
+) -> Study:
+    """Runs an identification study from a study file or a dict with the file's keys
+    (experiments and validation runs relative to the file's folder, or to base_dir for a dict)."""
+
 class PositionsResult:
     param_names: list[str]
     n_candidates: int

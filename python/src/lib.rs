@@ -27,6 +27,7 @@ mod exports;
 mod long;
 mod problems;
 mod robot;
+mod study;
 
 /// The native module `idexp._idexp`; `idexp/__init__.py` re-exports it.
 #[pymodule]
@@ -40,6 +41,8 @@ fn _idexp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<problems::Identification>()?;
     m.add_class::<problems::PositionsResult>()?;
     m.add_class::<problems::FitResult>()?;
+    m.add_class::<study::Study>()?;
+    m.add_function(wrap_pyfunction!(study::study, m)?)?;
     m.add_function(wrap_pyfunction!(problems::excite, m)?)?;
     m.add_function(wrap_pyfunction!(problems::assess, m)?)?;
     m.add_function(wrap_pyfunction!(problems::simulate, m)?)?;

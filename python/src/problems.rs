@@ -31,12 +31,12 @@ pub fn to_dict<'py, T: serde::Serialize + ?Sized>(py: Python<'py>, v: &T) -> PyR
 }
 
 /// A design given as a file or as a dict.
-enum Source {
+pub(crate) enum Source {
     File(PathBuf),
     Dict(serde_json::Value),
 }
 
-fn source(obj: &Bound<'_, PyAny>) -> PyResult<Source> {
+pub(crate) fn source(obj: &Bound<'_, PyAny>) -> PyResult<Source> {
     if obj.is_instance_of::<PyDict>() {
         let v: serde_json::Value =
             pythonize::depythonize(obj).map_err(|e| value(format!("design: the dict is not plain data (str, numbers, lists, dicts): {e}")))?;
@@ -54,7 +54,7 @@ fn source(obj: &Bound<'_, PyAny>) -> PyResult<Source> {
 /// Deserialises a design dict; errors name the field like the file readers do.
 /// A dict input as T; an error names the field it fails on (`field
 /// `refine.stall`: invalid value: integer `-1`, expected usize`).
-fn from_dict<T: serde::de::DeserializeOwned>(v: serde_json::Value, what: &str) -> PyResult<T> {
+pub(crate) fn from_dict<T: serde::de::DeserializeOwned>(v: serde_json::Value, what: &str) -> PyResult<T> {
     serde_path_to_error::deserialize(v).map_err(|e| {
         let path = e.path().to_string();
         if path == "." {
@@ -65,7 +65,7 @@ fn from_dict<T: serde::de::DeserializeOwned>(v: serde_json::Value, what: &str) -
     })
 }
 
-fn base_dir(b: Option<PathBuf>) -> PathBuf {
+pub(crate) fn base_dir(b: Option<PathBuf>) -> PathBuf {
     b.unwrap_or_else(|| PathBuf::from("."))
 }
 

@@ -73,7 +73,7 @@ pub fn is_irregular(t: &[f64]) -> bool {
 /// error names the row (1-based data row) and the two times.
 pub fn check_increasing(file: &Path, t: &[f64]) -> Result<()> {
     for (k, w) in t.windows(2).enumerate() {
-        if !(w[1] > w[0]) {
+        if w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater) {
             return Err(Error::Data {
                 path: file.to_path_buf(),
                 row: k + 2,

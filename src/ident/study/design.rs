@@ -490,7 +490,7 @@ impl StudyDesign {
                 return Err(Error::invalid(&ctx, "margin", format!("expected a margin ≥ 0 (kg·m²), found {}", c.margin)));
             }
             let [lo, hi] = c.plausible;
-            if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < 1.0 && hi > 1.0) {
+            if !(hi.is_finite() && (0.0..1.0).contains(&lo) && hi > 1.0) {
                 return Err(Error::invalid(
                     &ctx,
                     "plausible",

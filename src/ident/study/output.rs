@@ -258,15 +258,16 @@ impl StudyResult {
             let x: Vec<f64> = (1..=e.validation.len()).map(|i| i as f64).collect();
             let panels: Vec<Panel> = (0..n)
                 .map(|j| {
+                    // side by side at each run, so that equal values stay visible
                     let mut series = vec![Series::points(
                         "least squares",
-                        x.clone(),
+                        x.iter().map(|v| v - 0.1).collect(),
                         e.validation.iter().map(|v| 100.0 * v.errors_all.e_rel[j]).collect(),
                     )];
                     if e.validation.iter().all(|v| v.consistent_all.is_some()) {
                         series.push(Series::points(
                             "consistent",
-                            x.clone(),
+                            x.iter().map(|v| v + 0.1).collect(),
                             e.validation
                                 .iter()
                                 .map(|v| v.consistent_all.as_ref().map_or(f64::NAN, |c| 100.0 * c.e_rel[j]))
