@@ -16,7 +16,6 @@ use idexp::excitation::design::ExciteDesign;
 use idexp::excitation::report as xr;
 use idexp::ident::{self, FilterChoice, IdentOptions, Method, Weights};
 use idexp::io::states::States;
-use idexp::io::status::{fingerprint_of, write_status, RunState};
 use idexp::params::{BaseOptions, BaseParams};
 use idexp::trajectory::FourierTrajectory;
 use numpy::{PyArray1, PyArray2};
