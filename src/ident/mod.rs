@@ -779,6 +779,31 @@ pub(crate) fn filter_warnings(pr: &Processed) -> Vec<String> {
     w
 }
 
+/// The report's blocks on negative base parameters that must be positive and
+/// on the comparison with the truth (shared by one-run and study reports).
+pub(crate) fn plausibility_and_truth_text(implausible: &[Implausible], truth: Option<&[TruthRow]>) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    if implausible.is_empty() {
+        let _ = writeln!(s, "\nphysical plausibility: every base parameter that must be positive is positive");
+    } else {
+        let _ = writeln!(s, "\nphysical plausibility: NEGATIVE estimates of parameters that must be positive:");
+        for p in implausible {
+            let _ = writeln!(s, "  {} = {:.6} (σ {:.3e}): {}", p.name, p.value, p.std, p.grouping);
+        }
+    }
+    if let Some(t) = truth {
+        let _ = writeln!(s, "\ncomparison with the true base parameters");
+        let _ = writeln!(s, "{:<10} {:>14} {:>14} {:>8}", "parameter", "truth", "estimate", "z");
+        for r in t {
+            let _ = writeln!(s, "{:<10} {:>14.6} {:>14.6} {:>8.2}", r.name, r.truth, r.estimate, r.z);
+        }
+        let zmax = t.iter().map(|r| r.z.abs()).fold(0.0, f64::max);
+        let _ = writeln!(s, "max |z| = {zmax:.2}");
+    }
+    s
+}
+
 impl Estimate {
     /// Adds the comparison with true base parameters (names must match the base parameters).
     pub fn compare_truth(&mut self, base_names: &[String], base_truth: &[f64]) -> Result<()> {
@@ -976,23 +1001,7 @@ impl Estimate {
         if let Some(c) = &self.consistent {
             s.push_str(&self.consistent_text(c));
         }
-        if self.implausible.is_empty() {
-            let _ = writeln!(s, "\nphysical plausibility: every base parameter that must be positive is positive");
-        } else {
-            let _ = writeln!(s, "\nphysical plausibility: NEGATIVE estimates of parameters that must be positive:");
-            for p in &self.implausible {
-                let _ = writeln!(s, "  {} = {:.6} (σ {:.3e}): {}", p.name, p.value, p.std, p.grouping);
-            }
-        }
-        if let Some(t) = &self.truth {
-            let _ = writeln!(s, "\ncomparison with the true base parameters");
-            let _ = writeln!(s, "{:<10} {:>14} {:>14} {:>8}", "parameter", "truth", "estimate", "z");
-            for r in t {
-                let _ = writeln!(s, "{:<10} {:>14.6} {:>14.6} {:>8.2}", r.name, r.truth, r.estimate, r.z);
-            }
-            let zmax = t.iter().map(|r| r.z.abs()).fold(0.0, f64::max);
-            let _ = writeln!(s, "max |z| = {zmax:.2}");
-        }
+        s.push_str(&plausibility_and_truth_text(&self.implausible, self.truth.as_deref()));
         if let Some(r) = &self.reduction {
             let _ = writeln!(s);
             s.push_str(&r.text());

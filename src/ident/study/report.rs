@@ -141,23 +141,7 @@ impl StudyEstimate {
         if let Some(c) = &self.consistent {
             s.push_str(&consistent_text(c, self));
         }
-        if self.implausible.is_empty() {
-            let _ = writeln!(s, "\nphysical plausibility: every base parameter that must be positive is positive");
-        } else {
-            let _ = writeln!(s, "\nphysical plausibility: NEGATIVE estimates of parameters that must be positive:");
-            for p in &self.implausible {
-                let _ = writeln!(s, "  {} = {:.6} (σ {:.3e}): {}", p.name, p.value, p.std, p.grouping);
-            }
-        }
-        if let Some(t) = &self.truth {
-            let _ = writeln!(s, "\ncomparison with the true base parameters");
-            let _ = writeln!(s, "{:<10} {:>14} {:>14} {:>8}", "parameter", "truth", "estimate", "z");
-            for r in t {
-                let _ = writeln!(s, "{:<10} {:>14.6} {:>14.6} {:>8.2}", r.name, r.truth, r.estimate, r.z);
-            }
-            let zmax = t.iter().map(|r| r.z.abs()).fold(0.0, f64::max);
-            let _ = writeln!(s, "max |z| = {zmax:.2}");
-        }
+        s.push_str(&crate::ident::plausibility_and_truth_text(&self.implausible, self.truth.as_deref()));
         s
     }
 }
