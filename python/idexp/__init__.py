@@ -49,8 +49,10 @@ from ._idexp import (
     fit,
     frf,
     identify,
+    log_info,
     multisine,
     positions,
+    read_log,
     simulate,
 )
 
@@ -71,7 +73,9 @@ __all__ = [
     "fit",
     "frf",
     "identify",
+    "log_info",
     "multisine",
     "positions",
+    "read_log",
     "simulate",
 ]

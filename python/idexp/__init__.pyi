@@ -16,6 +16,8 @@ from ._idexp import (
     frf as frf,
     multisine as multisine,
     identify as identify,
+    log_info as log_info,
+    read_log as read_log,
     positions as positions,
     simulate as simulate,
 )

@@ -213,6 +213,17 @@ impl Map {
     }
 }
 
+/// s·k_t·N per joint for the current columns `cols` (named `what` in the
+/// report) and the report's line.
+fn currents(robot: &Robot, path: &Path, cols: &[String], what: &str) -> Result<(Vec<f64>, String)> {
+    let s = torque_per_ampere(robot, path, cols)?;
+    let text = format!(
+        "motor currents {what} (A) × s·k_t·N = [{}] N·m/A of the robot's drives",
+        s.iter().map(|v| format!("{v}")).collect::<Vec<_>>().join(", ")
+    );
+    Ok((s, text))
+}
+
 fn header_plan(path: &Path, robot: &Robot, spec: &LogSpec, header: &[&str]) -> Result<Plan> {
     let n = robot.dof();
     let map = Map::of(spec).map_err(|m| Error::invalid(path.display().to_string(), "log spec", m))?;
@@ -281,12 +292,7 @@ fn header_plan(path: &Path, robot: &Robot, spec: &LogSpec, header: &[&str]) -> R
     let tau = family(&map.tau, tau_field)?;
     let cols: Vec<String> = tau.iter().map(|&i| names[i].clone()).collect();
     let (scale, torque) = if map.current {
-        let s = torque_per_ampere(robot, path, &cols)?;
-        let text = format!(
-            "motor currents {} (A) × s·k_t·N = [{}] N·m/A of the robot's drives",
-            map.tau.text(),
-            s.iter().map(|v| format!("{v}")).collect::<Vec<_>>().join(", ")
-        );
+        let (s, text) = currents(robot, path, &cols, &map.tau.text())?;
         (Some(s), text)
     } else if spec.format == LogFormat::Rtde {
         (
@@ -364,11 +370,7 @@ fn list_plan(path: &Path, robot: &Robot, cols: &[String]) -> Result<Plan> {
     let (tau, scale, torque) = if has_cur {
         let tau = get("cur", true)?.unwrap_or_default();
         let cols: Vec<String> = (1..=n).map(|j| format!("cur{j}")).collect();
-        let s = torque_per_ampere(robot, path, &cols)?;
-        let text = format!(
-            "motor currents cur* (A) × s·k_t·N = [{}] N·m/A of the robot's drives",
-            s.iter().map(|v| format!("{v}")).collect::<Vec<_>>().join(", ")
-        );
+        let (s, text) = currents(robot, path, &cols, "cur*")?;
         (tau, Some(s), text)
     } else {
         (get("tau", true)?.unwrap_or_default(), None, "joint torques tau*".to_string())
@@ -516,7 +518,10 @@ pub(super) fn read(path: &Path, robot: &Robot, spec: &LogSpec) -> Result<LogRead
             used.extend(idx);
             columns.extend(src(idx).into_iter().enumerate().map(|(j, c)| ColumnUse {
                 column: format!("{p}{}", j + 1),
-                source: c,
+                source: match (&plan.scale, p) {
+                    (Some(k), "tau") => format!("{c} × {} N·m/A", k[j]),
+                    _ => c,
+                },
             }));
         }
     }
@@ -527,7 +532,7 @@ pub(super) fn read(path: &Path, robot: &Robot, spec: &LogSpec) -> Result<LogRead
         if unused.len() > 8 {
             list.push("…");
         }
-        ignored.push(format!("{} columns: {}", unused.len(), list.join(", ")));
+        ignored.push(format!("{} column(s): {}", unused.len(), list.join(", ")));
     }
     let source = match spec.format {
         LogFormat::Rtde => format!("RTDE recorder CSV, {}", delim.text()),
