@@ -166,5 +166,10 @@ mod tests {
         }
         .nanoseconds()
         .is_err());
+        // big endian (encapsulation 00 00) decodes to the same message
+        let mut be = vec![0u8, 0, 0, 0];
+        be.extend(cdr_encoding::to_vec::<JointState, byteorder::BigEndian>(&m).unwrap());
+        assert_eq!(decode_joint_state(&be).unwrap(), m);
+        assert_ne!(be[4..], encode_joint_state(&m).unwrap()[4..]);
     }
 }
