@@ -17,9 +17,9 @@ fi
 VPY="$VENV/bin/python"
 # the maturin build backend runs the `maturin` of PATH: the venv's
 export PATH="$PWD/$VENV/bin:$PATH"
-if ! "$VPY" -c "import maturin, numpy, pytest, matplotlib, pinocchio, importlib.metadata as m; m.version('example-robot-data')" >/dev/null 2>&1; then
-  echo "python-test: installing maturin numpy pytest matplotlib pin example-robot-data into $VENV" >&2
-  "$VPY" -m pip install -q "maturin>=1.7,<2" numpy pytest matplotlib pin example-robot-data
+if ! "$VPY" -c "import maturin, numpy, pytest, matplotlib, pinocchio, rosbags, importlib.metadata as m; m.version('example-robot-data')" >/dev/null 2>&1; then
+  echo "python-test: installing maturin numpy pytest matplotlib pin example-robot-data rosbags into $VENV" >&2
+  "$VPY" -m pip install -q "maturin>=1.7,<2" numpy pytest matplotlib pin example-robot-data rosbags
 fi
 # the command-line binary the tests compare against
 cargo build --release --bin idexp

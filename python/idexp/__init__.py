@@ -52,8 +52,10 @@ from ._idexp import (
     fit,
     frf,
     identify,
+    log_info,
     multisine,
     positions,
+    read_log,
     simulate,
     study,
 )
@@ -76,8 +78,10 @@ __all__ = [
     "fit",
     "frf",
     "identify",
+    "log_info",
     "multisine",
     "positions",
+    "read_log",
     "simulate",
     "study",
 ]

@@ -17,6 +17,8 @@ from ._idexp import (
     frf as frf,
     multisine as multisine,
     identify as identify,
+    log_info as log_info,
+    read_log as read_log,
     positions as positions,
     simulate as simulate,
     study as study,

@@ -362,3 +362,19 @@ def multisine(design: PathLike, out: Optional[PathLike] = None) -> dict:
 
 def frf(input: PathLike, out: Optional[PathLike] = None, progress: Progress = None) -> str:
     """FRF estimates (`idexp frf`) from an elastic design or a runs.json; returns the frf.json path."""
+
+def read_log(
+    log: PathLike,
+    robot: Robot,
+    format: Optional[str] = None,
+    spec: Optional[Union[PathLike, dict]] = None,
+    topic: Optional[str] = None,
+) -> dict:
+    """A robot log (RTDE recorder CSV, CSV with a column map, headerless CSV, ROS 2 bag) as arrays.
+
+    Keys: ``t`` (N,) s from the first sample, ``q``, ``tau`` (N, n), ``qd``,
+    ``qdd`` (N, n) or None, ``report`` (source, columns, span, steps).
+    """
+
+def log_info(bag: PathLike) -> dict:
+    """Topics, message counts, joint names, span and rates of a ROS 2 bag (`idexp log info`)."""

@@ -24,6 +24,7 @@ use pyo3::prelude::*;
 mod arrays;
 mod err;
 mod exports;
+mod logs;
 mod long;
 mod problems;
 mod robot;
@@ -52,6 +53,8 @@ fn _idexp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(problems::multisine, m)?)?;
     m.add_function(wrap_pyfunction!(problems::frf, m)?)?;
     m.add_function(wrap_pyfunction!(problems::export_trajectory, m)?)?;
+    m.add_function(wrap_pyfunction!(logs::read_log, m)?)?;
+    m.add_function(wrap_pyfunction!(logs::log_info, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -11,6 +11,7 @@
 //! - [`Truth`]: the true parameters written next to a simulated run
 //!   (`truth.json`).
 
+pub mod logs;
 pub mod motor;
 pub mod resample;
 pub mod run;

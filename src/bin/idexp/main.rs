@@ -15,6 +15,7 @@ mod elastic;
 mod excite;
 mod export;
 mod identify;
+mod log;
 mod positions;
 mod progress;
 mod robot;
@@ -59,6 +60,8 @@ enum Cmd {
     Assess(excite::AssessArgs),
     /// Write a designed excitation trajectory (coefficients.json) as URScript, ROS 2 JointTrajectory YAML or CSV.
     Export(export::ExportArgs),
+    /// Robot logs (RTDE recorder CSV, CSV with a column map, headerless CSV, ROS 2 bags): convert to a run, inspect a bag.
+    Log(log::LogArgs),
 }
 
 /// How a command ended (errors are the `Err` of the runner).
@@ -153,6 +156,7 @@ fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Cmd::Excite(a) => excite::run_excite(a, &ctl),
         Cmd::Assess(a) => excite::run_assess(a, &ctl),
         Cmd::Export(a) => export::run(a, &ctl),
+        Cmd::Log(a) => log::run(a, &ctl),
     }
 }
 
