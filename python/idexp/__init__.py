@@ -27,6 +27,10 @@ second, raising ``KeyboardInterrupt`` (nothing half-done is returned).
 Library errors raise :class:`IdexpError` (a ``ValueError``) or ``OSError``
 with idexp's message (file, field, value, what is allowed).
 
+MuJoCo: :func:`mjcf` / :func:`write_mjcf` give a robot model (nominal, or
+identified: ``Identification.model()``) as MJCF (inertials, joints, armature =
+Ia, damping = Fv, frictionloss = Fc).
+
 Pinocchio: :meth:`Robot.to_pinocchio` / :meth:`Robot.from_pinocchio` convert
 standard parameters to and from Pinocchio's ``[m, mcx, mcy, mcz, Ixx, Ixy,
 Iyy, Ixz, Iyz, Izz]`` order per body.
@@ -49,9 +53,11 @@ from ._idexp import (
     fit,
     frf,
     identify,
+    mjcf,
     multisine,
     positions,
     simulate,
+    write_mjcf,
 )
 
 __all__ = [
@@ -71,7 +77,9 @@ __all__ = [
     "fit",
     "frf",
     "identify",
+    "mjcf",
     "multisine",
     "positions",
     "simulate",
+    "write_mjcf",
 ]

@@ -25,6 +25,7 @@ mod arrays;
 mod err;
 mod exports;
 mod long;
+mod mjcf;
 mod problems;
 mod robot;
 
@@ -49,6 +50,8 @@ fn _idexp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(problems::multisine, m)?)?;
     m.add_function(wrap_pyfunction!(problems::frf, m)?)?;
     m.add_function(wrap_pyfunction!(problems::export_trajectory, m)?)?;
+    m.add_function(wrap_pyfunction!(mjcf::mjcf, m)?)?;
+    m.add_function(wrap_pyfunction!(mjcf::write_mjcf, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }
