@@ -172,9 +172,8 @@ def build(design_path: Path, mesh_dirs: list[str] | None = None, hulls: bool = F
             j = model.parents[j]
         lock = [j for j in range(1, model.njoints) if j not in chain]
         # links moved by a locked joint are outside idexp's model: no geometry
-        for go in list(gmodel.geometryObjects):
-            if go.parentJoint in lock:
-                gmodel.removeGeometryObject(go.name)
+        for name in [go.name for go in gmodel.geometryObjects if go.parentJoint in lock]:
+            gmodel.removeGeometryObject(name)
         if lock:
             model, (gmodel,) = pin.buildReducedModel(model, [gmodel], lock, pin.neutral(model))
     # bodies: the base (joint 0) and one per moving joint, named by the link the joint moves

@@ -385,3 +385,43 @@ fn mjcf_has_the_body_tree_the_drives_and_the_caveats() {
     assert!(out.contains("robot.xml"), "{out}");
     assert_eq!(std::fs::read_to_string(d.path().join("robot.xml")).unwrap(), x);
 }
+
+#[test]
+fn identify_exports_the_consistent_model_as_mjcf_beside_its_toml() {
+    let d = tempfile::tempdir().unwrap();
+    let robot_file = root("tests/data/ident/rpr_drives.toml");
+    let design = d.path().join("sim.toml");
+    write(
+        &design,
+        &format!(
+            "robot = \"{}\"\nrate = 500.0\ndecimate = 5\nrepetitions = 2\nseed = 3\n[truth]\nperturbation = 0.1\nseed = 7\n[noise]\ntorque = 0.05\n[reference]\nkind = \"random_fourier\"\nfrequency = 0.2\namplitude = 0.6\nseed = 3\n",
+            robot_file.display()
+        ),
+    );
+    let run = d.path().join("run");
+    let (code, _, err) = idexp(&["simulate", design.to_str().unwrap(), "--out", run.to_str().unwrap()], &[]);
+    assert_eq!(code, 0, "{err}");
+    let out = d.path().join("id");
+    let (code, _, err) = idexp(
+        &[
+            "identify",
+            robot_file.to_str().unwrap(),
+            run.to_str().unwrap(),
+            "--consistent",
+            "--export",
+            "toml,mjcf",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_eq!(code, 0, "{err}");
+    // robot.xml is the MJCF of the identified model that robot.toml holds
+    let model = robot::load(&out.join("robot.toml")).unwrap();
+    let xml = std::fs::read_to_string(out.join("robot.xml")).unwrap();
+    let body = |x: &str| x.lines().filter(|l| !l.contains("written by idexp")).collect::<Vec<_>>().join("\n");
+    assert_eq!(body(&xml), body(&robot::export::mjcf_string(&model)));
+    // and not the nominal model's
+    let nominal = robot::load(&robot_file).unwrap();
+    assert_ne!(body(&xml), body(&robot::export::mjcf_string(&nominal)));
+}

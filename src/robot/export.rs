@@ -50,14 +50,21 @@ pub fn source_of(path: &Path) -> Result<Source> {
 
 /// The `<inertial>` element of an inertial (link frame): mass, centre of mass
 /// and the inertia about it in link axes (zero mass: the inertia about the origin).
-fn inertial_xml(ine: &Inertial, indent: &str) -> String {
+/// Centre of mass and inertia about it (link axes) of an inertial given about
+/// the link origin; zero mass: the origin and the inertia about it.
+pub(crate) fn com_inertia(ine: &Inertial) -> (nalgebra::Vector3<f64>, Matrix3<f64>) {
     let m = ine.mass;
-    let (c, ic) = if m > 0.0 {
+    if m > 0.0 {
         let c = ine.first_moment / m;
         (c, ine.inertia - m * (c.norm_squared() * Matrix3::identity() - c * c.transpose()))
     } else {
         (nalgebra::Vector3::zeros(), ine.inertia)
-    };
+    }
+}
+
+fn inertial_xml(ine: &Inertial, indent: &str) -> String {
+    let m = ine.mass;
+    let (c, ic) = com_inertia(ine);
     format!(
         "<inertial>\n{indent}  <origin xyz=\"{} {} {}\" rpy=\"0 0 0\"/>\n{indent}  <mass value=\"{m}\"/>\n{indent}  <inertia ixx=\"{}\" ixy=\"{}\" ixz=\"{}\" iyy=\"{}\" iyz=\"{}\" izz=\"{}\"/>\n{indent}</inertial>",
         c.x,

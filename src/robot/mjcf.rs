@@ -36,7 +36,7 @@
 
 use super::model::{Coulomb, Friction, Inertial, JointKind, Robot};
 use crate::error::Result;
-use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
@@ -89,12 +89,7 @@ fn body_to_link(robot: &Robot, j: usize) -> Isometry3<f64> {
 /// `<inertial>` of an inertial given in the body frame.
 fn inertial_xml(ine: &Inertial) -> String {
     let m = ine.mass;
-    let (c, ic) = if m > 0.0 {
-        let c = ine.first_moment / m;
-        (c, ine.inertia - m * (c.norm_squared() * Matrix3::identity() - c * c.transpose()))
-    } else {
-        (Vector3::zeros(), ine.inertia)
-    };
+    let (c, ic) = super::export::com_inertia(ine);
     format!(
         "<inertial pos=\"{}\" mass=\"{}\" fullinertia=\"{}\"/>",
         nums(&[c.x, c.y, c.z]),
