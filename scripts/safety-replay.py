@@ -158,6 +158,24 @@ def build(design_path: Path, mesh_dirs: list[str] | None = None, hulls: bool = F
     model = pin.buildModelFromUrdf(str(urdf))
     gtype = pin.GeometryType.VISUAL if meshes == "visual" else pin.GeometryType.COLLISION
     gmodel = pin.buildGeomFromUrdf(model, str(urdf), gtype, package_dirs=dirs)
+    tip = robot.get("tip_link")
+    if tip:
+        # the robot file cuts the URDF at tip_link (e.g. before the Panda's
+        # finger joints): as in idexp, the joints off the root-to-tip chain
+        # and the links they move are left out (locked at 0, no geometry)
+        if not model.existFrame(tip):
+            raise InputError(f"{robot_path}: field `tip_link`: no link `{tip}` in {urdf}")
+        j = model.frames[model.getFrameId(tip)].parentJoint
+        chain = set()
+        while j > 0:
+            chain.add(j)
+            j = model.parents[j]
+        lock = [j for j in range(1, model.njoints) if j not in chain]
+        # links moved by a locked joint are outside idexp's model: no geometry
+        for name in [go.name for go in gmodel.geometryObjects if go.parentJoint in lock]:
+            gmodel.removeGeometryObject(name)
+        if lock:
+            model, (gmodel,) = pin.buildReducedModel(model, [gmodel], lock, pin.neutral(model))
     # bodies: the base (joint 0) and one per moving joint, named by the link the joint moves
     base = robot.get("base_link")
     names = {}

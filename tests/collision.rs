@@ -367,6 +367,9 @@ fn pair_list_excludes_adjacent_and_allowed_and_ignores_srdf_never() {
 
 #[test]
 fn missing_mesh_names_the_link_and_the_path() {
+    // the robot loads (what needs no geometry runs); a collision check refuses
+    // it, naming the link, the mesh, the robot file's mesh_path as resolved and
+    // the other folders searched, with no empty field
     let dir = tempfile::tempdir().unwrap();
     let rd = designs().join("robots");
     let rf = dir.path().join("ur5.toml");
@@ -378,21 +381,32 @@ fn missing_mesh_names_the_link_and_the_path() {
         ),
     )
     .unwrap();
-    let e = idexp::robot::load(&rf).unwrap_err().to_string();
-    assert!(e.contains("base_link") && e.contains("collision/base.stl") && e.contains("nowhere"), "{e}");
-    // the robot file and its mesh_path entries as written, whether wrong or dropped
-    let rs = rf.display().to_string();
-    assert!(e.contains(&rs) && e.contains("mesh_path = [\"nowhere\"]"), "{e}");
+    let r = idexp::robot::load(&rf).unwrap();
+    let e = CollisionScene::new(&r, &CollisionSpec::default(), &designs(), "test").unwrap_err().to_string();
+    assert!(
+        e.contains("link `base_link`") && e.contains("collision/base.stl") && e.contains("nowhere"),
+        "{e}"
+    );
+    assert!(
+        e.contains(&dir.path().join("nowhere").display().to_string()) && e.contains("ROS_PACKAGE_PATH"),
+        "{e}"
+    );
+    assert!(e.contains("enabled = false"), "{e}");
     std::fs::write(
         &rf,
         format!("urdf = \"{}/ur5.urdf\"\nbase_link = \"base_link\"\ntip_link = \"tool0\"\n", rd.display()),
     )
     .unwrap();
-    let e = idexp::robot::load(&rf).unwrap_err().to_string();
-    assert!(
-        e.contains(&rs) && e.contains("mesh_path = []") && e.contains("base_link") && e.contains("ur5.urdf"),
-        "{e}"
-    );
+    let r = idexp::robot::load(&rf).unwrap();
+    let e = r.geometry_error.clone().unwrap();
+    assert!(e.contains("mesh_path (none given)") && e.contains("base_link") && e.contains("ur5.urdf"), "{e}");
+    assert!(!e.contains("[]") && !e.contains("  "), "no empty field: {e}");
+    // a design with collisions off runs without them
+    let off = CollisionSpec {
+        enabled: false,
+        ..CollisionSpec::default()
+    };
+    assert!(CollisionScene::new(&r, &off, &designs(), "test").unwrap().is_none());
 }
 
 fn excite(design: &str, out: &Path) -> (i32, String) {

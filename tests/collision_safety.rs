@@ -3,7 +3,7 @@
 //! report distances larger than the mesh's: unsafe), and every pair left out
 //! is listed with its reason.
 
-use idexp::robot::collision::{read_stl, Body, CollisionScene, CollisionSpec, GeometrySpec, MeshMode, PairClass, Primitive};
+use idexp::robot::collision::{read_mesh, Body, CollisionScene, CollisionSpec, GeometrySpec, MeshMode, PairClass, Primitive};
 use nalgebra::{Isometry3, Vector3};
 use rand::{RngExt, SeedableRng};
 use std::path::Path;
@@ -30,7 +30,7 @@ fn every_mesh_vertex_lies_in_its_hull() {
     let files = meshes();
     assert!(files.len() >= 17, "{} meshes", files.len());
     for f in files {
-        let (pts, tris) = read_stl(&f, [1.0; 3]).unwrap();
+        let (pts, tris) = read_mesh(&f, [1.0; 3]).unwrap();
         let spec = GeometrySpec {
             primitive: Primitive::Mesh {
                 path: f.clone(),

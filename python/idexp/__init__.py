@@ -29,6 +29,10 @@ second, raising ``KeyboardInterrupt`` (nothing half-done is returned).
 Library errors raise :class:`IdexpError` (a ``ValueError``) or ``OSError``
 with idexp's message (file, field, value, what is allowed).
 
+MuJoCo: :func:`mjcf` / :func:`write_mjcf` give a robot model (nominal, or
+identified: ``Identification.model()``) as MJCF (inertials, joints, armature =
+Ia, damping = Fv, frictionloss = Fc).
+
 Pinocchio: :meth:`Robot.to_pinocchio` / :meth:`Robot.from_pinocchio` convert
 standard parameters to and from Pinocchio's ``[m, mcx, mcy, mcz, Ixx, Ixy,
 Iyy, Ixz, Iyz, Izz]`` order per body.
@@ -53,11 +57,13 @@ from ._idexp import (
     frf,
     identify,
     log_info,
+    mjcf,
     multisine,
     positions,
     read_log,
     simulate,
     study,
+    write_mjcf,
 )
 
 __all__ = [
@@ -79,9 +85,11 @@ __all__ = [
     "frf",
     "identify",
     "log_info",
+    "mjcf",
     "multisine",
     "positions",
     "read_log",
     "simulate",
     "study",
+    "write_mjcf",
 ]

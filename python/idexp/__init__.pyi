@@ -15,6 +15,7 @@ from ._idexp import (
     export_trajectory as export_trajectory,
     fit as fit,
     frf as frf,
+    mjcf as mjcf,
     multisine as multisine,
     identify as identify,
     log_info as log_info,
@@ -22,4 +23,5 @@ from ._idexp import (
     positions as positions,
     simulate as simulate,
     study as study,
+    write_mjcf as write_mjcf,
 )

@@ -166,6 +166,14 @@ def export_trajectory(
     """`idexp export`: a coefficients.json written earlier in controller formats (options as
     ExciteResult.export), into out (default: its folder)."""
 
+def mjcf(robot: Robot) -> str:
+    """The robot as MJCF for MuJoCo (`idexp robot mjcf`): bodies with inertials, hinge/slide
+    joints with range, armature = Ia, damping = Fv, frictionloss = Fc, a motor per joint,
+    gravity; what MJCF cannot express stated in XML comments."""
+
+def write_mjcf(robot: Robot, folder: PathLike) -> str:
+    """Writes robot.xml (mjcf(robot)) into folder; returns its path."""
+
 def excite(
     design: Union[PathLike, dict],
     time_limit: Optional[float] = None,

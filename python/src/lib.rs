@@ -26,6 +26,7 @@ mod err;
 mod exports;
 mod logs;
 mod long;
+mod mjcf;
 mod problems;
 mod robot;
 mod study;
@@ -55,6 +56,8 @@ fn _idexp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(problems::export_trajectory, m)?)?;
     m.add_function(wrap_pyfunction!(logs::read_log, m)?)?;
     m.add_function(wrap_pyfunction!(logs::log_info, m)?)?;
+    m.add_function(wrap_pyfunction!(mjcf::mjcf, m)?)?;
+    m.add_function(wrap_pyfunction!(mjcf::write_mjcf, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -325,9 +325,19 @@ fn safety(p: &Problem, d: &Delivered, verified: Option<&str>, rate: f64) -> Resu
             ),
         });
     }
+    if let Some(why) = &p.robot.geometry_error {
+        // only reached with [collision] enabled = false: a design that checks refuses such a robot
+        return Ok(Safety {
+            collisions: CollisionCheck::NotChecked,
+            safe: None,
+            closest: None,
+            statement: format!("collisions NOT checked: [collision] is off and the robot's {why}; every sample on the {rate} Hz grid is within the limits"),
+        });
+    }
     let spec = crate::robot::collision::CollisionSpec {
         enabled: true,
         margin: 0.0,
+        requested: false,
         ..p.design.collision.clone()
     };
     let scene = crate::robot::collision::CollisionScene::new(&p.robot, &spec, std::path::Path::new(""), &p.design.name)?;

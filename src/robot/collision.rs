@@ -74,8 +74,8 @@ pub enum Primitive {
         /// Length of the cylindrical part along z (m).
         length: f64,
     },
-    /// A triangle mesh (STL) scaled per axis; used as its convex hull or
-    /// convex decomposition.
+    /// A triangle mesh (STL, OBJ or Collada, [`read_mesh`]) scaled per axis;
+    /// used as its convex hull or convex decomposition.
     Mesh {
         /// Resolved file path.
         path: PathBuf,
@@ -582,38 +582,7 @@ pub struct Proximity {
     pub normal: Vector3<f64>,
 }
 
-/// Vertices and triangles of a mesh.
-pub type MeshData = (Vec<Point3<f64>>, Vec<[u32; 3]>);
-
-/// Reads the vertices and triangles of an STL file (binary or ASCII), scaled.
-pub fn read_stl(path: &Path, scale: [f64; 3]) -> Result<MeshData> {
-    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
-    if !meta.is_file() {
-        return Err(Error::parse(path, "not a regular file"));
-    }
-    const MAX: u64 = 512 << 20;
-    if meta.len() > MAX {
-        return Err(Error::parse(
-            path,
-            format!("mesh of {} bytes is larger than the {} MiB allowed", meta.len(), MAX >> 20),
-        ));
-    }
-    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let mesh = stl_io::read_stl(&mut f).map_err(|e| Error::parse(path, format!("not a readable STL mesh: {e}")))?;
-    let pts: Vec<Point3<f64>> = mesh
-        .vertices
-        .iter()
-        .map(|v| Point3::new(v[0] as f64 * scale[0], v[1] as f64 * scale[1], v[2] as f64 * scale[2]))
-        .collect();
-    if let Some(k) = pts.iter().position(|p| !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite())) {
-        return Err(Error::parse(path, format!("vertex {} is not finite", k + 1)));
-    }
-    let tris: Vec<[u32; 3]> = mesh.faces.iter().map(|t| t.vertices.map(|i| i as u32)).collect();
-    if pts.len() < 4 {
-        return Err(Error::parse(path, format!("a mesh needs at least 4 vertices, found {}", pts.len())));
-    }
-    Ok((pts, tris))
-}
+pub use super::resolve::{read_mesh, MeshData};
 
 fn rot_y_to_z() -> UnitQuaternion<f64> {
     // parry's cylinders are along y; URDF's along z: rotate y onto z.
@@ -721,7 +690,7 @@ impl Body {
                             return Err(Error::invalid(&here, format!("mesh scale {a}"), format!("{v} must be finite and non-zero")));
                         }
                     }
-                    let (pts, tris) = read_stl(path, *scale).map_err(|e| Error::invalid(&here, "mesh", e.to_string()))?;
+                    let (pts, tris) = read_mesh(path, *scale).map_err(|e| Error::invalid(&here, "mesh", e.to_string()))?;
                     match mode {
                         MeshMode::Hull => {
                             let hull = SharedShape::convex_hull(&pts).ok_or_else(|| {
@@ -1027,7 +996,7 @@ fn ones() -> [f64; 3] {
 /// A shape in a robot or design file (TOML): `{ type = "box", size = [..] }`,
 /// `cylinder` (radius, length along z), `sphere`, `capsule` (radius, length of
 /// the cylindrical part along z), `plane` (obstacles only: the free side is
-/// nᵀx ≥ offset), `mesh` (an STL file, relative to the file that names it; its
+/// nᵀx ≥ offset), `mesh` (an STL, OBJ or Collada file, relative to the file that names it; its
 /// convex hull).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
@@ -1064,7 +1033,7 @@ pub enum ShapeSpec {
         #[serde(default)]
         offset: f64,
     },
-    /// STL mesh (convex hull), path relative to the file naming it.
+    /// Mesh file (STL, OBJ or Collada; convex hull), path relative to the file naming it.
     Mesh {
         /// File.
         file: PathBuf,
@@ -1268,6 +1237,12 @@ pub struct CollisionSpec {
     /// Tool or payload shapes on robot frames.
     #[serde(default)]
     pub attached: Vec<AttachedSpec>,
+    /// True when the design file writes a `[collision]` section (set when
+    /// the section is read; false for the default of a design without one):
+    /// such a design asks for collision checks, and a robot without
+    /// collision geometry is then an error instead of `collisions NOT checked`.
+    #[serde(skip_serializing, skip_deserializing, default = "yes")]
+    pub requested: bool,
 }
 
 impl Default for CollisionSpec {
@@ -1280,6 +1255,7 @@ impl Default for CollisionSpec {
             floor: true,
             obstacle: Vec::new(),
             attached: Vec::new(),
+            requested: false,
         }
     }
 }
@@ -1375,10 +1351,43 @@ pub struct PairDistance {
 impl CollisionScene {
     /// Builds the scene of `robot` under `spec`; `dir` resolves mesh paths of
     /// the design file, `ctx` names it in messages. `None` when nothing is
-    /// checked (disabled, or the robot has no geometry and there is no pair).
+    /// checked (disabled, or the robot has no geometry, the design writes no
+    /// `[collision]` section and there is no pair).
+    ///
+    /// A design never runs without the checks it asks for: an error when the
+    /// robot's collision geometry could not be loaded (a mesh not found:
+    /// [`Robot::geometry_error`] names the link, the mesh and the folders
+    /// searched), or when the design writes a `[collision]` section
+    /// ([`CollisionSpec::requested`]) for a robot without collision geometry
+    /// and attaches no shape to it (`[[collision.attached]]` shapes on a DH
+    /// robot are checked as they are).
     pub fn new(robot: &Robot, spec: &CollisionSpec, dir: &Path, ctx: &str) -> Result<Option<CollisionScene>> {
         if !spec.enabled {
             return Ok(None);
+        }
+        if let Some(why) = &robot.geometry_error {
+            return Err(Error::invalid(
+                ctx,
+                "collision",
+                format!(
+                    "collisions are checked ([collision] enabled, the default) but robot `{}` ({}) has no usable collision geometry: {why}; make the meshes findable, or set [collision] enabled = false to design without collision checks",
+                    robot.name, robot.source
+                ),
+            ));
+        }
+        if spec.requested && robot.collision.is_none() && spec.attached.is_empty() {
+            return Err(Error::invalid(
+                ctx,
+                "collision",
+                format!(
+                    "the design asks for collision checks ([collision]: margin {} m{}{}) but robot `{}` ({}) has no collision geometry: give its URDF <collision> elements or its robot file [[collision]] shapes, or set [collision] enabled = false",
+                    spec.margin,
+                    if spec.floor { ", the floor" } else { "" },
+                    if spec.obstacle.is_empty() { String::new() } else { format!(", {} obstacle(s)", spec.obstacle.len()) },
+                    robot.name,
+                    robot.source
+                ),
+            ));
         }
         if !(spec.margin.is_finite() && spec.margin >= 0.0) {
             return Err(Error::invalid(ctx, "collision.margin", format!("{} must be ≥ 0 m and finite", spec.margin)));
@@ -1926,36 +1935,4 @@ fn point_jacobian_t(robot: &Robot, kin: &Kin<f64>, link: usize, p: &Point3<f64>,
         grad[j] += s * n.dot(&lin);
         cur = robot.joints[j].parent;
     }
-}
-
-/// Resolves a URDF mesh file name: `package://pkg/a/b.stl` or a relative
-/// path. Tried in order: a relative path against `urdf_dir`, then for every
-/// directory of `mesh_path` the longest suffix of the path that exists below
-/// it (`package://example-robot-data/robots/ur_description/meshes/ur5/collision/base.stl`
-/// is found as `<dir>/collision/base.stl` or `<dir>/ur5/collision/base.stl` …).
-pub fn resolve_mesh(filename: &str, urdf_dir: &Path, mesh_path: &[PathBuf]) -> Option<PathBuf> {
-    let (rel, is_pkg) = match filename.strip_prefix("package://") {
-        Some(r) => (r, true),
-        None => (filename.strip_prefix("file://").unwrap_or(filename), false),
-    };
-    let relp = Path::new(rel);
-    if !is_pkg {
-        let p = if relp.is_absolute() { relp.to_path_buf() } else { urdf_dir.join(relp) };
-        if p.is_file() {
-            return Some(p);
-        }
-    }
-    let comps: Vec<&std::ffi::OsStr> = relp.iter().collect();
-    for dir in mesh_path {
-        for start in 0..comps.len() {
-            let mut p = dir.clone();
-            for c in &comps[start..] {
-                p.push(c);
-            }
-            if p.is_file() {
-                return Some(p);
-            }
-        }
-    }
-    None
 }

@@ -10,6 +10,8 @@ use nalgebra::{Matrix3, Matrix4, SymmetricEigen};
 use quick_xml::events::Event;
 use std::path::{Path, PathBuf};
 
+pub use super::mjcf::{mjcf_string, write_mjcf};
+
 /// Where a robot's geometry and inertia came from.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Source {
@@ -48,14 +50,21 @@ pub fn source_of(path: &Path) -> Result<Source> {
 
 /// The `<inertial>` element of an inertial (link frame): mass, centre of mass
 /// and the inertia about it in link axes (zero mass: the inertia about the origin).
-fn inertial_xml(ine: &Inertial, indent: &str) -> String {
+/// Centre of mass and inertia about it (link axes) of an inertial given about
+/// the link origin; zero mass: the origin and the inertia about it.
+pub(crate) fn com_inertia(ine: &Inertial) -> (nalgebra::Vector3<f64>, Matrix3<f64>) {
     let m = ine.mass;
-    let (c, ic) = if m > 0.0 {
+    if m > 0.0 {
         let c = ine.first_moment / m;
         (c, ine.inertia - m * (c.norm_squared() * Matrix3::identity() - c * c.transpose()))
     } else {
         (nalgebra::Vector3::zeros(), ine.inertia)
-    };
+    }
+}
+
+fn inertial_xml(ine: &Inertial, indent: &str) -> String {
+    let m = ine.mass;
+    let (c, ic) = com_inertia(ine);
     format!(
         "<inertial>\n{indent}  <origin xyz=\"{} {} {}\" rpy=\"0 0 0\"/>\n{indent}  <mass value=\"{m}\"/>\n{indent}  <inertia ixx=\"{}\" ixy=\"{}\" ixz=\"{}\" iyy=\"{}\" iyz=\"{}\" izz=\"{}\"/>\n{indent}</inertial>",
         c.x,
@@ -250,12 +259,62 @@ fn drive_tables(robot: &Robot, old: Option<&toml::value::Array>) -> toml::value:
     out
 }
 
-/// The robot TOML of the identified `robot`: the input robot TOML (if any)
-/// with new `[[drive]]` entries and, for a DH robot, new `inertial` tables
-/// (about the link origin); for a URDF robot it points at `urdf` (the
-/// exported URDF, relative to the TOML). Everything else (limits, coupling,
-/// frames, gravity) is copied from the input.
-pub fn robot_toml(src: &Source, robot: &Robot, urdf: Option<&str>) -> Result<String> {
+/// `target` as a path relative to the folder `dir` (both made absolute,
+/// symbolic links resolved where they exist); absolute if there is no such path.
+fn relative_to(dir: &Path, target: &Path) -> String {
+    let abs = |p: &Path| std::fs::canonicalize(p).or_else(|_| std::path::absolute(p)).unwrap_or_else(|_| p.to_path_buf());
+    let (d, t) = (abs(dir), abs(target));
+    match pathdiff::diff_paths(&t, &d) {
+        Some(r) if r.as_os_str().is_empty() => ".".into(),
+        Some(r) => r.display().to_string(),
+        None => t.display().to_string(),
+    }
+}
+
+/// The folders that resolve the `<collision>` mesh names of the URDF `urdf`
+/// (with the robot file's `mesh_path`): for each name found, the file's path
+/// without the name's package-relative part (a package's folder, or the
+/// URDF's folder for a relative name), so that the names resolve below them
+/// from anywhere. Names not found add nothing.
+fn mesh_roots(urdf: &Path, mesh_path: &[PathBuf]) -> Vec<PathBuf> {
+    let Ok(text) = crate::io::read_to_string(urdf) else { return Vec::new() };
+    let Ok(u) = urdf_rs::read_from_string(&text) else { return Vec::new() };
+    let resolver = super::resolve::MeshResolver::new(urdf.parent().unwrap_or(Path::new(".")), mesh_path);
+    let mut roots: Vec<PathBuf> = Vec::new();
+    for l in &u.links {
+        for c in &l.collision {
+            let urdf_rs::Geometry::Mesh { filename, .. } = &c.geometry else { continue };
+            let rel = match filename.strip_prefix("package://") {
+                Some(r) => r.split_once('/').map_or("", |(_, r)| r),
+                None => filename.strip_prefix("file://").unwrap_or(filename),
+            };
+            if Path::new(rel).is_absolute() || rel.is_empty() {
+                continue;
+            }
+            // a name resolved through mesh_path's longest-tail search is found there again
+            if let Some(f) = resolver.resolve(filename).ok().filter(|f| f.ends_with(rel)) {
+                if let Some(root) = f.ancestors().nth(Path::new(rel).components().count()) {
+                    if !roots.iter().any(|r| r == root) {
+                        roots.push(root.to_path_buf());
+                    }
+                }
+            }
+        }
+    }
+    roots
+}
+
+/// The robot TOML of the identified `robot`, to be written into the folder
+/// `dir`: the input robot TOML (if any) with new `[[drive]]` entries and, for
+/// a DH robot, new `inertial` tables (about the link origin); for a URDF
+/// robot it points at `urdf` (the exported URDF's name, or the source URDF:
+/// an absolute path is written relative to `dir`). Everything else (limits,
+/// coupling, frames, gravity) is copied from the input; the paths it names
+/// (`mesh_path`, `srdf`, `[[collision]]` mesh files) are rewritten relative
+/// to `dir`, and the folders that resolve the URDF's collision meshes
+/// (ROS packages, the source URDF's folder) join `mesh_path`, so the file
+/// loads from `dir` with its collision geometry.
+pub fn robot_toml(src: &Source, robot: &Robot, urdf: Option<&str>, dir: &Path) -> Result<String> {
     let mut t: toml::Table = match src {
         Source::Urdf { toml: Some(p), .. } | Source::Dh { toml: p } => {
             let text = crate::io::read_to_string(p)?;
@@ -271,34 +330,50 @@ pub fn robot_toml(src: &Source, robot: &Robot, urdf: Option<&str>) -> Result<Str
         "source".into(),
         format!("identified by idexp identify from {}", robot.source.replace('\n', " ")).into(),
     );
-    // paths the input resolved against its own folder (collision meshes,
-    // SRDF) are written absolute, so the exported file loads from anywhere
+    // paths the input resolved against its own folder (mesh_path, SRDF,
+    // [[collision]] mesh files) are rewritten relative to the folder written
+    // to, so the exported file loads from there
     let src_dir = match src {
         Source::Urdf { toml: Some(p), .. } | Source::Dh { toml: p } => p.parent().map(Path::to_path_buf),
         Source::Urdf { toml: None, .. } => None,
     };
-    if let Some(dir) = src_dir {
-        let abs = |v: &str| {
-            let p = Path::new(v);
-            if p.is_absolute() {
-                v.to_string()
-            } else {
-                dir.join(p).display().to_string()
-            }
-        };
-        if let Some(toml::Value::Array(a)) = t.get_mut("mesh_path") {
-            for v in a.iter_mut() {
-                if let Some(x) = v.as_str() {
-                    *v = abs(x).into();
+    let mut mesh_path: Vec<PathBuf> = Vec::new();
+    if let Some(sd) = &src_dir {
+        if let Some(toml::Value::Array(a)) = t.get("mesh_path") {
+            mesh_path.extend(a.iter().filter_map(|v| v.as_str()).map(|x| sd.join(x)));
+        }
+        if let Some(toml::Value::String(x)) = t.get_mut("srdf") {
+            *x = relative_to(dir, &sd.join(&*x));
+        }
+        if let Some(toml::Value::Array(shapes)) = t.get_mut("collision") {
+            for c in shapes.iter_mut() {
+                let shape = c.get_mut("shape").and_then(|s| s.as_table_mut());
+                if let Some(toml::Value::String(f)) = shape.and_then(|s| s.get_mut("file")) {
+                    *f = relative_to(dir, &sd.join(&*f));
                 }
             }
         }
-        if let Some(toml::Value::String(x)) = t.get_mut("srdf") {
-            *x = abs(x);
+    }
+    // the exported URDF keeps the source's mesh names: the package folders
+    // (and the source URDF's folder) that resolved them join mesh_path
+    if let Source::Urdf { urdf: u, .. } = src {
+        for root in mesh_roots(u, &mesh_path) {
+            if !mesh_path.contains(&root) {
+                mesh_path.push(root);
+            }
         }
+    }
+    if !mesh_path.is_empty() {
+        let v: toml::value::Array = mesh_path.iter().map(|p| toml::Value::from(relative_to(dir, p))).collect();
+        t.insert("mesh_path".into(), v.into());
     }
     if let Source::Urdf { .. } = src {
         let u = urdf.ok_or_else(|| Error::invalid("export", "urdf", "a URDF robot's TOML needs the exported URDF's name"))?;
+        let u = if Path::new(u).is_absolute() {
+            relative_to(dir, Path::new(u))
+        } else {
+            u.to_string()
+        };
         t.insert("urdf".into(), u.into());
         if robot.coupling.is_some() && !t.contains_key("coupling") {
             let c = robot.coupling_matrix();
@@ -341,7 +416,7 @@ pub fn robot_toml(src: &Source, robot: &Robot, urdf: Option<&str>) -> Result<Str
 /// Writes `robot.toml` into `dir` (see [`robot_toml`]).
 pub fn write_robot_toml(src: &Source, robot: &Robot, dir: &Path, urdf: Option<&str>) -> Result<PathBuf> {
     let p = dir.join("robot.toml");
-    crate::io::write_atomic(&p, robot_toml(src, robot, urdf)?.as_bytes())?;
+    crate::io::write_atomic(&p, robot_toml(src, robot, urdf, dir)?.as_bytes())?;
     Ok(p)
 }
 

@@ -5,6 +5,7 @@
 //! The format is documented in docs/robots.md.
 
 use super::model::{Coulomb, Drive, Frame, Friction, Inertial, Joint, JointKind, JointLimits, Link, Robot, RobotParts};
+use super::resolve::MeshResolver;
 use super::urdf::{load_urdf, pose_to_iso};
 use crate::error::{Error, Result};
 use nalgebra::{DMatrix, Isometry3, Matrix3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
@@ -224,7 +225,10 @@ pub fn load(path: &Path) -> Result<Robot> {
     match ext.as_str() {
         "urdf" | "xml" => {
             let parts = load_urdf(path, None, None)?;
-            super::validate::checked(
+            // the URDF's <collision> elements, meshes found as ROS tools find them
+            let resolver = MeshResolver::new(path.parent().unwrap_or(Path::new(".")), &[]);
+            let g = super::urdf::load_collision(path, &parts, None, &resolver, super::collision::MeshMode::Hull)?;
+            let robot = super::validate::checked(
                 path,
                 RobotParts {
                     name: parts.name,
@@ -236,7 +240,21 @@ pub fn load(path: &Path) -> Result<Robot> {
                     gravity: Vector3::new(0.0, 0.0, -9.81),
                     source: format!("URDF {}", path.display()),
                 },
-            )
+            )?;
+            let loaded = if !g.problems.is_empty() {
+                Loaded::Failed(g.problems)
+            } else if g.bodies.iter().all(|b| b.is_empty()) {
+                Loaded::None
+            } else {
+                let source = path.display().to_string();
+                Loaded::Geometry(super::collision::RobotGeometry {
+                    bodies: g.bodies,
+                    members: g.members,
+                    allowed: Vec::new(),
+                    source,
+                })
+            };
+            attach_geometry(robot, loaded)
         }
         "toml" => {
             let text = crate::io::read_to_string(path)?;
@@ -294,10 +312,8 @@ pub fn parse_robot_toml(path: &Path, text: &str) -> Result<Robot> {
             source,
         },
     )?;
-    match collision_geometry(path, &f, &robot, &ctx)? {
-        Some(g) => robot.with_collision(g),
-        None => Ok(robot),
-    }
+    let loaded = collision_geometry(path, &f, &robot, &ctx)?;
+    attach_geometry(robot, loaded)
 }
 
 /// `<disable_collisions>` of an SRDF.
@@ -320,7 +336,7 @@ struct SrdfDisable {
 /// The robot's collision geometry: the URDF's `<collision>` elements (meshes
 /// found through `mesh_path`), the file's `[[collision]]` shapes, the allowed
 /// pairs (`[[allowed_collision]]`, SRDF entries with an accepted reason).
-fn collision_geometry(path: &Path, f: &RobotFile, robot: &Robot, ctx: &str) -> Result<Option<super::collision::RobotGeometry>> {
+fn collision_geometry(path: &Path, f: &RobotFile, robot: &Robot, ctx: &str) -> Result<Loaded> {
     use super::collision::{AllowedCollision, Body, GeometrySpec, MeshMode, RobotGeometry};
     let dir = path.parent().unwrap_or(Path::new("."));
     let mesh_path: Vec<std::path::PathBuf> = f.mesh_path.iter().map(|m| dir.join(m)).collect();
@@ -329,23 +345,15 @@ fn collision_geometry(path: &Path, f: &RobotFile, robot: &Robot, ctx: &str) -> R
         _ => MeshMode::Hull,
     };
     let n = robot.dof();
+    let mut problems: Vec<(String, String)> = Vec::new();
     let (mut bodies, mut members) = match &f.urdf {
         Some(u) => {
             let upath = dir.join(u);
             let parts = load_urdf(&upath, f.base_link.as_deref(), f.tip_link.as_deref())?;
-            super::urdf::load_collision(&upath, &parts, f.base_link.as_deref(), &mesh_path, mode).map_err(|e| match e {
-                // a mesh the URDF names but mesh_path does not lead to: name the robot file and its entries
-                Error::Invalid { context, field, msg } if field.ends_with("<collision> mesh") && msg.contains("not found") => Error::invalid(
-                    path.display().to_string(),
-                    "mesh_path",
-                    format!(
-                        "{context}: {field}: {msg}; this robot file's mesh_path = [{}] (relative to {}): set it to the folder(s) below which the URDF's mesh names are found",
-                        f.mesh_path.iter().map(|m| format!("\"{m}\"")).collect::<Vec<_>>().join(", "),
-                        dir.display()
-                    ),
-                ),
-                e => e,
-            })?
+            let resolver = MeshResolver::new(upath.parent().unwrap_or(Path::new(".")), &mesh_path);
+            let g = super::urdf::load_collision(&upath, &parts, f.base_link.as_deref(), &resolver, mode)?;
+            problems = g.problems;
+            (g.bodies, g.members)
         }
         None => {
             let b: Vec<Body> = std::iter::once(Body::empty("base"))
@@ -387,8 +395,12 @@ fn collision_geometry(path: &Path, f: &RobotFile, robot: &Robot, ctx: &str) -> R
             primitive: c.shape.primitive(dir),
             origin: pose_to_iso(c.xyz, c.rpy),
         };
-        let b = Body::new(&c.link, &[spec], mode, &format!("{ctx}: {field}"))?;
-        bodies[idx].merge(&b, &at);
+        match Body::new(&c.link, &[spec], mode, &format!("{ctx}: {field}")) {
+            Ok(b) => bodies[idx].merge(&b, &at),
+            // a mesh file missing or unreadable: the geometry is not loaded, the robot is
+            Err(e) if matches!(c.shape, super::collision::ShapeSpec::Mesh { .. }) => problems.push((format!("{ctx}: {field}"), e.to_string())),
+            Err(e) => return Err(e),
+        }
     }
     for (link, &pad) in &f.collision_padding {
         let field = format!("collision_padding.{link}");
@@ -440,16 +452,56 @@ fn collision_geometry(path: &Path, f: &RobotFile, robot: &Robot, ctx: &str) -> R
             }
         }
     }
-    if bodies.iter().all(|b| b.is_empty()) {
-        return Ok(None);
+    if bodies.iter().all(|b| b.is_empty()) && problems.is_empty() {
+        return Ok(Loaded::None);
     }
     debug_assert_eq!(bodies.len(), n + 1);
-    Ok(Some(RobotGeometry {
+    if !problems.is_empty() {
+        return Ok(Loaded::Failed(problems));
+    }
+    Ok(Loaded::Geometry(RobotGeometry {
         bodies,
         members,
         allowed,
         source: format!("{}", path.display()),
     }))
+}
+
+/// What [`collision_geometry`] found.
+enum Loaded {
+    /// The robot file describes no collision geometry.
+    None,
+    /// It describes some and every shape loaded.
+    Geometry(super::collision::RobotGeometry),
+    /// Some shapes could not be loaded: what and why, per link.
+    Failed(Vec<(String, String)>),
+}
+
+/// `robot` with what [`collision_geometry`] (or the URDF's `<collision>` elements) gave.
+fn attach_geometry(robot: Robot, loaded: Loaded) -> Result<Robot> {
+    match loaded {
+        Loaded::None => Ok(robot),
+        Loaded::Geometry(g) => robot.with_collision(g),
+        Loaded::Failed(p) => Ok(robot.with_geometry_error(geometry_problems(&p))),
+    }
+}
+
+/// The problems of a geometry that did not load, as one message: each
+/// link's, the reason written out once for those that share it.
+fn geometry_problems(p: &[(String, String)]) -> String {
+    let mut parts: Vec<String> = Vec::new();
+    let mut said: Vec<&str> = Vec::new();
+    for (what, why) in p {
+        // the same cause for another mesh of the same package: said once
+        let key = why.split_once(';').map_or(why.as_str(), |(_, rest)| rest);
+        if said.contains(&key) {
+            parts.push(format!("{what}: likewise"));
+        } else {
+            said.push(key);
+            parts.push(format!("{what} {why}"));
+        }
+    }
+    format!("collision geometry not loaded: {}", parts.join("; "))
 }
 
 /// Joints, links, drives and frames of the kinematic structure: from the URDF

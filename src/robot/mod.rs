@@ -12,7 +12,9 @@ pub mod dynamics;
 pub mod export;
 pub mod file;
 pub mod kinematics;
+pub mod mjcf;
 pub mod model;
+pub mod resolve;
 pub mod urdf;
 pub mod validate;
 

@@ -462,6 +462,12 @@ pub struct Robot {
     pub source: String,
     /// Collision geometry (URDF `<collision>` elements, robot-file shapes), if any.
     pub collision: Option<std::sync::Arc<super::collision::RobotGeometry>>,
+    /// Why the collision geometry the robot file describes could not be
+    /// loaded (each link's mesh not found or not readable, with the folders
+    /// searched); `None` when it loaded or there is none. Commands that need
+    /// no geometry warn with it; collision checks refuse to run without it
+    /// ([`super::collision::CollisionScene::new`]).
+    pub geometry_error: Option<String>,
     pub(crate) coupling_inv_t: Option<DMatrix<f64>>,
     pub(crate) params: Vec<ParamInfo>,
     pub(crate) drive_offset: Vec<usize>,
@@ -770,6 +776,7 @@ impl Robot {
             gravity,
             source,
             collision: None,
+            geometry_error: None,
             coupling_inv_t,
             geo,
             c_sparse,
@@ -792,6 +799,14 @@ impl Robot {
         }
         self.collision = Some(std::sync::Arc::new(geometry));
         Ok(self)
+    }
+
+    /// The same robot with the reason its collision geometry could not be
+    /// loaded (and no geometry).
+    pub fn with_geometry_error(mut self, why: String) -> Robot {
+        self.collision = None;
+        self.geometry_error = Some(why);
+        self
     }
 
     /// Number of actuated joints n.

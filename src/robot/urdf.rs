@@ -462,18 +462,33 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
     })
 }
 
+/// Collision geometry of a URDF robot, as [`load_collision`] reads it.
+#[derive(Debug)]
+pub struct UrdfGeometry {
+    /// Body 0 is the base, body i + 1 moves with link i.
+    pub bodies: Vec<super::collision::Body>,
+    /// URDF link names merged into each body.
+    pub members: Vec<Vec<String>>,
+    /// Links whose `<collision>` elements could not be loaded: what (file,
+    /// link, mesh name) and why (folders searched, or why the file is not
+    /// readable); their bodies are left without those shapes.
+    pub problems: Vec<(String, String)>,
+}
+
 /// Collision geometry of a URDF robot: the `<collision>` elements of every
 /// link in the model (moving links, the base, links fixed to either) merged
 /// into one body per moving link plus the base, in that link's frame. Mesh
-/// files resolve through [`super::collision::resolve_mesh`]; a missing mesh is
-/// an error naming the link and the file.
+/// names resolve through `resolver` ([`super::resolve::MeshResolver`]: ROS
+/// packages, `file://`, the robot file's `mesh_path`); a mesh not found or
+/// not readable is a problem of its link ([`UrdfGeometry::problems`]), not
+/// an error, so that what needs no geometry still loads the robot.
 pub fn load_collision(
     path: &Path,
     parts: &UrdfParts,
     base_link: Option<&str>,
-    mesh_path: &[std::path::PathBuf],
+    resolver: &super::resolve::MeshResolver,
     mode: super::collision::MeshMode,
-) -> Result<(Vec<super::collision::Body>, Vec<Vec<String>>)> {
+) -> Result<UrdfGeometry> {
     use super::collision::{Body, GeometrySpec, Primitive};
     let text = crate::io::read_to_string(path)?;
     let u = urdf_rs::read_from_string(&text).map_err(|e| Error::parse(path, format!("malformed URDF: {e}")))?;
@@ -492,8 +507,8 @@ pub fn load_collision(
         .chain(parts.links.iter().map(|l| Body::empty(&l.name)))
         .collect();
     let mut members: Vec<Vec<String>> = bodies.iter().map(|b| vec![b.name.clone()]).collect();
-    let dir = path.parent().unwrap_or(Path::new("."));
-    for ul in &u.links {
+    let mut problems = Vec::new();
+    'links: for ul in &u.links {
         // which body and where in its frame
         let (idx, at) = if ul.name == root {
             (0, Isometry3::identity())
@@ -522,39 +537,27 @@ pub fn load_collision(
                     length: *length,
                 },
                 urdf_rs::Geometry::Sphere { radius } => Primitive::Sphere { radius: *radius },
-                urdf_rs::Geometry::Mesh { filename, scale } => {
-                    let p = super::collision::resolve_mesh(filename, dir, mesh_path).ok_or_else(|| {
-                        Error::invalid(
-                            &ctx,
-                            format!("link `{}` <collision> mesh", ul.name),
-                            format!(
-                                "mesh file `{filename}` not found (searched {} and the robot file's mesh_path: [{}])",
-                                dir.display(),
-                                mesh_path.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
-                            ),
-                        )
-                    })?;
-                    if !p.to_string_lossy().to_ascii_lowercase().ends_with(".stl") {
-                        return Err(Error::invalid(
-                            &ctx,
-                            format!("link `{}` <collision> mesh", ul.name),
-                            format!("{}: only STL collision meshes are read", p.display()),
-                        ));
-                    }
-                    Primitive::Mesh {
+                urdf_rs::Geometry::Mesh { filename, scale } => match resolver.resolve(filename) {
+                    Ok(p) => Primitive::Mesh {
                         path: p,
                         scale: scale.map_or([1.0; 3], |s| s.0),
+                    },
+                    Err(why) => {
+                        problems.push((format!("{ctx}: link `{}` <collision> mesh `{filename}`", ul.name), why));
+                        continue 'links;
                     }
-                }
+                },
             };
             specs.push(GeometrySpec { primitive, origin });
         }
         if specs.is_empty() {
             continue;
         }
-        let b = Body::new(&ul.name, &specs, mode, &format!("{ctx}: link `{}` <collision>", ul.name))?;
-        bodies[idx].merge(&b, &at);
+        match Body::new(&ul.name, &specs, mode, &format!("{ctx}: link `{}` <collision>", ul.name)) {
+            Ok(b) => bodies[idx].merge(&b, &at),
+            Err(e) => problems.push((format!("{ctx}: link `{}` <collision>", ul.name), e.to_string())),
+        }
     }
     debug_assert_eq!(bodies.len(), n + 1);
-    Ok((bodies, members))
+    Ok(UrdfGeometry { bodies, members, problems })
 }

@@ -48,6 +48,8 @@ pub enum ExportKind {
     Toml,
     /// `params.csv`: every base and standard parameter with std and σ*.
     Csv,
+    /// `robot.xml`: the identified (consistent) model as MJCF for MuJoCo.
+    Mjcf,
 }
 
 /// `idexp identify <robot> <run>...` or `idexp identify <study.toml>`
@@ -436,6 +438,9 @@ fn export(
                     _ => None,
                 };
                 files.push(idexp::robot::export::write_robot_toml(src, &m, out, urdf_ref.as_deref())?);
+            }
+            if a.export.contains(&ExportKind::Mjcf) {
+                files.push(idexp::robot::export::write_mjcf(&m, out)?);
             }
         }
         None if wants => eprintln!("identify: --export urdf/toml skipped: the consistent fit has no usable result"),

@@ -1,5 +1,6 @@
-//! `idexp robot info|torques|regressor`: inspect a robot and evaluate its
-//! dynamics on a states CSV (the tables are [`idexp::params::info`]'s).
+//! `idexp robot info|torques|regressor|mjcf`: inspect a robot, evaluate its
+//! dynamics on a states CSV (the tables are [`idexp::params::info`]'s) and
+//! write it as MJCF for MuJoCo.
 
 use crate::Outcome;
 use anyhow::Context;
@@ -60,6 +61,24 @@ pub enum RobotCmd {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// The robot with its nominal parameters as MJCF for MuJoCo (bodies, inertials, joints, armature = Ia, damping = Fv, frictionloss = Fc).
+    Mjcf {
+        /// Robot file.
+        robot: PathBuf,
+        /// Output folder: writes `robot.xml` there (default: the MJCF on standard output).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+}
+
+/// Loads a robot for a command that needs no collision geometry: geometry
+/// that could not be loaded (a mesh not found) is a warning, not an error.
+pub fn load_warn(path: &Path) -> anyhow::Result<idexp::robot::Robot> {
+    let r = idexp::robot::load(path)?;
+    if let Some(why) = &r.geometry_error {
+        eprintln!("warning: {}: {why} (not needed here: only collision checks use it)", path.display());
+    }
+    Ok(r)
 }
 
 /// Runs a robot subcommand (nothing long-running: the control is unused).
@@ -74,7 +93,7 @@ pub fn run(args: &RobotArgs, _ctl: &Control) -> anyhow::Result<Outcome> {
             if !(rank_tol.is_finite() && *rank_tol > 0.0) {
                 anyhow::bail!("--rank-tol: expected a positive tolerance, got {rank_tol}");
             }
-            let r = idexp::robot::load(robot)?;
+            let r = load_warn(robot)?;
             let info = RobotInfo::new(&r, *rank_tol, *samples)?;
             if *json {
                 crate::print_json(&info)?;
@@ -83,17 +102,24 @@ pub fn run(args: &RobotArgs, _ctl: &Control) -> anyhow::Result<Outcome> {
             }
         }
         RobotCmd::Torques { robot, states, out } => {
-            let r = idexp::robot::load(robot)?;
+            let r = load_warn(robot)?;
             stream(&r, states, TableKind::Torques, out.as_deref(), "torques.csv")?;
         }
         RobotCmd::Regressor { robot, states, base, out } => {
-            let r = idexp::robot::load(robot)?;
+            let r = load_warn(robot)?;
             let bp = if *base {
                 Some(BaseParams::compute(&r, &BaseOptions::default())?)
             } else {
                 None
             };
             stream(&r, states, TableKind::Regressor(bp.as_ref()), out.as_deref(), "regressor.csv")?;
+        }
+        RobotCmd::Mjcf { robot, out } => {
+            let r = load_warn(robot)?;
+            match out {
+                Some(dir) => println!("written to {}", idexp::robot::export::write_mjcf(&r, dir)?.display()),
+                None => print!("{}", idexp::robot::export::mjcf_string(&r)),
+            }
         }
     }
     Ok(Outcome::Done)
