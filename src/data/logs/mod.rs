@@ -607,3 +607,38 @@ impl Samples {
         Ok((self.rep, start, span, steps))
     }
 }
+
+/// A run from robot logs: each path one repetition read by [`read_log`],
+/// irregular stamps resampled to a common uniform grid
+/// ([`crate::data::resample::resample_run`]: `rate` Hz, default the inverse
+/// median step; at most `limit` samples). Returns the run, how its torques
+/// were obtained, what was done with the time stamps, and each log's report.
+pub fn read_run(
+    paths: &[PathBuf],
+    robot: &Robot,
+    spec: &LogSpec,
+    rate: Option<f64>,
+    limit: usize,
+) -> Result<(crate::data::Run, crate::data::TorqueSource, crate::data::Sampling, Vec<LogReport>)> {
+    if paths.is_empty() {
+        return Err(Error::invalid("log", "files", "expected at least one log file or bag folder"));
+    }
+    let mut reps = Vec::with_capacity(paths.len());
+    let mut reports = Vec::with_capacity(paths.len());
+    for p in paths {
+        let r = read_log(p, robot, spec)?;
+        reps.push(r.rep);
+        reports.push(r.report);
+    }
+    let sampling = crate::data::resample::resample_run(&mut reps, paths, rate, limit)?;
+    let run = crate::data::Run::new(paths.to_vec(), reps)?;
+    let tpa = reports[0].torque_per_ampere.clone();
+    let source = crate::data::TorqueSource {
+        from: if tpa.is_some() { "current" } else { "torque" }.into(),
+        torque_per_ampere: tpa,
+        agreement: None,
+        tolerance: crate::data::CURRENT_TOLERANCE,
+        note: format!("{} log: {}", spec.format.name(), reports[0].torque),
+    };
+    Ok((run, source, sampling, reports))
+}

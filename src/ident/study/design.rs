@@ -30,6 +30,7 @@
 //! standstill = "auto"                # auto (the friction model's rule) | drop | keep
 //! slow_ratio = 0.1
 //! min_speed = 0.01
+//! log = { format = "bag", topic = "/joint_states" }   # the files are robot logs (rtde | csv | headerless | bag)
 //!
 //! [[validation]]                     # any number; the same keys as an experiment
 //! name = "pose_1"
@@ -172,6 +173,11 @@ pub struct ExperimentSpec {
     /// Slow-row speed (rad/s or m/s).
     #[serde(default = "min_speed")]
     pub min_speed: f64,
+    /// The files are robot logs of this form (RTDE recorder CSV, a CSV with a
+    /// column map, a headerless CSV, a ROS 2 bag; [`crate::data::logs::LogSpec`]),
+    /// each one repetition; default: idexp's run CSVs.
+    #[serde(default)]
+    pub log: Option<crate::data::logs::LogSpec>,
 }
 
 /// How the prior's weight is set.
@@ -375,6 +381,15 @@ impl ExperimentSpec {
         }
         if !(self.min_speed.is_finite() && self.min_speed >= 0.0) {
             return bad("min_speed", format!("expected a speed ≥ 0, found {}", self.min_speed));
+        }
+        if let Some(l) = &self.log {
+            l.validate(&format!("{ctx}: log"))?;
+            if self.repetitions.is_some() || self.torque_from != TorqueFrom::Auto {
+                return bad(
+                    "log",
+                    "`repetitions` and `torque_from` are for idexp's run CSVs; a log's torques are set in its spec (`torque`, `current`, `tau`)".into(),
+                );
+            }
         }
         if self.filter == FilterName::Fourier && self.trajectory.is_none() && self.kind != ExperimentKind::Excitation {
             return bad("filter", format!("\"fourier\" for a {} experiment needs `trajectory`", self.kind.name()));

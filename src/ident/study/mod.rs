@@ -67,18 +67,27 @@ pub fn load_entry(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, dir: 
     for p in &paths {
         crate::io::status::require_complete(p, false)?;
     }
-    let (run, torque_source, sampling) = Run::read_drives_sampled(
-        &paths,
-        robot,
-        spec.repetitions,
-        spec.torque_from,
-        spec.current_tolerance,
-        Some(SamplingOptions {
-            rate: spec.resample,
-            limit: sample_limit,
-        }),
-    )?;
-    let sampling = sampling.unwrap_or_else(|| unreachable_sampling(&run));
+    let (run, torque_source, sampling) = match &spec.log {
+        Some(l) => {
+            let (run, src, sampling, _) = crate::data::logs::read_run(&paths, robot, l, spec.resample, sample_limit)?;
+            (run, src, sampling)
+        }
+        None => {
+            let (run, src, sampling) = Run::read_drives_sampled(
+                &paths,
+                robot,
+                spec.repetitions,
+                spec.torque_from,
+                spec.current_tolerance,
+                Some(SamplingOptions {
+                    rate: spec.resample,
+                    limit: sample_limit,
+                }),
+            )?;
+            let sampling = sampling.unwrap_or_else(|| unreachable_sampling(&run));
+            (run, src, sampling)
+        }
+    };
     let run = in_joint_coordinates(robot, &run, spec.coordinates)?.into_owned();
     let traj: Option<FourierTrajectory> = match &spec.trajectory {
         Some(p) => {
