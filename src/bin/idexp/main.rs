@@ -19,6 +19,7 @@ mod positions;
 mod progress;
 mod robot;
 mod simulate;
+mod view;
 
 use clap::{Parser, Subcommand};
 use idexp::optim::{Control, StopFlag};
@@ -59,6 +60,8 @@ enum Cmd {
     Assess(excite::AssessArgs),
     /// Write a designed excitation trajectory (coefficients.json) as URScript, ROS 2 JointTrajectory YAML or CSV.
     Export(export::ExportArgs),
+    /// Write the interactive 3D preview page (preview.html) of an excite output folder or a trajectory CSV.
+    View(view::ViewArgs),
 }
 
 /// How a command ended (errors are the `Err` of the runner).
@@ -153,6 +156,7 @@ fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Cmd::Excite(a) => excite::run_excite(a, &ctl),
         Cmd::Assess(a) => excite::run_assess(a, &ctl),
         Cmd::Export(a) => export::run(a, &ctl),
+        Cmd::View(a) => view::run(a, &ctl),
     }
 }
 
