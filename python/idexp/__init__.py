@@ -52,6 +52,7 @@ from ._idexp import (
     multisine,
     positions,
     simulate,
+    write_preview,
 )
 
 __all__ = [
@@ -74,4 +75,5 @@ __all__ = [
     "multisine",
     "positions",
     "simulate",
+    "write_preview",
 ]

@@ -18,4 +18,5 @@ from ._idexp import (
     identify as identify,
     positions as positions,
     simulate as simulate,
+    write_preview as write_preview,
 )

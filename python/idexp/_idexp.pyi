@@ -330,3 +330,13 @@ def multisine(design: PathLike, out: Optional[PathLike] = None) -> dict:
 
 def frf(input: PathLike, out: Optional[PathLike] = None, progress: Progress = None) -> str:
     """FRF estimates (`idexp frf`) from an elastic design or a runs.json; returns the frf.json path."""
+
+def write_preview(
+    source: PathLike,
+    robot: Optional[PathLike] = None,
+    design: Optional[PathLike] = None,
+    out: Optional[PathLike] = None,
+    fps: float = 30.0,
+) -> str:
+    """`idexp view`: writes preview.html, the self-contained 3D preview of an excite output folder
+    or (with robot) of a trajectory CSV, into out (default: that folder); returns its path."""

@@ -25,6 +25,7 @@ mod arrays;
 mod err;
 mod exports;
 mod long;
+mod preview;
 mod problems;
 mod robot;
 
@@ -49,6 +50,7 @@ fn _idexp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(problems::multisine, m)?)?;
     m.add_function(wrap_pyfunction!(problems::frf, m)?)?;
     m.add_function(wrap_pyfunction!(problems::export_trajectory, m)?)?;
+    m.add_function(wrap_pyfunction!(preview::write_preview, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

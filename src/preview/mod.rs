@@ -683,9 +683,9 @@ fn read_json(path: &Path) -> Result<serde_json::Value> {
 }
 
 /// The page of an `idexp excite` output folder (`design.json`,
-/// `coefficients.json`, `report.json`), written as `out` (default
-/// `<dir>/preview.html`).
-pub fn write_for_folder(dir: &Path, out: Option<&Path>, opts: &PreviewOptions) -> Result<Written> {
+/// `coefficients.json`, `report.json`), written into `out_dir` (default:
+/// that folder) as `preview.html`.
+pub fn write_for_folder(dir: &Path, out_dir: Option<&Path>, opts: &PreviewOptions) -> Result<Written> {
     crate::io::status::require_complete(dir, true)?;
     let design_path = dir.join("design.json");
     if !design_path.is_file() {
@@ -723,8 +723,36 @@ pub fn write_for_folder(dir: &Path, out: Option<&Path>, opts: &PreviewOptions) -
         delivered,
         rate: design.trajectory.controller_rate,
     };
-    let out = out.map_or_else(|| dir.join("preview.html"), Path::to_path_buf);
-    write(&setup, &motion, opts, &out)
+    let out = out_dir.unwrap_or(dir);
+    crate::io::folder::check_out_dir(out)?;
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    write(&setup, &motion, opts, &out.join("preview.html"))
+}
+
+/// The page of a trajectory CSV ([`read_rows`]) played by the robot of
+/// `robot_path`; with `design`, that excitation design's obstacles,
+/// workspace and limits. Written into `out_dir` (default: the CSV's folder)
+/// as `preview.html`.
+pub fn write_for_trajectory(robot_path: &Path, csv: &Path, design: Option<&Path>, out_dir: Option<&Path>, opts: &PreviewOptions) -> Result<Written> {
+    let robot = crate::robot::load(robot_path)?;
+    let title = csv.display().to_string();
+    let setup = match design {
+        Some(dp) => {
+            let d = ExciteDesign::load(dp)?;
+            let mut s = Setup::from_design(&d, robot, &dp.display().to_string())?;
+            s.title = format!("{} ({title})", d.name);
+            s
+        }
+        None => Setup::from_robot(robot, &title)?,
+    };
+    let motion = read_rows(csv, setup.robot.dof())?;
+    let dir = match out_dir {
+        Some(d) => d.to_path_buf(),
+        None => csv.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new(".")).to_path_buf(),
+    };
+    crate::io::folder::check_out_dir(&dir)?;
+    std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+    write(&setup, &motion, opts, &dir.join("preview.html"))
 }
 
 /// Reads a trajectory CSV for a robot with `n` joints: columns `t`,

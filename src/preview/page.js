@@ -40,15 +40,21 @@ function segName(s) {
   return 'period ' + s;
 }
 
+const marks = {};
+const mark = (name) => { marks[name] = Math.round(performance.now()); };
 async function main() {
+  mark('start');
   const D = JSON.parse($('idexp-data').textContent);
+  mark('json');
   const n = D.dof;
   const F = D.frames;
   const N = F.n;
   const T = F64(F.t), SEG = I32(F.segment), Q = F64(F.q), QD = F64(F.qd), LINKS = F32(F.links), EE = F32(F.ee);
   const CL = {};
   for (const c of ['self', 'world']) CL[c] = { pair: I32(F[c].pair), dist: F64(F[c].distance), w: F32(F[c].witness) };
+  mark('decode');
   const { THREE, OrbitControls } = await loadThree();
+  mark('three');
 
   // ---------------------------------------------------------------- scene
   const view = $('view');
@@ -89,6 +95,13 @@ async function main() {
     g.position.copy(nrm.clone().multiplyScalar(p.offset - 1e-4));
     groups.cell.add(g);
     planeNames.push(p.name);
+  }
+
+  if (!D.planes.length) {
+    // no floor is checked: a faint reference grid at z = 0 for orientation
+    const grid = new THREE.GridHelper(4 * reach, 20, 0xd5d9e0, 0xeceef2);
+    grid.rotation.x = Math.PI / 2;
+    groups.cell.add(grid);
   }
 
   // bodies: each convex part as drawn by idexp (padding included)
@@ -236,6 +249,7 @@ async function main() {
     renderer.render(scene, camera);
   }
 
+  mark('scene');
   // ---------------------------------------------------------------- panel
   $('title').textContent = D.title;
   $('meta').innerHTML = '';
@@ -280,7 +294,8 @@ async function main() {
     d.style.left = (100 * (s.t0 - t0)) / span + '%';
     d.style.width = (100 * (s.t1 - s.t0)) / span + '%';
     d.style.background = s.segment >= 1 ? SEG_COLORS.period[s.segment % 2] : SEG_COLORS.lead;
-    d.textContent = s.name;
+    // a narrow segment (many periods) shows its number only
+    d.textContent = s.t1 - s.t0 < 0.06 * span ? (s.segment >= 1 ? String(s.segment) : '') : s.name;
     d.title = `${s.name}: ${s.t0.toFixed(3)} – ${s.t1.toFixed(3)} s`;
     $('phases').appendChild(d);
   }
@@ -317,8 +332,11 @@ async function main() {
   for (let j = 0; j < n; j++) makePlot($('plots-q'), j, 'q');
   for (let j = 0; j < n; j++) makePlot($('plots-qd'), j, 'qd');
   function drawPlotBg(p) {
-    const c = p.c, dpr = window.devicePixelRatio || 1;
-    const W = Math.max(1, Math.round(c.clientWidth * dpr)), H = Math.max(1, Math.round(c.clientHeight * dpr));
+    // drawn once into an offscreen canvas; the cursor is drawn over a copy
+    const dpr = window.devicePixelRatio || 1;
+    const W = Math.max(1, Math.round(p.c.clientWidth * dpr)), H = Math.max(1, Math.round(p.c.clientHeight * dpr));
+    p.c.width = W; p.c.height = H;
+    const c = document.createElement('canvas');
     c.width = W; c.height = H;
     const g = c.getContext('2d');
     const L = 46 * dpr, R = 4 * dpr, TOP = 14 * dpr, B = 4 * dpr;
@@ -338,9 +356,20 @@ async function main() {
     g.strokeStyle = 'rgba(192,57,43,0.8)'; g.setLineDash([4 * dpr, 3 * dpr]);
     for (const v of p.hard) if (v !== null && v > p.lo && v < p.hi) { g.beginPath(); g.moveTo(L, Y(v)); g.lineTo(W - R, Y(v)); g.stroke(); }
     g.setLineDash([]);
-    // the series
+    // the series: its range per pixel column (min to max; every sample is
+    // in it), joined column to column
     g.strokeStyle = '#1d2433'; g.lineWidth = 1.2 * dpr; g.beginPath();
-    for (let k = 0; k < N; k++) { const x = X(T[k]), y = Y(p.data[k * n + p.j]); if (k) g.lineTo(x, y); else g.moveTo(x, y); }
+    let col = -1, lo = 0, hi = 0, first = true;
+    const flush = () => {
+      if (col < 0) return;
+      if (first) { g.moveTo(col, Y(lo)); first = false; } else g.lineTo(col, Y(lo));
+      if (hi !== lo) g.lineTo(col, Y(hi));
+    };
+    for (let k = 0; k < N; k++) {
+      const x = Math.round(X(T[k])), v = p.data[k * n + p.j];
+      if (x !== col) { flush(); col = x; lo = v; hi = v; } else { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+    }
+    flush();
     g.stroke();
     // labels
     const jt = D.joints[p.j];
@@ -351,13 +380,13 @@ async function main() {
     g.fillText(p.hi.toFixed(2), L - 3 * dpr, TOP + 8 * dpr);
     g.fillText(p.lo.toFixed(2), L - 3 * dpr, H - B);
     g.textAlign = 'left';
-    p.bg = g.getImageData(0, 0, W, H);
+    p.bg = c;
     p.X = X; p.Y = Y;
   }
   function drawPlotCursor(p, k) {
     if (!p.bg) drawPlotBg(p);
     const g = p.c.getContext('2d');
-    g.putImageData(p.bg, 0, 0);
+    g.drawImage(p.bg, 0, 0);
     const dpr = window.devicePixelRatio || 1;
     const x = p.X(T[k]);
     g.strokeStyle = '#c0392b'; g.lineWidth = 1.5 * dpr;
@@ -420,6 +449,7 @@ async function main() {
     const t = T[frame], seg = SEG[frame];
     const q = Array.from(Q.subarray(frame * n, frame * n + n));
     const qd = Array.from(QD.subarray(frame * n, frame * n + n));
+    if (!state.ready) state.load_ms = Math.round(performance.now());
     Object.assign(state, { ready: true, t, frame, frames: N, segment: seg === -2147483648 ? null : seg, phase: segName(seg), self: cl.self, world: cl.world, q, qd, hidden: hidden() });
     $('idexp-state').textContent = JSON.stringify(state);
     // heads-up display
@@ -488,8 +518,13 @@ async function main() {
   window.addEventListener('resize', () => { for (const p of plots) p.bg = null; resize(); setFrame(frame); });
   window.idexpSetTime = setTime;
   window.idexpSetFrame = setFrame;
+  mark('panel');
   resize();
+  mark('resize');
   applyHash();
+  mark('ready');
+  state.timing = marks;
+  $('idexp-state').textContent = JSON.stringify(state);
 }
 
 main().catch(fail);

@@ -3,10 +3,9 @@
 
 use crate::Outcome;
 use anyhow::bail;
-use idexp::excitation::design::ExciteDesign;
 use idexp::optim::Control;
-use idexp::preview::{read_rows, write, write_for_folder, PreviewOptions, Setup};
-use std::path::{Path, PathBuf};
+use idexp::preview::{write_for_folder, write_for_trajectory, PreviewOptions};
+use std::path::PathBuf;
 
 /// `idexp view`: write the 3D preview page of a trajectory.
 #[derive(clap::Args, Debug)]
@@ -37,35 +36,14 @@ pub fn run(a: &ViewArgs, _ctl: &Control) -> anyhow::Result<Outcome> {
         bail!("--fps: expected frames per second in (0, 1000], got {}", a.fps);
     }
     let opts = PreviewOptions { fps: a.fps };
-    let out_file = |default_dir: &Path| -> anyhow::Result<PathBuf> {
-        let dir = a.out.clone().unwrap_or_else(|| default_dir.to_path_buf());
-        idexp::io::folder::check_out_dir(&dir)?;
-        std::fs::create_dir_all(&dir).map_err(|e| idexp::Error::io(&dir, e))?;
-        Ok(dir.join("preview.html"))
-    };
     let written = match (&a.folder, &a.robot, &a.trajectory) {
         (Some(folder), _, _) => {
             if !folder.is_dir() {
                 bail!("{}: not a folder (expected the output folder of `idexp excite`)", folder.display());
             }
-            write_for_folder(folder, Some(&out_file(folder)?), &opts)?
+            write_for_folder(folder, a.out.as_deref(), &opts)?
         }
-        (None, Some(robot_path), Some(csv)) => {
-            let robot = idexp::robot::load(robot_path)?;
-            let title = csv.display().to_string();
-            let setup = match &a.design {
-                Some(dp) => {
-                    let d = ExciteDesign::load(dp)?;
-                    let mut s = Setup::from_design(&d, robot, &dp.display().to_string())?;
-                    s.title = format!("{} ({})", d.name, title);
-                    s
-                }
-                None => Setup::from_robot(robot, &title)?,
-            };
-            let motion = read_rows(csv, setup.robot.dof())?;
-            let dir = csv.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-            write(&setup, &motion, &opts, &out_file(dir)?)?
-        }
+        (None, Some(robot), Some(csv)) => write_for_trajectory(robot, csv, a.design.as_deref(), a.out.as_deref(), &opts)?,
         _ => bail!("give an output folder of `idexp excite`, or --robot and --trajectory"),
     };
     println!(
