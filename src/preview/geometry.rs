@@ -11,7 +11,7 @@
 //! shipped robots' paddings of at most 2 mm). Half-spaces (floor, walls) are
 //! drawn as planes.
 
-use crate::robot::collision::Body;
+use crate::robot::collision::{Body, MeshData};
 use nalgebra::{Isometry3, Point3, Vector3};
 use parry3d_f64::shape::{HalfSpace, SharedShape};
 use serde::Serialize;
@@ -122,7 +122,7 @@ pub fn body_meshes(body: &Body) -> (Vec<PartMesh>, Vec<PlaneView>) {
 }
 
 /// The triangle mesh of a polyhedral or cylindrical part (before padding).
-fn raw_mesh(shape: &SharedShape) -> Option<(Vec<Point3<f64>>, Vec<[u32; 3]>)> {
+fn raw_mesh(shape: &SharedShape) -> Option<MeshData> {
     if let Some(c) = shape.as_convex_polyhedron() {
         Some(c.to_trimesh())
     } else if let Some(c) = shape.as_cuboid() {

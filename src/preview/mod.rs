@@ -12,7 +12,9 @@
 //!
 //! **What is computed here, not in the browser.** Every pose and distance
 //! comes from the library: the trajectory's samples (the 1 kHz rows of
-//! `trajectory.csv`) are scanned in full, and the page holds
+//! `trajectory.csv`) are scanned in full (a delivered trajectory's rows of
+//! period s ≥ 2 repeat period 1's rows at the same phase bit for bit, as in
+//! `trajectory.csv`, and are scanned once), and the page holds
 //!
 //! - display frames every `rate/fps` rows (30 frames/s by default), each a
 //!   row of the trajectory: link poses (f32), q and q̇, and per class (self,
@@ -108,8 +110,11 @@ impl Motion {
     fn row(&self, k: usize, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) -> (f64, i64) {
         match self {
             Motion::Delivered { delivered, rate } => {
-                let t = k as f64 / rate;
-                (t, delivered.eval(t, q, qd, qdd))
+                // a row of period s ≥ 2 takes the state of period 1's row at
+                // the same phase, as trajectory.csv does
+                let (seg, src) = delivered.rows(*rate).row(delivered, k);
+                delivered.eval(src as f64 / rate, q, qd, qdd);
+                (k as f64 / rate, seg)
             }
             Motion::Rows { t, q: qs, qd: qds, segment } => {
                 let n = q.len();
@@ -117,6 +122,16 @@ impl Motion {
                 qd.copy_from_slice(&qds[k * n..(k + 1) * n]);
                 (t[k], segment.as_ref().map_or(i64::MIN, |s| s[k]))
             }
+        }
+    }
+
+    /// True when row `k` repeats the state of an earlier row (a row of a
+    /// delivered trajectory's period s ≥ 2): the scan for the first row of
+    /// least distance or margin skips it.
+    fn repeats(&self, k: usize) -> bool {
+        match self {
+            Motion::Delivered { delivered, rate } => delivered.rows(*rate).row(delivered, k).1 != k,
+            Motion::Rows { .. } => false,
         }
     }
 
@@ -384,8 +399,10 @@ fn scan(setup: &Setup, motion: &Motion, cap: f64) -> Worst {
             let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
             let mut w = Worst::default();
             let mut poses: Vec<Vec<Isometry3<f64>>> = Vec::with_capacity(k1 - k0);
-            for k in k0..k1 {
+            let mut row_of = Vec::with_capacity(k1 - k0);
+            for k in (k0..k1).filter(|&k| !motion.repeats(k)) {
                 motion.row(k, &mut q, &mut qd, &mut qdd);
+                row_of.push(k);
                 for j in 0..n {
                     let [lo, hi] = setup.limits.position[j];
                     let m = (q[j] - lo).min(hi - q[j]);
@@ -411,7 +428,7 @@ fn scan(setup: &Setup, motion: &Motion, cap: f64) -> Worst {
                     if let Some((g, v)) = series.argmin() {
                         if v < cap {
                             let c = usize::from(p.class == PairClass::World);
-                            w.dist[c] = keep_least(w.dist[c], Some((v, k0 + g, k)));
+                            w.dist[c] = keep_least(w.dist[c], Some((v, row_of[g], k)));
                         }
                     }
                 }
