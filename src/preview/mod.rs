@@ -140,15 +140,7 @@ impl Motion {
     fn at(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) -> (f64, i64) {
         match self {
             Motion::Delivered { delivered, .. } => (t, delivered.eval(t, q, qd, qdd)),
-            Motion::Rows { t: ts, .. } => {
-                let k = ts.partition_point(|&x| x < t);
-                let k = match (k.checked_sub(1), ts.get(k)) {
-                    (Some(a), Some(&b)) if (t - ts[a]) <= (b - t) => a,
-                    (Some(a), None) => a,
-                    _ => k,
-                };
-                self.row(k, q, qd, qdd)
-            }
+            Motion::Rows { t: ts, .. } => self.row(nearest(ts, t), q, qd, qdd),
         }
     }
 
@@ -335,12 +327,17 @@ pub struct Preview {
 impl Preview {
     /// The frame of an instant of the trajectory at time `t` (the nearest frame).
     pub fn frame_at(&self, t: f64) -> usize {
-        let k = self.t.partition_point(|&x| x < t);
-        match (k.checked_sub(1), self.t.get(k)) {
-            (Some(a), Some(&b)) if (t - self.t[a]) <= (b - t) => a,
-            (Some(a), None) => a,
-            _ => k,
-        }
+        nearest(&self.t, t)
+    }
+}
+
+/// The index of the time in `ts` (increasing) nearest `t`, the earlier on a tie.
+fn nearest(ts: &[f64], t: f64) -> usize {
+    let k = ts.partition_point(|&x| x < t);
+    match (k.checked_sub(1), ts.get(k)) {
+        (Some(a), Some(&b)) if (t - ts[a]) <= (b - t) => a,
+        (Some(a), None) => a,
+        _ => k,
     }
 }
 
