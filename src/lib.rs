@@ -68,6 +68,7 @@ pub mod linalg;
 pub mod optim;
 pub mod params;
 pub mod positions;
+pub mod preview;
 pub mod rng;
 pub mod robot;
 pub mod sim;

@@ -169,6 +169,7 @@ fn idexp_excite_on_the_readme_design_writes_every_output_and_assess_reads_the_tr
         "joints.svg",
         "singular_values.svg",
         "ee_path.svg",
+        "preview.html",
     ] {
         assert!(out.join(f).is_file(), "missing {f}");
     }

@@ -150,6 +150,7 @@ fn assert_whole_excite(dir: &Path) {
         "ee_path.svg",
         "criterion.json",
         "criterion_samples.csv",
+        "preview.html",
     ] {
         assert!(dir.join(f).is_file(), "{}: {f} missing", dir.display());
     }

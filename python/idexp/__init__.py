@@ -64,6 +64,7 @@ from ._idexp import (
     simulate,
     study,
     write_mjcf,
+    write_preview,
 )
 
 __all__ = [
@@ -92,4 +93,5 @@ __all__ = [
     "simulate",
     "study",
     "write_mjcf",
+    "write_preview",
 ]

@@ -24,4 +24,5 @@ from ._idexp import (
     simulate as simulate,
     study as study,
     write_mjcf as write_mjcf,
+    write_preview as write_preview,
 )

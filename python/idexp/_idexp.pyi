@@ -386,3 +386,13 @@ def read_log(
 
 def log_info(bag: PathLike) -> dict:
     """Topics, message counts, joint names, span and rates of a ROS 2 bag (`idexp log info`)."""
+
+def write_preview(
+    source: PathLike,
+    robot: Optional[PathLike] = None,
+    design: Optional[PathLike] = None,
+    out: Optional[PathLike] = None,
+    fps: float = 30.0,
+) -> str:
+    """`idexp view`: writes preview.html, the self-contained 3D preview of an excite output folder
+    or (with robot) of a trajectory CSV, into out (default: that folder); returns its path."""

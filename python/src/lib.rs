@@ -27,6 +27,7 @@ mod exports;
 mod logs;
 mod long;
 mod mjcf;
+mod preview;
 mod problems;
 mod robot;
 mod study;
@@ -58,6 +59,7 @@ fn _idexp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(logs::log_info, m)?)?;
     m.add_function(wrap_pyfunction!(mjcf::mjcf, m)?)?;
     m.add_function(wrap_pyfunction!(mjcf::write_mjcf, m)?)?;
+    m.add_function(wrap_pyfunction!(preview::write_preview, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

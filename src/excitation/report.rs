@@ -772,6 +772,13 @@ fn delivered_sample_set(t: &[f64], periods: usize) -> SampleSet {
 /// computed from), report.json, report.txt, design.json, status.json and the
 /// SVG plots (joints.svg, singular_values.svg, ee_path.svg).
 pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Written> {
+    write_outputs_with(p, r, dir, |_| Ok(()))
+}
+
+/// [`write_outputs`], with `extra` writing further files into `dir` after
+/// every other file and before the final `status.json` (the command line's
+/// `preview.html`), so the folder is complete only with them.
+pub fn write_outputs_with(p: &Problem, r: &ExciteResult, dir: &Path, extra: impl FnOnce(&Path) -> Result<()>) -> Result<Written> {
     let d = &p.design;
     crate::io::folder::begin(dir, "excite", &crate::io::status::fingerprint_of(d)?)?;
     let noise = d.objective.noise.clone().unwrap_or_else(|| vec![1.0; p.robot.dof()]);
@@ -967,6 +974,7 @@ pub fn write_outputs(p: &Problem, r: &ExciteResult, dir: &Path) -> Result<Writte
     )?;
     joints_svg(p, r, &dir.join("joints.svg"))?;
     ee_svg(p, r, &dir.join("ee_path.svg"))?;
+    extra(dir)?;
     // the final status last: a folder without it is marked `running`
     crate::io::status::write_status(dir, "excite", state, detail, started, crate::io::status::fingerprint_of(d)?, summary)?;
     Ok(Written {

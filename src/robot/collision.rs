@@ -762,6 +762,12 @@ impl Body {
         self.parts.iter().filter_map(|p| p.climb.as_deref().map(|h| (h, p.local))).collect()
     }
 
+    /// The parts as drawn: each part's shape, its pose in the body frame and
+    /// its padding (m; the part is the shape grown by a ball of that radius).
+    pub fn part_shapes(&self) -> impl Iterator<Item = (&SharedShape, &Isometry3<f64>, f64)> {
+        self.parts.iter().map(|p| (&p.shape, &p.local, p.pad))
+    }
+
     /// Number of convex parts.
     pub fn n_parts(&self) -> usize {
         self.parts.len()
@@ -1874,6 +1880,52 @@ impl CollisionScene {
             label: self.pairs[k].label(),
             distance: value[k],
         })
+    }
+
+    /// The closest of the pairs that `keep` selects at body poses `poses`,
+    /// with its witness points: `(k, proximity)` of least capped distance
+    /// (the first pair on ties), `None` when every selected pair is farther
+    /// than `cap`. The distance is [`Self::pair_distance`]'s (an exact query
+    /// wherever the broad phase, [`Self::pair_bounds`], leaves a pair a
+    /// candidate for the minimum), so it agrees with [`Self::worst_at`] and
+    /// the report's margins to the bit.
+    pub fn closest_where(&self, poses: &[Isometry3<f64>], cap: f64, keep: impl Fn(&PairInfo) -> bool) -> Option<(usize, Proximity)> {
+        let mut cand: Vec<(f64, usize)> = Vec::new();
+        for (k, p) in self.pairs.iter().enumerate() {
+            if !keep(p) {
+                continue;
+            }
+            let (sphere, bound) = self.pair_bounds(k, poses, cap);
+            if sphere <= cap && bound <= cap + CULL_TOL {
+                cand.push((bound, k));
+            }
+        }
+        cand.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let mut best: Option<(usize, Proximity)> = None;
+        for (bound, k) in cand {
+            if best.as_ref().is_some_and(|(_, b)| bound > b.distance + CULL_TOL) {
+                break;
+            }
+            if let Some(x) = self.pair_proximity(k, poses, cap) {
+                if best
+                    .as_ref()
+                    .is_none_or(|(kb, b)| x.distance < b.distance || (x.distance == b.distance && k < *kb))
+                {
+                    best = Some((k, x));
+                }
+            }
+        }
+        best
+    }
+
+    /// The moving link of body `i` of [`Self::bodies`] (`None`: fixed in the base frame).
+    pub fn owner(&self, i: usize) -> Option<usize> {
+        self.owner.get(i).copied().flatten()
+    }
+
+    /// The indices into [`Self::bodies`] of the two bodies of pair `k`.
+    pub fn pair_bodies(&self, k: usize) -> (usize, usize) {
+        (self.pairs[k].ia, self.pairs[k].ib)
     }
 
     /// True when every pair keeps at least `limit` (≤ the cap) at `poses`,

@@ -3,7 +3,7 @@
 use crate::Outcome;
 use anyhow::bail;
 use idexp::excitation::design::ExciteDesign;
-use idexp::excitation::report::{assess_file, ident_figure, violation_lines, write_outputs, CriterionRecord};
+use idexp::excitation::report::{assess_file, ident_figure, violation_lines, write_outputs_with, CriterionRecord};
 use idexp::excitation::{run, Criterion, Problem, Status};
 use idexp::optim::{Control, Termination};
 use idexp::params::{BaseOptions, BaseParams};
@@ -105,8 +105,11 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     };
     let r = run(&p, ctl)?;
     ctl.observer().phase("excite write", Some(1));
-    ctl.observer().progress(0, &format!("report, trajectories and plots into {}", out.display()));
-    let written = write_outputs(&p, &r, &out);
+    ctl.observer()
+        .progress(0, &format!("report, trajectories, plots and preview.html into {}", out.display()));
+    let written = write_outputs_with(&p, &r, &out, |dir| {
+        idexp::preview::write_for_result(&p, &r, dir, &idexp::preview::PreviewOptions::default()).map(|_| ())
+    });
     ctl.observer().phase_done();
     let written = written?;
     if a.json {

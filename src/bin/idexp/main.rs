@@ -20,6 +20,7 @@ mod positions;
 mod progress;
 mod robot;
 mod simulate;
+mod view;
 
 use clap::{Parser, Subcommand};
 use idexp::optim::{Control, StopFlag};
@@ -62,6 +63,8 @@ enum Cmd {
     Export(export::ExportArgs),
     /// Robot logs (RTDE recorder CSV, CSV with a column map, headerless CSV, ROS 2 bags): convert to a run, inspect a bag.
     Log(log::LogArgs),
+    /// Write the interactive 3D preview page (preview.html) of an excite output folder or a trajectory CSV.
+    View(view::ViewArgs),
 }
 
 /// How a command ended (errors are the `Err` of the runner).
@@ -157,6 +160,7 @@ fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Cmd::Assess(a) => excite::run_assess(a, &ctl),
         Cmd::Export(a) => export::run(a, &ctl),
         Cmd::Log(a) => log::run(a, &ctl),
+        Cmd::View(a) => view::run(a, &ctl),
     }
 }
 
