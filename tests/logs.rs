@@ -244,7 +244,7 @@ fn assert_same_estimate(a: &idexp::ident::Estimate, b: &idexp::ident::Estimate, 
 fn identification_from_a_bag_or_an_rtde_csv_equals_identification_from_the_run_csv() {
     let csv = Run::read(&[data("ur5_idexp.csv")], 6).unwrap();
     let from_csv = identify(&csv);
-    assert_eq!(from_csv.status, "ok", "{}", from_csv.text());
+    assert_eq!(from_csv.status, idexp::ident::EstimateStatus::Ok, "{}", from_csv.text());
     for (what, log) in [
         ("mcap bag", bag("ur5_mcap")),
         ("sqlite3 bag", bag("ur5_sqlite3")),
