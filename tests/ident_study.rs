@@ -494,3 +494,82 @@ fn repetitions_reach_an_averaged_validation_run() {
     let est: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("o/estimate.json")).unwrap()).unwrap();
     assert!(est["validation_all"]["noise_floor"].is_array(), "{}", est["validation_all"]);
 }
+
+#[test]
+fn experiments_from_robot_logs_equal_the_same_samples_as_run_csvs() {
+    // the UR5 fixtures of tests/logs.rs: one trajectory as idexp's run CSV, as a
+    // ROS 2 bag (MCAP and sqlite3, written by rosbags) and as an RTDE recorder CSV
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let d = root("tests/data/logs");
+    let head = format!("robot = \"{}\"\nweights = \"residuals\"\n", d.join("ur5_drives.toml").display());
+    let entry = |name: &str, file: &str, log: &str| format!("[[experiment]]\nname = \"{name}\"\nfiles = [\"{}\"]\n{log}", d.join(file).display());
+    let reference = study(dir, &format!("{head}{}", entry("csv", "ur5_idexp.csv", "")));
+    assert_eq!(reference.estimate.status, EstimateStatus::Ok);
+    for (name, file, log) in [
+        ("mcap", "ur5_mcap", "log = { format = \"bag\" }\n"),
+        ("sqlite", "ur5_sqlite3", "log = { format = \"bag\" }\n"),
+        ("rtde", "ur5_rtde.csv", "log = { format = \"rtde\" }\n"),
+    ] {
+        let r = study(dir, &format!("{head}{}", entry(name, file, log)));
+        let (a, b) = (&r.estimate.theta, &reference.estimate.theta);
+        for i in 0..a.len() {
+            assert!(
+                (a[i] - b[i]).abs() <= 1e-9 * b[i].abs().max(1e-9),
+                "{name}: {} {} vs {}",
+                r.estimate.names[i],
+                a[i],
+                b[i]
+            );
+        }
+    }
+    // a spec field of another format is named
+    let p = dir.join("bad.toml");
+    std::fs::write(
+        &p,
+        format!("{head}{}", entry("x", "ur5_mcap", "log = { format = \"bag\", q = \"actual_q_{j}\" }\n")),
+    )
+    .unwrap();
+    let e = StudyDesign::read(&p).unwrap_err().to_string();
+    assert!(e.contains("experiment 1 (x): log") && e.contains('q'), "{e}");
+}
+
+#[test]
+fn identify_reads_robot_logs_given_on_the_command_line() {
+    let d = root("tests/data/logs");
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |args: &[&str], out: &str| -> serde_json::Value {
+        let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
+            .arg("identify")
+            .arg(d.join("ur5_drives.toml"))
+            .args(args)
+            .args(["--weights", "joint", "--out", tmp.path().join(out).to_str().unwrap()])
+            .env("IDEXP_NO_PROGRESS", "1")
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(0), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join(out).join("estimate.json")).unwrap()).unwrap()
+    };
+    let csv = run(&[d.join("ur5_idexp.csv").to_str().unwrap()], "csv");
+    let bag = run(&[d.join("ur5_sqlite3").to_str().unwrap(), "--log-format", "bag"], "bag");
+    let rtde = run(
+        &[d.join("ur5_rtde.csv").to_str().unwrap(), "--log-map", d.join("rtde_map.toml").to_str().unwrap()],
+        "rtde",
+    );
+    for (what, e) in [("bag", &bag), ("rtde", &rtde)] {
+        for (a, b) in e["theta"].as_array().unwrap().iter().zip(csv["theta"].as_array().unwrap()) {
+            let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+            assert!((a - b).abs() <= 1e-9 * b.abs().max(1e-9), "{what}: {a} vs {b}");
+        }
+    }
+    // --topic without a log form is a clear error
+    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .arg("identify")
+        .arg(d.join("ur5_drives.toml"))
+        .arg(d.join("ur5_idexp.csv"))
+        .args(["--topic", "/joint_states", "--out", tmp.path().join("x").to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--log-format"));
+}

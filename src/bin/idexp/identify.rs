@@ -158,6 +158,18 @@ pub struct IdentifyArgs {
     /// Accept run folders whose status.json is not `complete` (e.g. an interrupted simulate); never one marked `running`.
     #[arg(long)]
     pub allow_incomplete: bool,
+    /// The run and validation files are robot logs of this form (rtde, csv, headerless, bag), each one repetition; irregular stamps are resampled.
+    #[arg(long, conflicts_with = "log_map")]
+    pub log_format: Option<idexp::data::logs::LogFormat>,
+    /// A log map file (TOML, `idexp log convert --map`): how the run and validation logs map to the run columns.
+    #[arg(long)]
+    pub log_map: Option<PathBuf>,
+    /// The JointState topic of bag logs (with --log-format bag).
+    #[arg(long)]
+    pub topic: Option<String>,
+    /// Uniform rate (Hz) that irregular logs are resampled to (default: the inverse median step).
+    #[arg(long)]
+    pub resample: Option<f64>,
     /// Print estimate.json's contents (or the experiment's fit) instead of the text report.
     #[arg(long)]
     #[serde(skip)]
@@ -258,6 +270,23 @@ fn run_study(a: &IdentifyArgs, ctl: &Control, started: SystemTime) -> anyhow::Re
     })
 }
 
+/// The log spec of `--log-format` / `--log-map` (with `--topic`), if any.
+fn log_spec(a: &IdentifyArgs) -> anyhow::Result<Option<idexp::data::logs::LogSpec>> {
+    let mut spec = match (&a.log_format, &a.log_map) {
+        (Some(f), _) => idexp::data::logs::LogSpec::new(*f),
+        (None, Some(p)) => idexp::data::logs::LogSpec::read(p)?,
+        (None, None) if a.topic.is_some() || a.resample.is_some() => {
+            bail!("identify: --topic and --resample are for robot logs: give --log-format or --log-map")
+        }
+        (None, None) => return Ok(None),
+    };
+    if let Some(t) = &a.topic {
+        spec.topic = Some(t.clone());
+    }
+    spec.validate("identify --log-format/--log-map/--topic")?;
+    Ok(Some(spec))
+}
+
 /// Runs `idexp identify`.
 pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let started = SystemTime::now();
@@ -276,7 +305,20 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         .iter()
         .chain(&a.validate)
         .try_for_each(|r| idexp::io::status::require_complete(r, a.allow_incomplete))?;
-    let (run, torque_source) = Run::read_drives(&a.run, &robot, a.repetitions, a.torque_from, a.current_tolerance)?;
+    let log_spec = log_spec(a)?;
+    let read = |paths: &[PathBuf], reps: Option<usize>| -> anyhow::Result<(Run, idexp::data::TorqueSource)> {
+        Ok(match &log_spec {
+            Some(spec) => {
+                let (run, src, sampling, _) = idexp::data::logs::read_run(paths, &robot, spec, a.resample, 50_000_000)?;
+                if sampling.resampled_to.is_some() {
+                    eprintln!("identify: {}", sampling.text());
+                }
+                (run, src)
+            }
+            None => Run::read_drives(paths, &robot, reps, a.torque_from, a.current_tolerance)?,
+        })
+    };
+    let (run, torque_source) = read(&a.run, a.repetitions)?;
     let logged_currents = torque_source.from == "current" || torque_source.agreement.is_some() || !torque_source.note.is_empty();
     let traj = match &a.trajectory {
         Some(p) => {
@@ -361,7 +403,7 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let vrun = if a.validate.is_empty() {
         None
     } else {
-        Some(Run::read_drives(&a.validate, &robot, a.repetitions, a.torque_from, a.current_tolerance)?.0)
+        Some(read(&a.validate, a.repetitions)?.0)
     };
     let vtraj = match (&a.validate_trajectory, &vrun) {
         (Some(p), _) => Some(FourierTrajectory::load(p)?),
