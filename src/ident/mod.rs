@@ -779,6 +779,26 @@ pub(crate) fn filter_warnings(pr: &Processed) -> Vec<String> {
     w
 }
 
+/// The report's table of the estimated base parameters (one-run and study reports).
+pub(crate) fn parameter_table(names: &[String], theta: &[f64], std: &[f64], rel_std: &[f64], groupings: &[String]) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(s, "\n{:>3} {:<10} {:>14} {:>12} {:>9}  grouping", "i", "parameter", "estimate", "std", "σ* (%)");
+    for i in 0..names.len() {
+        let _ = writeln!(
+            s,
+            "{:>3} {:<10} {:>14.6} {:>12.4e} {:>9.3}  {}",
+            i + 1,
+            names[i],
+            theta[i],
+            std[i],
+            100.0 * rel_std[i],
+            groupings[i]
+        );
+    }
+    s
+}
+
 /// The report's blocks on negative base parameters that must be positive and
 /// on the comparison with the truth (shared by one-run and study reports).
 pub(crate) fn plausibility_and_truth_text(implausible: &[Implausible], truth: Option<&[TruthRow]>) -> String {
@@ -957,19 +977,7 @@ impl Estimate {
                 m.status, m.evaluations, m.cost_start, m.cost_end
             );
         }
-        let _ = writeln!(s, "\n{:>3} {:<10} {:>14} {:>12} {:>9}  grouping", "i", "parameter", "estimate", "std", "σ* (%)");
-        for i in 0..self.names.len() {
-            let _ = writeln!(
-                s,
-                "{:>3} {:<10} {:>14.6} {:>12.4e} {:>9.3}  {}",
-                i + 1,
-                self.names[i],
-                self.theta[i],
-                self.std[i],
-                100.0 * self.rel_std[i],
-                self.groupings[i]
-            );
-        }
+        s.push_str(&parameter_table(&self.names, &self.theta, &self.std, &self.rel_std, &self.groupings));
         let err_block = |s: &mut String, title: &str, e: &Errors| {
             let _ = writeln!(s, "\n{title}");
             let _ = writeln!(

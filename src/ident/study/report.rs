@@ -104,19 +104,13 @@ impl StudyEstimate {
             self.cond_normalized,
             self.chi2_dof
         );
-        let _ = writeln!(s, "\n{:>3} {:<10} {:>14} {:>12} {:>9}  grouping", "i", "parameter", "estimate", "std", "σ* (%)");
-        for i in 0..self.names.len() {
-            let _ = writeln!(
-                s,
-                "{:>3} {:<10} {:>14.6} {:>12.4e} {:>9.3}  {}",
-                i + 1,
-                self.names[i],
-                self.theta[i],
-                self.std[i],
-                100.0 * self.rel_std[i],
-                self.groupings[i]
-            );
-        }
+        s.push_str(&crate::ident::parameter_table(
+            &self.names,
+            &self.theta,
+            &self.std,
+            &self.rel_std,
+            &self.groupings,
+        ));
         if !self.validation.is_empty() {
             let _ = writeln!(
                 s,
