@@ -146,9 +146,14 @@ fn resample_rows(t: &[f64], rows: &[Vec<f64>], grid: &[f64]) -> Vec<Vec<f64>> {
     out
 }
 
+/// Number of points of [`uniform_grid`] (as f64: checked against limits before allocating).
+pub fn grid_len(t0: f64, t_end: f64, rate: f64) -> f64 {
+    ((t_end - t0) * rate * (1.0 + 1e-12)).floor() + 1.0
+}
+
 /// The uniform grid t₀ + k/rate, k = 0..=⌊(t_end − t₀)·rate⌋.
 pub fn uniform_grid(t0: f64, t_end: f64, rate: f64) -> Vec<f64> {
-    let n = ((t_end - t0) * rate * (1.0 + 1e-12)).floor() as usize + 1;
+    let n = grid_len(t0, t_end, rate) as usize;
     (0..n).map(|k| t0 + k as f64 / rate).collect()
 }
 
@@ -216,15 +221,15 @@ pub fn resample_run(reps: &mut [Repetition], files: &[std::path::PathBuf], rate:
             samples: (before, before),
         });
     };
-    let lens: Vec<usize> = reps.iter().map(|r| uniform_grid(r.t[0], r.t[r.len() - 1], hz).len()).collect();
-    let common = lens.iter().copied().min().unwrap_or(0);
-    if common > limit {
+    let common = reps.iter().map(|r| grid_len(r.t[0], r.t[r.len() - 1], hz)).fold(f64::INFINITY, f64::min);
+    if common > limit as f64 {
         return Err(Error::invalid(
             files.first().map_or_else(|| "run".into(), |f| f.display().to_string()),
             "resample",
             format!("{hz} Hz over the record gives {common} samples per repetition, more than the limit of {limit}: choose a lower rate"),
         ));
     }
+    let common = common as usize;
     if common < 3 {
         return Err(Error::invalid(
             files.first().map_or_else(|| "run".into(), |f| f.display().to_string()),
@@ -297,5 +302,7 @@ mod tests {
         assert_eq!(reps[0].len(), reps[1].len());
         assert!((reps[1].t[0] - 5.0).abs() < 1e-12);
         assert!(resample_run(&mut reps, &[], Some(1e6), 1000).is_err());
+        // the limit is checked before the grid is allocated
+        assert!(resample_run(&mut reps, &[], Some(1e18), 1000).is_err());
     }
 }
