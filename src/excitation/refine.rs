@@ -6,42 +6,30 @@
 //! −log det. Box bounds are the GA's. The best feasible point met during the
 //! run is kept (SLSQP may end on a slightly infeasible iterate); wall-clock
 //! budgets map to nlopt's `maxtime`; Ctrl-C makes the callbacks return a zero
-//! gradient so the solver ends at once.
+//! gradient so the solver ends at once (both through the nlopt bridge,
+//! [`crate::optim::nlopt`]).
 
 use super::constraints::Constraints;
 use super::design::{RefineAlgorithm, RefineSpec};
 use super::objective::{Criterion, Objective};
+use crate::optim::nlopt::{Algorithm, Problem};
 use crate::optim::Control;
 use serde::Serialize;
 use std::cell::RefCell;
 use std::time::Instant;
 
-/// The stopping rules of a refinement run: the evaluation budget, the
-/// spec's relative tolerances (when positive) and the time left.
-fn set_stops<F: nlopt::ObjFn<T>, T>(opt: &mut nlopt::Nlopt<F, T>, s: &RefineSpec, max_evals: u32, ctl: &Control) {
-    let _ = opt.set_maxeval(max_evals.max(1));
-    if s.xtol_rel > 0.0 {
-        let _ = opt.set_xtol_rel(s.xtol_rel);
-    }
-    if s.ftol_rel > 0.0 {
-        let _ = opt.set_ftol_rel(s.ftol_rel);
-    }
-    if let Some(d) = ctl.remaining() {
-        let _ = opt.set_maxtime(d.as_secs_f64().max(1e-3));
-    }
-}
-
-/// What the objective callbacks return once a stop is asked for (a constant:
-/// a flat objective, which SLSQP and MMA take as converged).
-const STOPPED_F: f64 = 0.0;
-
-/// What the constraint callbacks return once a stop is asked for: every
-/// constraint holds, with zero gradients.
-fn stopped_constraints(res: &mut [f64], grad: Option<&mut [f64]>) {
-    res.iter_mut().for_each(|v| *v = -1.0);
-    if let Some(g) = grad {
-        g.iter_mut().for_each(|v| *v = 0.0);
-    }
+/// The nlopt problem of a refinement stage over the box [lower, upper]:
+/// the spec's algorithm, evaluation budget and relative tolerances (when
+/// positive), stopped by `ctl` (the bridge hands its deadline to nlopt).
+fn problem<'c>(s: &RefineSpec, lower: Vec<f64>, upper: Vec<f64>, max_evals: u32, ctl: &'c Control) -> Problem<'c> {
+    let alg = match s.algorithm {
+        RefineAlgorithm::Mma => Algorithm::Mma,
+        _ => Algorithm::Slsqp,
+    };
+    Problem::new(alg, lower, upper, ctl)
+        .max_evals(max_evals)
+        .xtol_rel(s.xtol_rel)
+        .ftol_rel(s.ftol_rel)
 }
 
 /// Feasibility tolerance of nlopt on the scaled constraints; the
@@ -108,7 +96,6 @@ struct Tracker {
     last_x: Vec<f64>,
     last_f: f64,
     best: Option<(Vec<f64>, f64)>,
-    evals: u64,
 }
 
 fn internal(criterion: Criterion, j: f64) -> f64 {
@@ -132,18 +119,18 @@ type StageResult = (Vec<f64>, Option<(Vec<f64>, f64)>, NloptWord, u64);
 /// One nlopt run from x0: returns (last iterate, best feasible point met with
 /// its stage objective, nlopt status, evaluations). `soft`: minimise the
 /// smooth surrogate [`Objective::soft_log_cond_grad`] with that exponent.
+/// Once the control says stop, the bridge calls neither callback (a flat
+/// objective and constraints that hold, with zero gradients), which ends
+/// SLSQP's iteration at its next step: nothing more is evaluated or recorded.
 fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Option<f64>, max_evals: u32) -> StageResult {
-    let (s, ctl) = (b.spec, b.ctl);
     let nv = x0.len();
     let m = cons.len();
     let tracker = RefCell::new(Tracker {
         last_x: Vec::new(),
         last_f: f64::INFINITY,
         best: None,
-        evals: 0,
     });
     let crit = obj.criterion;
-    let stop_now = || ctl.should_stop();
     // SLSQP asks for the objective and then the constraints at the same
     // point, both with gradients: the objective's callback computes the
     // constraints beside it (rayon::join: the two parallel workloads share
@@ -158,21 +145,11 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
         c: vec![0.0; m],
         jac: vec![0.0; m * nv],
     });
-    // once a stop is asked for, the callbacks return at once (nothing
-    // evaluated, nothing recorded): a flat objective and constraints that
-    // hold with zero gradients, which ends SLSQP's iteration at its next
-    // step instead of after its remaining evaluations
     let f_cb = |x: &[f64], grad: Option<&mut [f64]>, w: &mut super::objective::ObjectiveWorkspace| -> f64 {
-        if stop_now() {
-            if let Some(g) = grad {
-                g.iter_mut().for_each(|v| *v = 0.0);
-            }
-            return STOPPED_F;
-        }
         let (j, internal_j) = match (grad, soft) {
             (Some(g), Some(p)) => {
                 let l = obj.soft_log_cond_grad(x, w, g, p);
-                if stop_now() || !l.is_finite() {
+                if !l.is_finite() {
                     g.iter_mut().for_each(|v| *v = 0.0);
                 }
                 (l, l)
@@ -193,7 +170,7 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
                     let jj = j.max(1e-300);
                     g.iter_mut().for_each(|v| *v /= jj);
                 }
-                if stop_now() || !j.is_finite() {
+                if !j.is_finite() {
                     g.iter_mut().for_each(|v| *v = 0.0);
                 }
                 (j, internal(crit, j))
@@ -209,8 +186,6 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
             }
         };
         let mut t = tracker.borrow_mut();
-        t.evals += 1;
-        ctl.count(1);
         t.last_x.clear();
         t.last_x.extend_from_slice(x);
         t.last_f = j;
@@ -223,24 +198,10 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
             1e300
         }
     };
-    let mut opt = nlopt::Nlopt::new(
-        match s.algorithm {
-            RefineAlgorithm::Mma => nlopt::Algorithm::Mma,
-            _ => nlopt::Algorithm::Slsqp,
-        },
-        nv,
-        f_cb,
-        nlopt::Target::Minimize,
-        obj.workspace(),
-    );
-    let _ = opt.set_lower_bounds(b.lower);
-    let _ = opt.set_upper_bounds(b.upper);
-    set_stops(&mut opt, s, max_evals, ctl);
-    if m > 0 {
+    let pb = problem(b.spec, b.lower.to_vec(), b.upper.to_vec(), max_evals, b.ctl);
+    let mut x = x0.to_vec();
+    let run = if m > 0 {
         let c_cb = |res: &mut [f64], x: &[f64], grad: Option<&mut [f64]>, cw: &mut super::constraints::ConstraintWorkspace| {
-            if stop_now() {
-                return stopped_constraints(res, grad);
-            }
             let a = ahead.borrow();
             if a.x.len() == x.len() && a.x.iter().zip(x).all(|(p, q)| p.to_bits() == q.to_bits()) {
                 res.copy_from_slice(&a.c);
@@ -262,14 +223,12 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
                 }
             }
         };
-        let tol = vec![TOL; m];
-        let _ = opt.add_inequality_mconstraint(m, c_cb, cons.workspace(), &tol);
-    }
-    let mut x = x0.to_vec();
-    let status = NloptWord::of(&opt.optimize(&mut x));
-    drop(opt);
+        pb.minimise_constrained(&mut x, f_cb, obj.workspace(), m, TOL, c_cb, cons.workspace())
+    } else {
+        pb.minimise(&mut x, f_cb, obj.workspace())
+    };
     let t = tracker.into_inner();
-    (x, t.best, status, t.evals)
+    (x, t.best, run.status, run.evaluations)
 }
 
 /// The constraints computed beside the objective at its last point
@@ -332,7 +291,6 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
         last_x: Vec::new(),
         last_f: f64::INFINITY,
         best: None,
-        evals: 1,
     });
     if !j0.is_finite() {
         return (x0.to_vec(), None, NloptWord::Failure, 1);
@@ -345,19 +303,16 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
     let u0 = if top > 0 { buf.vals[0] } else { 0.0 };
     z.push(u0.clamp(-LN_BOUND, LN_BOUND));
     z.push(buf.vals[nt - 1].clamp(-LN_BOUND, LN_BOUND));
-    let stop_now = || ctl.should_stop();
     // SLSQP starts from the identity as its Hessian: the weight of the linear
     // objective sets the length of the first steps against it
     let wgt = s.bundle_weight;
     let f_cb = |z: &[f64], grad: Option<&mut [f64]>, _: &mut ()| -> f64 {
         if let Some(g) = grad {
             g.iter_mut().for_each(|v| *v = 0.0);
-            if !stop_now() {
-                if with_top {
-                    g[iu] = wgt;
-                }
-                g[il] = -wgt;
+            if with_top {
+                g[iu] = wgt;
             }
+            g[il] = -wgt;
         }
         if with_top {
             wgt * (z[iu] - z[il])
@@ -365,28 +320,13 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
             -wgt * z[il]
         }
     };
-    let mut opt = nlopt::Nlopt::new(
-        match s.algorithm {
-            RefineAlgorithm::Mma => nlopt::Algorithm::Mma,
-            _ => nlopt::Algorithm::Slsqp,
-        },
-        nz,
-        f_cb,
-        nlopt::Target::Minimize,
-        (),
-    );
     let mut lower = b.lower.to_vec();
     let mut upper = b.upper.to_vec();
     lower.extend([-LN_BOUND, -LN_BOUND]);
     upper.extend([LN_BOUND, LN_BOUND]);
-    let _ = opt.set_lower_bounds(&lower);
-    let _ = opt.set_upper_bounds(&upper);
-    set_stops(&mut opt, s, max_evals, ctl);
+    // the constraints evaluate the criterion: their calls are the evaluations
+    let pb = problem(s, lower, upper, max_evals, ctl).count_constraint_calls();
     let c_cb = |res: &mut [f64], z: &[f64], grad: Option<&mut [f64]>, e: &mut EpiBuffers| {
-        // a stop asked for: nothing evaluated (see `stage`)
-        if stop_now() {
-            return stopped_constraints(res, grad);
-        }
         let x = &z[..nv];
         let want = grad.is_some();
         // the design's constraints beside the eigenvalues (rayon::join, as
@@ -398,8 +338,7 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
             || cons.eval(x, cw, c, if want { Some(jac) } else { None }),
             || obj.log_eigen_bundle(x, ow, top, bottom, vals, if want { Some(grads) } else { None }),
         );
-        ctl.count(1);
-        let ok = j.is_finite() && !stop_now();
+        let ok = j.is_finite();
         // the design's constraints, shifted by 2·tol as in the direct stage
         for i in 0..mc {
             res[i] = e.c[i] + 2.0 * TOL;
@@ -432,7 +371,6 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
             }
         }
         let mut t = tracker.borrow_mut();
-        t.evals += 1;
         t.last_x.clear();
         t.last_x.extend_from_slice(x);
         t.last_f = j;
@@ -440,13 +378,11 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
             t.best = Some((x.to_vec(), j));
         }
     };
-    let tol = vec![TOL; mc + nt];
-    let _ = opt.add_inequality_mconstraint(mc + nt, c_cb, buf, &tol);
-    let status = NloptWord::of(&opt.optimize(&mut z));
-    drop(opt);
+    let run = pb.minimise_constrained(&mut z, f_cb, (), mc + nt, TOL, c_cb, buf);
     let t = tracker.into_inner();
     z.truncate(nv);
-    (z, t.best, status, t.evals)
+    // the start's evaluation and the constraint calls
+    (z, t.best, run.status, 1 + run.evaluations)
 }
 
 /// Refines `x0` (see the module docs). For the condition number with
