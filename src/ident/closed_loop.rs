@@ -35,7 +35,7 @@
 use super::estimate::{cond, cond_normalized, Dataset, LsFit, Weights};
 use super::{Processed, Run};
 use crate::error::{Error, Result};
-use crate::optim::nlopt::NloptStatus;
+use crate::optim::nlopt::{Algorithm, NloptStatus, Problem};
 use crate::optim::Control;
 use crate::params::BaseParams;
 use crate::robot::{regressor_derivatives, Robot, Workspace};
@@ -457,7 +457,9 @@ pub struct MlStart<'a> {
 
 /// Maximum-likelihood estimate (paper 002 eq. 13–16) of the base parameters in
 /// `cols` (indices into `base`), started from `start` (e.g. WLS) with scales `scale`
-/// (e.g. the WLS standard deviations).
+/// (e.g. the WLS standard deviations). `ctl` stops it through the nlopt
+/// bridge: Ctrl-C, its deadline (nlopt's `maxtime`) and its evaluation
+/// budget; every cost evaluation is counted on it.
 pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, from: MlStart, opts: &MlOptions, ctl: &Control) -> Result<(LsFit, MlInfo)> {
     let MlStart { cols, theta: start, scale } = from;
     let cov = pr.joint_cov.as_ref().ok_or_else(|| {
@@ -528,16 +530,7 @@ pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, from: MlStart, opts:
     let x0 = start.to_vec();
     let to_theta = |z: &[f64]| -> Vec<f64> { (0..k).map(|a| x0[a] + sc[a] * z[a]).collect() };
     let cost_start = data.cost_grad(start, None);
-    let evals = std::sync::atomic::AtomicUsize::new(0);
     let obj = |z: &[f64], grad: Option<&mut [f64]>, _: &mut ()| -> f64 {
-        evals.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        ctl.count(1);
-        if ctl.should_stop() {
-            if let Some(g) = grad {
-                g.iter_mut().for_each(|v| *v = 0.0);
-            }
-            return f64::INFINITY;
-        }
         let th = to_theta(z);
         match grad {
             Some(g) => {
@@ -550,17 +543,16 @@ pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, from: MlStart, opts:
             None => data.cost_grad(&th, None),
         }
     };
-    let mut opt = nlopt::Nlopt::new(nlopt::Algorithm::Lbfgs, k, obj, nlopt::Target::Minimize, ());
     // a trust region of ±bound WLS standard deviations: without a log-det term the
-    // errors-in-variables cost stays bounded as |θ| → ∞ and can drift there on noisy data
-    let _ = opt.set_lower_bounds(&vec![-opts.bound; k]);
-    let _ = opt.set_upper_bounds(&vec![opts.bound; k]);
-    let _ = opt.set_maxeval(opts.max_eval);
-    let _ = opt.set_ftol_rel(opts.ftol_rel);
-    let _ = opt.set_xtol_rel(1e-10);
+    // errors-in-variables cost stays bounded as |θ| → ∞ and can drift there on noisy data;
+    // the bridge stops it on the control (Ctrl-C, deadline → maxtime, evaluation budget)
     let mut z = vec![0.0; k];
-    let status = NloptStatus::of(&opt.optimize(&mut z));
-    drop(opt);
+    let run = Problem::new(Algorithm::Lbfgs, vec![-opts.bound; k], vec![opts.bound; k], ctl)
+        .max_evals(opts.max_eval)
+        .ftol_rel(opts.ftol_rel)
+        .xtol_rel(1e-10)
+        .minimise(&mut z, obj, ());
+    let status = run.status;
     let mut theta = to_theta(&z);
     let mut cost_end = data.cost_grad(&theta, None);
     if cost_end.is_nan() || cost_end > cost_start {
@@ -601,7 +593,7 @@ pub fn ml(robot: &Robot, base: &BaseParams, pr: &Processed, from: MlStart, opts:
             status,
             cost_start,
             cost_end,
-            evaluations: evals.load(std::sync::atomic::Ordering::Relaxed),
+            evaluations: run.evaluations as usize,
         },
     ))
 }
