@@ -40,6 +40,7 @@
 pub mod constraints;
 pub mod design;
 pub mod execution;
+pub mod forms;
 /// The GA lives in the optimisation seam ([`crate::optim::ga`]); re-exported here.
 pub use crate::optim::ga;
 pub mod grid;

@@ -1,9 +1,10 @@
 //! Constrained gradient refinement with nlopt (SLSQP or MMA) using the
-//! analytic gradients of [`Objective::value_grad`] and [`Constraints::eval`].
+//! analytic gradients of the objective and of [`Constraints::eval`].
 //!
-//! The minimised function is ln J for the condition number and 1/σ_min (a
-//! monotone transform with better scaling; the same minimiser) and J itself for
-//! −log det. Box bounds are the GA's. The best feasible point met during the
+//! What each stage minimises (ln J, the smooth surrogate, the epigraph form
+//! over the eigenvalue bundle) is the objective's choice
+//! ([`Objective::refinement_forms`], [`super::forms`]); this module runs the
+//! stages under the design's constraints. Box bounds are the GA's. The best feasible point met during the
 //! run is kept (SLSQP may end on a slightly infeasible iterate); wall-clock
 //! budgets map to nlopt's `maxtime`; Ctrl-C makes the callbacks return a zero
 //! gradient so the solver ends at once (both through the nlopt bridge,
@@ -11,7 +12,8 @@
 
 use super::constraints::Constraints;
 use super::design::{RefineAlgorithm, RefineSpec};
-use super::objective::{Criterion, Objective};
+use super::forms::{Epigraph, Form, Plain};
+use super::objective::Objective;
 use crate::optim::nlopt::{Algorithm, Problem};
 use crate::optim::Control;
 use serde::Serialize;
@@ -98,13 +100,6 @@ struct Tracker {
     best: Option<(Vec<f64>, f64)>,
 }
 
-fn internal(criterion: Criterion, j: f64) -> f64 {
-    match criterion {
-        Criterion::LogDet => j,
-        _ => j.max(1e-300).ln(),
-    }
-}
-
 /// The settings of a refinement as the stages see them.
 struct Bounds<'a> {
     spec: &'a RefineSpec,
@@ -116,13 +111,13 @@ struct Bounds<'a> {
 /// (last iterate, best feasible point and its value, nlopt status, evaluations).
 type StageResult = (Vec<f64>, Option<(Vec<f64>, f64)>, NloptWord, u64);
 
-/// One nlopt run from x0: returns (last iterate, best feasible point met with
-/// its stage objective, nlopt status, evaluations). `soft`: minimise the
-/// smooth surrogate [`Objective::soft_log_cond_grad`] with that exponent.
-/// Once the control says stop, the bridge calls neither callback (a flat
-/// objective and constraints that hold, with zero gradients), which ends
-/// SLSQP's iteration at its next step: nothing more is evaluated or recorded.
-fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Option<f64>, max_evals: u32) -> StageResult {
+/// One nlopt run from x0 on the plain form `form` of the criterion:
+/// returns (last iterate, best feasible point met with its tracked value,
+/// nlopt status, evaluations). Once the control says stop, the bridge calls
+/// neither callback (a flat objective and constraints that hold, with zero
+/// gradients), which ends SLSQP's iteration at its next step: nothing more
+/// is evaluated or recorded.
+fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, form: Plain, max_evals: u32) -> StageResult {
     let nv = x0.len();
     let m = cons.len();
     let tracker = RefCell::new(Tracker {
@@ -130,7 +125,6 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
         last_f: f64::INFINITY,
         best: None,
     });
-    let crit = obj.criterion;
     // SLSQP asks for the objective and then the constraints at the same
     // point, both with gradients: the objective's callback computes the
     // constraints beside it (rayon::join: the two parallel workloads share
@@ -146,44 +140,17 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
         jac: vec![0.0; m * nv],
     });
     let f_cb = |x: &[f64], grad: Option<&mut [f64]>, w: &mut super::objective::ObjectiveWorkspace| -> f64 {
-        let (j, internal_j) = match (grad, soft) {
-            (Some(g), Some(p)) => {
-                let l = obj.soft_log_cond_grad(x, w, g, p);
-                if !l.is_finite() {
-                    g.iter_mut().for_each(|v| *v = 0.0);
-                }
-                (l, l)
+        let (j, v) = match grad {
+            Some(g) if m > 0 => {
+                let mut a = ahead.borrow_mut();
+                let a = &mut *a;
+                // no point held while the constraints are computed
+                a.x.clear();
+                let (jv, ()) = rayon::join(|| obj.plain_value(form, x, w, Some(g)), || cons.eval(x, &mut a.cw, &mut a.c, Some(&mut a.jac)));
+                a.x.extend_from_slice(x);
+                jv
             }
-            (Some(g), None) => {
-                let j = if m > 0 {
-                    let mut a = ahead.borrow_mut();
-                    let a = &mut *a;
-                    // no point held while the constraints are computed
-                    a.x.clear();
-                    let (j, ()) = rayon::join(|| obj.value_grad(x, w, g), || cons.eval(x, &mut a.cw, &mut a.c, Some(&mut a.jac)));
-                    a.x.extend_from_slice(x);
-                    j
-                } else {
-                    obj.value_grad(x, w, g)
-                };
-                if crit != Criterion::LogDet {
-                    let jj = j.max(1e-300);
-                    g.iter_mut().for_each(|v| *v /= jj);
-                }
-                if !j.is_finite() {
-                    g.iter_mut().for_each(|v| *v = 0.0);
-                }
-                (j, internal(crit, j))
-            }
-            (None, Some(p)) => {
-                let mut g = vec![0.0; x.len()];
-                let l = obj.soft_log_cond_grad(x, w, &mut g, p);
-                (l, l)
-            }
-            (None, None) => {
-                let j = obj.value(x, w);
-                (j, internal(crit, j))
-            }
+            g => obj.plain_value(form, x, w, g),
         };
         let mut t = tracker.borrow_mut();
         t.last_x.clear();
@@ -192,11 +159,7 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, soft: Opti
         if m == 0 && j.is_finite() && t.best.as_ref().is_none_or(|b| j < b.1) {
             t.best = Some((x.to_vec(), j));
         }
-        if internal_j.is_finite() {
-            internal_j
-        } else {
-            1e300
-        }
+        v
     };
     let pb = problem(b.spec, b.lower.to_vec(), b.upper.to_vec(), max_evals, b.ctl);
     let mut x = x0.to_vec();
@@ -251,32 +214,17 @@ struct EpiBuffers {
     grads: Vec<f64>,
 }
 
-/// Bound of the epigraph variables u, l (ln λ of any finite regressor lies inside).
-const LN_BOUND: f64 = 700.0;
-
-/// The epigraph form of the condition number (or of 1/σ_min) from x0:
-/// over z = (x, u, l), minimise w·(u − l) (for 1/σ_min: −w·l; w =
-/// `refine.bundle_weight`) subject to
-/// ln λ_i(x) ≤ u for the `k` largest and ln λ_i(x) ≥ l for the `k` smallest
-/// eigenvalues λ_i = σ_i² of C̃ᵀC̃, and the design's constraints c(x) ≤ 0. At
-/// the solution u − l = ln λ_max − ln λ_min = 2 ln κ, but unlike ln κ the
-/// problem stays smooth where the extreme singular values coalesce (as they
-/// do at the optimum of a min–max criterion): SLSQP sees one linearised
-/// constraint per eigenvalue of the cluster instead of a kink. The best point
-/// is chosen on the exact criterion J(x), which every constraint call
+/// The epigraph form `e` of the criterion ([`super::forms`]) from x0, under
+/// the design's constraints c(x) ≤ 0 beside the bundle's. The best point is
+/// chosen on the exact criterion J(x), which every constraint call
 /// evaluates. Returns the x part of the last iterate.
-fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k: usize, max_evals: u32) -> StageResult {
-    let (s, ctl) = (b.spec, b.ctl);
+fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, e: &Epigraph, max_evals: u32) -> StageResult {
+    let ctl = b.ctl;
     let nv = x0.len();
     let mc = cons.len();
-    let m = obj.n_cols();
-    let with_top = obj.criterion == Criterion::Cond;
-    let bottom = k.min(if with_top { m / 2 } else { m }).max(1);
-    let top = if with_top { bottom } else { 0 };
-    let nt = top + bottom;
+    let nt = e.n_rows();
     // z = (x, u, l)
     let nz = nv + 2;
-    let (iu, il) = (nv, nv + 1);
     let mut buf = EpiBuffers {
         ow: obj.workspace(),
         cw: cons.workspace(),
@@ -285,7 +233,7 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
         vals: vec![0.0; nt],
         grads: vec![0.0; nt * nv],
     };
-    let j0 = obj.log_eigen_bundle(x0, &mut buf.ow, top, bottom, &mut buf.vals, None);
+    let j0 = e.bundle(obj, x0, &mut buf.ow, &mut buf.vals, None);
     ctl.count(1);
     let tracker = RefCell::new(Tracker {
         last_x: Vec::new(),
@@ -300,75 +248,55 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
         tracker.borrow_mut().best = Some((x0.to_vec(), j0));
     }
     let mut z = x0.to_vec();
-    let u0 = if top > 0 { buf.vals[0] } else { 0.0 };
-    z.push(u0.clamp(-LN_BOUND, LN_BOUND));
-    z.push(buf.vals[nt - 1].clamp(-LN_BOUND, LN_BOUND));
+    z.extend(e.start(&buf.vals));
     // SLSQP starts from the identity as its Hessian: the weight of the linear
     // objective sets the length of the first steps against it
-    let wgt = s.bundle_weight;
     let f_cb = |z: &[f64], grad: Option<&mut [f64]>, _: &mut ()| -> f64 {
-        if let Some(g) = grad {
-            g.iter_mut().for_each(|v| *v = 0.0);
-            if with_top {
-                g[iu] = wgt;
+        match grad {
+            Some(g) => {
+                g[..nv].iter_mut().for_each(|v| *v = 0.0);
+                e.value(&z[nv..], Some(&mut g[nv..]))
             }
-            g[il] = -wgt;
-        }
-        if with_top {
-            wgt * (z[iu] - z[il])
-        } else {
-            -wgt * z[il]
+            None => e.value(&z[nv..], None),
         }
     };
+    let (lo, hi) = e.bounds();
     let mut lower = b.lower.to_vec();
     let mut upper = b.upper.to_vec();
-    lower.extend([-LN_BOUND, -LN_BOUND]);
-    upper.extend([LN_BOUND, LN_BOUND]);
+    lower.extend(lo);
+    upper.extend(hi);
     // the constraints evaluate the criterion: their calls are the evaluations
-    let pb = problem(s, lower, upper, max_evals, ctl).count_constraint_calls();
-    let c_cb = |res: &mut [f64], z: &[f64], grad: Option<&mut [f64]>, e: &mut EpiBuffers| {
+    let pb = problem(b.spec, lower, upper, max_evals, ctl).count_constraint_calls();
+    let c_cb = |res: &mut [f64], z: &[f64], grad: Option<&mut [f64]>, eb: &mut EpiBuffers| {
         let x = &z[..nv];
         let want = grad.is_some();
         // the design's constraints beside the eigenvalues (rayon::join, as
         // in `stage`: each is parallel inside and leaves a thread idle at its
         // end; neither result depends on the thread that computes it); the
         // gradients only when SLSQP asks for them (not in its line search)
-        let EpiBuffers { ow, cw, c, jac, vals, grads } = e;
+        let EpiBuffers { ow, cw, c, jac, vals, grads } = eb;
         let ((), j) = rayon::join(
             || cons.eval(x, cw, c, if want { Some(jac) } else { None }),
-            || obj.log_eigen_bundle(x, ow, top, bottom, vals, if want { Some(grads) } else { None }),
+            || e.bundle(obj, x, ow, vals, if want { Some(grads) } else { None }),
         );
-        let ok = j.is_finite();
         // the design's constraints, shifted by 2·tol as in the direct stage
+        let (res_c, res_b) = res.split_at_mut(mc);
         for i in 0..mc {
-            res[i] = e.c[i] + 2.0 * TOL;
+            res_c[i] = eb.c[i] + 2.0 * TOL;
         }
-        let feasible = res[..mc].iter().all(|v| *v <= TOL);
-        for t in 0..nt {
-            let v = if j.is_finite() { e.vals[t] } else { LN_BOUND };
-            res[mc + t] = if t < top { v - z[iu] } else { z[il] - v };
-            if !j.is_finite() {
-                res[mc + t] = LN_BOUND;
-            }
-        }
-        if let Some(g) = grad {
-            g.iter_mut().for_each(|v| *v = 0.0);
-            if ok {
-                for i in 0..mc {
-                    g[i * nz..i * nz + nv].copy_from_slice(&e.jac[i * nv..(i + 1) * nv]);
-                }
-                for t in 0..nt {
-                    let row = &mut g[(mc + t) * nz..(mc + t + 1) * nz];
-                    let gt = &e.grads[t * nv..(t + 1) * nv];
-                    if t < top {
-                        row[..nv].copy_from_slice(gt);
-                        row[iu] = -1.0;
-                    } else {
-                        row[..nv].iter_mut().zip(gt).for_each(|(r, v)| *r = -v);
-                        row[il] = 1.0;
+        let feasible = res_c.iter().all(|v| *v <= TOL);
+        match grad {
+            Some(g) => {
+                let (g_c, g_b) = g.split_at_mut(mc * nz);
+                g_c.iter_mut().for_each(|v| *v = 0.0);
+                if j.is_finite() {
+                    for i in 0..mc {
+                        g_c[i * nz..i * nz + nv].copy_from_slice(&eb.jac[i * nv..(i + 1) * nv]);
                     }
                 }
+                e.rows(j, &eb.vals, &eb.grads, z, res_b, Some(g_b));
             }
+            None => e.rows(j, &eb.vals, &eb.grads, z, res_b, None),
         }
         let mut t = tracker.borrow_mut();
         t.last_x.clear();
@@ -385,12 +313,12 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
     (z, t.best, run.status, 1 + run.evaluations)
 }
 
-/// Refines `x0` (see the module docs). For the condition number with
-/// `smooth = Some(p)`, a first stage (60 % of the evaluations) minimises the
-/// smooth surrogate L_p of 2 ln κ, and a second stage polishes ln κ itself
-/// from the best feasible point of the first. With `bundle = k > 0` (cond
-/// or 1/σ_min), the main stage is the epigraph form of `stage_epigraph`
-/// over the k eigenvalues at each end of the spectrum.
+/// Refines `x0` (see the module docs) on the objective's forms
+/// ([`Objective::refinement_forms`]): a first stage, if the objective has
+/// one (the smooth surrogate of the condition number, `spec.smooth` > 0),
+/// on 60 % of the evaluations, then the main stage (the direct form, or the
+/// epigraph form with `spec.bundle` > 0) from the best feasible point of the
+/// first.
 ///
 /// `spec` gives the algorithm, the evaluation budget and the tolerances,
 /// [lower, upper] the box; `ctl` stops it (deadline → nlopt's `maxtime`;
@@ -401,7 +329,7 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, k
 pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], spec: &RefineSpec, lower: &[f64], upper: &[f64], ctl: &Control) -> RefineOutcome {
     let b = Bounds { spec, lower, upper, ctl };
     let s = spec;
-    let smooth = if s.smooth > 0.0 { Some(s.smooth) } else { None };
+    let forms = obj.refinement_forms(s.smooth, s.bundle, s.bundle_weight);
     let t0 = Instant::now();
     let m = cons.len();
     let mut ow = obj.workspace();
@@ -409,19 +337,17 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], spec: &RefineSpec
     let mut evals = 0;
     let mut x_start = x0.to_vec();
     let mut status_soft = None;
-    if let (Some(p), Criterion::Cond) = (smooth, obj.criterion) {
+    if let Some(first) = forms.first {
         let budget = (s.max_evals as f64 * 0.6) as u32;
-        let (last, best, st, ev) = stage(obj, cons, x0, &b, Some(p), budget);
+        let (last, best, st, ev) = stage(obj, cons, x0, &b, first, budget);
         evals += ev;
         status_soft = Some(st);
         x_start = best.map(|b| b.0).unwrap_or(last);
     }
     let left = s.max_evals.saturating_sub(evals as u32).max(1);
-    let epigraph = s.bundle > 0 && matches!(obj.criterion, Criterion::Cond | Criterion::InvSigmaMin);
-    let (x, best, status, ev) = if epigraph {
-        stage_epigraph(obj, cons, &x_start, &b, s.bundle, left)
-    } else {
-        stage(obj, cons, &x_start, &b, None, left)
+    let (x, best, status, ev) = match &forms.main {
+        Form::Epigraph(e) => stage_epigraph(obj, cons, &x_start, &b, e, left),
+        Form::Plain(p) => stage(obj, cons, &x_start, &b, *p, left),
     };
     evals += ev;
     let status = RefineStatus {
