@@ -40,6 +40,7 @@
 //!   loops whose every step is one closed-form update; they poll the control
 //!   at every iteration.
 
+pub mod conic;
 mod control;
 pub mod ga;
 pub mod lm;

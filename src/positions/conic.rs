@@ -39,9 +39,9 @@
 
 use super::problem::Problem;
 use super::relax::SolverOptions;
-use crate::optim::{Control, Termination};
-use clarabel::algebra::CscMatrix;
-use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SupportedConeT};
+use crate::optim::conic::{self as bridge, Entries as Triplets, Program, Settings};
+use crate::optim::Control;
+use clarabel::solver::SupportedConeT;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
@@ -56,49 +56,7 @@ pub enum Formulation {
     Sdp,
 }
 
-/// How a conic solve ended: Clarabel's status, or why the solver could not
-/// be set up. Serialised as before: Clarabel's word (`Solved`,
-/// `CallbackTerminated`, ...), `SettingsError: ...`, `SetupError: ...`.
-#[derive(Debug, Clone, PartialEq)]
-pub enum ConicStatus {
-    /// Clarabel ran; its status (`CallbackTerminated` when the run control stopped it).
-    Solver(clarabel::solver::SolverStatus),
-    /// The settings were rejected.
-    Settings(String),
-    /// The problem data were rejected.
-    Setup(String),
-}
-
-impl ConicStatus {
-    /// The run-control word: solved → converged, a callback stop →
-    /// interrupted, Clarabel's own limits → iterations/time, else failed.
-    pub fn termination(&self) -> Termination {
-        use clarabel::solver::SolverStatus as S;
-        match self {
-            ConicStatus::Solver(S::Solved | S::AlmostSolved) => Termination::Converged,
-            ConicStatus::Solver(S::CallbackTerminated) => Termination::Interrupted,
-            ConicStatus::Solver(S::MaxIterations) => Termination::MaxIterations,
-            ConicStatus::Solver(S::MaxTime) => Termination::TimeLimit,
-            s => Termination::Failed(s.to_string()),
-        }
-    }
-}
-
-impl std::fmt::Display for ConicStatus {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            ConicStatus::Solver(s) => write!(f, "{s:?}"),
-            ConicStatus::Settings(e) => write!(f, "SettingsError: {e}"),
-            ConicStatus::Setup(e) => write!(f, "SetupError: {e}"),
-        }
-    }
-}
-
-impl serde::Serialize for ConicStatus {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
-        s.collect_str(self)
-    }
-}
+pub use crate::optim::conic::ConicStatus;
 
 /// What Clarabel returned.
 #[derive(Debug, Clone)]
@@ -118,8 +76,6 @@ pub struct ConicResult {
     /// For E: the dual matrix of the PSD constraint (p×p, not normalised).
     pub dual: Option<DMatrix<f64>>,
 }
-
-use crate::optim::sparse::Triplets;
 
 /// Index of (i, j), i ≤ j, in svec of an n×n matrix (upper triangle by columns).
 fn svec_index(i: usize, j: usize) -> usize {
@@ -175,78 +131,40 @@ fn push_weighted_information(a: &mut Triplets, bb: &mut [f64], r: usize, pb: &Pr
     }
 }
 
-/// A conic program min qᵀx s.t. b − Ax ∈ cones, as assembled by the
-/// formulations below.
-struct Program {
-    n_var: usize,
-    q: Vec<f64>,
-    a: Triplets,
-    b: Vec<f64>,
-    cones: Vec<SupportedConeT<f64>>,
-}
-
-/// Solves `prog` with Clarabel at tolerance `tol`; the first `n_w` variables
-/// are the weights.
-fn solve(prog: Program, set: &SolverOptions, tol: f64, n_w: usize, ctl: &Control) -> (Option<DefaultSolver<f64>>, ConicResult) {
-    let Program { n_var, q, a, b, cones } = prog;
-    let m = a.rows;
-    let a = a.csc(n_var);
-    let p_mat = CscMatrix::<f64>::zeros((n_var, n_var));
-    let limit = set.time_limit.unwrap_or(f64::INFINITY);
-    let settings = DefaultSettingsBuilder::default()
-        .verbose(set.verbose)
-        .max_iter(set.max_iter)
-        // the earlier of the design's limit and the control's deadline
-        .time_limit(ctl.remaining().map_or(limit, |r| limit.min(r.as_secs_f64())))
-        .tol_gap_abs(tol)
-        .tol_gap_rel(tol)
-        .tol_feas(tol.max(1e-12))
-        .tol_ktratio(1e-8)
-        .build();
-    let fail = |status: ConicStatus| ConicResult {
-        w: vec![1.0 / n_w as f64; n_w],
-        status,
-        ok: false,
-        iterations: 0,
-        solve_time: 0.0,
-        size: (n_var, m),
-        dual: None,
+/// Solves `prog` with Clarabel (the bridge [`crate::optim::conic`]) at
+/// tolerance `tol`; the first `n_w` variables are the weights. Returns
+/// Clarabel's dual solution beside the result (empty when not set up).
+fn solve(prog: Program, set: &SolverOptions, tol: f64, n_w: usize, ctl: &Control) -> (Vec<f64>, ConicResult) {
+    let settings = Settings {
+        verbose: set.verbose,
+        max_iter: Some(set.max_iter),
+        time_limit: set.time_limit,
+        tol: Some(tol),
+        progress: false,
     };
-    let settings = match settings {
-        Ok(s) => s,
-        Err(e) => return (None, fail(ConicStatus::Settings(e.to_string()))),
+    let sol = bridge::solve(prog, &settings, ctl);
+    let ok = sol.status.is_solved();
+    let mut w: Vec<f64> = if sol.x.len() >= n_w {
+        sol.x[..n_w].to_vec()
+    } else {
+        vec![1.0 / n_w as f64; n_w]
     };
-    let mut solver = match DefaultSolver::new(&p_mat, &q, &a, &b, &cones, settings) {
-        Ok(s) => s,
-        Err(e) => return (None, fail(ConicStatus::Setup(e.to_string()))),
-    };
-    // Clarabel asks at every interior-point iteration whether to stop: the
-    // run control answers, so a stop request ends even a long SDP at once
-    // (status `CallbackTerminated`)
-    let cb = ctl.clone();
-    solver.set_termination_callback(move |_info: &clarabel::solver::DefaultInfo<f64>| cb.interrupted());
-    solver.solve();
-    let sol = &solver.solution;
-    let status = ConicStatus::Solver(sol.status);
-    let ok = matches!(
-        sol.status,
-        clarabel::solver::SolverStatus::Solved | clarabel::solver::SolverStatus::AlmostSolved
-    );
-    let mut w: Vec<f64> = sol.x[..n_w].to_vec();
-    super::firstorder::normalise(&mut w);
-    if w.iter().sum::<f64>() <= 0.0 || w.iter().any(|v| !v.is_finite()) {
-        w = vec![1.0 / n_w as f64; n_w];
+    if !sol.x.is_empty() {
+        super::firstorder::normalise(&mut w);
+        if w.iter().sum::<f64>() <= 0.0 || w.iter().any(|v| !v.is_finite()) {
+            w = vec![1.0 / n_w as f64; n_w];
+        }
     }
     let res = ConicResult {
         w,
-        status,
+        status: sol.status,
         ok,
         iterations: sol.iterations,
         solve_time: sol.solve_time,
-        size: (n_var, m),
+        size: sol.size,
         dual: None,
     };
-    (Some(solver), res)
+    (sol.z, res)
 }
 
 /// D-optimal design on `pb` with the chosen formulation.
@@ -355,7 +273,21 @@ pub fn solve_d_socp(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicRe
         b.extend_from_slice(&[0.0, 1.0, 0.0]);
         cones.push(SupportedConeT::ExponentialConeT());
     }
-    solve(Program { n_var, q, a, b, cones }, set, set.clarabel_tol, k, ctl).1
+    solve(
+        Program {
+            n_var,
+            p: None,
+            q,
+            a,
+            b,
+            cones,
+        },
+        set,
+        set.clarabel_tol,
+        k,
+        ctl,
+    )
+    .1
 }
 
 /// D-optimal design, lifted semidefinite form (see the module docs).
@@ -399,7 +331,21 @@ pub fn solve_d_sdp(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicRes
         b.extend_from_slice(&[0.0, 1.0, 0.0]);
         cones.push(SupportedConeT::ExponentialConeT());
     }
-    solve(Program { n_var, q, a, b, cones }, set, set.clarabel_tol, k, ctl).1
+    solve(
+        Program {
+            n_var,
+            p: None,
+            q,
+            a,
+            b,
+            cones,
+        },
+        set,
+        set.clarabel_tol,
+        k,
+        ctl,
+    )
+    .1
 }
 
 /// A-optimal design: min tr(Kᵀ M(w)⁻¹ K) (K p×p, e.g. the identity).
@@ -471,7 +417,21 @@ pub fn solve_a(pb: &Problem, kmat: &DMatrix<f64>, set: &SolverOptions, ctl: &Con
         }
         cones.push(SupportedConeT::SecondOrderConeT(l * p + 2));
     }
-    solve(Program { n_var, q, a, b, cones }, set, 1e-2 * set.clarabel_tol, k, ctl).1
+    solve(
+        Program {
+            n_var,
+            p: None,
+            q,
+            a,
+            b,
+            cones,
+        },
+        set,
+        1e-2 * set.clarabel_tol,
+        k,
+        ctl,
+    )
+    .1
 }
 
 /// E-optimal design: max t s.t. M(w) − tI ⪰ 0. Returns the PSD dual matrix in `dual`.
@@ -495,9 +455,21 @@ pub fn solve_e(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicResult 
     }
     b.extend_from_slice(&bb);
     cones.push(SupportedConeT::PSDTriangleConeT(p));
-    let (solver, mut res) = solve(Program { n_var, q, a, b, cones }, set, 1e-2 * set.clarabel_tol, k, ctl);
-    if let Some(s) = solver {
-        let z = &s.solution.z;
+    let (z, mut res) = solve(
+        Program {
+            n_var,
+            p: None,
+            q,
+            a,
+            b,
+            cones,
+        },
+        set,
+        1e-2 * set.clarabel_tol,
+        k,
+        ctl,
+    );
+    {
         // the dual rows of the PSD block follow the 1 + k rows before it
         let base = 1 + k;
         if z.len() >= base + nsv {
