@@ -64,7 +64,7 @@ fn bench_consistent(c: &mut Criterion) {
     let fit = wls(&ds, Weights::Sample).unwrap();
     let sw = DVector::from_element(rows, 10.0);
     let o = idexp::ident::ConsistentOptions::default();
-    let (_, sol) = idexp::ident::consistent::fit(&robot, &base, &ds, &sw, &fit.theta, &o).unwrap();
+    let (_, sol) = idexp::ident::consistent::fit(&robot, &base, &ds, &sw, &fit.theta, &o, &idexp::optim::Control::new()).unwrap();
     eprintln!(
         "consistent fit industrial6: {} standard parameters, {rows} rows, Clarabel {:?} in {} iterations, solver time {:.1} ms",
         robot.n_params(),
@@ -73,7 +73,7 @@ fn bench_consistent(c: &mut Criterion) {
         1e3 * sol.solve_time
     );
     c.bench_function(&format!("ident/consistent industrial6 {} params {rows} rows", robot.n_params()), |b| {
-        b.iter(|| idexp::ident::consistent::fit(&robot, &base, &ds, &sw, &fit.theta, &o).unwrap())
+        b.iter(|| idexp::ident::consistent::fit(&robot, &base, &ds, &sw, &fit.theta, &o, &idexp::optim::Control::new()).unwrap())
     });
 }
 
@@ -157,7 +157,7 @@ fn bench_study(c: &mut Criterion) {
     };
     for metric in [idexp::ident::prior::PriorMetric::Entropic, idexp::ident::prior::PriorMetric::Euclidean] {
         g.bench_function(format!("consistent with {} prior {} params", metric.name(), robot.n_params()), |b| {
-            b.iter(|| idexp::ident::prior::solve(&pb, metric, 1.0, 0.0).unwrap())
+            b.iter(|| idexp::ident::prior::solve(&pb, metric, 1.0, 0.0, &idexp::optim::Control::new()).unwrap())
         });
     }
     g.finish();

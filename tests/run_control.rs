@@ -209,3 +209,54 @@ fn an_excitation_reports_its_checks_as_a_phase() {
     assert_eq!(steps[1], (1, format!("the delivered trajectory at {rate} Hz")));
     assert_eq!(steps.last().unwrap().0, 2);
 }
+
+/// The physically consistent fit runs through the Clarabel bridge under its
+/// control: a stop request ends it with `CallbackTerminated` (reported as
+/// `failed: CallbackTerminated`), a deadline already passed with `MaxTime`,
+/// and a free control solves the same program.
+#[test]
+fn the_consistent_fit_stops_on_its_control() {
+    use clarabel::solver::SolverStatus;
+    use idexp::ident::consistent::{solve, ConsistentOptions, ConsistentStatus, Kind, Problem};
+    use idexp::optim::conic::ConicStatus;
+    use nalgebra::DVector;
+    // one link (a box of 2 kg) and one rotor inertia, seen through a random R
+    let theta = DVector::from_vec(vec![0.05, 0.0, 0.0, 0.06, 0.0, 0.07, 0.02, -0.01, 0.03, 2.0, 0.1]);
+    let p = theta.len();
+    let kinds: Vec<Kind> = (0..10).map(Kind::Inertial).chain([Kind::NonNegative]).collect();
+    let mut g = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let r = DMatrix::from_fn(p, p, |i, j| {
+        if i == j {
+            10.0
+        } else if j > i {
+            g.random_range(-1.0..1.0)
+        } else {
+            0.0
+        }
+    });
+    let k = DMatrix::identity(p, p);
+    let ones = DVector::from_element(p, 1.0);
+    let pb = Problem {
+        r: &r,
+        theta_b: &theta,
+        k: &k,
+        links: &[0],
+        kinds: &kinds,
+        nominal: &theta,
+        scale: &ones,
+    };
+    let o = ConsistentOptions::default();
+    let free = solve(&pb, &o, &Control::new()).unwrap();
+    assert!(free.status.is_solved() && free.iterations > 1, "{}", free.status);
+    let ctl = Control::new();
+    ctl.stop_flag().request();
+    let s = solve(&pb, &o, &ctl).unwrap();
+    assert_eq!(s.status, ConicStatus::Solver(SolverStatus::CallbackTerminated));
+    assert_eq!(ConsistentStatus::of(&s.status).to_string(), "failed: CallbackTerminated");
+    assert!(s.iterations < free.iterations);
+    let late = Control::new().with_time_limit(Some(0.0));
+    std::thread::sleep(std::time::Duration::from_millis(2));
+    let s = solve(&pb, &o, &late).unwrap();
+    assert_eq!(s.status, ConicStatus::Solver(SolverStatus::MaxTime), "{}", s.status);
+    assert_eq!(s.status.termination(), idexp::optim::Termination::TimeLimit);
+}

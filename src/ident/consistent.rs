@@ -31,11 +31,11 @@
 //! constraints of the drive parameters in the non-negative cone.
 
 use crate::error::{Error, Result};
-use crate::optim::sparse::Triplets;
+use crate::optim::conic::{self as bridge, ConicStatus, Entries as Triplets, Program, Settings};
+use crate::optim::Control;
 use crate::params::BaseParams;
 use crate::robot::{ParamKind, Robot};
-use clarabel::algebra::CscMatrix;
-use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
+use clarabel::solver::SupportedConeT;
 use nalgebra::{DMatrix, DVector, Matrix4, SymmetricEigen};
 use serde::Serialize;
 
@@ -100,7 +100,7 @@ pub struct Solution {
     /// Smallest eigenvalue of each link's pseudo-inertia (kg·m²).
     pub min_eig: Vec<f64>,
     /// Clarabel's status.
-    pub status: SolverStatus,
+    pub status: ConicStatus,
     /// Interior-point iterations.
     pub iterations: u32,
     /// Solver time (s).
@@ -188,8 +188,28 @@ pub struct Problem<'a> {
     pub scale: &'a DVector<f64>,
 }
 
-/// Solves the consistent fit (see the module documentation).
-pub fn solve(pb: &Problem, o: &ConsistentOptions) -> Result<Solution> {
+/// Runs a consistent-fit program through the Clarabel bridge under `ctl`
+/// (500 iterations, the control's deadline as time limit, Ctrl-C through
+/// the termination callback; with `progress`, each iteration reported to
+/// the observer). A program Clarabel refuses to set up is an error; how a
+/// run ended is the returned status.
+pub(crate) fn run_clarabel(prog: Program, ctl: &Control, progress: bool) -> Result<bridge::Solved> {
+    let settings = Settings {
+        max_iter: Some(500),
+        progress,
+        ..Settings::default()
+    };
+    let sol = bridge::solve(prog, &settings, ctl);
+    match &sol.status {
+        ConicStatus::Settings(_) | ConicStatus::Setup(_) => Err(Error::Numerical(format!("Clarabel: {}", sol.status))),
+        ConicStatus::Solver(_) => Ok(sol),
+    }
+}
+
+/// Solves the consistent fit (see the module documentation); `ctl` stops
+/// it (Ctrl-C: status `CallbackTerminated`; its deadline: `MaxTime`) and
+/// receives its progress.
+pub fn solve(pb: &Problem, o: &ConsistentOptions, ctl: &Control) -> Result<Solution> {
     let Problem {
         r,
         theta_b,
@@ -283,18 +303,21 @@ pub fn solve(pb: &Problem, o: &ConsistentOptions) -> Result<Solution> {
         }
         cones.push(SupportedConeT::NonnegativeConeT(signed.len()));
     }
-    let amat = a.csc(nx);
-    let pmat = CscMatrix::<f64>::zeros((nx, nx));
     let mut q = vec![0.0; nx];
     q[it] = 1.0;
-    let settings = DefaultSettingsBuilder::default()
-        .verbose(false)
-        .max_iter(500)
-        .build()
-        .map_err(|e| Error::Numerical(format!("Clarabel settings: {e:?}")))?;
-    let mut solver = DefaultSolver::new(&pmat, &q, &amat, &b, &cones, settings).map_err(|e| Error::Numerical(format!("Clarabel: {e:?}")))?;
-    solver.solve();
-    let x = &solver.solution.x;
+    let sol = run_clarabel(
+        Program {
+            n_var: nx,
+            p: None,
+            q,
+            a,
+            b,
+            cones,
+        },
+        ctl,
+        true,
+    )?;
+    let x = &sol.x;
     let theta = DVector::from_iterator(p, x[..p].iter().copied());
     let base = k * &theta;
     let extra = (r * (&base - theta_b)).norm_squared();
@@ -304,9 +327,9 @@ pub fn solve(pb: &Problem, o: &ConsistentOptions) -> Result<Solution> {
         base,
         extra_cost: extra,
         min_eig,
-        status: solver.solution.status,
-        iterations: solver.solution.iterations,
-        solve_time: solver.solution.solve_time,
+        status: sol.status,
+        iterations: sol.iterations,
+        solve_time: sol.solve_time,
         lambda: lam,
     })
 }
@@ -376,11 +399,11 @@ impl ConsistentStatus {
     }
 
     /// From Clarabel's status.
-    pub fn of(s: SolverStatus) -> ConsistentStatus {
-        if matches!(s, SolverStatus::Solved | SolverStatus::AlmostSolved) {
+    pub fn of(s: &ConicStatus) -> ConsistentStatus {
+        if s.is_solved() {
             ConsistentStatus::Ok
         } else {
-            ConsistentStatus::Failed(format!("{s:?}"))
+            ConsistentStatus::Failed(s.to_string())
         }
     }
 }
@@ -473,8 +496,18 @@ pub fn active_constraints(robot: &Robot, kinds: &[Kind], links: &[usize], sol: &
 
 /// The consistent fit of the base-parameter dataset `ds` (every base column)
 /// with row weights `sw` (1/σ of each row, as WLS), around the WLS estimate
-/// `theta_b`. Errors are filled in by the caller (they need the other datasets).
-pub fn fit(robot: &Robot, base: &BaseParams, ds: &super::Dataset, sw: &DVector<f64>, theta_b: &[f64], o: &ConsistentOptions) -> Result<(Consistent, Solution)> {
+/// `theta_b`. Errors are filled in by the caller (they need the other
+/// datasets). `ctl` stops the solver and receives its progress (phase
+/// "consistent fit").
+pub fn fit(
+    robot: &Robot,
+    base: &BaseParams,
+    ds: &super::Dataset,
+    sw: &DVector<f64>,
+    theta_b: &[f64],
+    o: &ConsistentOptions,
+    ctl: &Control,
+) -> Result<(Consistent, Solution)> {
     if ds.c.ncols() != base.n_base() || theta_b.len() != base.n_base() {
         return Err(Error::invalid(
             "--consistent",
@@ -491,6 +524,7 @@ pub fn fit(robot: &Robot, base: &BaseParams, ds: &super::Dataset, sw: &DVector<f
     let nominal = robot.nominal_params();
     let scale = regularization_scale(&kinds, &nominal);
     let tb = DVector::from_column_slice(theta_b);
+    ctl.observer().phase("consistent fit", None);
     let sol = solve(
         &Problem {
             r: &r,
@@ -502,7 +536,10 @@ pub fn fit(robot: &Robot, base: &BaseParams, ds: &super::Dataset, sw: &DVector<f
             scale: &scale,
         },
         o,
-    )?;
+        ctl,
+    );
+    ctl.observer().phase_done();
+    let sol = sol?;
     let resid_w = (&ds.y - &ds.c * &tb).component_mul(sw);
     let ssr = resid_w.norm_squared();
     let resid_c = (&ds.y - &ds.c * &sol.base).component_mul(sw);
@@ -516,7 +553,7 @@ pub fn fit(robot: &Robot, base: &BaseParams, ds: &super::Dataset, sw: &DVector<f
         noise_floor: None,
     };
     let c = Consistent {
-        status: ConsistentStatus::of(sol.status),
+        status: ConsistentStatus::of(&sol.status),
         options: *o,
         lambda: sol.lambda,
         standard_names: names,
@@ -615,15 +652,15 @@ mod tests {
             nominal: &t,
             scale: &ones,
         };
-        let s = solve(&pb, &o).unwrap();
-        assert!(matches!(s.status, SolverStatus::Solved), "{:?}", s.status);
+        let s = solve(&pb, &o, &Control::new()).unwrap();
+        assert_eq!(s.status, ConicStatus::Solver(clarabel::solver::SolverStatus::Solved));
         assert!((&s.theta - &t).norm() < 1e-5 * t.norm(), "|θ−θ̂| = {:e}", (&s.theta - &t).norm());
         // inconsistent: negative mass on link 2 and a negative Ia; nominal far from it
         let mut bad = t.clone();
         bad[links[1] + 9] = -0.5;
         bad[10] = -0.05;
         let pb = Problem { theta_b: &bad, ..pb };
-        let s = solve(&pb, &ConsistentOptions { margin: 1e-4, ..o }).unwrap();
+        let s = solve(&pb, &ConsistentOptions { margin: 1e-4, ..o }, &Control::new()).unwrap();
         let eig: Vec<f64> = links.iter().map(|&l| min_pseudo_eigenvalue(&s.theta.as_slice()[l..l + 10])).collect();
         assert!(eig.iter().all(|&e| e >= 1e-4 * (1.0 - 1e-6)), "{eig:?}");
         assert!(s.theta[10] >= -1e-9, "Ia = {}", s.theta[10]);

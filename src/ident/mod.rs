@@ -536,7 +536,7 @@ pub fn identify(
                 Method::Wls => estimate::row_variances(&full, opts.weights)?.map(|v| 1.0 / v.sqrt()),
                 _ => DVector::from_element(full.y.len(), 1.0),
             };
-            let (mut c, sol) = consistent::fit(robot, base, &full, &sw, &fit.theta, co)?;
+            let (mut c, sol) = consistent::fit(robot, base, &full, &sw, &fit.theta, co, ctl)?;
             let th = sol.base.as_slice();
             c.errors = estimate::errors(&ds, th);
             c.errors_all = estimate::errors(&every_ds, th);

@@ -33,10 +33,10 @@
 
 use super::consistent::{kinds_of, min_pseudo_eigenvalue, pseudo_inertia, regularization_scale, Kind, Solution};
 use crate::error::{Error, Result};
-use crate::optim::sparse::Triplets;
+use crate::optim::conic::{Entries as Triplets, Program};
+use crate::optim::Control;
 use crate::robot::Robot;
-use clarabel::algebra::CscMatrix;
-use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SupportedConeT};
+use clarabel::solver::SupportedConeT;
 use nalgebra::{DMatrix, DVector, Matrix4, SymmetricEigen};
 use serde::{Deserialize, Serialize};
 
@@ -90,8 +90,9 @@ fn coefficient(q: usize) -> Matrix4<f64> {
 }
 
 /// Solves the consistent fit with a prior of weight `weight` (see the module
-/// documentation); ε = `margin`.
-pub fn solve(pb: &PriorProblem, metric: PriorMetric, weight: f64, margin: f64) -> Result<Solution> {
+/// documentation); ε = `margin`. `ctl` stops the solver (Ctrl-C, its
+/// deadline); the caller reports the progress (one solve of a weight scan).
+pub fn solve(pb: &PriorProblem, metric: PriorMetric, weight: f64, margin: f64, ctl: &Control) -> Result<Solution> {
     let PriorProblem {
         r,
         theta_b,
@@ -250,16 +251,19 @@ pub fn solve(pb: &PriorProblem, metric: PriorMetric, weight: f64, margin: f64) -
         }
         cones.push(SupportedConeT::NonnegativeConeT(signed.len()));
     }
-    let amat = am.csc(nx);
-    let pmat: CscMatrix<f64> = pm.csc(nx);
-    let settings = DefaultSettingsBuilder::default()
-        .verbose(false)
-        .max_iter(500)
-        .build()
-        .map_err(|e| Error::Numerical(format!("Clarabel settings: {e:?}")))?;
-    let mut solver = DefaultSolver::new(&pmat, &q, &amat, &b, &cones, settings).map_err(|e| Error::Numerical(format!("Clarabel: {e:?}")))?;
-    solver.solve();
-    let x = &solver.solution.x;
+    let sol = super::consistent::run_clarabel(
+        Program {
+            n_var: nx,
+            p: Some(pm),
+            q,
+            a: am,
+            b,
+            cones,
+        },
+        ctl,
+        false,
+    )?;
+    let x = &sol.x;
     let theta = prior + &s * DVector::from_iterator(p, x[..p].iter().copied());
     let base = k * &theta;
     let extra = (r * (&base - theta_b)).norm_squared();
@@ -269,9 +273,9 @@ pub fn solve(pb: &PriorProblem, metric: PriorMetric, weight: f64, margin: f64) -
         base,
         extra_cost: extra,
         min_eig,
-        status: solver.solution.status,
-        iterations: solver.solution.iterations,
-        solve_time: solver.solution.solve_time,
+        status: sol.status,
+        iterations: sol.iterations,
+        solve_time: sol.solve_time,
         lambda: weight,
     })
 }
@@ -382,13 +386,13 @@ mod tests {
                 prior: &prior,
                 scale: &scale,
             };
-            let s = solve(&pb, metric, 1.0, 0.0).unwrap();
+            let s = solve(&pb, metric, 1.0, 0.0, &Control::new()).unwrap();
             assert!((s.theta[9] - truth[9]).abs() < 1e-3, "{metric:?}: mass {}", s.theta[9]);
             assert!((s.theta[10] - prior[10]).abs() < 1e-6, "{metric:?}: drive parameter {}", s.theta[10]);
             // rich data: every parameter seen 10⁴ × more precisely than the prior
             let r = DMatrix::from_diagonal(&scale.map(|v| 1e4 / v));
             let pb = PriorProblem { r: &r, ..pb };
-            let s = solve(&pb, metric, 1.0, 0.0).unwrap();
+            let s = solve(&pb, metric, 1.0, 0.0, &Control::new()).unwrap();
             for j in 0..p {
                 assert!(
                     (s.theta[j] - truth[j]).abs() < 1e-3 * scale[j],

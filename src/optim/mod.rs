@@ -45,6 +45,5 @@ mod control;
 pub mod ga;
 pub mod lm;
 pub mod nlopt;
-pub mod sparse;
 
 pub use control::{Control, Observer, Silent, StopFlag, Termination};

@@ -709,7 +709,7 @@ fn consistent_with_prior(
     };
     let every_val: Vec<&Dataset> = validations.iter().map(|v| &v.prep.every).collect();
     let (weight, curve, sol) = match cs.weight {
-        WeightSpec::Value(w) => (w, Vec::new(), super::prior::solve(&pb, cs.metric, w, cs.margin)?),
+        WeightSpec::Value(w) => (w, Vec::new(), super::prior::solve(&pb, cs.metric, w, cs.margin, ctl)?),
         WeightSpec::Rule(WeightRule::Validation) => {
             let obs = ctl.observer();
             obs.phase("identify prior weight", Some(cs.weight_grid.len() as u64));
@@ -720,8 +720,8 @@ fn consistent_with_prior(
                     obs.phase_done();
                     return Ok(None);
                 }
-                let sol = super::prior::solve(&pb, cs.metric, w, cs.margin)?;
-                let ok = ConsistentStatus::of(sol.status).is_ok();
+                let sol = super::prior::solve(&pb, cs.metric, w, cs.margin, ctl)?;
+                let ok = ConsistentStatus::of(&sol.status).is_ok();
                 let score = if ok {
                     validation_sum(&every_val, sol.base.as_slice()).map_or(f64::INFINITY, |t| t.1)
                 } else {
@@ -738,7 +738,7 @@ fn consistent_with_prior(
             (w, curve, sol)
         }
     };
-    let status = ConsistentStatus::of(sol.status);
+    let status = ConsistentStatus::of(&sol.status);
     let names = robot.param_names();
     let th = sol.theta.as_slice();
     let active = super::consistent::active_constraints(robot, &kinds, &links, &sol, cs.margin, &scale);
