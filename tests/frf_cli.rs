@@ -111,6 +111,33 @@ fn chain_kill_resume_shards_merge() {
     assert!(m.contains("reasonable models"), "{m}");
     assert_eq!(read(&f.join("starts.jsonl")), ref_log);
     assert_eq!(read(&f.join("fit.json")), ref_fit);
+    // every file of the merged folder is the single run's; status.json
+    // differs only in the run's own start and end times
+    assert_eq!(read(&f.join("run.json")), read(&fa.join("run.json")));
+    let status = |p: &Path| -> serde_json::Value {
+        let mut v: serde_json::Value = serde_json::from_str(&read(&p.join("status.json"))).unwrap();
+        let o = v.as_object_mut().unwrap();
+        assert!(o.remove("started").is_some() && o.remove("finished").is_some());
+        v
+    };
+    assert_eq!(status(&f), status(&fa));
+    assert_eq!(status(&f)["command"], "fit");
+    let files = |p: &Path| -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(p)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| !n.starts_with("starts.shard-"))
+            .collect();
+        v.sort();
+        v
+    };
+    assert_eq!(files(&f), files(&fa));
+    for n in files(&fa) {
+        let p = fa.join(&n);
+        if p.is_file() && n != "status.json" {
+            assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(f.join(&n)).unwrap(), "{n}");
+        }
+    }
 
     // other estimators write their own folders
     ok(idexp()

@@ -480,7 +480,9 @@ pub fn fit(design: &Path, o: &FitOptions, ctl: &crate::optim::Control) -> Result
 }
 
 /// Merges shard logs into exactly what a single run writes (sorted
-/// `starts.jsonl`, report, plots), using the `run.json` beside the first shard.
+/// `starts.jsonl`, report, plots, `run.json`, and `status.json` with command
+/// `fit`: only its `started` and `finished` times are the merge's own),
+/// using the `run.json` beside the first shard.
 pub fn merge(shards: &[PathBuf], out: Option<&Path>) -> Result<(Report, PathBuf)> {
     let started = SystemTime::now();
     let first = shards
@@ -550,7 +552,8 @@ pub fn merge(shards: &[PathBuf], out: Option<&Path>) -> Result<(Report, PathBuf)
     }
     let dir = out.map(Path::to_path_buf).unwrap_or(src);
     crate::io::write_json(&dir.join("run.json"), &s.info)?;
-    let r = finish(&s, &dir, &records, "merge", started)?;
+    // the folder a single run writes: status.json names the command `fit`
+    let r = finish(&s, &dir, &records, "fit", started)?;
     Ok((r, dir))
 }
 
