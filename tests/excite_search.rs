@@ -4,6 +4,7 @@
 //! refinements against the sequential ones (bit-identical per start), the
 //! epigraph refinement with collision constraints on one thread and on two.
 
+use approx::assert_relative_eq;
 use idexp::excitation::design::ExciteDesign;
 use idexp::excitation::objective::{BaseColumns, Criterion, Objective, Scaling, Scoring};
 use idexp::excitation::{refine, run, Problem};
@@ -99,7 +100,7 @@ fn eigenvalue_bundle_matches_the_spectrum_and_finite_differences() {
         let c = o.value_grad(&x, &mut w, &mut gc);
         for k in 0..nv {
             let from_bundle = c * 0.5 * (grads[k] - grads[(nt - 1) * nv + k]);
-            assert!((gc[k] - from_bundle).abs() < 1e-9 * (1.0 + gc[k].abs()), "var {k}: {} vs {from_bundle}", gc[k]);
+            assert_relative_eq!(gc[k], from_bundle, epsilon = 1e-9, max_relative = 1e-9);
         }
     }
 }

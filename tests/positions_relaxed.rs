@@ -8,6 +8,7 @@
 //! own Frank–Wolfe gap certifies 1e-9 relative accuracy. E is checked by weak
 //! duality with the returned Z: λ_min(M(w)) ≤ λ* ≤ max_i tr(Z F_i) + tr(Z F_0).
 
+use approx::assert_relative_eq;
 use idexp::positions::{solve_relaxed, Criterion, Formulation, Problem, SolverOptions, Status};
 use nalgebra::DMatrix;
 use rand::{RngExt, SeedableRng};
@@ -126,7 +127,7 @@ fn check_d(n: usize, p: usize, rank: usize, seed: u64, with_prior: bool) {
     assert!(w.iter().all(|&v| v >= 0.0) && (w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
     let m = info(&f, f0.as_ref(), w);
     let v = logdet(&m).unwrap();
-    assert!((v - r.value).abs() <= 1e-9 * v.abs().max(1.0), "value {} vs recomputed {v}", r.value);
+    assert_relative_eq!(r.value, v, epsilon = 1e-9, max_relative = 1e-9);
     // Kiefer–Wolfowitz on every candidate, recomputed here
     let minv = m.clone().cholesky().unwrap().inverse();
     let t0 = f0.as_ref().map(|f0| minv.component_mul(f0).sum()).unwrap_or(0.0);
@@ -140,11 +141,8 @@ fn check_d(n: usize, p: usize, rank: usize, seed: u64, with_prior: bool) {
     }
     let (vref, gap) = reference(&f, f0.as_ref(), false, 1e-10, 200_000);
     assert!(gap <= 1e-9 * vref.abs().max(1.0), "reference did not converge: gap {gap}");
-    assert!(
-        (r.value - vref).abs() <= 1e-6 * vref.abs().max(1.0),
-        "n={n} p={p}: idexp {} vs reference {vref}",
-        r.value
-    );
+    // idexp's optimum against the independent first-order reference
+    assert_relative_eq!(r.value, vref, epsilon = 1e-6, max_relative = 1e-6);
 }
 
 #[test]
@@ -190,7 +188,7 @@ fn socp_and_sdp_formulations_agree() {
     .unwrap();
     assert_eq!(a.status, Status::Optimal);
     assert_eq!(b.status, Status::Optimal);
-    assert!((a.value - b.value).abs() < 1e-6 * a.value.abs().max(1.0), "{} vs {}", a.value, b.value);
+    assert_relative_eq!(a.value, b.value, epsilon = 1e-6, max_relative = 1e-6);
 }
 
 #[test]

@@ -244,7 +244,7 @@ mod tests {
     fn solves_and_stops_on_the_control() {
         let s = solve(tiny(), &Settings::default(), &Control::new());
         assert!(s.status.is_solved(), "{}", s.status);
-        assert!((s.x[0] - 1.0).abs() < 1e-7);
+        approx::assert_abs_diff_eq!(s.x[0], 1.0, epsilon = 1e-7);
         let ctl = Control::new();
         ctl.stop_flag().request();
         let s = solve(tiny(), &Settings::default(), &ctl);

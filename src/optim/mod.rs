@@ -28,10 +28,11 @@
 //!   objective/constraint callbacks poll the control and end the run. The ML
 //!   stage is nlopt's L-BFGS with box bounds (a trust region), not a plain
 //!   unconstrained L-BFGS, so argmin's `LBFGS` would change its iterates.
-//! - **Clarabel** (the conic phase of position design): the interior-point
-//!   loop is inside Clarabel; its termination callback returns true when the
-//!   control says stop (status `CallbackTerminated`), and the control's
-//!   deadline tightens Clarabel's own time limit.
+//! - **Clarabel** (the conic phase of position design, the physically
+//!   consistent identification; [`conic`]): the interior-point loop is
+//!   inside Clarabel; its termination callback returns true when the
+//!   control's stop flag is set (status `CallbackTerminated`), and the
+//!   control's deadline tightens Clarabel's own time limit.
 //! - **Multistart** and **simulation**: many independent runs on rayon's
 //!   pool (multistart: one LM executor per start) or one time-stepping loop,
 //!   neither an iteration of one optimiser; they poll the control between

@@ -389,7 +389,7 @@ mod tests {
             .count_constraint_calls()
             .minimise_constrained(&mut x, bowl, (), 1, 1e-12, c, ());
         assert_eq!(run.status.termination(), Termination::Converged, "{run:?}");
-        assert!((x[0] - 0.5).abs() < 1e-6 && (x[1] - 0.5).abs() < 1e-6, "{x:?}");
+        approx::assert_abs_diff_eq!(x.as_slice(), [0.5, 0.5].as_slice(), epsilon = 1e-6);
         assert_eq!(run.evaluations, calls.get());
         assert_eq!(ctl.evaluations(), calls.get());
     }
