@@ -2,52 +2,17 @@
 //! and the nominal friction torque.
 
 use crate::robot::kinematics::Real;
-use crate::robot::model::{Coulomb, Drive, Friction};
+use crate::robot::model::{Coulomb, Drive, Friction, ParamKind};
 
 /// Friction torque of a drive at motor velocity `w` (joint-side units), with
 /// its nominal coefficients: Σ_k θ_k φ_k(w) over [`friction_columns`].
 pub fn friction_torque(d: &Drive, w: f64) -> f64 {
     let mut cols = [0.0; MAX_FRICTION_COLUMNS];
     let m = friction_columns(d, w, &mut cols);
-    let mut coef = [0.0; MAX_FRICTION_COLUMNS];
-    let mut k = 0;
-    let mut push = |v: f64| {
-        coef[k] = v;
-        k += 1;
-    };
-    match d.friction {
-        Friction::None => {}
-        Friction::Symmetric { fc, fv, offset } => {
-            push(fc);
-            push(fv);
-            if let Some(o) = offset {
-                push(o);
-            }
-            if let Coulomb::Stribeck { fs, .. } = d.coulomb {
-                push(fs[0]);
-            }
-        }
-        Friction::Asymmetric {
-            fc_pos,
-            fc_neg,
-            fv_pos,
-            fv_neg,
-            offset,
-        } => {
-            for v in [fc_pos, fc_neg, fv_pos, fv_neg] {
-                push(v);
-            }
-            if let Some(o) = offset {
-                push(o);
-            }
-            if let Coulomb::Stribeck { fs, .. } = d.coulomb {
-                push(fs[0]);
-                push(fs[1]);
-            }
-        }
-    }
-    debug_assert_eq!(k, m);
-    cols[..m].iter().zip(&coef[..m]).map(|(c, v)| c * v).sum()
+    let params = drive_params(d);
+    let coef = params.friction();
+    debug_assert_eq!(coef.len(), m);
+    cols[..m].iter().zip(coef).map(|(c, (_, v))| c * v).sum()
 }
 
 /// Most friction columns of one drive (asymmetric: Fc±, Fv±, F0, Fs±).
@@ -195,4 +160,93 @@ fn sgn<T: Real>(x: T) -> T {
     } else {
         T::zero()
     }
+}
+
+/// Visits the drive parameters of one joint in the layout order of
+/// [`Robot::params`](crate::robot::Robot::params) after its ten inertials:
+/// Ia (if modelled), then the friction coefficients in the order of
+/// [`friction_columns`] (Fc, Fv, F0, Fs or Fc±, Fv±, F0, Fs±), each with
+/// its kind and its value in `d`. The one place the drive part of the
+/// parameter layout is written down: the layout, the nominal values,
+/// [`Robot::with_params`](crate::robot::Robot::with_params), the friction
+/// torque, the robot summary and the exported robot file all walk it.
+pub fn visit_drive_params(d: &mut Drive, mut f: impl FnMut(ParamKind, &mut f64)) {
+    if let Some(ia) = d.rotor_inertia.as_mut() {
+        f(ParamKind::Ia, ia);
+    }
+    let stribeck = match &mut d.coulomb {
+        Coulomb::Stribeck { fs, .. } => Some(fs),
+        _ => None,
+    };
+    match &mut d.friction {
+        Friction::None => {}
+        Friction::Symmetric { fc, fv, offset } => {
+            f(ParamKind::Fc, fc);
+            f(ParamKind::Fv, fv);
+            if let Some(o) = offset {
+                f(ParamKind::F0, o);
+            }
+            if let Some(fs) = stribeck {
+                f(ParamKind::Fs, &mut fs[0]);
+            }
+        }
+        Friction::Asymmetric {
+            fc_pos,
+            fc_neg,
+            fv_pos,
+            fv_neg,
+            offset,
+        } => {
+            f(ParamKind::FcPos, fc_pos);
+            f(ParamKind::FcNeg, fc_neg);
+            f(ParamKind::FvPos, fv_pos);
+            f(ParamKind::FvNeg, fv_neg);
+            if let Some(o) = offset {
+                f(ParamKind::F0, o);
+            }
+            if let Some([p, n]) = stribeck {
+                f(ParamKind::FsPos, p);
+                f(ParamKind::FsNeg, n);
+            }
+        }
+    }
+}
+
+/// The drive parameters of one joint, (kind, nominal value) in layout order
+/// ([`visit_drive_params`]); at most Ia and [`MAX_FRICTION_COLUMNS`]
+/// coefficients, kept inline (no allocation).
+#[derive(Debug, Clone, Copy)]
+pub struct DriveParams {
+    len: usize,
+    items: [(ParamKind, f64); 1 + MAX_FRICTION_COLUMNS],
+}
+
+impl DriveParams {
+    /// The parameters, Ia first when modelled.
+    pub fn as_slice(&self) -> &[(ParamKind, f64)] {
+        &self.items[..self.len]
+    }
+
+    /// The friction coefficients only (without Ia), in the order of [`friction_columns`].
+    pub fn friction(&self) -> &[(ParamKind, f64)] {
+        let s = self.as_slice();
+        match s.first() {
+            Some((ParamKind::Ia, _)) => &s[1..],
+            _ => s,
+        }
+    }
+}
+
+/// The drive parameters of `d` with their nominal values ([`visit_drive_params`]).
+pub fn drive_params(d: &Drive) -> DriveParams {
+    let mut d = *d;
+    let mut out = DriveParams {
+        len: 0,
+        items: [(ParamKind::Ia, 0.0); 1 + MAX_FRICTION_COLUMNS],
+    };
+    visit_drive_params(&mut d, |k, v| {
+        out.items[out.len] = (k, *v);
+        out.len += 1;
+    });
+    out
 }

@@ -44,7 +44,7 @@ mod tests;
 pub use crba::{mass_matrix, mass_matrix_into, mass_matrix_with, mass_matrix_with_into, motor_inertia};
 pub use derivatives::{id_derivative_rows, id_derivatives, id_derivatives_into};
 pub use forward::{forward_dynamics, forward_dynamics_into, rk4_step};
-pub use friction::{friction_columns, friction_slopes, friction_torque, MAX_FRICTION_COLUMNS};
+pub use friction::{drive_params, friction_columns, friction_slopes, friction_torque, visit_drive_params, DriveParams, MAX_FRICTION_COLUMNS};
 pub(crate) use regressor::regressor_generic;
 pub use regressor::{regressor, regressor_derivatives, regressor_rows};
 pub use rnea::{bias_forces, gravity, inverse_dynamics, rnea};
