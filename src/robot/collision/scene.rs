@@ -231,7 +231,7 @@ impl CollisionScene {
             let floor = Body::new(
                 "floor",
                 &[GeometrySpec {
-                    primitive: Primitive::HalfSpace {
+                    primitive: Primitive::Plane {
                         normal: [0.0, 0.0, 1.0],
                         offset: 0.0,
                     },

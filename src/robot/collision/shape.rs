@@ -10,50 +10,12 @@ use parry3d_f64::shape::{HalfSpace, SharedShape};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// A shape as a robot or design file describes it, in the body frame.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Primitive {
-    /// Box with full side lengths (m), centred on its origin.
-    Box {
-        /// Side lengths along x, y, z (m).
-        size: [f64; 3],
-    },
-    /// Cylinder along its z axis, centred (m).
-    Cylinder {
-        /// Radius (m).
-        radius: f64,
-        /// Length along z (m).
-        length: f64,
-    },
-    /// Sphere (m).
-    Sphere {
-        /// Radius (m).
-        radius: f64,
-    },
-    /// Capsule: a cylinder of `length` along z with hemispherical caps (m).
-    Capsule {
-        /// Radius (m).
-        radius: f64,
-        /// Length of the cylindrical part along z (m).
-        length: f64,
-    },
-    /// A triangle mesh (STL, OBJ or Collada, [`read_mesh`]) scaled per axis;
-    /// used as its convex hull or convex decomposition.
-    Mesh {
-        /// Resolved file path.
-        path: PathBuf,
-        /// Scale factors along x, y, z.
-        scale: [f64; 3],
-    },
-    /// The half-space below a plane: points x with nᵀx ≤ offset are inside
-    /// (obstacles only: floor, walls).
-    HalfSpace {
-        /// Outward unit normal (pointing to the free side).
-        normal: [f64; 3],
-        /// Offset of the plane along the normal (m).
-        offset: f64,
-    },
-}
+/// A shape of the collision model, in the body frame: one type for the
+/// robot and design files (TOML, `{ type = "box", size = [..] }`) and for the
+/// geometry built from them. Read from a file, a mesh path is relative to
+/// that file; [`ShapeSpec::primitive`] resolves it (what [`GeometrySpec`]
+/// holds). `plane` is for obstacles only.
+pub type Primitive = ShapeSpec;
 
 /// How a mesh becomes convex parts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -283,7 +245,7 @@ impl Body {
                     }
                     parts.push(part(SharedShape::capsule_z(length / 2.0, *radius), o));
                 }
-                Primitive::Mesh { path, scale } => {
+                Primitive::Mesh { file: path, scale } => {
                     for (a, v) in ["x", "y", "z"].iter().zip(scale) {
                         if !(v.is_finite() && *v != 0.0) {
                             return Err(Error::invalid(&here, format!("mesh scale {a}"), format!("{v} must be finite and non-zero")));
@@ -310,7 +272,7 @@ impl Body {
                         }
                     }
                 }
-                Primitive::HalfSpace { normal, offset } => {
+                Primitive::Plane { normal, offset } => {
                     let n = Vector3::from(*normal);
                     let len = n.norm();
                     if !(len.is_finite() && len > 0.0 && offset.is_finite()) {
@@ -435,7 +397,8 @@ pub enum ShapeSpec {
         /// Length of the cylindrical part (m).
         length: f64,
     },
-    /// Plane: everything with nᵀx < offset is solid.
+    /// Plane: everything with nᵀx < offset is solid, the half-space below
+    /// it (obstacles only: floor, walls).
     Plane {
         /// Normal toward the free side.
         normal: [f64; 3],
@@ -443,7 +406,9 @@ pub enum ShapeSpec {
         #[serde(default)]
         offset: f64,
     },
-    /// Mesh file (STL, OBJ or Collada; convex hull), path relative to the file naming it.
+    /// A triangle mesh (STL, OBJ or Collada, [`read_mesh`]) scaled per axis,
+    /// used as its convex hull or convex decomposition; in a file, the path is
+    /// relative to the file naming it.
     Mesh {
         /// File.
         file: PathBuf,
@@ -454,27 +419,15 @@ pub enum ShapeSpec {
 }
 
 impl ShapeSpec {
-    /// The primitive, resolving a mesh path against `dir`.
+    /// The same shape with a mesh path resolved against `dir` (the folder of
+    /// the file that names it; an absolute path stays as it is).
     pub fn primitive(&self, dir: &Path) -> Primitive {
         match self {
-            ShapeSpec::Box { size } => Primitive::Box { size: *size },
-            ShapeSpec::Cylinder { radius, length } => Primitive::Cylinder {
-                radius: *radius,
-                length: *length,
-            },
-            ShapeSpec::Sphere { radius } => Primitive::Sphere { radius: *radius },
-            ShapeSpec::Capsule { radius, length } => Primitive::Capsule {
-                radius: *radius,
-                length: *length,
-            },
-            ShapeSpec::Plane { normal, offset } => Primitive::HalfSpace {
-                normal: *normal,
-                offset: *offset,
-            },
-            ShapeSpec::Mesh { file, scale } => Primitive::Mesh {
-                path: dir.join(file),
+            ShapeSpec::Mesh { file, scale } => ShapeSpec::Mesh {
+                file: dir.join(file),
                 scale: *scale,
             },
+            s => s.clone(),
         }
     }
 }
