@@ -517,6 +517,8 @@ pub struct Robot {
     /// Non-zero entries (row, col, value) of C and C⁻ᵀ (empty: identity).
     pub(crate) c_sparse: Vec<(usize, usize, f64)>,
     pub(crate) cinvt_sparse: Vec<(usize, usize, f64)>,
+    /// What the kernels read of the tree, classified once ([`super::dynamics::Topology`]).
+    pub(crate) topology: super::dynamics::Topology,
 }
 
 /// Joint geometry as matrices, precomputed once for the kernels.
@@ -779,7 +781,7 @@ impl Robot {
         let c_sparse = coupling.as_ref().map(sparse).unwrap_or_default();
         let cinvt_sparse = coupling_inv_t.as_ref().map(sparse).unwrap_or_default();
         let (s_ang, s_lin) = joints.iter().map(motion_subspace).unzip();
-        Ok(Robot {
+        let mut robot = Robot {
             name,
             joints,
             links,
@@ -798,7 +800,10 @@ impl Robot {
             drive_offset,
             s_ang,
             s_lin,
-        })
+            topology: Default::default(),
+        };
+        robot.topology = super::dynamics::Topology::of(&robot);
+        Ok(robot)
     }
 
     /// The same robot with its collision geometry (one body per moving link plus the base).

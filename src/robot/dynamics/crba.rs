@@ -279,7 +279,7 @@ impl Axis {
 pub(super) fn crba_into(robot: &Robot, ws: &mut Workspace, inert: Inertials<'_>, ia: impl Fn(usize) -> Option<f64>, q: &[f64], m: &mut DMatrix<f64>) {
     // the per-joint dispatch on [`Placed`] pays only when most joints take
     // the Rx(α) Rz(θ) shortcut; otherwise every transform is general
-    match (ws.rxz_crba, ws.chain) {
+    match (robot.topology.rxz_crba, robot.topology.chain) {
         (true, true) => crba_placed::<true, true>(robot, ws, inert, ia, q, m),
         (true, false) => crba_placed::<true, false>(robot, ws, inert, ia, q, m),
         (false, true) => crba_placed::<false, true>(robot, ws, inert, ia, q, m),
@@ -300,12 +300,12 @@ fn crba_placed<const RXZ: bool, const CHAIN: bool>(
 ) {
     let n = robot.dof();
     assert!(m.nrows() == n && m.ncols() == n, "mass matrix output must be n×n");
-    assert!(q.len() == n && ws.need.len() == n, "workspace made for another robot");
+    assert!(q.len() == n && robot.topology.need.len() == n, "workspace made for another robot");
     if RXZ {
         // only what the passes below read ([`Need`]): a turn's (cos θ, sin θ)
         // are the bits `joint_transform` would have put in R₀₀ and R₁₀/R₂₀
         for i in 0..n {
-            match (ws.need[i], ws.placed[i]) {
+            match (robot.topology.need[i], robot.topology.placed[i]) {
                 (Need::Nothing, _) => {}
                 (Need::Turn, Placed::RxZ(alpha)) => {
                     let (s, c) = (q[i] + robot.joints[i].offset).sincos();
@@ -337,7 +337,7 @@ fn crba_placed<const RXZ: bool, const CHAIN: bool>(
         ws.crb[i] = Ten::of(ine);
     }
     let kin = &ws.kin;
-    let axes = &ws.axes;
+    let axes = &robot.topology.axes;
     assert_eq!(axes.len(), n, "workspace made for another robot");
     // The composite of link i's chain child (parent i) is handed over in
     // `carry`, not through ws.crb: reading back a Ten just written field by
@@ -363,7 +363,7 @@ fn crba_placed<const RXZ: bool, const CHAIN: bool>(
                     ws.crb[par].i[[0, 3, 5][k]] += v;
                 }
                 _ => {
-                    let c = match if RXZ { ws.placed[i] } else { Placed::General } {
+                    let c = match if RXZ { robot.topology.placed[i] } else { Placed::General } {
                         Placed::RxZ(alpha) => t.in_frame_rxz(alpha, ws.cs[i], p),
                         Placed::General => t.in_frame(r, p),
                     };
@@ -378,7 +378,7 @@ fn crba_placed<const RXZ: bool, const CHAIN: bool>(
     }
     let ms = m.as_mut_slice(); // column-major: ms[col * n + row]
     ms.fill(0.0);
-    let (crb, rot, pos, placed, cs) = (&ws.crb[..n], &kin.rot[..n], &kin.pos[..n], &ws.placed[..n], &ws.cs[..n]);
+    let (crb, rot, pos, placed, cs) = (&ws.crb[..n], &kin.rot[..n], &kin.pos[..n], &robot.topology.placed[..n], &ws.cs[..n]);
     // column i's force carried up its path; the upper triangle M[j, i]
     // (j ≤ i) goes into column i, mirrored below at the end. On a chain the
     // path is i, i − 1, …, 0 (indices the compiler can bound).

@@ -359,7 +359,7 @@ pub fn id_derivative_rows(
     deriv_motion(robot, &ws.kin, qd, qdd, &mut ws.dl);
     let w = &mut ws.kin.s2;
     couple(robot, qd, w);
-    let sub = &ws.sub;
+    let sub = &robot.topology.sub;
     for r in 0..n {
         let theta = &thetas[r * p..(r + 1) * p];
         // the rigid-body rows s (with weights x) that τ_r combines

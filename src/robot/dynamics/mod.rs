@@ -40,6 +40,7 @@ mod rnea;
 mod tangents;
 #[cfg(test)]
 mod tests;
+mod topology;
 
 pub use crba::{mass_matrix, mass_matrix_into, mass_matrix_with, mass_matrix_with_into, motor_inertia};
 pub use derivatives::{id_derivative_rows, id_derivatives, id_derivatives_into};
@@ -49,15 +50,17 @@ pub(crate) use regressor::regressor_generic;
 pub use regressor::{regressor, regressor_derivatives, regressor_rows};
 pub use rnea::{bias_forces, gravity, inverse_dynamics, rnea};
 pub(crate) use tangents::regressor_dual_directions;
+pub(crate) use topology::Topology;
 
 use super::kinematics::Kin;
 use super::model::{Inertial, Robot};
-use crba::{Axis, Need, Placed, Ten};
+use crba::Ten;
 use derivatives::DerivLink;
 use nalgebra::DMatrix;
 use tangents::Tangents;
 
-/// Per-thread buffers for every kernel. Create one per thread
+/// Per-thread buffers for every kernel (buffers only: what the kernels read
+/// of the tree is classified once in the robot, [`Topology`]). Create one per thread
 /// (e.g. rayon `map_init`) and reuse it: the kernels do not allocate.
 #[derive(Debug, Clone)]
 pub struct Workspace {
@@ -70,22 +73,10 @@ pub struct Workspace {
     theta_inertials: Vec<Inertial>,
     /// Composite inertias of the CRBA (ten parameters each).
     crb: Vec<Ten>,
-    /// The joints' motion subspaces, classified once ([`Axis`]).
-    axes: Vec<Axis>,
-    /// The joints' rotations, classified once ([`Placed`]).
-    placed: Vec<Placed>,
-    /// Most non-root joints are [`Placed::RxZ`]: the CRBA dispatches on them.
-    rxz_crba: bool,
-    /// What the Rx(α) Rz(θ) CRBA needs of each joint's transform ([`Need`]).
-    need: Vec<Need>,
     /// (cos θ, sin θ) of the [`Need::Turn`] joints (the CRBA's scratch).
     cs: Vec<(f64, f64)>,
-    /// A serial chain: joint i's parent is i − 1 (the CRBA's index walk).
-    chain: bool,
     /// Per-link quantities of [`id_derivatives_into`].
     dl: Vec<DerivLink>,
-    /// `s * n + i`: link i is in the subtree of joint s (s itself included).
-    sub: Vec<bool>,
     /// Mass matrix / Cholesky factor of forward dynamics.
     fd_m: DMatrix<f64>,
     /// Right-hand side and scratch of forward dynamics.
@@ -101,38 +92,14 @@ impl Workspace {
     pub fn new(robot: &Robot) -> Self {
         let n = robot.dof();
         let p = robot.n_params();
-        let placed: Vec<Placed> = (0..n).map(|i| Placed::of(robot, i)).collect();
-        // the dispatch on `placed` pays when most non-root joints take the shortcut
-        let non_root: Vec<usize> = (0..n).filter(|&i| robot.joints[i].parent.is_some()).collect();
-        let rxz = non_root.iter().filter(|&&i| matches!(placed[i], Placed::RxZ(_))).count();
-        let need = (0..n).map(|i| Need::of(robot, &placed, i)).collect();
         Workspace {
             kin: Kin::new(n),
             y: vec![0.0; n * p],
             tan: Tangents::new(robot),
             theta_inertials: robot.links.iter().map(|l| l.inertial).collect(),
             crb: vec![Ten::default(); n],
-            axes: (0..n).map(|i| Axis::of(robot, i)).collect(),
-            placed,
-            chain: (0..n).all(|i| robot.joints[i].parent == i.checked_sub(1)),
-            rxz_crba: 2 * rxz > non_root.len(),
-            need,
             cs: vec![(1.0, 0.0); n],
             dl: vec![DerivLink::default(); n],
-            sub: (0..n * n)
-                .map(|si| {
-                    let (s, mut i) = (si / n, si % n);
-                    loop {
-                        if i == s {
-                            break true;
-                        }
-                        match robot.joints[i].parent {
-                            Some(a) => i = a,
-                            None => break false,
-                        }
-                    }
-                })
-                .collect(),
             fd_m: DMatrix::zeros(n, n),
             fd_rhs: vec![0.0; n],
             fd_tmp: vec![0.0; n],

@@ -260,8 +260,8 @@ fn crba_equals_the_dense_products() {
 #[test]
 fn crba_paths_are_exercised_by_the_test_robots() {
     let robots = test_robots();
-    let ws = |name: &str| Workspace::new(&robots.iter().find(|(n, _)| n == name).unwrap().1);
-    let chain = ws("rxz_chain.urdf");
+    let topo = |name: &str| robots.iter().find(|(n, _)| n == name).unwrap().1.topology.clone();
+    let chain = topo("rxz_chain.urdf");
     assert!(chain.chain && chain.rxz_crba);
     let alphas: Vec<i8> = chain
         .placed
@@ -269,9 +269,11 @@ fn crba_paths_are_exercised_by_the_test_robots() {
         .filter_map(|p| if let Placed::RxZ(a) = p { Some(*a) } else { None })
         .collect();
     assert_eq!(alphas, vec![0, 1, 2, -1, 0]);
-    let tree = ws("tree.urdf");
+    let tree = topo("tree.urdf");
     assert!(!tree.chain && !tree.rxz_crba);
-    let panda = Workspace::new(&crate::robot::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/robots/panda.toml")).unwrap());
+    let panda = crate::robot::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/robots/panda.toml"))
+        .unwrap()
+        .topology;
     assert!(panda.chain && panda.rxz_crba);
 }
 
@@ -288,17 +290,18 @@ fn crba_reads_of_the_transforms_only_what_it_needs() {
     for (name, r) in robots {
         let n = r.dof();
         let mut ws = Workspace::new(&r);
-        if !ws.rxz_crba {
+        if !r.topology.rxz_crba {
             continue;
         }
         shortcut += 1;
-        let need = ws.need.clone();
+        // the same robot with every joint's transform read in full
+        let mut full = r.clone();
+        full.topology.need.iter_mut().for_each(|x| *x = Need::Full);
         let (mut a, mut b) = (DMatrix::zeros(n, n), DMatrix::zeros(n, n));
         for q in test_configurations(n, 100) {
-            ws.need.clone_from(&need);
             mass_matrix_into(&r, &mut ws, &q, &mut a);
-            for i in (0..n).filter(|&i| ws.need[i] == Need::Turn) {
-                let Placed::RxZ(alpha) = ws.placed[i] else {
+            for i in (0..n).filter(|&i| r.topology.need[i] == Need::Turn) {
+                let Placed::RxZ(alpha) = r.topology.placed[i] else {
                     panic!("{name}: turn {i} is not RxZ")
                 };
                 let (c, s) = ws.cs[i];
@@ -306,8 +309,7 @@ fn crba_reads_of_the_transforms_only_what_it_needs() {
                 assert_eq!((c.to_bits(), s.to_bits()), (rc.to_bits(), rs.to_bits()), "{name}: joint {i} at {}", q[i]);
                 turns += 1;
             }
-            ws.need.iter_mut().for_each(|x| *x = Need::Full);
-            mass_matrix_into(&r, &mut ws, &q, &mut b);
+            mass_matrix_into(&full, &mut ws, &q, &mut b);
             let bits = |m: &DMatrix<f64>| m.iter().map(|v| v.to_bits()).collect::<Vec<u64>>();
             assert_eq!(bits(&a), bits(&b), "{name}: at q = {q:?}: {a} vs {b}");
         }
