@@ -7,12 +7,49 @@ use crate::robot::model::{Coulomb, Drive, Friction, ParamKind};
 /// Friction torque of a drive at motor velocity `w` (joint-side units), with
 /// its nominal coefficients: Σ_k θ_k φ_k(w) over [`friction_columns`].
 pub fn friction_torque(d: &Drive, w: f64) -> f64 {
+    // the coefficients read in place in the order of `visit_drive_params`
+    // (the walk through `drive_params` costs ~100 ns per RNEA call here)
     let mut cols = [0.0; MAX_FRICTION_COLUMNS];
     let m = friction_columns(d, w, &mut cols);
-    let params = drive_params(d);
-    let coef = params.friction();
-    debug_assert_eq!(coef.len(), m);
-    cols[..m].iter().zip(coef).map(|(c, (_, v))| c * v).sum()
+    let mut coef = [0.0; MAX_FRICTION_COLUMNS];
+    let mut k = 0;
+    let mut push = |v: f64| {
+        coef[k] = v;
+        k += 1;
+    };
+    match d.friction {
+        Friction::None => {}
+        Friction::Symmetric { fc, fv, offset } => {
+            push(fc);
+            push(fv);
+            if let Some(o) = offset {
+                push(o);
+            }
+            if let Coulomb::Stribeck { fs, .. } = d.coulomb {
+                push(fs[0]);
+            }
+        }
+        Friction::Asymmetric {
+            fc_pos,
+            fc_neg,
+            fv_pos,
+            fv_neg,
+            offset,
+        } => {
+            for v in [fc_pos, fc_neg, fv_pos, fv_neg] {
+                push(v);
+            }
+            if let Some(o) = offset {
+                push(o);
+            }
+            if let Coulomb::Stribeck { fs, .. } = d.coulomb {
+                push(fs[0]);
+                push(fs[1]);
+            }
+        }
+    }
+    debug_assert_eq!(k, m);
+    cols[..m].iter().zip(&coef[..m]).map(|(c, v)| c * v).sum()
 }
 
 /// Most friction columns of one drive (asymmetric: Fc±, Fv±, F0, Fs±).
