@@ -205,8 +205,9 @@ fn sgn<T: Real>(x: T) -> T {
 /// [`friction_columns`] (Fc, Fv, F0, Fs or Fc±, Fv±, F0, Fs±), each with
 /// its kind and its value in `d`. The one place the drive part of the
 /// parameter layout is written down: the layout, the nominal values,
-/// [`Robot::with_params`](crate::robot::Robot::with_params), the friction
-/// torque, the robot summary and the exported robot file all walk it.
+/// [`Robot::with_params`](crate::robot::Robot::with_params), the robot
+/// summary and the exported robot file walk it; the kernels
+/// ([`friction_torque`], [`friction_columns`]) read the same order in place.
 pub fn visit_drive_params(d: &mut Drive, mut f: impl FnMut(ParamKind, &mut f64)) {
     if let Some(ia) = d.rotor_inertia.as_mut() {
         f(ParamKind::Ia, ia);
