@@ -33,7 +33,7 @@ fn every_mesh_vertex_lies_in_its_hull() {
         let (pts, tris) = read_mesh(&f, [1.0; 3]).unwrap();
         let spec = GeometrySpec {
             primitive: Primitive::Mesh {
-                path: f.clone(),
+                file: f.clone(),
                 scale: [1.0; 3],
             },
             origin: Isometry3::identity(),

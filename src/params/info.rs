@@ -192,32 +192,26 @@ impl RobotInfo {
         let f = |v: Option<f64>| v.map(|x| format!("{x:.4}")).unwrap_or_else(|| "-".into());
         for (i, j) in self.joints.iter().enumerate() {
             let d = &j.drive;
+            // the coefficients in layout order (robot::drive_params), Stribeck ones apart
+            let params = crate::robot::drive_params(d);
+            let show = |stribeck: bool| {
+                let kinds = [crate::robot::ParamKind::Fs, crate::robot::ParamKind::FsPos, crate::robot::ParamKind::FsNeg];
+                let v: Vec<String> = params
+                    .friction()
+                    .iter()
+                    .filter(|(k, _)| kinds.contains(k) == stribeck)
+                    .map(|(k, v)| format!("{}={v}", k.symbol()))
+                    .collect();
+                v.join(" ")
+            };
             let fr = match d.friction {
                 crate::robot::Friction::None => "no friction".to_string(),
-                crate::robot::Friction::Symmetric { fc, fv, offset } => {
-                    format!("Fc={fc} Fv={fv}{}", offset.map(|o| format!(" F0={o}")).unwrap_or_default())
-                }
-                crate::robot::Friction::Asymmetric {
-                    fc_pos,
-                    fc_neg,
-                    fv_pos,
-                    fv_neg,
-                    offset,
-                } => {
-                    format!(
-                        "Fc+={fc_pos} Fc-={fc_neg} Fv+={fv_pos} Fv-={fv_neg}{}",
-                        offset.map(|o| format!(" F0={o}")).unwrap_or_default()
-                    )
-                }
+                _ => show(false),
             };
             let fr = match d.coulomb {
                 crate::robot::Coulomb::Sign => fr,
-                crate::robot::Coulomb::Stribeck { fs, .. } if !matches!(d.friction, crate::robot::Friction::None) => {
-                    let fs = match d.friction {
-                        crate::robot::Friction::Asymmetric { .. } => format!("Fs+={} Fs-={}", fs[0], fs[1]),
-                        _ => format!("Fs={}", fs[0]),
-                    };
-                    format!("{fr} {fs} coulomb={}", d.coulomb.describe())
+                crate::robot::Coulomb::Stribeck { .. } if !matches!(d.friction, crate::robot::Friction::None) => {
+                    format!("{fr} {} coulomb={}", show(true), d.coulomb.describe())
                 }
                 c => format!("{fr} coulomb={}", c.describe()),
             };

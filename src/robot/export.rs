@@ -211,48 +211,18 @@ fn drive_tables(robot: &Robot, old: Option<&toml::value::Array>) -> toml::value:
         ] {
             t.remove(k);
         }
+        let params = super::dynamics::drive_params(d);
         if let Some(ia) = d.rotor_inertia {
             t.insert("ia".into(), ia.into());
         }
-        match d.friction {
-            Friction::None => {
-                t.insert("friction".into(), "none".into());
-            }
-            Friction::Symmetric { fc, fv, offset } => {
-                t.insert("friction".into(), "symmetric".into());
-                t.insert("fc".into(), fc.into());
-                t.insert("fv".into(), fv.into());
-                if let Some(o) = offset {
-                    t.insert("f0".into(), o.into());
-                }
-            }
-            Friction::Asymmetric {
-                fc_pos,
-                fc_neg,
-                fv_pos,
-                fv_neg,
-                offset,
-            } => {
-                t.insert("friction".into(), "asymmetric".into());
-                for (k, v) in [("fc_pos", fc_pos), ("fc_neg", fc_neg), ("fv_pos", fv_pos), ("fv_neg", fv_neg)] {
-                    t.insert(k.into(), v.into());
-                }
-                if let Some(o) = offset {
-                    t.insert("f0".into(), o.into());
-                }
-            }
-        }
-        if let crate::robot::Coulomb::Stribeck { fs, .. } = d.coulomb {
-            match d.friction {
-                Friction::Symmetric { .. } => {
-                    t.insert("fs".into(), fs[0].into());
-                }
-                Friction::Asymmetric { .. } => {
-                    t.insert("fs_pos".into(), fs[0].into());
-                    t.insert("fs_neg".into(), fs[1].into());
-                }
-                Friction::None => {}
-            }
+        let name = match d.friction {
+            Friction::None => "none",
+            Friction::Symmetric { .. } => "symmetric",
+            Friction::Asymmetric { .. } => "asymmetric",
+        };
+        t.insert("friction".into(), name.into());
+        for &(k, v) in params.friction() {
+            t.insert(k.drive_key().expect("a drive parameter").into(), v.into());
         }
         out.push(toml::Value::Table(t));
     }

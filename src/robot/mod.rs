@@ -19,8 +19,9 @@ pub mod urdf;
 pub mod validate;
 
 pub use dynamics::{
-    bias_forces, forward_dynamics, forward_dynamics_into, friction_torque, gravity, id_derivative_rows, id_derivatives, inverse_dynamics, mass_matrix,
-    mass_matrix_into, mass_matrix_with, mass_matrix_with_into, motor_inertia, regressor, regressor_derivatives, regressor_rows, rk4_step, rnea, Workspace,
+    bias_forces, drive_params, forward_dynamics, forward_dynamics_into, friction_torque, gravity, id_derivative_rows, id_derivatives, inverse_dynamics,
+    mass_matrix, mass_matrix_into, mass_matrix_with, mass_matrix_with_into, motor_inertia, regressor, regressor_derivatives, regressor_rows, rk4_step, rnea,
+    Workspace,
 };
 pub use file::load;
 pub use kinematics::{frame_jacobian, frame_pose, link_poses, Real};

@@ -1,6 +1,11 @@
 //! The immutable robot model: joints, links with inertial parameters, drives
 //! (rotor inertia, gear ratio, friction), joint coupling, named frames, and the
 //! layout of the standard parameter vector.
+//!
+//! Size (~950 lines, above the house's ~800): the model's types, their
+//! construction checks and the parameter layout are one concern (what a
+//! valid `Robot` is); the drive-parameter walk itself lives in
+//! `dynamics/friction.rs` (`visit_drive_params`).
 
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Unit, Vector3};
 use serde::Serialize;
@@ -406,6 +411,40 @@ impl ParamKind {
             FsNeg => "Fsn",
         }
     }
+    /// Symbol in the robot summary (`Fc+` where the label is `Fcp`).
+    pub fn symbol(self) -> &'static str {
+        use ParamKind::*;
+        match self {
+            FcPos => "Fc+",
+            FcNeg => "Fc-",
+            FvPos => "Fv+",
+            FvNeg => "Fv-",
+            FsPos => "Fs+",
+            FsNeg => "Fs-",
+            k => k.label(),
+        }
+    }
+
+    /// Key of a drive parameter in a robot file's `[[drive]]` table (`ia`,
+    /// `fc`, `fc_pos`, ...); `None` for the inertial kinds.
+    pub fn drive_key(self) -> Option<&'static str> {
+        use ParamKind::*;
+        Some(match self {
+            Ia => "ia",
+            Fc => "fc",
+            Fv => "fv",
+            F0 => "f0",
+            FcPos => "fc_pos",
+            FcNeg => "fc_neg",
+            FvPos => "fv_pos",
+            FvNeg => "fv_neg",
+            Fs => "fs",
+            FsPos => "fs_pos",
+            FsNeg => "fs_neg",
+            _ => return None,
+        })
+    }
+
     /// True for the 10 rigid-body inertial parameters.
     pub fn is_inertial(self) -> bool {
         matches!(self as u8, 0..=9)
@@ -478,6 +517,8 @@ pub struct Robot {
     /// Non-zero entries (row, col, value) of C and C⁻ᵀ (empty: identity).
     pub(crate) c_sparse: Vec<(usize, usize, f64)>,
     pub(crate) cinvt_sparse: Vec<(usize, usize, f64)>,
+    /// What the kernels read of the tree, classified once ([`super::dynamics::Topology`]).
+    pub(crate) topology: super::dynamics::Topology,
 }
 
 /// Joint geometry as matrices, precomputed once for the kernels.
@@ -608,34 +649,8 @@ fn param_layout(drives: &[Drive]) -> (Vec<ParamInfo>, Vec<usize>) {
                 kind: k,
             })
         };
-        if d.rotor_inertia.is_some() {
-            push(ParamKind::Ia);
-        }
-        match d.friction {
-            Friction::None => {}
-            Friction::Symmetric { offset, .. } => {
-                push(ParamKind::Fc);
-                push(ParamKind::Fv);
-                if offset.is_some() {
-                    push(ParamKind::F0);
-                }
-                if matches!(d.coulomb, Coulomb::Stribeck { .. }) {
-                    push(ParamKind::Fs);
-                }
-            }
-            Friction::Asymmetric { offset, .. } => {
-                push(ParamKind::FcPos);
-                push(ParamKind::FcNeg);
-                push(ParamKind::FvPos);
-                push(ParamKind::FvNeg);
-                if offset.is_some() {
-                    push(ParamKind::F0);
-                }
-                if matches!(d.coulomb, Coulomb::Stribeck { .. }) {
-                    push(ParamKind::FsPos);
-                    push(ParamKind::FsNeg);
-                }
-            }
+        for &(k, _) in super::dynamics::drive_params(d).as_slice() {
+            push(k);
         }
     }
     (params, drive_offset)
@@ -766,7 +781,7 @@ impl Robot {
         let c_sparse = coupling.as_ref().map(sparse).unwrap_or_default();
         let cinvt_sparse = coupling_inv_t.as_ref().map(sparse).unwrap_or_default();
         let (s_ang, s_lin) = joints.iter().map(motion_subspace).unzip();
-        Ok(Robot {
+        let mut robot = Robot {
             name,
             joints,
             links,
@@ -785,7 +800,10 @@ impl Robot {
             drive_offset,
             s_ang,
             s_lin,
-        })
+            topology: Default::default(),
+        };
+        robot.topology = super::dynamics::Topology::of(&robot);
+        Ok(robot)
     }
 
     /// The same robot with its collision geometry (one body per moving link plus the base).
@@ -834,37 +852,7 @@ impl Robot {
         let mut v = Vec::with_capacity(self.params.len());
         for (i, l) in self.links.iter().enumerate() {
             v.extend_from_slice(&l.inertial.to_params());
-            let d = &self.drives[i];
-            if let Some(ia) = d.rotor_inertia {
-                v.push(ia);
-            }
-            match d.friction {
-                Friction::None => {}
-                Friction::Symmetric { fc, fv, offset } => {
-                    v.extend([fc, fv]);
-                    if let Some(o) = offset {
-                        v.push(o);
-                    }
-                    if let Coulomb::Stribeck { fs, .. } = d.coulomb {
-                        v.push(fs[0]);
-                    }
-                }
-                Friction::Asymmetric {
-                    fc_pos,
-                    fc_neg,
-                    fv_pos,
-                    fv_neg,
-                    offset,
-                } => {
-                    v.extend([fc_pos, fc_neg, fv_pos, fv_neg]);
-                    if let Some(o) = offset {
-                        v.push(o);
-                    }
-                    if let Coulomb::Stribeck { fs, .. } = d.coulomb {
-                        v.extend(fs);
-                    }
-                }
-            }
+            v.extend(super::dynamics::drive_params(&self.drives[i]).as_slice().iter().map(|&(_, x)| x));
         }
         DVector::from_vec(v)
     }
@@ -955,40 +943,10 @@ impl Robot {
             let o = self.link_param_offset(i);
             r.links[i].inertial = Inertial::from_params(&theta[o..o + 10]);
             let mut k = self.drive_offset[i];
-            let d = &mut r.drives[i];
-            if d.rotor_inertia.is_some() {
-                d.rotor_inertia = Some(theta[k]);
+            super::dynamics::visit_drive_params(&mut r.drives[i], |_, v| {
+                *v = theta[k];
                 k += 1;
-            }
-            let (friction, next) = match d.friction {
-                Friction::None => (Friction::None, k),
-                Friction::Symmetric { offset, .. } => (
-                    Friction::Symmetric {
-                        fc: theta[k],
-                        fv: theta[k + 1],
-                        offset: offset.map(|_| theta[k + 2]),
-                    },
-                    k + 2 + usize::from(offset.is_some()),
-                ),
-                Friction::Asymmetric { offset, .. } => (
-                    Friction::Asymmetric {
-                        fc_pos: theta[k],
-                        fc_neg: theta[k + 1],
-                        fv_pos: theta[k + 2],
-                        fv_neg: theta[k + 3],
-                        offset: offset.map(|_| theta[k + 4]),
-                    },
-                    k + 4 + usize::from(offset.is_some()),
-                ),
-            };
-            if let Coulomb::Stribeck { ref mut fs, .. } = d.coulomb {
-                match friction {
-                    Friction::None => {}
-                    Friction::Symmetric { .. } => fs[0] = theta[next],
-                    Friction::Asymmetric { .. } => *fs = [theta[next], theta[next + 1]],
-                }
-            }
-            d.friction = friction;
+            });
         }
         Ok(r)
     }

@@ -539,7 +539,7 @@ pub fn load_collision(
                 urdf_rs::Geometry::Sphere { radius } => Primitive::Sphere { radius: *radius },
                 urdf_rs::Geometry::Mesh { filename, scale } => match resolver.resolve(filename) {
                     Ok(p) => Primitive::Mesh {
-                        path: p,
+                        file: p,
                         scale: scale.map_or([1.0; 3], |s| s.0),
                     },
                     Err(why) => {
