@@ -4,7 +4,7 @@
 use super::assess::{column_parameters, Identifiability};
 use super::outputs::criterion_sample_set;
 use crate::excitation::constraints::{ConstraintKind, Margin};
-use crate::excitation::{ExciteResult, Problem, Status};
+use crate::excitation::{Criterion, ExciteResult, Problem, Scaling, Status};
 use crate::trajectory::seconds_text;
 use std::fmt::Write as _;
 
@@ -108,6 +108,13 @@ pub fn excite_text(p: &Problem, r: &ExciteResult, ident: &Identifiability) -> St
 /// The text summary of a design run (report.txt): `ident` on the criterion's
 /// samples, `delivered` on every row of the delivered trajectory.
 /// `period`: the criterion's samples read from trajectory.csv (segment 1).
+///
+/// The sections, in order: what was designed and what the criterion is
+/// computed from (`design_section`), the outcome (`outcome_section`),
+/// the violated constraints (`violations_section`), the collision lines
+/// ([`collision_text`]), the delivered trajectory (`delivered_section`),
+/// the limits and margins (`limits_section`), the solver
+/// (`solver_section`) and the identifiability on the criterion's samples.
 pub fn excite_report_text(
     p: &Problem,
     r: &ExciteResult,
@@ -115,8 +122,27 @@ pub fn excite_report_text(
     delivered: Option<&Identifiability>,
     period: Option<&Identifiability>,
 ) -> String {
-    let d = &p.design;
+    let check_rate = p.design.limits.check_rate;
     let mut s = String::new();
+    design_section(&mut s, p);
+    outcome_section(&mut s, p, r, delivered, period);
+    violations_section(&mut s, r, check_rate);
+    s.push_str(&collision_text(p, &r.margins, check_rate));
+    delivered_section(&mut s, p, r);
+    limits_section(&mut s, p, r);
+    solver_section(&mut s, r);
+    let _ = writeln!(
+        s,
+        "\nidentifiability (on the criterion's samples, unit columns whatever the criterion's scaling; predicted for the stated torque noise):"
+    );
+    s.push_str(&ident.text());
+    s
+}
+
+/// The design, its trajectory, and the matrix W½·C·D the criterion is
+/// computed from (samples, weights, scaling, columns), then a blank line.
+fn design_section(s: &mut String, p: &Problem) {
+    let d = &p.design;
     let _ = writeln!(s, "excitation design `{}` for robot `{}` ({})", d.name, p.robot.name, d.robot.display());
     let _ = writeln!(
         s,
@@ -134,9 +160,9 @@ pub fn excite_report_text(
         s,
         "criterion: {} of W½·C·D, C the stacked base regressor ({} columns × {} rows)",
         match d.objective.criterion {
-            crate::excitation::Criterion::Cond => "condition number σ_max/σ_min",
-            crate::excitation::Criterion::LogDet => "−log det((W½CD)ᵀ(W½CD)) (D-optimality)",
-            crate::excitation::Criterion::InvSigmaMin => "1/σ_min (E-optimality)",
+            Criterion::Cond => "condition number σ_max/σ_min",
+            Criterion::LogDet => "−log det((W½CD)ᵀ(W½CD)) (D-optimality)",
+            Criterion::InvSigmaMin => "1/σ_min (E-optimality)",
         },
         p.objective.n_cols(),
         p.objective.n_rows(),
@@ -152,10 +178,9 @@ pub fn excite_report_text(
         s,
         "  D: {}",
         match d.objective.scaling {
-            crate::excitation::Scaling::UnitColumn => "every column of W½C divided by its norm over these samples (norms in criterion.json)",
-            crate::excitation::Scaling::Nominal =>
-                "every column times the nominal value of its base parameter (floored at 10⁻³ of the largest; criterion.json)",
-            crate::excitation::Scaling::None => "none (D = I)",
+            Scaling::UnitColumn => "every column of W½C divided by its norm over these samples (norms in criterion.json)",
+            Scaling::Nominal => "every column times the nominal value of its base parameter (floored at 10⁻³ of the largest; criterion.json)",
+            Scaling::None => "none (D = I)",
         }
     );
     let _ = writeln!(
@@ -170,6 +195,12 @@ pub fn excite_report_text(
         "  to recompute: criterion.json (columns, weights, column norms, every figure below with its samples) and the sample files it names"
     );
     let _ = writeln!(s);
+}
+
+/// Status, safety, the criterion value and the condition numbers: on the
+/// criterion's samples, on the same samples read from trajectory.csv
+/// (`period`) and on the delivered trajectory (`delivered`).
+fn outcome_section(s: &mut String, p: &Problem, r: &ExciteResult, delivered: Option<&Identifiability>, period: Option<&Identifiability>) {
     let status = match r.status {
         Status::Feasible => "FEASIBLE".to_string(),
         Status::Infeasible => "INFEASIBLE".to_string(),
@@ -184,22 +215,20 @@ pub fn excite_report_text(
     }
     let _ = writeln!(s, "criterion value: {}", fmt_num(r.criterion));
     let _ = writeln!(s, "condition number: {} (on the criterion's samples above)", fmt_num(r.spectrum.cond));
-    if let Some(pi) = period {
-        if let Some(src) = &pi.source {
-            let _ = writeln!(
-                s,
-                "  the same samples in trajectory.csv: segment 1, every {} row, t = {} s: condition number {} (unit columns; \
-                 `idexp assess {} trajectory.csv --segment 1 --every {}`). trajectory.csv starts with the lead-in at t = 0: \
-                 its first {} s are not a period",
-                ordinal(src.every),
-                src.t_range
-                    .map_or("?".to_string(), |[a, b]| format!("{} … {}", seconds_text(a), seconds_text(b))),
-                fmt_num(pi.cond),
-                p.design.robot.display(),
-                src.every,
-                r.trajectory.period_text()
-            );
-        }
+    if let Some((pi, src)) = period.and_then(|pi| pi.source.as_ref().map(|src| (pi, src))) {
+        let _ = writeln!(
+            s,
+            "  the same samples in trajectory.csv: segment 1, every {} row, t = {} s: condition number {} (unit columns; \
+             `idexp assess {} trajectory.csv --segment 1 --every {}`). trajectory.csv starts with the lead-in at t = 0: \
+             its first {} s are not a period",
+            ordinal(src.every),
+            src.t_range
+                .map_or("?".to_string(), |[a, b]| format!("{} … {}", seconds_text(a), seconds_text(b))),
+            fmt_num(pi.cond),
+            p.design.robot.display(),
+            src.every,
+            r.trajectory.period_text()
+        );
     }
     if let Some(dl) = delivered {
         let _ = writeln!(
@@ -211,27 +240,35 @@ pub fn excite_report_text(
             dl.names.len()
         );
     }
-    if !r.violated.is_empty() {
-        let _ = writeln!(s, "\nviolated constraints (on the {} Hz verification grid), worst first:", d.limits.check_rate);
-        for m in &r.violated {
-            if is_distance(m) {
-                let _ = writeln!(s, "  {}", distance_violation(m));
-                continue;
-            }
-            let _ = writeln!(
-                s,
-                "  {}: reaches {} {} at t = {:.3} s, {} {} beyond the limit",
-                m.name,
-                fmt_num(m.worst),
-                m.unit,
-                m.at,
-                fmt_num(-m.margin),
-                m.unit
-            );
-        }
-        let _ = writeln!(s, "  (no trajectory found by the search meets these; relax them or move q0 / the workspace)");
+}
+
+/// The violated constraints on the verification grid (`check_rate` Hz), worst first.
+fn violations_section(s: &mut String, r: &ExciteResult, check_rate: f64) {
+    if r.violated.is_empty() {
+        return;
     }
-    s.push_str(&collision_text(p, &r.margins, d.limits.check_rate));
+    let _ = writeln!(s, "\nviolated constraints (on the {check_rate} Hz verification grid), worst first:");
+    for m in &r.violated {
+        if is_distance(m) {
+            let _ = writeln!(s, "  {}", distance_violation(m));
+            continue;
+        }
+        let _ = writeln!(
+            s,
+            "  {}: reaches {} {} at t = {:.3} s, {} {} beyond the limit",
+            m.name,
+            fmt_num(m.worst),
+            m.unit,
+            m.at,
+            fmt_num(-m.margin),
+            m.unit
+        );
+    }
+    let _ = writeln!(s, "  (no trajectory found by the search meets these; relax them or move q0 / the workspace)");
+}
+
+/// The delivered trajectory (lead-in, periods, lead-out) and whether it is playable.
+fn delivered_section(s: &mut String, p: &Problem, r: &ExciteResult) {
     let _ = writeln!(s, "\ndelivered trajectory (what trajectory.csv and the exports hold):");
     match (&r.execution.delivered, &r.execution.problem) {
         (Some(dl), problem) => {
@@ -250,7 +287,7 @@ pub fn excite_report_text(
                     let _ = writeln!(
                         s,
                         "  every sample within every joint limit{} on the {} Hz grid",
-                        if d.workspace.is_empty() { "" } else { " and workspace constraint" },
+                        if p.design.workspace.is_empty() { "" } else { " and workspace constraint" },
                         r.execution.check_rate
                     );
                 }
@@ -264,6 +301,10 @@ pub fn excite_report_text(
         }
         (None, None) => {}
     }
+}
+
+/// The limits applied (value and source) and the worst margin per constraint.
+fn limits_section(s: &mut String, p: &Problem, r: &ExciteResult) {
     let _ = writeln!(s, "\nlimits applied (value imposed; source):");
     for a in &p.applied_limits {
         let v = if a.class == "position" {
@@ -273,10 +314,14 @@ pub fn excite_report_text(
         };
         let _ = writeln!(s, "  {:<22} {:<13} {:>24} {:<7} {}", a.joint, a.class, v, a.unit, a.source);
     }
-    let _ = writeln!(s, "\nworst margin per constraint ({} Hz grid; ≥ 0 holds):", d.limits.check_rate);
+    let _ = writeln!(s, "\nworst margin per constraint ({} Hz grid; ≥ 0 holds):", p.design.limits.check_rate);
     for m in &r.margins {
         let _ = writeln!(s, "  {:<60} margin {:>12} {}", m.name, fmt_num(m.margin), m.unit);
     }
+}
+
+/// The GA, every refinement, the chosen design and the total time.
+fn solver_section(s: &mut String, r: &ExciteResult) {
     let _ = writeln!(
         s,
         "\nsolver: GA {} generations, {} evaluations, {:.2} s ({:?}); best GA criterion {}",
@@ -304,12 +349,6 @@ pub fn excite_report_text(
         );
     }
     let _ = writeln!(s, "chosen: {}; total {:.2} s on {} threads", r.chosen, r.seconds, r.threads);
-    let _ = writeln!(
-        s,
-        "\nidentifiability (on the criterion's samples, unit columns whatever the criterion's scaling; predicted for the stated torque noise):"
-    );
-    s.push_str(&ident.text());
-    s
 }
 
 /// The margins that are violated, as readable lines.
