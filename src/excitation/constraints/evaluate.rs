@@ -5,15 +5,12 @@ use super::{frame_point, joint_extremum, ConstraintInfo, ConstraintWorkspace, Co
 use crate::robot::collision::DistanceSeries;
 use crate::robot::kinematics::forward_kinematics;
 use crate::robot::{frame_jacobian, id_derivatives, inverse_dynamics, motor_inertia};
-use crate::trajectory::FourierTrajectory;
+use crate::trajectory::{FourierTrajectory, TrajectoryShape};
 use rayon::prelude::*;
 
 impl Constraints {
     fn clear_grad(cw: &mut ConstraintWorkspace) {
-        let g = &mut cw.grad;
-        for v in g.q.iter_mut().chain(g.qd.iter_mut()).chain(g.qdd.iter_mut()) {
-            *v = 0.0;
-        }
+        cw.grad.clear();
     }
 
     /// As [`Self::eval`] for a trajectory (the Jacobian is still w.r.t. the layout's x).
@@ -253,22 +250,10 @@ impl Constraints {
         (value, Some(t))
     }
 
-    /// Pulls the state gradient `cw.grad` at time t back to x into `row`:
-    /// row = factor · Σ_a (g_q,a ∂q_a(t)/∂x + g_q̇,a ∂q̇_a(t)/∂x + g_q̈,a ∂q̈_a(t)/∂x),
-    /// through the Fourier basis at t and the layout.
+    /// Pulls the state gradient `cw.grad` at time t back to x into `row`
+    /// through the shape's Jacobian ([`TrajectoryShape::pull_back`]).
     fn pull_back(&self, tr: &FourierTrajectory, t: f64, cw: &mut ConstraintWorkspace, row: &mut [f64]) {
-        tr.basis(t, &mut cw.basis);
-        let g = &cw.grad;
-        let f = g.factor;
-        for a in 0..self.robot.dof() {
-            cw.g_q0[a] = f * g.q[a];
-            for k in 0..self.layout.n_h {
-                let b = &cw.basis.k[k];
-                cw.g_a[a][k] = f * (g.q[a] * b[0] + g.qd[a] * b[2] + g.qdd[a] * b[4]);
-                cw.g_b[a][k] = f * (g.q[a] * b[1] + g.qd[a] * b[3] + g.qdd[a] * b[5]);
-            }
-        }
-        self.layout.pullback(&cw.g_q0, &cw.g_a, &cw.g_b, row);
+        TrajectoryShape::pull_back(&self.layout, tr, t, &cw.grad, &mut cw.pull, row);
     }
 
     /// Maximum of a function sampled on the constraint grid (periodic), refined

@@ -13,30 +13,7 @@ pub fn series_derivative(tr: &FourierTrajectory, j: usize, m: usize, t: f64) -> 
 /// Time derivatives of orders m, m+1, m+2 of q_j at t (order 0 includes q0),
 /// with one sin_cos and the angle-addition recurrence for the harmonics.
 pub fn series_derivatives(tr: &FourierTrajectory, j: usize, m: usize, t: f64) -> [f64; 3] {
-    let w = tr.omega;
-    let (s1, c1) = (w * t).sin_cos();
-    let (mut s, mut c) = (s1, c1);
-    let mut out = [0.0; 3];
-    if m == 0 {
-        out[0] = tr.q0[j];
-    }
-    for (k0, (&a, &b)) in tr.a[j].iter().zip(&tr.b[j]).enumerate() {
-        let kw = (k0 + 1) as f64 * w;
-        for (d, o) in out.iter_mut().enumerate() {
-            let order = m + d;
-            let (sm, cm) = match order % 4 {
-                0 => (s, c),
-                1 => (c, -s),
-                2 => (-s, -c),
-                _ => (-c, s),
-            };
-            *o += kw.powi(order as i32 - 1) * (a * sm - b * cm);
-        }
-        let sn = s * c1 + c * s1;
-        c = c * c1 - s * s1;
-        s = sn;
-    }
-    out
+    tr.derivatives(j, m, t)
 }
 
 /// Extremum of q_j^(order) over the continuous period: (value, time).

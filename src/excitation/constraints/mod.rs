@@ -36,7 +36,7 @@ use crate::robot::cartesian::{CartesianConstraint, Shape};
 use crate::robot::collision::{CollisionScene, DistanceSeries, NarrowPhase, PairClass};
 use crate::robot::kinematics::forward_kinematics;
 use crate::robot::{Frame, Robot, Workspace};
-use crate::trajectory::{period_grid, Basis, FourierLayout};
+use crate::trajectory::{period_grid, FourierLayout, StateGradient, TrajectoryShape};
 use nalgebra::Vector3;
 use serde::Serialize;
 
@@ -134,7 +134,6 @@ pub struct Constraints {
 #[derive(Debug, Clone)]
 pub struct ConstraintWorkspace {
     ws: Workspace,
-    basis: Basis,
     q: Vec<f64>,
     qd: Vec<f64>,
     qdd: Vec<f64>,
@@ -142,9 +141,6 @@ pub struct ConstraintWorkspace {
     tau_grid: Vec<Vec<f64>>,
     marg_grid: Vec<Vec<f64>>,
     margins: Vec<(f64, Vector3<f64>)>,
-    g_q0: Vec<f64>,
-    g_a: Vec<Vec<f64>>,
-    g_b: Vec<Vec<f64>>,
     /// Body poses at every grid time (computed once per evaluation, shared by the pairs).
     pose_grid: Vec<Vec<nalgebra::Isometry3<f64>>>,
     /// Per pair: the capped distance on the grid, exact where it can be the minimum.
@@ -153,6 +149,8 @@ pub struct ConstraintWorkspace {
     /// The gradient of the constraint being evaluated with respect to the
     /// state at its time t* (pulled back to x by [`Constraints::pull_back`]).
     grad: StateGradient,
+    /// Buffers of the shape's pull-back.
+    pull: <FourierLayout as TrajectoryShape>::Scratch,
     exhaustive: bool,
     /// Evaluation for the GA's selection ([`Constraints::eval_selection`]).
     selection: bool,
@@ -182,17 +180,6 @@ impl ConstraintWorkspace {
     pub fn support_skips_per_pair(&self) -> Vec<usize> {
         self.series.iter().map(|s| s.support_skips).collect()
     }
-}
-
-/// The gradient of a scalar with respect to the state at one time t: the
-/// scalar's gradient with respect to x is
-/// factor · Σ_a (q_a ∂q_a(t)/∂x + qd_a ∂q̇_a(t)/∂x + qdd_a ∂q̈_a(t)/∂x).
-#[derive(Debug, Clone)]
-struct StateGradient {
-    factor: f64,
-    q: Vec<f64>,
-    qd: Vec<f64>,
-    qdd: Vec<f64>,
 }
 
 /// Which joint limits are imposed and how much of each is usable.
@@ -452,10 +439,8 @@ impl Constraints {
     /// A workspace (one per thread).
     pub fn workspace(&self) -> ConstraintWorkspace {
         let n = self.robot.dof();
-        let nh = self.layout.n_h;
         ConstraintWorkspace {
             ws: Workspace::new(&self.robot),
-            basis: Basis::default(),
             q: vec![0.0; n],
             qd: vec![0.0; n],
             qdd: vec![0.0; n],
@@ -463,18 +448,11 @@ impl Constraints {
             tau_grid: vec![vec![0.0; n]; self.grid.len()],
             marg_grid: vec![Vec::new(); self.grid.len()],
             margins: Vec::with_capacity(6),
-            g_q0: vec![0.0; n],
-            g_a: vec![vec![0.0; nh]; n],
-            g_b: vec![vec![0.0; nh]; n],
             pose_grid: vec![Vec::new(); self.grid.len()],
             series: vec![DistanceSeries::default(); self.scene.as_deref().map_or(0, |s| s.len())],
             poses: Vec::new(),
-            grad: StateGradient {
-                factor: 0.0,
-                q: vec![0.0; n],
-                qd: vec![0.0; n],
-                qdd: vec![0.0; n],
-            },
+            grad: StateGradient::zeros(n),
+            pull: Default::default(),
             exhaustive: false,
             selection: false,
         }
