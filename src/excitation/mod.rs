@@ -53,7 +53,7 @@ use crate::error::{Error, Result};
 use crate::optim::{Control, Termination};
 use crate::params::{BaseOptions, BaseParams};
 use crate::robot::Robot;
-use crate::trajectory::{period_grid, FourierLayout, FourierTrajectory};
+use crate::trajectory::{period_grid, FourierLayout, FourierTrajectory, TrajectoryShape};
 use constraints::{Constraints, JointLimitSpec, Margin};
 use design::{ExciteDesign, RefineAlgorithm};
 use objective::{BaseColumns, Columns, Objective, Scoring, Spectrum};
@@ -302,51 +302,15 @@ impl Problem {
                 constraints = constraints.with_collision(scene);
             }
         }
-        // box: each harmonic alone within the joint's limits
-        let mut lower = vec![0.0; layout.n_vars()];
-        let mut upper = vec![0.0; layout.n_vars()];
-        let vpj = layout.vars_per_joint();
-        for j in 0..n {
-            let [lo, hi] = position[j];
-            let room = if tr.vary_q0 {
-                if lo.is_finite() && hi.is_finite() {
-                    0.5 * (hi - lo)
-                } else {
-                    std::f64::consts::PI
-                }
-            } else {
-                let r = (hi - q0[j]).min(q0[j] - lo);
-                if r.is_finite() {
-                    r.max(1e-9)
-                } else {
-                    std::f64::consts::PI
-                }
-            };
-            if tr.vary_q0 {
-                let (a, b) = if lo.is_finite() && hi.is_finite() {
-                    (lo, hi)
-                } else {
-                    (q0[j] - std::f64::consts::PI, q0[j] + std::f64::consts::PI)
-                };
-                lower[j * vpj] = a;
-                upper[j * vpj] = b;
-            }
-            for k0 in usize::from(tr.at_rest)..tr.harmonics {
-                let kw = (k0 + 1) as f64 * omega;
-                let mut r = kw * room;
-                if limits.velocity[j].is_finite() {
-                    r = r.min(limits.velocity[j]);
-                }
-                if limits.acceleration[j].is_finite() {
-                    r = r.min(limits.acceleration[j] / kw);
-                }
-                let (ia, ib) = layout.index(j, k0);
-                for i in [ia, ib] {
-                    lower[i] = -r;
-                    upper[i] = r;
-                }
-            }
-        }
+        // the box of x: the shape's, from the joint limits
+        let (lower, upper) = TrajectoryShape::bounds(
+            &layout,
+            &crate::trajectory::JointBox {
+                position: &position,
+                velocity: &limits.velocity,
+                acceleration: &limits.acceleration,
+            },
+        );
         Ok(Problem {
             design,
             robot,

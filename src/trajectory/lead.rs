@@ -10,7 +10,7 @@
 //! [`DURATION_QUANTUM`]) whose motion passes the caller's check (joint
 //! limits, torques, workspace, collision), sampled `dt` apart.
 
-use super::FourierTrajectory;
+use super::{FourierTrajectory, Motion};
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
@@ -51,8 +51,8 @@ impl State {
         }
     }
 
-    /// The state of a Fourier trajectory at time t.
-    pub fn of(tr: &FourierTrajectory, t: f64) -> State {
+    /// The state of a motion (any [`Motion`]: a Fourier trajectory, a B-spline) at time t.
+    pub fn of<M: Motion + ?Sized>(tr: &M, t: f64) -> State {
         let n = tr.n_joints();
         let mut s = State {
             q: vec![0.0; n],

@@ -14,14 +14,17 @@
 //! ending at rest, built into the parameterisation) and pulls gradients back.
 //! A sampled trajectory is an [`crate::io::States`] (`t, q, qd, qdd` CSV).
 
+pub mod bspline;
 pub mod differentiate;
 pub mod export;
 pub mod lead;
 pub mod multisine;
 pub mod reference;
+pub mod shape;
 
 pub use differentiate::differentiate;
 pub use reference::{Reference, ReferenceSpec};
+pub use shape::{Ends, JointBox, Motion, StateGradient, TrajectoryShape};
 
 use crate::error::{Error, Result};
 use crate::io::States;
@@ -424,6 +427,155 @@ impl FourierLayout {
                 gx[ib] = gb;
             }
         }
+    }
+}
+
+/// Buffers of [`FourierLayout`]'s [`TrajectoryShape::pull_back`]: the basis at t and
+/// the gradient with respect to the full coefficients (q0, a, b).
+#[derive(Debug, Clone, Default)]
+pub struct FourierScratch {
+    basis: Basis,
+    g_q0: Vec<f64>,
+    g_a: Vec<Vec<f64>>,
+    g_b: Vec<Vec<f64>>,
+}
+
+impl FourierTrajectory {
+    /// Time derivatives of orders m, m+1, m+2 of q_j at t (order 0 includes q0),
+    /// with one sin_cos and the angle-addition recurrence for the harmonics.
+    pub fn derivatives(&self, j: usize, m: usize, t: f64) -> [f64; 3] {
+        let w = self.omega;
+        let (s1, c1) = (w * t).sin_cos();
+        let (mut s, mut c) = (s1, c1);
+        let mut out = [0.0; 3];
+        if m == 0 {
+            out[0] = self.q0[j];
+        }
+        for (k0, (&a, &b)) in self.a[j].iter().zip(&self.b[j]).enumerate() {
+            let kw = (k0 + 1) as f64 * w;
+            for (d, o) in out.iter_mut().enumerate() {
+                let order = m + d;
+                let (sm, cm) = match order % 4 {
+                    0 => (s, c),
+                    1 => (c, -s),
+                    2 => (-s, -c),
+                    _ => (-c, s),
+                };
+                *o += kw.powi(order as i32 - 1) * (a * sm - b * cm);
+            }
+            let sn = s * c1 + c * s1;
+            c = c * c1 - s * s1;
+            s = sn;
+        }
+        out
+    }
+}
+
+impl Motion for FourierTrajectory {
+    fn n_joints(&self) -> usize {
+        self.q0.len()
+    }
+
+    fn duration(&self) -> f64 {
+        self.period()
+    }
+
+    fn ends(&self) -> Ends {
+        Ends::Periodic
+    }
+
+    fn eval(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
+        FourierTrajectory::eval(self, t, q, qd, qdd)
+    }
+
+    fn derivatives(&self, j: usize, m: usize, t: f64) -> [f64; 3] {
+        FourierTrajectory::derivatives(self, j, m, t)
+    }
+}
+
+impl TrajectoryShape for FourierLayout {
+    type Motion = FourierTrajectory;
+    type Scratch = FourierScratch;
+
+    fn n_vars(&self) -> usize {
+        FourierLayout::n_vars(self)
+    }
+
+    fn motion(&self, x: &[f64]) -> FourierTrajectory {
+        self.trajectory(x)
+    }
+
+    /// Each harmonic alone within the joint's limits: |a_kj|, |b_kj| ≤
+    /// min(kω·room, q̇_max, q̈_max/(kω)), room the distance from q0 to the
+    /// nearer position limit (half the range when q0 is free, π without
+    /// limits); a free q0 within the position limits (q0 ± π without).
+    fn bounds(&self, limits: &JointBox) -> (Vec<f64>, Vec<f64>) {
+        let (position, q0, omega) = (limits.position, &self.q0, self.omega);
+        let mut lower = vec![0.0; FourierLayout::n_vars(self)];
+        let mut upper = vec![0.0; FourierLayout::n_vars(self)];
+        let vpj = self.vars_per_joint();
+        for j in 0..self.n {
+            let [lo, hi] = position[j];
+            let room = if self.vary_q0 {
+                if lo.is_finite() && hi.is_finite() {
+                    0.5 * (hi - lo)
+                } else {
+                    std::f64::consts::PI
+                }
+            } else {
+                let r = (hi - q0[j]).min(q0[j] - lo);
+                if r.is_finite() {
+                    r.max(1e-9)
+                } else {
+                    std::f64::consts::PI
+                }
+            };
+            if self.vary_q0 {
+                let (a, b) = if lo.is_finite() && hi.is_finite() {
+                    (lo, hi)
+                } else {
+                    (q0[j] - std::f64::consts::PI, q0[j] + std::f64::consts::PI)
+                };
+                lower[j * vpj] = a;
+                upper[j * vpj] = b;
+            }
+            for k0 in usize::from(self.at_rest)..self.n_h {
+                let kw = (k0 + 1) as f64 * omega;
+                let mut r = kw * room;
+                if limits.velocity[j].is_finite() {
+                    r = r.min(limits.velocity[j]);
+                }
+                if limits.acceleration[j].is_finite() {
+                    r = r.min(limits.acceleration[j] / kw);
+                }
+                let (ia, ib) = self.index(j, k0);
+                for i in [ia, ib] {
+                    lower[i] = -r;
+                    upper[i] = r;
+                }
+            }
+        }
+        (lower, upper)
+    }
+
+    /// Through the Fourier basis at t ([`FourierTrajectory::basis`]) to the
+    /// full coefficients, then [`FourierLayout::pullback`].
+    fn pull_back(&self, m: &FourierTrajectory, t: f64, g: &StateGradient, s: &mut FourierScratch, gx: &mut [f64]) {
+        let (n, nh) = (self.n, self.n_h);
+        m.basis(t, &mut s.basis);
+        s.g_q0.resize(n, 0.0);
+        s.g_a.resize_with(n, || vec![0.0; nh]);
+        s.g_b.resize_with(n, || vec![0.0; nh]);
+        let f = g.factor;
+        for a in 0..n {
+            s.g_q0[a] = f * g.q[a];
+            for k in 0..nh {
+                let b = &s.basis.k[k];
+                s.g_a[a][k] = f * (g.q[a] * b[0] + g.qd[a] * b[2] + g.qdd[a] * b[4]);
+                s.g_b[a][k] = f * (g.q[a] * b[1] + g.qd[a] * b[3] + g.qdd[a] * b[5]);
+            }
+        }
+        self.pullback(&s.g_q0, &s.g_a, &s.g_b, gx);
     }
 }
 

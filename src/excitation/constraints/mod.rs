@@ -24,15 +24,20 @@
 //! [`Constraints::verify`] evaluates every constraint on a uniform grid (1 kHz
 //! by default) in natural units, for the report.
 
+mod evaluate;
+mod joint;
+mod verify;
+
+pub use joint::{joint_extremum, series_derivative, series_derivatives};
+
 use super::grid::TrigGrid;
 use crate::error::{Error, Result};
 use crate::robot::cartesian::{CartesianConstraint, Shape};
 use crate::robot::collision::{CollisionScene, DistanceSeries, NarrowPhase, PairClass};
 use crate::robot::kinematics::forward_kinematics;
-use crate::robot::{frame_jacobian, id_derivatives, inverse_dynamics, motor_inertia, Frame, Robot, Workspace};
-use crate::trajectory::{period_grid, Basis, FourierLayout, FourierTrajectory};
+use crate::robot::{Frame, Robot, Workspace};
+use crate::trajectory::{period_grid, FourierLayout, StateGradient, TrajectoryShape};
 use nalgebra::Vector3;
-use rayon::prelude::*;
 use serde::Serialize;
 
 /// Grid points per period of the highest harmonic used to bracket joint extrema.
@@ -129,7 +134,6 @@ pub struct Constraints {
 #[derive(Debug, Clone)]
 pub struct ConstraintWorkspace {
     ws: Workspace,
-    basis: Basis,
     q: Vec<f64>,
     qd: Vec<f64>,
     qdd: Vec<f64>,
@@ -137,15 +141,16 @@ pub struct ConstraintWorkspace {
     tau_grid: Vec<Vec<f64>>,
     marg_grid: Vec<Vec<f64>>,
     margins: Vec<(f64, Vector3<f64>)>,
-    g_q0: Vec<f64>,
-    g_a: Vec<Vec<f64>>,
-    g_b: Vec<Vec<f64>>,
     /// Body poses at every grid time (computed once per evaluation, shared by the pairs).
     pose_grid: Vec<Vec<nalgebra::Isometry3<f64>>>,
     /// Per pair: the capped distance on the grid, exact where it can be the minimum.
     series: Vec<DistanceSeries>,
     poses: Vec<nalgebra::Isometry3<f64>>,
-    gq: Vec<f64>,
+    /// The gradient of the constraint being evaluated with respect to the
+    /// state at its time t* (pulled back to x by [`Constraints::pull_back`]).
+    grad: StateGradient,
+    /// Buffers of the shape's pull-back.
+    pull: <FourierLayout as TrajectoryShape>::Scratch,
     exhaustive: bool,
     /// Evaluation for the GA's selection ([`Constraints::eval_selection`]).
     selection: bool,
@@ -215,110 +220,6 @@ fn order_name(order: usize) -> (&'static str, ConstraintKind, &'static str) {
         1 => ("qd", ConstraintKind::Velocity, "rad/s"),
         _ => ("qdd", ConstraintKind::Acceleration, "rad/s²"),
     }
-}
-
-/// m-th time derivative of q_j at t (m = 0 includes q0).
-pub fn series_derivative(tr: &FourierTrajectory, j: usize, m: usize, t: f64) -> f64 {
-    series_derivatives(tr, j, m, t)[0]
-}
-
-/// Time derivatives of orders m, m+1, m+2 of q_j at t (order 0 includes q0),
-/// with one sin_cos and the angle-addition recurrence for the harmonics.
-pub fn series_derivatives(tr: &FourierTrajectory, j: usize, m: usize, t: f64) -> [f64; 3] {
-    let w = tr.omega;
-    let (s1, c1) = (w * t).sin_cos();
-    let (mut s, mut c) = (s1, c1);
-    let mut out = [0.0; 3];
-    if m == 0 {
-        out[0] = tr.q0[j];
-    }
-    for (k0, (&a, &b)) in tr.a[j].iter().zip(&tr.b[j]).enumerate() {
-        let kw = (k0 + 1) as f64 * w;
-        for (d, o) in out.iter_mut().enumerate() {
-            let order = m + d;
-            let (sm, cm) = match order % 4 {
-                0 => (s, c),
-                1 => (c, -s),
-                2 => (-s, -c),
-                _ => (-c, s),
-            };
-            *o += kw.powi(order as i32 - 1) * (a * sm - b * cm);
-        }
-        let sn = s * c1 + c * s1;
-        c = c * c1 - s * s1;
-        s = sn;
-    }
-    out
-}
-
-/// Extremum of q_j^(order) over the continuous period: (value, time).
-/// `upper`: maximum, else minimum. `scan` is a uniform grid over the period:
-/// the best two grid local extrema are refined by Newton steps on
-/// d/dt q_j^(order) = 0.
-pub fn joint_extremum(tr: &FourierTrajectory, scan: &TrigGrid, j: usize, order: usize, upper: bool) -> (f64, f64) {
-    let sgn = if upper { 1.0 } else { -1.0 };
-    let ns = scan.len();
-    let vals: Vec<f64> = (0..ns).map(|i| sgn * scan.derivative(tr, j, order, i)).collect();
-    let scan = &scan.times;
-    let mut cand: [Option<usize>; 2] = [None, None];
-    for i in 0..ns {
-        if vals[i] >= vals[(i + ns - 1) % ns] && vals[i] >= vals[(i + 1) % ns] {
-            match cand {
-                [None, _] => cand[0] = Some(i),
-                [Some(a), None] => {
-                    if vals[i] > vals[a] {
-                        cand = [Some(i), Some(a)];
-                    } else {
-                        cand[1] = Some(i);
-                    }
-                }
-                [Some(a), Some(b)] => {
-                    if vals[i] > vals[a] {
-                        cand = [Some(i), Some(a)];
-                    } else if vals[i] > vals[b] {
-                        cand[1] = Some(i);
-                    }
-                }
-            }
-        }
-    }
-    if cand[0].is_none() {
-        return (sgn * vals[0], scan[0]);
-    }
-    let h = if ns > 1 { scan[1] - scan[0] } else { 1.0 };
-    let (mut best, mut tbest) = (f64::NEG_INFINITY, 0.0);
-    for i in cand.iter().flatten().copied() {
-        let (mut t, mut fv) = (scan[i], vals[i]);
-        let t_grid = t;
-        let mut d = series_derivatives(tr, j, order, t);
-        for _ in 0..8 {
-            let (d1, d2) = (sgn * d[1], sgn * d[2]);
-            if d2 >= 0.0 {
-                break;
-            }
-            let step = -d1 / d2;
-            let tn = t + step;
-            if (tn - t_grid).abs() > 1.5 * h {
-                break;
-            }
-            let dn = series_derivatives(tr, j, order, tn);
-            let fnv = sgn * dn[0];
-            if fnv < fv - 1e-15 * fv.abs().max(1.0) {
-                break;
-            }
-            t = tn;
-            fv = fnv;
-            d = dn;
-            if step.abs() < 1e-9 * h {
-                break;
-            }
-        }
-        if fv > best {
-            best = fv;
-            tbest = t;
-        }
-    }
-    (sgn * best, tbest)
 }
 
 impl Constraints {
@@ -538,10 +439,8 @@ impl Constraints {
     /// A workspace (one per thread).
     pub fn workspace(&self) -> ConstraintWorkspace {
         let n = self.robot.dof();
-        let nh = self.layout.n_h;
         ConstraintWorkspace {
             ws: Workspace::new(&self.robot),
-            basis: Basis::default(),
             q: vec![0.0; n],
             qd: vec![0.0; n],
             qdd: vec![0.0; n],
@@ -549,22 +448,13 @@ impl Constraints {
             tau_grid: vec![vec![0.0; n]; self.grid.len()],
             marg_grid: vec![Vec::new(); self.grid.len()],
             margins: Vec::with_capacity(6),
-            g_q0: vec![0.0; n],
-            g_a: vec![vec![0.0; nh]; n],
-            g_b: vec![vec![0.0; nh]; n],
             pose_grid: vec![Vec::new(); self.grid.len()],
             series: vec![DistanceSeries::default(); self.scene.as_deref().map_or(0, |s| s.len())],
             poses: Vec::new(),
-            gq: vec![0.0; n],
+            grad: StateGradient::zeros(n),
+            pull: Default::default(),
             exhaustive: false,
             selection: false,
-        }
-    }
-
-    fn clear_grad(cw: &mut ConstraintWorkspace) {
-        cw.g_q0.iter_mut().for_each(|v| *v = 0.0);
-        for r in cw.g_a.iter_mut().chain(cw.g_b.iter_mut()) {
-            r.iter_mut().for_each(|v| *v = 0.0);
         }
     }
 
@@ -594,315 +484,9 @@ impl Constraints {
         cw.selection = false;
     }
 
-    /// As [`Self::eval`] for a trajectory (the Jacobian is still w.r.t. the layout's x).
-    pub fn eval_traj(&self, tr: &FourierTrajectory, cw: &mut ConstraintWorkspace, c: &mut [f64], mut jac: Option<&mut [f64]>) {
-        assert_eq!(c.len(), self.len(), "constraint output length");
-        let nv = self.layout.n_vars();
-        let n = self.robot.dof();
-        let nh = self.layout.n_h;
-        // grid quantities
-        let has_torque = self.items.iter().any(|i| matches!(i, Item::Torque { .. }));
-        if has_torque {
-            for g in 0..self.grid.len() {
-                self.grid.state(tr, g, &mut cw.q, &mut cw.qd, &mut cw.qdd);
-                inverse_dynamics(&self.robot, &mut cw.ws, &self.theta, &cw.q, &cw.qd, &cw.qdd, &mut cw.tau);
-                cw.tau_grid[g].copy_from_slice(&cw.tau);
-            }
-        }
-        let mut last_cart = usize::MAX;
-        if let Some(sc) = self.scene.as_deref() {
-            // body poses once per grid time, then per pair the exact
-            // distance only where it can be the pair's minimum over the grid
-            for g in 0..self.grid.len() {
-                self.grid.state(tr, g, &mut cw.q, &mut cw.qd, &mut cw.qdd);
-                forward_kinematics(&self.robot, &cw.q, &mut cw.ws.kin);
-                sc.poses(&cw.ws.kin, &mut cw.pose_grid[g]);
-            }
-            let cap = if cw.selection { sc.margin } else { sc.cap };
-            // the pairs on the rayon pool when the evaluation runs outside it
-            // (the refinement); inside it (the GA's evaluations, parallel
-            // refinement starts) one after the other: nested, the pool's
-            // threads are already busy and the fork-join only costs. Each
-            // pair's series depends on that pair alone, so the values do not
-            // depend on the thread count.
-            let (pose_grid, exhaustive) = (&cw.pose_grid, cw.exhaustive);
-            let one = |(k, out): (usize, &mut DistanceSeries)| sc.pair_series(k, pose_grid, cap, exhaustive, out);
-            if rayon::current_thread_index().is_none() {
-                cw.series.par_iter_mut().enumerate().for_each(one);
-            } else {
-                cw.series.iter_mut().enumerate().for_each(one);
-            }
-        }
-        for (i, item) in self.items.iter().enumerate() {
-            let inf = &self.info[i];
-            let sgn = if inf.upper { 1.0 } else { -1.0 };
-            let want_grad = jac.is_some();
-            if want_grad {
-                Self::clear_grad(cw);
-            }
-            match *item {
-                Item::Joint { j, order } => {
-                    let (v, t) = joint_extremum(tr, &self.scan, j, order, inf.upper);
-                    c[i] = sgn * (v - inf.limit) / inf.scale;
-                    if want_grad {
-                        tr.basis(t, &mut cw.basis);
-                        let f = sgn / inf.scale;
-                        if order == 0 {
-                            cw.g_q0[j] = f;
-                        }
-                        for k in 0..nh {
-                            cw.g_a[j][k] = f * cw.basis.k[k][2 * order];
-                            cw.g_b[j][k] = f * cw.basis.k[k][2 * order + 1];
-                        }
-                    }
-                }
-                Item::Torque { j } => {
-                    let vals: Vec<f64> = cw.tau_grid.iter().map(|r| sgn * r[j]).collect();
-                    let (fv, t) = self.refine_grid(
-                        &vals,
-                        |t, cw: &mut ConstraintWorkspace| {
-                            tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
-                            inverse_dynamics(&self.robot, &mut cw.ws, &self.theta, &cw.q, &cw.qd, &cw.qdd, &mut cw.tau);
-                            sgn * cw.tau[j]
-                        },
-                        cw,
-                    );
-                    c[i] = (fv - sgn * inf.limit) / inf.scale;
-                    if want_grad {
-                        tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
-                        let (dq, dqd) = id_derivatives(&self.robot, &mut cw.ws, &self.theta, &cw.q, &cw.qd, &cw.qdd);
-                        let mi = motor_inertia(&self.robot, &mut cw.ws, &self.theta, &cw.q);
-                        tr.basis(t, &mut cw.basis);
-                        let f = sgn / inf.scale;
-                        for a in 0..n {
-                            cw.g_q0[a] = f * dq[(j, a)];
-                            for k in 0..nh {
-                                let b = &cw.basis.k[k];
-                                cw.g_a[a][k] = f * (dq[(j, a)] * b[0] + dqd[(j, a)] * b[2] + mi[(j, a)] * b[4]);
-                                cw.g_b[a][k] = f * (dq[(j, a)] * b[1] + dqd[(j, a)] * b[3] + mi[(j, a)] * b[5]);
-                            }
-                        }
-                    }
-                }
-                Item::Cart { idx, margin } => {
-                    let ci = &self.cart[idx];
-                    if last_cart != idx {
-                        for g in 0..self.grid.len() {
-                            self.grid.state(tr, g, &mut cw.q, &mut cw.qd, &mut cw.qdd);
-                            let p = frame_point(&self.robot, &mut cw.ws, &cw.q, &ci.frame);
-                            cw.margins.clear();
-                            ci.shape.margins(&p, &mut cw.margins);
-                            let row = &mut cw.marg_grid[g];
-                            row.clear();
-                            row.extend(cw.margins.iter().map(|m| m.0));
-                        }
-                        last_cart = idx;
-                    }
-                    // minimise the margin: maximise −g
-                    let vals: Vec<f64> = cw.marg_grid.iter().map(|r| -r[margin]).collect();
-                    let (fv, t) = self.refine_grid(
-                        &vals,
-                        |t, cw: &mut ConstraintWorkspace| {
-                            tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
-                            let p = frame_point(&self.robot, &mut cw.ws, &cw.q, &ci.frame);
-                            cw.margins.clear();
-                            ci.shape.margins(&p, &mut cw.margins);
-                            -cw.margins[margin].0
-                        },
-                        cw,
-                    );
-                    c[i] = fv;
-                    if want_grad {
-                        tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
-                        let p = frame_point(&self.robot, &mut cw.ws, &cw.q, &ci.frame);
-                        cw.margins.clear();
-                        ci.shape.margins(&p, &mut cw.margins);
-                        let dgdp = cw.margins[margin].1;
-                        let jm = frame_jacobian(&self.robot, &mut cw.ws, &cw.q, &ci.frame);
-                        tr.basis(t, &mut cw.basis);
-                        for a in 0..n {
-                            let dgdq = dgdp.x * jm[(0, a)] + dgdp.y * jm[(1, a)] + dgdp.z * jm[(2, a)];
-                            cw.g_q0[a] = -dgdq;
-                            for k in 0..nh {
-                                cw.g_a[a][k] = -dgdq * cw.basis.k[k][0];
-                                cw.g_b[a][k] = -dgdq * cw.basis.k[k][1];
-                            }
-                        }
-                    }
-                }
-                Item::Distance { pair } => {
-                    let sc = self.scene.as_deref().expect("distance constraints have a scene");
-                    // the parabola through the grid minimum needs its neighbours exact
-                    let ng = cw.pose_grid.len();
-                    if let Some((ib, vmin)) = cw.series[pair].argmin() {
-                        if cw.selection && vmin >= sc.margin {
-                            // holds at every grid time: all the selection needs
-                            c[i] = 0.0;
-                            continue;
-                        }
-                        for g in [(ib + ng - 1) % ng, (ib + 1) % ng] {
-                            let sr = &mut cw.series[pair];
-                            if cw.selection && sr.exact[g] && sr.value[g] >= sc.margin {
-                                // capped at the margin: the full-cap value, as in `eval`
-                                sr.value[g] = sc.pair_distance(pair, &cw.pose_grid[g], sc.cap);
-                                sr.queries += 1;
-                            } else {
-                                sr.make_exact(sc, pair, g, &cw.pose_grid, sc.cap);
-                            }
-                        }
-                    }
-                    let vals: Vec<f64> = cw.series[pair].value.iter().map(|v| -v).collect();
-                    let (fv, t) = self.refine_grid(
-                        &vals,
-                        |t, cw: &mut ConstraintWorkspace| {
-                            tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
-                            forward_kinematics(&self.robot, &cw.q, &mut cw.ws.kin);
-                            sc.poses(&cw.ws.kin, &mut cw.poses);
-                            -sc.pair_proximity(pair, &cw.poses, sc.cap).map_or(sc.cap, |p| p.distance)
-                        },
-                        cw,
-                    );
-                    c[i] = (sc.margin + fv) / DISTANCE_SCALE;
-                    if want_grad {
-                        tr.eval(t, &mut cw.q, &mut cw.qd, &mut cw.qdd);
-                        forward_kinematics(&self.robot, &cw.q, &mut cw.ws.kin);
-                        sc.poses(&cw.ws.kin, &mut cw.poses);
-                        if let Some(p) = sc.pair_proximity(pair, &cw.poses, sc.cap) {
-                            cw.gq.iter_mut().for_each(|v| *v = 0.0);
-                            // c = (margin − d)/scale: ∂c/∂q = −∂d/∂q / scale
-                            sc.add_gradient(&self.robot, &cw.ws.kin, pair, &p, -1.0 / DISTANCE_SCALE, &mut cw.gq);
-                            tr.basis(t, &mut cw.basis);
-                            for a in 0..n {
-                                let gq = cw.gq[a];
-                                cw.g_q0[a] = gq;
-                                for k in 0..nh {
-                                    cw.g_a[a][k] = gq * cw.basis.k[k][0];
-                                    cw.g_b[a][k] = gq * cw.basis.k[k][1];
-                                }
-                            }
-                        }
-                    }
-                }
-            }
-            if let Some(jac) = jac.as_deref_mut() {
-                self.layout.pullback(&cw.g_q0, &cw.g_a, &cw.g_b, &mut jac[i * nv..(i + 1) * nv]);
-            }
-        }
-    }
-
-    /// Maximum of a function sampled on the constraint grid (periodic), refined
-    /// by a parabola through the best grid point and its neighbours. Returns (value, time).
-    fn refine_grid(&self, vals: &[f64], f: impl Fn(f64, &mut ConstraintWorkspace) -> f64, cw: &mut ConstraintWorkspace) -> (f64, f64) {
-        let ng = vals.len();
-        let mut ib = 0;
-        for i in 1..ng {
-            if vals[i] > vals[ib] {
-                ib = i;
-            }
-        }
-        let grid = &self.grid.times;
-        let h = if ng > 1 { grid[1] - grid[0] } else { 0.0 };
-        let (fm, f0, fp) = (vals[(ib + ng - 1) % ng], vals[ib], vals[(ib + 1) % ng]);
-        let den = fm - 2.0 * f0 + fp;
-        let (mut best, mut tb) = (f0, grid[ib]);
-        if den < 0.0 && h > 0.0 {
-            let d = (0.5 * (fm - fp) / den).clamp(-1.0, 1.0) * h;
-            if d.abs() > 1e-12 * h.max(1.0) {
-                let t = grid[ib] + d;
-                let v = f(t, cw);
-                if v > best {
-                    best = v;
-                    tb = t;
-                }
-            }
-        }
-        (best, tb)
-    }
-
     /// Sum of positive constraint values (the violation measure of the GA).
     pub fn violation(c: &[f64]) -> f64 {
         c.iter().map(|v| v.max(0.0)).sum()
-    }
-
-    /// Every constraint evaluated on a uniform grid at `rate` Hz over one
-    /// period, in natural units.
-    pub fn verify(&self, tr: &FourierTrajectory, rate: f64) -> Result<Vec<Margin>> {
-        let times = period_grid(tr.period(), rate)?;
-        let n = self.robot.dof();
-        let mut ws = Workspace::new(&self.robot);
-        let s = tr.sample_at(&times);
-        let mut tau_all = Vec::new();
-        if self.items.iter().any(|i| matches!(i, Item::Torque { .. })) {
-            let mut tau = vec![0.0; n];
-            for k in 0..s.len() {
-                inverse_dynamics(&self.robot, &mut ws, &self.theta, &s.q[k], &s.qd[k], &s.qdd[k], &mut tau);
-                tau_all.push(tau.clone());
-            }
-        }
-        let mut marg_all: Vec<Vec<Vec<f64>>> = vec![Vec::new(); self.cart.len()];
-        for (ci, c) in self.cart.iter().enumerate() {
-            let mut m = Vec::with_capacity(6);
-            for k in 0..s.len() {
-                let p = frame_point(&self.robot, &mut ws, &s.q[k], &c.frame);
-                m.clear();
-                c.shape.margins(&p, &mut m);
-                marg_all[ci].push(m.iter().map(|v| v.0).collect());
-            }
-        }
-        let mut dist_all: Vec<DistanceSeries> = Vec::new();
-        if let Some(sc) = self.scene.as_deref() {
-            // distances up to 1 m above the margin (the report's worst values
-            // are exact below that); per pair exact wherever it can be the
-            // minimum over the grid (the only value the margin reports)
-            let cap = sc.margin + 1.0;
-            let mut poses = vec![Vec::new(); s.len()];
-            for (k, x) in poses.iter_mut().enumerate() {
-                forward_kinematics(&self.robot, &s.q[k], &mut ws.kin);
-                sc.poses(&ws.kin, x);
-            }
-            dist_all = vec![DistanceSeries::default(); sc.len()];
-            let one = |(p, out): (usize, &mut DistanceSeries)| sc.pair_series(p, &poses, cap, false, out);
-            if rayon::current_thread_index().is_none() {
-                dist_all.par_iter_mut().enumerate().for_each(one);
-            } else {
-                dist_all.iter_mut().enumerate().for_each(one);
-            }
-        }
-        let mut out = Vec::with_capacity(self.len());
-        for (i, item) in self.items.iter().enumerate() {
-            let inf = &self.info[i];
-            let value = |k: usize| -> f64 {
-                match *item {
-                    Item::Joint { j, order } => match order {
-                        0 => s.q[k][j],
-                        1 => s.qd[k][j],
-                        _ => s.qdd[k][j],
-                    },
-                    Item::Torque { j } => tau_all[k][j],
-                    Item::Cart { idx, margin } => marg_all[idx][k][margin],
-                    Item::Distance { pair } => dist_all[pair].value[k],
-                }
-            };
-            let (mut worst, mut at) = (if inf.upper { f64::NEG_INFINITY } else { f64::INFINITY }, 0.0);
-            for k in 0..s.len() {
-                let v = value(k);
-                if (inf.upper && v > worst) || (!inf.upper && v < worst) {
-                    worst = v;
-                    at = times[k];
-                }
-            }
-            let margin = if inf.upper { inf.limit - worst } else { worst - inf.limit };
-            out.push(Margin {
-                name: inf.name.clone(),
-                kind: inf.kind,
-                limit: inf.limit,
-                worst,
-                margin,
-                at,
-                unit: inf.unit.clone(),
-            });
-        }
-        Ok(out)
     }
 
     /// Scales each joint's harmonics (about q0) so that its position,

@@ -1,0 +1,87 @@
+//! The extrema of a joint's position, velocity or acceleration over the
+//! continuous period of a Fourier trajectory: a scan, then Newton steps on
+//! the analytic derivatives.
+
+use crate::excitation::grid::TrigGrid;
+use crate::trajectory::FourierTrajectory;
+
+/// m-th time derivative of q_j at t (m = 0 includes q0).
+pub fn series_derivative(tr: &FourierTrajectory, j: usize, m: usize, t: f64) -> f64 {
+    series_derivatives(tr, j, m, t)[0]
+}
+
+/// Time derivatives of orders m, m+1, m+2 of q_j at t (order 0 includes q0),
+/// with one sin_cos and the angle-addition recurrence for the harmonics.
+pub fn series_derivatives(tr: &FourierTrajectory, j: usize, m: usize, t: f64) -> [f64; 3] {
+    tr.derivatives(j, m, t)
+}
+
+/// Extremum of q_j^(order) over the continuous period: (value, time).
+/// `upper`: maximum, else minimum. `scan` is a uniform grid over the period:
+/// the best two grid local extrema are refined by Newton steps on
+/// d/dt q_j^(order) = 0.
+pub fn joint_extremum(tr: &FourierTrajectory, scan: &TrigGrid, j: usize, order: usize, upper: bool) -> (f64, f64) {
+    let sgn = if upper { 1.0 } else { -1.0 };
+    let ns = scan.len();
+    let vals: Vec<f64> = (0..ns).map(|i| sgn * scan.derivative(tr, j, order, i)).collect();
+    let scan = &scan.times;
+    let mut cand: [Option<usize>; 2] = [None, None];
+    for i in 0..ns {
+        if vals[i] >= vals[(i + ns - 1) % ns] && vals[i] >= vals[(i + 1) % ns] {
+            match cand {
+                [None, _] => cand[0] = Some(i),
+                [Some(a), None] => {
+                    if vals[i] > vals[a] {
+                        cand = [Some(i), Some(a)];
+                    } else {
+                        cand[1] = Some(i);
+                    }
+                }
+                [Some(a), Some(b)] => {
+                    if vals[i] > vals[a] {
+                        cand = [Some(i), Some(a)];
+                    } else if vals[i] > vals[b] {
+                        cand[1] = Some(i);
+                    }
+                }
+            }
+        }
+    }
+    if cand[0].is_none() {
+        return (sgn * vals[0], scan[0]);
+    }
+    let h = if ns > 1 { scan[1] - scan[0] } else { 1.0 };
+    let (mut best, mut tbest) = (f64::NEG_INFINITY, 0.0);
+    for i in cand.iter().flatten().copied() {
+        let (mut t, mut fv) = (scan[i], vals[i]);
+        let t_grid = t;
+        let mut d = series_derivatives(tr, j, order, t);
+        for _ in 0..8 {
+            let (d1, d2) = (sgn * d[1], sgn * d[2]);
+            if d2 >= 0.0 {
+                break;
+            }
+            let step = -d1 / d2;
+            let tn = t + step;
+            if (tn - t_grid).abs() > 1.5 * h {
+                break;
+            }
+            let dn = series_derivatives(tr, j, order, tn);
+            let fnv = sgn * dn[0];
+            if fnv < fv - 1e-15 * fv.abs().max(1.0) {
+                break;
+            }
+            t = tn;
+            fv = fnv;
+            d = dn;
+            if step.abs() < 1e-9 * h {
+                break;
+            }
+        }
+        if fv > best {
+            best = fv;
+            tbest = t;
+        }
+    }
+    (sgn * best, tbest)
+}

@@ -1,0 +1,342 @@
+//! Rest-to-rest joint trajectories as clamped uniform B-splines: the second
+//! [`TrajectoryShape`].
+//!
+//! For joint j, degree p (3 … 5), s segments of equal length on [0, T] and
+//! the clamped knot vector u = (0, …, 0, T/s, 2T/s, …, T, …, T) (p + 1 zeros
+//! and p + 1 copies of T),
+//!
+//! q_j(t) = Σ_{i=0}^{s+p−1} N_{i,p}(t) P_{j,i}
+//!
+//! with the B-spline basis N_{i,p} (Cox–de Boor; derivatives by Piegl and
+//! Tiller, *The NURBS Book*, algorithm A2.3). A clamped spline starts at P_0
+//! with q̇(0) ∝ P_1 − P_0 and q̈(0) a combination of P_0, P_1, P_2 (likewise at
+//! the end), so P_0 = P_1 = P_2 = P_{m−3} = P_{m−2} = P_{m−1} = q0_j makes the
+//! motion start and end at rest at q0 ([`Ends::RestToRest`]: no lead-in or
+//! lead-out). The design variables are the other control points, as offsets
+//! from q0: x_{j,i} = P_{j,i} − q0_j, i = 3 … s + p − 4 (s + p ≥ 7). The
+//! motion is linear in x; its Jacobian at t is the basis values
+//! N_{i,p}^{(d)}(t), d = 0, 1, 2. By the convex-hull property, control points
+//! within the position limits keep the motion within them: that is the box
+//! of x ([`TrajectoryShape::bounds`]).
+
+use super::shape::{Ends, JointBox, Motion, StateGradient, TrajectoryShape};
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// Highest degree supported.
+pub const MAX_DEGREE: usize = 5;
+
+/// Control points fixed at each end (the rest conditions q, q̇, q̈).
+const FIXED: usize = 3;
+
+/// A clamped uniform B-spline motion: degree, knots and control points per joint.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BSplineMotion {
+    /// Degree p.
+    pub degree: usize,
+    /// Knot vector (s + 2p + 1 values, clamped on [0, T]).
+    pub knots: Vec<f64>,
+    /// Control points `control[j][i]` (rad or m), s + p per joint.
+    pub control: Vec<Vec<f64>>,
+}
+
+/// How a flat design vector x maps to a [`BSplineMotion`] starting and
+/// ending at rest at `q0` (module documentation).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BSplineLayout {
+    /// Number of joints.
+    pub n: usize,
+    /// Degree p (3 … 5).
+    pub degree: usize,
+    /// Number of equal segments s (the interior knots are s − 1).
+    pub segments: usize,
+    /// Duration T (s).
+    pub duration: f64,
+    /// Start and end configuration (rad or m).
+    pub q0: Vec<f64>,
+}
+
+impl BSplineLayout {
+    /// Builds a layout; errors name the design field (`trajectory.degree`,
+    /// `trajectory.segments`, `trajectory.duration`).
+    pub fn new(q0: Vec<f64>, degree: usize, segments: usize, duration: f64) -> Result<Self> {
+        if !(3..=MAX_DEGREE).contains(&degree) {
+            return Err(Error::invalid(
+                "trajectory",
+                "degree",
+                format!("expected a B-spline degree of 3, 4 or 5, got {degree}"),
+            ));
+        }
+        if segments + degree < 2 * FIXED + 1 {
+            return Err(Error::invalid(
+                "trajectory",
+                "segments",
+                format!(
+                    "expected at least {} segments for degree {degree} (three control points are fixed at each end), got {segments}",
+                    2 * FIXED + 1 - degree
+                ),
+            ));
+        }
+        if !(duration.is_finite() && duration > 0.0) {
+            return Err(Error::invalid(
+                "trajectory",
+                "duration",
+                format!("expected a positive duration (s), got {duration}"),
+            ));
+        }
+        if let Some(v) = q0.iter().find(|v| !v.is_finite()) {
+            return Err(Error::invalid("trajectory", "q0", format!("expected finite values, got {v}")));
+        }
+        Ok(BSplineLayout {
+            n: q0.len(),
+            degree,
+            segments,
+            duration,
+            q0,
+        })
+    }
+
+    /// Control points per joint (s + p).
+    pub fn n_control(&self) -> usize {
+        self.segments + self.degree
+    }
+
+    /// Design variables per joint (s + p − 6).
+    pub fn vars_per_joint(&self) -> usize {
+        self.n_control() - 2 * FIXED
+    }
+
+    /// The clamped uniform knot vector.
+    pub fn knots(&self) -> Vec<f64> {
+        let (p, s, t) = (self.degree, self.segments, self.duration);
+        let mut u = vec![0.0; p + 1];
+        u.extend((1..s).map(|i| t * i as f64 / s as f64));
+        u.extend(std::iter::repeat_n(t, p + 1));
+        u
+    }
+
+    /// The design vector of a motion of this layout (the free control points minus q0).
+    pub fn vars(&self, m: &BSplineMotion) -> Vec<f64> {
+        let vpj = self.vars_per_joint();
+        (0..self.n).flat_map(|j| (0..vpj).map(move |i| m.control[j][FIXED + i] - self.q0[j])).collect()
+    }
+}
+
+/// Buffers of [`BSplineLayout`]'s pull-back (none needed: the basis values
+/// are on the stack).
+#[derive(Debug, Clone, Default)]
+pub struct BSplineScratch;
+
+/// Basis values N_{span−p+r,p}^{(k)}(t), `ders[k][r]` for k ≤ 4, r ≤ p.
+type Ders = [[f64; MAX_DEGREE + 1]; 5];
+
+impl BSplineMotion {
+    fn n_control(&self) -> usize {
+        self.knots.len() - self.degree - 1
+    }
+
+    /// The knot span of t ∈ [0, T]: the i with u_i ≤ t < u_{i+1} (the last
+    /// non-empty span at t = T).
+    fn span(&self, t: f64) -> usize {
+        let (p, m) = (self.degree, self.n_control());
+        if t >= self.knots[m] {
+            return m - 1;
+        }
+        if t <= self.knots[p] {
+            return p;
+        }
+        // u_p ≤ t < u_m: the last knot ≤ t
+        let k = self.knots.partition_point(|&u| u <= t) - 1;
+        k.clamp(p, m - 1)
+    }
+
+    /// The span of t and the basis derivatives there up to order `nd` (≤ 4),
+    /// zero above the degree; t is clamped to [0, T] and the derivatives
+    /// vanish outside (the motion rests there).
+    fn basis(&self, t: f64, nd: usize) -> (usize, Ders) {
+        let (lo, hi) = (self.knots[0], self.knots[self.knots.len() - 1]);
+        let tc = t.clamp(lo, hi);
+        let span = self.span(tc);
+        let mut ders = ders_basis(span, tc, self.degree, &self.knots, nd.min(self.degree));
+        if t < lo || t > hi {
+            for row in ders.iter_mut().skip(1) {
+                *row = [0.0; MAX_DEGREE + 1];
+            }
+        }
+        (span, ders)
+    }
+}
+
+/// Piegl and Tiller's algorithm A2.3: the nonzero basis functions at t and
+/// their derivatives up to order nd ≤ p.
+fn ders_basis(span: usize, t: f64, p: usize, u: &[f64], nd: usize) -> Ders {
+    const P1: usize = MAX_DEGREE + 1;
+    let mut ndu = [[0.0; P1]; P1];
+    let (mut left, mut right) = ([0.0; P1], [0.0; P1]);
+    ndu[0][0] = 1.0;
+    for j in 1..=p {
+        left[j] = t - u[span + 1 - j];
+        right[j] = u[span + j] - t;
+        let mut saved = 0.0;
+        for r in 0..j {
+            ndu[j][r] = right[r + 1] + left[j - r];
+            let temp = ndu[r][j - 1] / ndu[j][r];
+            ndu[r][j] = saved + right[r + 1] * temp;
+            saved = left[j - r] * temp;
+        }
+        ndu[j][j] = saved;
+    }
+    let mut ders: Ders = [[0.0; P1]; 5];
+    for j in 0..=p {
+        ders[0][j] = ndu[j][p];
+    }
+    let p_i = p as isize;
+    for r in 0..=p {
+        let ri = r as isize;
+        let mut a = [[0.0; P1]; 2];
+        let (mut s1, mut s2) = (0usize, 1usize);
+        a[0][0] = 1.0;
+        for k in 1..=nd {
+            let ki = k as isize;
+            let mut d = 0.0;
+            let rk = ri - ki;
+            let pk = (p_i - ki) as usize;
+            if ri >= ki {
+                a[s2][0] = a[s1][0] / ndu[pk + 1][rk as usize];
+                d = a[s2][0] * ndu[rk as usize][pk];
+            }
+            let j1 = if rk >= -1 { 1 } else { (-rk) as usize };
+            let j2 = if ri - 1 <= pk as isize { k - 1 } else { p - r };
+            for j in j1..=j2 {
+                let c = (rk + j as isize) as usize;
+                a[s2][j] = (a[s1][j] - a[s1][j - 1]) / ndu[pk + 1][c];
+                d += a[s2][j] * ndu[c][pk];
+            }
+            if r <= pk {
+                a[s2][k] = -a[s1][k - 1] / ndu[pk + 1][r];
+                d += a[s2][k] * ndu[r][pk];
+            }
+            ders[k][r] = d;
+            std::mem::swap(&mut s1, &mut s2);
+        }
+    }
+    let mut f = p as f64;
+    for (k, row) in ders.iter_mut().enumerate().take(nd + 1).skip(1) {
+        for v in row.iter_mut().take(p + 1) {
+            *v *= f;
+        }
+        f *= (p - k) as f64;
+    }
+    ders
+}
+
+impl Motion for BSplineMotion {
+    fn n_joints(&self) -> usize {
+        self.control.len()
+    }
+
+    fn duration(&self) -> f64 {
+        self.knots[self.knots.len() - 1] - self.knots[0]
+    }
+
+    fn ends(&self) -> Ends {
+        Ends::RestToRest
+    }
+
+    fn eval(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
+        let (span, d) = self.basis(t, 2);
+        let first = span - self.degree;
+        for (j, c) in self.control.iter().enumerate() {
+            let (mut p, mut v, mut a) = (0.0, 0.0, 0.0);
+            for r in 0..=self.degree {
+                let pc = c[first + r];
+                p += d[0][r] * pc;
+                v += d[1][r] * pc;
+                a += d[2][r] * pc;
+            }
+            q[j] = p;
+            qd[j] = v;
+            qdd[j] = a;
+        }
+    }
+
+    fn derivatives(&self, j: usize, m: usize, t: f64) -> [f64; 3] {
+        let mut out = [0.0; 3];
+        if m > self.degree {
+            return out;
+        }
+        let (span, d) = self.basis(t, (m + 2).min(4));
+        let first = span - self.degree;
+        for (o, order) in out.iter_mut().zip(m..m + 3) {
+            if order > self.degree || order > 4 {
+                continue;
+            }
+            *o = (0..=self.degree).map(|r| d[order][r] * self.control[j][first + r]).sum();
+        }
+        out
+    }
+}
+
+impl TrajectoryShape for BSplineLayout {
+    type Motion = BSplineMotion;
+    type Scratch = BSplineScratch;
+
+    fn n_vars(&self) -> usize {
+        self.n * self.vars_per_joint()
+    }
+
+    fn motion(&self, x: &[f64]) -> BSplineMotion {
+        let (m, vpj) = (self.n_control(), self.vars_per_joint());
+        let control = (0..self.n)
+            .map(|j| {
+                let mut c = vec![self.q0[j]; m];
+                for i in 0..vpj {
+                    c[FIXED + i] = self.q0[j] + x[j * vpj + i];
+                }
+                c
+            })
+            .collect();
+        BSplineMotion {
+            degree: self.degree,
+            knots: self.knots(),
+            control,
+        }
+    }
+
+    /// Control points within the position limits (offsets from q0; ±π
+    /// without a limit): the motion then keeps them (convex hull).
+    /// Velocity and acceleration are left to the constraints.
+    fn bounds(&self, limits: &JointBox) -> (Vec<f64>, Vec<f64>) {
+        let vpj = self.vars_per_joint();
+        let (mut lower, mut upper) = (Vec::with_capacity(self.n * vpj), Vec::with_capacity(self.n * vpj));
+        for j in 0..self.n {
+            let [lo, hi] = limits.position[j];
+            let (a, b) = if lo.is_finite() && hi.is_finite() {
+                (lo - self.q0[j], hi - self.q0[j])
+            } else {
+                (-std::f64::consts::PI, std::f64::consts::PI)
+            };
+            lower.extend(std::iter::repeat_n(a.min(0.0), vpj));
+            upper.extend(std::iter::repeat_n(b.max(0.0), vpj));
+        }
+        (lower, upper)
+    }
+
+    /// ∂q_j(t)/∂x_{j,i} = N_{3+i,p}(t) (likewise q̇, q̈ with the basis
+    /// derivatives); zero for the other joints and outside the span of t.
+    fn pull_back(&self, m: &BSplineMotion, t: f64, g: &StateGradient, _: &mut BSplineScratch, gx: &mut [f64]) {
+        gx.iter_mut().for_each(|v| *v = 0.0);
+        let (span, d) = m.basis(t, 2);
+        let first = span - self.degree;
+        let vpj = self.vars_per_joint();
+        for a in 0..self.n {
+            for r in 0..=self.degree {
+                let i = first + r;
+                if i < FIXED || i >= FIXED + vpj {
+                    continue;
+                }
+                gx[a * vpj + i - FIXED] = g.factor * (g.q[a] * d[0][r] + g.qd[a] * d[1][r] + g.qdd[a] * d[2][r]);
+            }
+        }
+    }
+}
