@@ -11,7 +11,7 @@ use parry3d_f64::shape::HalfSpace;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum NarrowPhase {
     /// parry's GJK/EPA with support points of convex hulls by hill climbing
-    /// on their vertex adjacency ([`ClimbHull`]; default).
+    /// on their vertex adjacency ([`ClimbHull`](super::ClimbHull); default).
     #[default]
     Climb,
     /// parry's `query::contact` as it is: support points by a scan over every

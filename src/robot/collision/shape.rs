@@ -126,7 +126,7 @@ impl Body {
 
     /// Grows every bounded part by a ball of radius `pad` (m; the largest
     /// padding given wins): distances to the body become those of the
-    /// grown shapes (see [`RobotGeometry`] and the robot file's
+    /// grown shapes (see [`RobotGeometry`](super::RobotGeometry) and the robot file's
     /// `collision_padding`).
     pub fn pad_parts(&mut self, pad: f64) {
         for p in self.parts.iter_mut().filter(|p| p.halfspace.is_none()) {

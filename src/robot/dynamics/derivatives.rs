@@ -10,7 +10,7 @@ use crate::robot::model::Robot;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
 /// Derivatives of inverse dynamics (motor side) with parameters `theta`:
-/// returns (∂τ/∂q, ∂τ/∂q̇), each n×n. (∂τ/∂q̈ is [`motor_inertia`].)
+/// returns (∂τ/∂q, ∂τ/∂q̇), each n×n. (∂τ/∂q̈ is [`motor_inertia`](super::motor_inertia).)
 /// [`id_derivatives_into`] without the output buffers.
 pub fn id_derivatives(robot: &Robot, ws: &mut Workspace, theta: &[f64], q: &[f64], qd: &[f64], qdd: &[f64]) -> (DMatrix<f64>, DMatrix<f64>) {
     let n = robot.dof();
@@ -324,7 +324,7 @@ fn deriv_inertial(robot: &Robot, theta: &[f64], dl: &mut [DerivLink], used: impl
 /// Row-wise inverse-dynamics derivatives, one parameter vector per row: for
 /// every joint r, with θ_r = `thetas[r·p..(r+1)·p]` (any values: the
 /// dynamics are linear in θ), row r of ∂τ/∂q, ∂τ/∂q̇ and ∂τ/∂q̈ (motor side,
-/// as [`id_derivatives_into`] and [`motor_inertia`]) at the parameters θ_r,
+/// as [`id_derivatives_into`] and [`motor_inertia`](super::motor_inertia)) at the parameters θ_r,
 /// into `dq`, `dqd`, `dqdd` (each n×n row-major, entry r·n + k =
 /// ∂τ_r(θ_r)/∂x_k). Since τ = Y θ, Σ_r of these rows is the derivative of
 /// ⟨H, Y⟩ for the matrix H with rows θ_r: the gradient of a function of

@@ -60,7 +60,7 @@ use nalgebra::DMatrix;
 use tangents::Tangents;
 
 /// Per-thread buffers for every kernel (buffers only: what the kernels read
-/// of the tree is classified once in the robot, [`Topology`]). Create one per thread
+/// of the tree is classified once in the robot, `Topology`). Create one per thread
 /// (e.g. rayon `map_init`) and reuse it: the kernels do not allocate.
 #[derive(Debug, Clone)]
 pub struct Workspace {
