@@ -222,6 +222,28 @@ impl BaseParams {
         Ok(b)
     }
 
+    /// The parameters of the standard columns `cols` alone, every other
+    /// standard parameter taken as known (e.g. a payload's link columns on a
+    /// robot whose model is known): the independent ones among `cols` (in the
+    /// given order) are kept, the dependent ones regroup onto them, those with
+    /// no effect on the torques are listed as unidentifiable; the other
+    /// parameters have zero columns in K.
+    pub fn of_columns(robot: &Robot, cols: &[usize], opts: &BaseOptions) -> Result<BaseParams> {
+        let p = robot.n_params();
+        if cols.is_empty() || cols.iter().any(|&c| c >= p) {
+            return Err(Error::invalid("base parameters", "columns", format!("expected column indices below {p}, found {cols:?}")));
+        }
+        let mut w = checked_stack(robot, opts)?;
+        for c in 0..p {
+            if !cols.contains(&c) {
+                w.column_mut(c).fill(0.0);
+            }
+        }
+        let mut b = Self::from_stack_ordered(robot, &w, opts, cols)?;
+        b.unidentifiable.retain(|c| cols.contains(c));
+        Ok(b)
+    }
+
     /// Computes the base parameters from a given stacked regressor W (rows × p),
     /// e.g. the regressor of a particular trajectory.
     pub fn from_stack(robot: &Robot, w: &DMatrix<f64>, opts: &BaseOptions) -> Result<BaseParams> {

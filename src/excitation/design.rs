@@ -18,7 +18,7 @@
 //! [objective]
 //! criterion = "cond"                # cond | log_det | inv_sigma_min
 //! scaling = "unit_column"           # unit_column | nominal | none
-//! columns = "base"                  # base (with drive/friction) | inertial
+//! columns = "base"                  # base (with drive/friction) | inertial | payload
 //! sample_rate = 10.0                # regressor samples per second over one period
 //! noise = [1.0, ...]                # torque noise std per joint (N·m): weights W and predicted std devs
 //!
@@ -58,6 +58,11 @@
 //! frame = "tool0"
 //! shape = { type = "cylinder", radius = 0.04, length = 0.12 }
 //! xyz = [0.0, 0.0, 0.06]
+//!
+//! [payload]                        # a payload on the flange (objective.columns = "payload": its 10 parameters only)
+//! frame = "tool0"                   # default: the end effector
+//! mass = 2.0                        # nominal (kg), com (m) and inertia about the com, [Ixx, Ixy, Ixz, Iyy, Iyz, Izz] (kg·m²)
+//! com = [0.0, 0.0, 0.05]
 //!
 //! [ga]
 //! population = 40
@@ -128,6 +133,12 @@ pub struct ExciteDesign {
     /// How the trajectory is delivered: rest-to-rest from a home pose, periods.
     #[serde(default)]
     pub execution: super::execution::ExecutionSpec,
+    /// A payload the robot carries during the experiment (its nominal mass,
+    /// centre of mass and inertia, for the torques; its geometry goes in
+    /// `[[collision.attached]]`); with `objective.columns = "payload"` the
+    /// design excites the payload's parameters only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub payload: Option<crate::robot::payload::PayloadSpec>,
 }
 
 fn one() -> u64 {
@@ -351,6 +362,20 @@ impl ExciteDesign {
     /// Checks every value; `ctx` names the file in messages.
     pub fn validate(&self, ctx: &str) -> Result<()> {
         let bad = |field: &str, msg: String| Err(Error::invalid(ctx, field, msg));
+        if self.objective.columns == Columns::Payload {
+            if self.payload.is_none() {
+                return bad(
+                    "objective.columns",
+                    "\"payload\" excites a payload's parameters: add a [payload] section (frame, mass, com, inertia)".into(),
+                );
+            }
+            if self.objective.base_columns.is_some() {
+                return bad(
+                    "objective.base_columns",
+                    "the payload's columns are its ten parameters; base_columns applies to the robot's own parameters".into(),
+                );
+            }
+        }
         if self.name.is_empty() || self.name.contains(['/', '\\']) {
             return bad("name", format!("expected a plain folder name, got `{}`", self.name));
         }

@@ -258,12 +258,25 @@ impl Problem {
         design.validate_for(&robot, ctx)?;
         let n = robot.dof();
         let opts = BaseOptions {
-            inertial_only: design.objective.columns == Columns::Inertial,
+            inertial_only: matches!(design.objective.columns, Columns::Inertial | Columns::Payload),
             ..BaseOptions::default()
         };
-        let base = match &design.objective.base_columns {
-            Some(names) => BaseParams::with_columns(&robot, names, &opts).map_err(|e| crate::Error::invalid(ctx, "objective.base_columns", e.to_string()))?,
-            None => BaseParams::compute(&robot, &opts)?,
+        let (robot, mount) = match &design.payload {
+            Some(spec) => {
+                let (mount, payload) = crate::robot::payload::resolve(&robot, spec, ctx, "payload")?;
+                (mount.attach(&robot, &payload.params())?, Some(mount))
+            }
+            None => (robot, None),
+        };
+        let base = match (&design.objective.base_columns, &mount) {
+            (_, Some(m)) if design.objective.columns == Columns::Payload => {
+                let o = robot.link_param_offset(m.link);
+                let cols: Vec<usize> = (o..o + 10).collect();
+                // the report lists the independent ones when fewer than ten are (a planar robot)
+                BaseParams::of_columns(&robot, &cols, &opts)?
+            }
+            (Some(names), _) => BaseParams::with_columns(&robot, names, &opts).map_err(|e| crate::Error::invalid(ctx, "objective.base_columns", e.to_string()))?,
+            (None, _) => BaseParams::compute(&robot, &opts)?,
         };
         let theta = robot.nominal_params();
         let nominal_base: Vec<f64> = base.base_values(theta.as_slice()).iter().copied().collect();

@@ -109,6 +109,9 @@ pub enum Columns {
     Base,
     /// Base parameters of the rigid-body (inertial) columns only.
     Inertial,
+    /// A payload's ten parameters only (the design's `[payload]`), the robot's
+    /// own parameters known: the columns of the link carrying the payload.
+    Payload,
 }
 
 /// Velocities below this (rad/s or m/s) are taken as exactly zero in the

@@ -14,6 +14,7 @@ pub mod file;
 pub mod kinematics;
 pub mod mjcf;
 pub mod model;
+pub mod payload;
 pub mod resolve;
 pub mod urdf;
 pub mod validate;

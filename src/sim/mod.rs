@@ -237,6 +237,11 @@ pub struct SimDesign {
     /// encoder through the gear.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub record_velocity: bool,
+    /// A payload the true robot carries (`[payload]`: frame, mass, com,
+    /// inertia; [`crate::robot::payload::PayloadSpec`]); the controller's
+    /// model (feedforward, gains) does not know it. Absent: no payload.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub payload: Option<crate::robot::payload::PayloadSpec>,
 }
 
 /// What a simulated run logs of the drive input (design key `record`).
@@ -546,6 +551,13 @@ impl SimSetup {
         }
         let theta = perturb_params(&nominal, d.truth.perturbation, d.truth.seed.unwrap_or(d.seed));
         let truth = nominal.with_params(&theta)?;
+        let truth = match &d.payload {
+            Some(p) => {
+                let (mount, payload) = crate::robot::payload::resolve(&nominal, p, ctx, "payload")?;
+                mount.attach(&truth, &payload.params())?
+            }
+            None => truth,
+        };
         let reference = d.reference.build(&nominal, base, d.rate, ctx)?;
         let mut ws = Workspace::new(&nominal);
         let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
