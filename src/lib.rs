@@ -67,6 +67,7 @@ pub mod io;
 pub mod linalg;
 pub mod optim;
 pub mod params;
+pub mod payload;
 pub mod positions;
 pub mod preview;
 pub mod rng;

@@ -229,11 +229,17 @@ impl BaseParams {
     /// no effect on the torques are listed as unidentifiable; the other
     /// parameters have zero columns in K.
     pub fn of_columns(robot: &Robot, cols: &[usize], opts: &BaseOptions) -> Result<BaseParams> {
+        let w = checked_stack(robot, opts)?;
+        Self::of_stack_columns(robot, w, cols, opts)
+    }
+
+    /// [`BaseParams::of_columns`] on a given stacked regressor W (rows × p),
+    /// e.g. one whose columns `cols` were mapped to a payload's own frame.
+    pub fn of_stack_columns(robot: &Robot, mut w: DMatrix<f64>, cols: &[usize], opts: &BaseOptions) -> Result<BaseParams> {
         let p = robot.n_params();
         if cols.is_empty() || cols.iter().any(|&c| c >= p) {
             return Err(Error::invalid("base parameters", "columns", format!("expected column indices below {p}, found {cols:?}")));
         }
-        let mut w = checked_stack(robot, opts)?;
         for c in 0..p {
             if !cols.contains(&c) {
                 w.column_mut(c).fill(0.0);

@@ -16,6 +16,7 @@ mod excite;
 mod export;
 mod identify;
 mod log;
+mod payload;
 mod positions;
 mod progress;
 mod robot;
@@ -65,6 +66,8 @@ enum Cmd {
     Log(log::LogArgs),
     /// Write the interactive 3D preview page (preview.html) of an excite output folder or a trajectory CSV.
     View(view::ViewArgs),
+    /// A tool's or payload's mass, centre of mass and inertia: excitation design, identification, controller exports.
+    Payload(payload::PayloadArgs),
 }
 
 /// How a command ended (errors are the `Err` of the runner).
@@ -157,6 +160,7 @@ fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Cmd::Merge(a) => elastic::run_merge(a, &ctl),
         Cmd::Positions(a) => positions::run(a, &ctl),
         Cmd::Excite(a) => excite::run_excite(a, &ctl),
+        Cmd::Payload(a) => payload::run(a, &ctl),
         Cmd::Assess(a) => excite::run_assess(a, &ctl),
         Cmd::Export(a) => export::run(a, &ctl),
         Cmd::Log(a) => log::run(a, &ctl),

@@ -346,7 +346,7 @@ pub fn is_study_text(text: &str) -> bool {
 
 impl ExperimentSpec {
     /// Checks the entry (`ctx` names it: `experiment 2 (fourier_a)`).
-    fn validate(&self, ctx: &str) -> Result<()> {
+    pub fn validate(&self, ctx: &str) -> Result<()> {
         let bad = |field: &str, msg: String| Err(Error::invalid(ctx, field, msg));
         if self.files.is_empty() {
             return bad("files", "expected at least one folder or CSV file".into());
@@ -411,7 +411,7 @@ impl ExperimentSpec {
 }
 
 /// Characters allowed in experiment names (they name output files).
-fn name_ok(s: &str) -> bool {
+pub(crate) fn name_ok(s: &str) -> bool {
     !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.')) && !s.starts_with('.')
 }
 

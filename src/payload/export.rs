@@ -1,0 +1,312 @@
+//! The payload written where controllers and simulators read it.
+//!
+//! | format | file | content |
+//! |---|---|---|
+//! | URScript | `payload.script` | `set_target_payload(m, [cx, cy, cz], [Ixx, Iyy, Izz, Ixy, Ixz, Iyz])` (tool flange frame, inertia about the centre of gravity) |
+//! | Franka | `franka_load.json` | `mass`, `F_x_Cload` (flange frame, m), `load_inertia` (3×3 about the centre of mass, column-major), the arguments of `setLoad` |
+//! | KUKA | `kuka_load.txt` | `LOAD_DATA`: M (kg), X, Y, Z (mm), A, B, C (deg: the principal axes, Z-Y'-X'' Euler angles), JX, JY, JZ (kg·m², principal moments) |
+//! | URDF | `payload.urdf` | a `payload` link with the inertial and a fixed joint to the frame |
+//! | MJCF | `payload_mjcf.xml` | a MuJoCo `<body>` with the payload's `<inertial>`, to place in the frame's body |
+
+use crate::robot::payload::Payload;
+use nalgebra::{Matrix3, Rotation3, SymmetricEigen};
+use serde::Serialize;
+use std::fmt::Write;
+
+/// The principal axes of a payload's inertia about its centre of mass.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Principal {
+    /// Principal moments (kg·m²) about the axes (the columns of `axes`).
+    pub moments: [f64; 3],
+    /// Rotation frame → principal axes (columns: the axes in frame coordinates), proper (det = +1).
+    pub axes: [[f64; 3]; 3],
+    /// KUKA A, B, C (deg): axes = Rz(A) Ry(B) Rx(C).
+    pub abc_deg: [f64; 3],
+}
+
+/// The principal axes of `p`'s inertia: of the 24 proper rotations that
+/// diagonalise it, the one closest to the identity (so a nearly diagonal
+/// tensor gives small angles and JX ≈ Ixx).
+pub fn principal(p: &Payload) -> Principal {
+    let eig = SymmetricEigen::new(p.inertia_matrix());
+    let mut best: Option<(f64, Matrix3<f64>, [f64; 3])> = None;
+    const PERMS: [[usize; 3]; 6] = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
+    for perm in PERMS {
+        for signs in 0..8u8 {
+            let mut r = Matrix3::zeros();
+            for (c, &k) in perm.iter().enumerate() {
+                let s = if signs & (1 << c) != 0 { -1.0 } else { 1.0 };
+                r.set_column(c, &(eig.eigenvectors.column(k) * s));
+            }
+            if r.determinant() < 0.0 {
+                continue;
+            }
+            let tr = r.trace();
+            if best.as_ref().is_none_or(|(t, _, _)| tr > *t + 1e-12) {
+                best = Some((tr, r, [eig.eigenvalues[perm[0]], eig.eigenvalues[perm[1]], eig.eigenvalues[perm[2]]]));
+            }
+        }
+    }
+    let (_, r, moments) = best.unwrap_or((3.0, Matrix3::identity(), [p.inertia[0], p.inertia[3], p.inertia[5]]));
+    let rot = Rotation3::from_matrix_unchecked(r);
+    let (c, b, a) = rot.euler_angles();
+    let mut axes = [[0.0; 3]; 3];
+    for (i, row) in axes.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = r[(i, j)];
+        }
+    }
+    Principal {
+        moments,
+        axes,
+        abc_deg: [a.to_degrees(), b.to_degrees(), c.to_degrees()],
+    }
+}
+
+/// A number with enough digits to read back (shortest round trip).
+fn num(v: f64) -> String {
+    let v = if v == 0.0 { 0.0 } else { v };
+    format!("{v:?}")
+}
+
+/// `payload.script`: URScript's `set_target_payload` (the payload's frame is
+/// taken as UR's tool flange; `header` lines become comments).
+pub fn urscript(p: &Payload, frame: &str, header: &[String]) -> String {
+    let mut s = String::new();
+    for h in header {
+        let _ = writeln!(s, "# {h}");
+    }
+    let _ = writeln!(s, "# mass (kg), centre of gravity in the {frame} frame (m), inertia about it [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] (kg·m²)");
+    let i = &p.inertia;
+    let _ = writeln!(
+        s,
+        "set_target_payload({}, [{}, {}, {}], [{}, {}, {}, {}, {}, {}])",
+        num(p.mass),
+        num(p.com[0]),
+        num(p.com[1]),
+        num(p.com[2]),
+        num(i[0]),
+        num(i[3]),
+        num(i[5]),
+        num(i[1]),
+        num(i[2]),
+        num(i[4])
+    );
+    s
+}
+
+/// Franka's load (`setLoad(load_mass, F_x_Cload, load_inertia)`).
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
+pub struct FrankaLoad {
+    /// Mass (kg).
+    pub mass: f64,
+    /// Centre of mass in the flange frame (m).
+    #[serde(rename = "F_x_Cload")]
+    pub f_x_cload: [f64; 3],
+    /// Inertia about the centre of mass, 3×3 column-major (kg·m²).
+    pub load_inertia: [f64; 9],
+}
+
+/// The Franka load of `p`.
+pub fn franka(p: &Payload) -> FrankaLoad {
+    let m = p.inertia_matrix();
+    let mut li = [0.0; 9];
+    for c in 0..3 {
+        for r in 0..3 {
+            li[c * 3 + r] = m[(r, c)];
+        }
+    }
+    FrankaLoad {
+        mass: p.mass,
+        f_x_cload: p.com,
+        load_inertia: li,
+    }
+}
+
+/// `kuka_load.txt`: the load data as KUKA's `LOAD_DATA` structure (and each
+/// value on a line of its own for the HMI's load-data form).
+pub fn kuka(p: &Payload, header: &[String]) -> String {
+    let pr = principal(p);
+    let mm = |v: f64| v * 1000.0;
+    let mut s = String::new();
+    for h in header {
+        let _ = writeln!(s, "; {h}");
+    }
+    let _ = writeln!(
+        s,
+        "; M (kg), X Y Z centre of mass (mm), A B C orientation of the principal axes (deg, Z-Y'-X''), JX JY JZ principal moments (kg·m²)"
+    );
+    let _ = writeln!(
+        s,
+        "LOAD_DATA = {{M {}, CM {{X {}, Y {}, Z {}, A {}, B {}, C {}}}, J {{X {}, Y {}, Z {}}}}}",
+        num(p.mass),
+        num(mm(p.com[0])),
+        num(mm(p.com[1])),
+        num(mm(p.com[2])),
+        num(pr.abc_deg[0]),
+        num(pr.abc_deg[1]),
+        num(pr.abc_deg[2]),
+        num(pr.moments[0]),
+        num(pr.moments[1]),
+        num(pr.moments[2])
+    );
+    s
+}
+
+/// Reads back the `LOAD_DATA` line of [`kuka`]: (M, [X, Y, Z] mm, [A, B, C] deg, [JX, JY, JZ]).
+pub fn parse_kuka(text: &str) -> Option<(f64, [f64; 3], [f64; 3], [f64; 3])> {
+    let line = text.lines().find(|l| l.trim_start().starts_with("LOAD_DATA"))?;
+    let body = line.split_once('=')?.1;
+    let mut vals: Vec<(String, f64)> = Vec::new();
+    let cleaned: String = body.chars().map(|c| if matches!(c, '{' | '}' | ',') { ' ' } else { c }).collect();
+    let toks: Vec<&str> = cleaned.split_whitespace().collect();
+    let mut i = 0;
+    let mut prefix = String::new();
+    while i < toks.len() {
+        match toks[i] {
+            "CM" | "J" => {
+                prefix = toks[i].to_string();
+                i += 1;
+            }
+            key if i + 1 < toks.len() => {
+                let v: f64 = toks[i + 1].parse().ok()?;
+                let k = if key == "M" { key.to_string() } else { format!("{prefix}.{key}") };
+                vals.push((k, v));
+                i += 2;
+            }
+            _ => return None,
+        }
+    }
+    let get = |k: &str| vals.iter().find(|(n, _)| n == k).map(|(_, v)| *v);
+    Some((
+        get("M")?,
+        [get("CM.X")?, get("CM.Y")?, get("CM.Z")?],
+        [get("CM.A")?, get("CM.B")?, get("CM.C")?],
+        [get("J.X")?, get("J.Y")?, get("J.Z")?],
+    ))
+}
+
+/// The inertia tensor about the centre of mass from KUKA's principal data:
+/// R diag(J) Rᵀ with R = Rz(A) Ry(B) Rx(C).
+pub fn tensor_from_kuka(abc_deg: [f64; 3], j: [f64; 3]) -> Matrix3<f64> {
+    let r = Rotation3::from_euler_angles(abc_deg[2].to_radians(), abc_deg[1].to_radians(), abc_deg[0].to_radians()).into_inner();
+    r * Matrix3::from_diagonal(&j.into()) * r.transpose()
+}
+
+fn inertia_attrs(p: &Payload) -> String {
+    let i = &p.inertia;
+    format!(
+        "ixx=\"{}\" ixy=\"{}\" ixz=\"{}\" iyy=\"{}\" iyz=\"{}\" izz=\"{}\"",
+        num(i[0]),
+        num(i[1]),
+        num(i[2]),
+        num(i[3]),
+        num(i[4]),
+        num(i[5])
+    )
+}
+
+/// `payload.urdf`: a link `payload` fixed to `frame`, with the payload's
+/// inertial (merge it into the robot's URDF, or include it with xacro).
+pub fn urdf(p: &Payload, frame: &str, header: &[String]) -> String {
+    let mut s = String::from("<?xml version=\"1.0\"?>\n");
+    for h in header {
+        let _ = writeln!(s, "<!-- {} -->", h.replace("--", "-"));
+    }
+    let _ = writeln!(s, "<robot name=\"payload\">");
+    let _ = writeln!(s, "  <link name=\"{frame}\"/>");
+    let _ = writeln!(s, "  <link name=\"payload\">");
+    let _ = writeln!(s, "    <inertial>");
+    let _ = writeln!(s, "      <origin xyz=\"{} {} {}\" rpy=\"0 0 0\"/>", num(p.com[0]), num(p.com[1]), num(p.com[2]));
+    let _ = writeln!(s, "      <mass value=\"{}\"/>", num(p.mass));
+    let _ = writeln!(s, "      <inertia {}/>", inertia_attrs(p));
+    let _ = writeln!(s, "    </inertial>");
+    let _ = writeln!(s, "  </link>");
+    let _ = writeln!(s, "  <joint name=\"{frame}_payload\" type=\"fixed\">");
+    let _ = writeln!(s, "    <parent link=\"{frame}\"/>");
+    let _ = writeln!(s, "    <child link=\"payload\"/>");
+    let _ = writeln!(s, "    <origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>");
+    let _ = writeln!(s, "  </joint>");
+    let _ = writeln!(s, "</robot>");
+    s
+}
+
+/// `payload_mjcf.xml`: a MuJoCo model whose body `payload` (inside a body
+/// named after the frame) carries the payload's inertial; copy the
+/// `payload` body into the frame's body of the robot's MJCF.
+pub fn mjcf(p: &Payload, frame: &str, header: &[String]) -> String {
+    let i = &p.inertia;
+    let mut s = String::new();
+    for h in header {
+        let _ = writeln!(s, "<!-- {} -->", h.replace("--", "-"));
+    }
+    let _ = writeln!(s, "<mujoco model=\"payload\">");
+    let _ = writeln!(s, "  <worldbody>");
+    let _ = writeln!(s, "    <body name=\"{frame}\">");
+    let _ = writeln!(s, "      <body name=\"payload\">");
+    let _ = writeln!(
+        s,
+        "        <inertial pos=\"{} {} {}\" mass=\"{}\" fullinertia=\"{} {} {} {} {} {}\"/>",
+        num(p.com[0]),
+        num(p.com[1]),
+        num(p.com[2]),
+        num(p.mass),
+        num(i[0]),
+        num(i[3]),
+        num(i[5]),
+        num(i[1]),
+        num(i[2]),
+        num(i[4])
+    );
+    let _ = writeln!(s, "      </body>");
+    let _ = writeln!(s, "    </body>");
+    let _ = writeln!(s, "  </worldbody>");
+    let _ = writeln!(s, "</mujoco>");
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> Payload {
+        Payload {
+            mass: 1.75,
+            com: [0.012, -0.004, 0.071],
+            inertia: [0.0081, 0.0007, -0.0004, 0.0064, 0.0011, 0.0042],
+        }
+    }
+
+    #[test]
+    fn kuka_principal_axes_recompose_the_tensor() {
+        let p = sample();
+        let text = kuka(&p, &["test".into()]);
+        let (m, xyz, abc, j) = parse_kuka(&text).unwrap();
+        assert_eq!(m, p.mass);
+        for k in 0..3 {
+            assert!((xyz[k] - 1000.0 * p.com[k]).abs() < 1e-9);
+        }
+        let t = tensor_from_kuka(abc, j);
+        let e = (t - p.inertia_matrix()).abs().max();
+        assert!(e < 1e-12, "recomposed tensor off by {e}");
+        // a diagonal tensor gives zero angles and JX, JY, JZ = Ixx, Iyy, Izz
+        let d = Payload {
+            inertia: [0.01, 0.0, 0.0, 0.02, 0.0, 0.03],
+            ..p
+        };
+        let pr = principal(&d);
+        assert!(pr.abc_deg.iter().all(|a| a.abs() < 1e-9), "{:?}", pr.abc_deg);
+        assert_eq!(pr.moments, [0.01, 0.02, 0.03]);
+    }
+
+    #[test]
+    fn franka_inertia_is_column_major() {
+        let p = sample();
+        let f = franka(&p);
+        // column-major = row-major for a symmetric tensor; the off-diagonal positions are the check
+        assert_eq!(f.load_inertia[1], p.inertia[1]); // (1, 0) = Ixy
+        assert_eq!(f.load_inertia[5], p.inertia[4]); // (2, 1) = Iyz
+        assert_eq!(f.load_inertia[6], p.inertia[2]); // (0, 2) = Ixz
+        assert_eq!(f.f_x_cload, p.com);
+    }
+}
