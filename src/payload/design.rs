@@ -155,10 +155,16 @@ impl PayloadDesign {
     pub fn validate(&self, ctx: &str) -> Result<()> {
         let bad = |field: &str, msg: String| Err(Error::invalid(ctx, field, msg));
         if !name_ok(&self.name) {
-            return bad("name", format!("`{}`: expected letters, digits, `_`, `-` or `.` (it names the output folder)", self.name));
+            return bad(
+                "name",
+                format!("`{}`: expected letters, digits, `_`, `-` or `.` (it names the output folder)", self.name),
+            );
         }
         if self.loaded.is_empty() {
-            return bad("loaded", "expected at least one [[loaded]] entry (files = [...] of runs with the payload)".into());
+            return bad(
+                "loaded",
+                "expected at least one [[loaded]] entry (files = [...] of runs with the payload)".into(),
+            );
         }
         if !self.unloaded.is_empty() && self.unloaded.len() != self.loaded.len() {
             return bad(

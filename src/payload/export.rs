@@ -76,7 +76,10 @@ pub fn urscript(p: &Payload, frame: &str, header: &[String]) -> String {
     for h in header {
         let _ = writeln!(s, "# {h}");
     }
-    let _ = writeln!(s, "# mass (kg), centre of gravity in the {frame} frame (m), inertia about it [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] (kg·m²)");
+    let _ = writeln!(
+        s,
+        "# mass (kg), centre of gravity in the {frame} frame (m), inertia about it [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] (kg·m²)"
+    );
     let i = &p.inertia;
     let _ = writeln!(
         s,

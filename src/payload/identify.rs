@@ -156,6 +156,21 @@ pub struct PayloadEstimate {
     pub notes: Vec<String>,
     /// Stopped by the user before the consistent fit.
     pub interrupted: bool,
+    /// The first run's payload torques per joint (for `residuals.svg`).
+    #[serde(skip)]
+    pub plot: Vec<JointTorques>,
+}
+
+/// One joint's payload torques over a run: b (measured, after subtracting the
+/// robot's) and A φ̂ (the identified payload's).
+#[derive(Debug, Clone, Default)]
+pub struct JointTorques {
+    /// Times of the rows used (s).
+    pub t: Vec<f64>,
+    /// b (N·m).
+    pub measured: Vec<f64>,
+    /// A φ̂ (N·m).
+    pub predicted: Vec<f64>,
 }
 
 fn grouping(k: &DMatrix<f64>, i: usize) -> String {
@@ -214,7 +229,7 @@ pub fn structural(robot: &Robot, mount: &Mount) -> Result<Structural> {
 
 /// The rows of one loaded run (minus its unloaded twin): A (payload base
 /// columns) and b, in a joint-major [`Dataset`].
-fn payload_rows(robot: &Robot, mount: &Mount, st: &Structural, l: &Loaded, u: Option<&Loaded>) -> Result<(Dataset, Option<Vec<f64>>)> {
+fn payload_rows(robot: &Robot, mount: &Mount, st: &Structural, l: &Loaded, u: Option<&Loaded>) -> Result<(Dataset, Option<Vec<f64>>, Vec<f64>)> {
     let n = robot.dof();
     let p = robot.n_params();
     let pr = &l.prep.pr;
@@ -287,6 +302,7 @@ fn payload_rows(robot: &Robot, mount: &Mount, st: &Structural, l: &Loaded, u: Op
             var[r] = var_l.map_or(0.0, |v| v[j * m + s]) + var_u.map_or(0.0, |v| v[j * m + s]);
         }
     }
+    let times = full.sample.iter().map(|&s| pr.t[s]).collect();
     Ok((
         Dataset {
             n,
@@ -299,6 +315,7 @@ fn payload_rows(robot: &Robot, mount: &Mount, st: &Structural, l: &Loaded, u: Op
             sample: full.sample.clone(),
         },
         track,
+        times,
     ))
 }
 
@@ -382,6 +399,7 @@ pub fn identify(design: &PayloadDesign, dir: &Path, ctl: &Control) -> Result<Pay
     obs.phase("payload read", Some(total as u64));
     let mut data = Vec::with_capacity(design.loaded.len());
     let mut runs = Vec::with_capacity(design.loaded.len());
+    let mut row_times = Vec::with_capacity(design.loaded.len());
     for (i, spec) in design.loaded.iter().enumerate() {
         if ctl.interrupted() {
             return Err(Error::Interrupted);
@@ -392,7 +410,8 @@ pub fn identify(design: &PayloadDesign, dir: &Path, ctl: &Control) -> Result<Pay
             None => None,
         };
         obs.progress((i + 1 + usize::from(u.is_some()) * (i + 1)) as u64, &l.name);
-        let (ds, track) = payload_rows(&robot, &mount, &st, &l, u.as_ref())?;
+        let (ds, track, times) = payload_rows(&robot, &mount, &st, &l, u.as_ref())?;
+        row_times.push(times);
         runs.push(PayloadRun {
             name: l.name.clone(),
             files: l.files.clone(),
@@ -446,9 +465,7 @@ pub fn identify(design: &PayloadDesign, dir: &Path, ctl: &Control) -> Result<Pay
         6..=8 => m_ref * 0.1,
         _ => m_ref * 0.01,
     };
-    let rel_std: Vec<f64> = (0..kb)
-        .map(|i| std[i] / stk.theta[i].abs().max(kind_scale(st.independent[i])))
-        .collect();
+    let rel_std: Vec<f64> = (0..kb).map(|i| std[i] / stk.theta[i].abs().max(kind_scale(st.independent[i]))).collect();
     let poorly_determined = (0..kb)
         .filter(|&i| std[i] > 0.25 * stk.theta[i].abs().max(kind_scale(st.independent[i])))
         .map(|i| st.names[i].clone())
@@ -458,7 +475,11 @@ pub fn identify(design: &PayloadDesign, dir: &Path, ctl: &Control) -> Result<Pay
         notes.push(format!(
             "the robot's joints sense {kb} of the payload's 10 parameters (combinations: {}); {} the guess decides the rest",
             st.names.join(", "),
-            if st.unidentifiable.is_empty() { String::new() } else { format!("{} have no effect on the joint torques; ", st.unidentifiable.join(", ")) }
+            if st.unidentifiable.is_empty() {
+                String::new()
+            } else {
+                format!("{} have no effect on the joint torques; ", st.unidentifiable.join(", "))
+            }
         ));
     }
     if stk.chi2_dof > 2.0 && !stk.blocks.iter().all(|b| b.weight == BlockWeight::Residual) {
@@ -515,12 +536,26 @@ pub fn identify(design: &PayloadDesign, dir: &Path, ctl: &Control) -> Result<Pay
             notes.push("the consistent fit gives a zero mass: no payload is seen in the torques".into());
         }
     }
-    // residuals at the consistent estimate
+    // residuals at the consistent estimate; the first run's torques for the picture
+    let mut plot = Vec::new();
     if let Some(c) = &consistent {
         let tb = &st.k * DVector::from_column_slice(&c.params);
-        for (d, r) in data.iter().zip(runs.iter_mut()) {
-            let res = &d.y - &d.c * &tb;
+        for (e, (d, r)) in data.iter().zip(runs.iter_mut()).enumerate() {
+            let pred = &d.c * &tb;
+            let res = &d.y - &pred;
             r.rms_residual = rms_per_joint(d, &res, n);
+            if e == 0 {
+                plot = (0..n)
+                    .map(|j| {
+                        let rows: Vec<usize> = (0..d.joint.len()).filter(|&i| d.joint[i] == j).collect();
+                        JointTorques {
+                            t: rows.iter().map(|&i| row_times[0][i]).collect(),
+                            measured: rows.iter().map(|&i| d.y[i]).collect(),
+                            predicted: rows.iter().map(|&i| pred[i]).collect(),
+                        }
+                    })
+                    .collect();
+            }
         }
     }
     let payload_std = if kb == 10 && st.independent == (0..10).collect::<Vec<_>>() && stk.rank == 10 {
@@ -556,6 +591,7 @@ pub fn identify(design: &PayloadDesign, dir: &Path, ctl: &Control) -> Result<Pay
         truth,
         notes,
         interrupted,
+        plot,
     })
 }
 

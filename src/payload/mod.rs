@@ -32,6 +32,7 @@ pub use design::{PayloadDesign, PayloadExport, PayloadValues};
 pub use identify::{identify, PayloadEstimate, PayloadRun, PayloadStd, Structural};
 
 use crate::error::{Error, Result};
+use crate::io::plot::{write_svg, Panel, Series};
 use crate::io::status::RunState;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
@@ -80,7 +81,13 @@ impl PayloadEstimate {
     /// The text report.
     pub fn text(&self) -> String {
         let mut s = String::new();
-        let _ = writeln!(s, "Payload identification on frame `{}` (link {}) of {}", self.frame, self.link, self.robot.display());
+        let _ = writeln!(
+            s,
+            "Payload identification on frame `{}` (link {}) of {}",
+            self.frame,
+            self.link,
+            self.robot.display()
+        );
         let _ = writeln!(
             s,
             "Robot model's torques: {}",
@@ -102,7 +109,11 @@ impl PayloadEstimate {
             let _ = writeln!(s, "    residual RMS (N·m):         {}", f(&r.rms_residual));
             let _ = writeln!(s, "    weight σ (N·m):             {}", f(&r.sigma));
             if let Some(t) = &r.tracking_difference {
-                let _ = writeln!(s, "    max |q_loaded − q_unloaded| (mrad): {}", t.iter().map(|x| format!("{:.2}", 1e3 * x)).collect::<Vec<_>>().join(" "));
+                let _ = writeln!(
+                    s,
+                    "    max |q_loaded − q_unloaded| (mrad): {}",
+                    t.iter().map(|x| format!("{:.2}", 1e3 * x)).collect::<Vec<_>>().join(" ")
+                );
             }
         }
         let st = &self.structural;
@@ -126,7 +137,14 @@ impl PayloadEstimate {
         );
         let _ = writeln!(s, "  {:<6} {:>14} {:>12} {:>8}", "param", "estimate", "σ", "σ rel");
         for i in 0..self.theta.len() {
-            let _ = writeln!(s, "  {:<6} {:>14.6e} {:>12.3e} {:>7.2}%", st.names[i], self.theta[i], self.std[i], 100.0 * self.rel_std[i]);
+            let _ = writeln!(
+                s,
+                "  {:<6} {:>14.6e} {:>12.3e} {:>7.2}%",
+                st.names[i],
+                self.theta[i],
+                self.std[i],
+                100.0 * self.rel_std[i]
+            );
         }
         if self.poorly_determined.is_empty() {
             let _ = writeln!(s, "  every identifiable parameter is determined by this motion (σ ≤ 25 % of its scale)");
@@ -235,6 +253,40 @@ impl PayloadResult {
                     PayloadExport::Mjcf => put("payload_mjcf.xml", export::mjcf(p, &e.frame, &h).as_bytes())?,
                 }
             }
+        }
+        if !e.plot.is_empty() {
+            let names: Vec<String> = match crate::robot::load(&e.robot) {
+                Ok(r) => r.joints.iter().map(|j| j.name.clone()).collect(),
+                Err(_) => (1..=e.plot.len()).map(|j| format!("joint {j}")).collect(),
+            };
+            let measured_label = if e.differencing {
+                "loaded − unloaded run"
+            } else {
+                "measured − robot model"
+            };
+            let panels: Vec<Panel> = e
+                .plot
+                .iter()
+                .enumerate()
+                .map(|(j, p)| Panel {
+                    title: names.get(j).cloned().unwrap_or_else(|| format!("joint {}", j + 1)),
+                    x_label: "t (s)".into(),
+                    y_label: "payload torque (N·m)".into(),
+                    series: vec![
+                        Series::points(measured_label, p.t.clone(), p.measured.clone()),
+                        Series::line("identified payload", p.t.clone(), p.predicted.clone()),
+                    ],
+                    ..Default::default()
+                })
+                .collect();
+            let run = e.runs.first().map(|r| r.name.as_str()).unwrap_or("");
+            let title = format!(
+                "payload torques of run `{run}`{}: measured and identified",
+                if e.differencing { " (minus its unloaded twin)" } else { "" }
+            );
+            let p = dir.join("residuals.svg");
+            write_svg(&p, &title, &panels, 2)?;
+            files.push(p);
         }
         let state = e.state();
         let detail = match &e.payload {

@@ -1,0 +1,280 @@
+//! Payload identification (`idexp::payload`, `idexp payload identify`):
+//! simulated known payloads on a robot whose model is 10 % off, with and
+//! without unloaded runs; the exports read back; what a planar arm cannot
+//! sense; bad input.
+
+mod ident_util;
+
+use ident_util::{design, root, simulate};
+use idexp::optim::Control;
+use idexp::payload::{export, PayloadDesign, PayloadEstimate};
+use idexp::robot::payload::{Mount, Payload};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const TRUE_PAYLOAD: &str =
+    "[payload]\nframe = \"tool0\"\nmass = 1.8\ncom = [0.012, -0.008, 0.055]\ninertia = [0.0065, 0.0004, -0.0003, 0.0071, 0.0005, 0.0042]\n";
+
+/// A UR5 run (truth: the robot file's parameters perturbed by 10 %, seed 7)
+/// tracking a random Fourier trajectory, 5 repetitions at 200 Hz, with or without the payload.
+fn ur5_run(dir: &Path, name: &str, loaded: bool, seed: u64) -> PathBuf {
+    let text = format!(
+        "name = \"{name}\"\nrobot = \"designs/robots/ur5.toml\"\nrate = 1000.0\ndecimate = 5\nrepetitions = 5\nseed = {seed}\n[truth]\nperturbation = 0.1\nseed = 7\n[controller]\nbandwidth = 10.0\n[noise]\ntorque = 0.2\nposition = 1e-5\n[reference]\nkind = \"random_fourier\"\nn_h = 4\nfrequency = 0.1\namplitude = 0.6\nseed = 5\n{}",
+        if loaded { TRUE_PAYLOAD } else { "" }
+    );
+    let d = design(&text);
+    let res = simulate(&d);
+    let out = dir.join(name);
+    res.write(&out, &d).unwrap();
+    out
+}
+
+fn payload_design(dir: &Path, differencing: bool) -> PayloadDesign {
+    let robot = root("designs/robots/ur5.toml");
+    let mut text = format!(
+        "name = \"p\"\nrobot = \"{}\"\nframe = \"tool0\"\ntruth = \"loaded\"\n[guess]\nmass = 2.0\ncom = [0.0, 0.0, 0.06]\ninertia = [0.006, 0.0, 0.0, 0.006, 0.0, 0.004]\n[[loaded]]\nname = \"loaded\"\nfiles = [\"loaded\"]\nharmonics = 4\n",
+        robot.display()
+    );
+    if differencing {
+        text.push_str("[[unloaded]]\nname = \"unloaded\"\nfiles = [\"unloaded\"]\nharmonics = 4\n");
+    }
+    let p = dir.join("payload.toml");
+    std::fs::write(&p, text).unwrap();
+    PayloadDesign::read(&p).unwrap()
+}
+
+fn runs() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    ur5_run(dir.path(), "loaded", true, 11);
+    ur5_run(dir.path(), "unloaded", false, 12);
+    dir
+}
+
+fn com_error(p: &Payload, t: &Payload) -> f64 {
+    (0..3).map(|k| (p.com[k] - t.com[k]).powi(2)).sum::<f64>().sqrt()
+}
+
+#[test]
+fn known_payload_within_one_percent_and_two_millimetres_and_differencing_removes_the_model_error() {
+    let dir = runs();
+    let ctl = Control::new();
+    let e: PayloadEstimate = idexp::payload::identify(&payload_design(dir.path(), true), dir.path(), &ctl).unwrap();
+    let truth = e.truth.expect("truth read from the simulated run");
+    assert_eq!(truth.mass, 1.8);
+    let p = e.payload.expect("a payload");
+    let sd = e.payload_std.clone().expect("every parameter identifiable on a six-axis arm");
+    assert_eq!(e.structural.names.len(), 10);
+    assert!((p.mass / truth.mass - 1.0).abs() < 0.01, "mass {} vs {}", p.mass, truth.mass);
+    assert!(com_error(&p, &truth) < 0.002, "centre of mass off by {} m", com_error(&p, &truth));
+    // the inertia within its reported uncertainty (3σ per entry)
+    for k in 0..6 {
+        let d = (p.inertia[k] - truth.inertia[k]).abs();
+        assert!(
+            d < 3.0 * sd.inertia[k] + 1e-5,
+            "inertia entry {k}: {} vs {} (σ {})",
+            p.inertia[k],
+            truth.inertia[k],
+            sd.inertia[k]
+        );
+    }
+    // and the mass and centre within theirs
+    assert!((p.mass - truth.mass).abs() < 4.0 * sd.mass);
+    assert!(e.chi2_dof < 1.5, "χ²/dof {} with the model error cancelled", e.chi2_dof);
+
+    // without the unloaded runs the robot model's 10 % error biases the payload
+    let n = idexp::payload::identify(&payload_design(dir.path(), false), dir.path(), &ctl).unwrap();
+    let q = n.payload.expect("a payload");
+    let mass_err = (q.mass / truth.mass - 1.0).abs();
+    assert!(
+        mass_err > 0.02 || com_error(&q, &truth) > 0.005,
+        "without differencing: mass error {mass_err}, centre error {}",
+        com_error(&q, &truth)
+    );
+    assert!(mass_err > 5.0 * (p.mass / truth.mass - 1.0).abs());
+    assert!(n.chi2_dof > 2.0, "the model error shows in χ²/dof: {}", n.chi2_dof);
+    assert!(n.notes.iter().any(|s| s.contains("unloaded runs")));
+}
+
+/// A URScript grammar for the one statement written: name(number, [3 numbers], [6 numbers]).
+fn parse_urscript(text: &str) -> Option<(f64, Vec<f64>, Vec<f64>)> {
+    let stmt: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#')).collect();
+    if stmt.len() != 1 {
+        return None;
+    }
+    let s = stmt[0].trim();
+    let args = s.strip_prefix("set_target_payload(")?.strip_suffix(')')?;
+    let (m, rest) = args.split_once(',')?;
+    let rest = rest.trim();
+    let list = |t: &str| -> Option<(Vec<f64>, String)> {
+        let t = t.trim_start().strip_prefix('[')?;
+        let (inner, after) = t.split_once(']')?;
+        let v: Option<Vec<f64>> = inner.split(',').map(|x| x.trim().parse::<f64>().ok()).collect();
+        Some((v?, after.to_string()))
+    };
+    let (cog, after) = list(rest)?;
+    let (inertia, tail) = list(after.trim_start().strip_prefix(',')?)?;
+    if !tail.trim().is_empty() || cog.len() != 3 || inertia.len() != 6 {
+        return None;
+    }
+    Some((m.trim().parse().ok()?, cog, inertia))
+}
+
+#[test]
+fn exports_read_back_to_the_identified_payload() {
+    let p = Payload {
+        mass: 1.8123,
+        com: [0.0118, -0.0079, 0.0551],
+        inertia: [0.0066, -0.0007, -0.0001, 0.0046, 0.0015, 0.0026],
+    };
+    // URScript: the statement parses and carries [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]
+    let ur = export::urscript(&p, "tool0", &["a header".into()]);
+    let (m, cog, i) = parse_urscript(&ur).unwrap_or_else(|| panic!("not a set_target_payload statement:\n{ur}"));
+    assert_eq!(m, p.mass);
+    assert_eq!(cog, p.com.to_vec());
+    assert_eq!(i, vec![p.inertia[0], p.inertia[3], p.inertia[5], p.inertia[1], p.inertia[2], p.inertia[4]]);
+    assert!(parse_urscript("set_target_payload(1.0, [0, 0], [0,0,0,0,0,0])").is_none());
+    // Franka: JSON with the keys of setLoad, inertia column-major
+    let f: serde_json::Value = serde_json::from_str(&serde_json::to_string(&export::franka(&p)).unwrap()).unwrap();
+    assert_eq!(f["mass"].as_f64(), Some(p.mass));
+    assert_eq!(f["F_x_Cload"][2].as_f64(), Some(p.com[2]));
+    assert_eq!(f["load_inertia"][3].as_f64(), Some(p.inertia[1])); // (0, 1) in column 1
+                                                                   // KUKA: principal axes re-composed give the tensor
+    let (km, xyz, abc, j) = export::parse_kuka(&export::kuka(&p, &[])).unwrap();
+    assert_eq!(km, p.mass);
+    assert!((xyz[2] - 55.1).abs() < 1e-9);
+    let t = export::tensor_from_kuka(abc, j);
+    assert!((t - p.inertia_matrix()).abs().max() < 1e-12);
+    // URDF: a fixed payload link, read by urdf-rs
+    let u = urdf_rs::read_from_string(&export::urdf(&p, "tool0", &["h -- x".into()])).unwrap();
+    let link = u.links.iter().find(|l| l.name == "payload").unwrap();
+    assert_eq!(link.inertial.mass.value, p.mass);
+    assert_eq!(link.inertial.origin.xyz.0, p.com);
+    assert_eq!(link.inertial.inertia.ixy, p.inertia[1]);
+    assert_eq!(link.inertial.inertia.iyz, p.inertia[4]);
+    let joint = u.joints.iter().find(|j| j.child.link == "payload").unwrap();
+    assert_eq!(joint.parent.link, "tool0");
+    assert!(matches!(joint.joint_type, urdf_rs::JointType::Fixed));
+    // the URDF fragment's payload attached to the UR5 gives the same robot as Mount::attach
+    let robot = idexp::robot::load(&root("designs/robots/ur5.toml")).unwrap();
+    let mount = Mount::new(&robot, Some("tool0"), "test", "frame").unwrap();
+    let phi = p.params();
+    let back = Payload::from_params(&phi).unwrap();
+    for k in 0..6 {
+        assert!((back.inertia[k] - p.inertia[k]).abs() < 1e-15);
+    }
+    let loaded = mount.attach(&robot, &phi).unwrap();
+    assert!((loaded.links[mount.link].inertial.mass - robot.links[mount.link].inertial.mass - p.mass).abs() < 1e-12);
+}
+
+#[test]
+fn a_planar_arm_senses_fewer_than_ten_payload_parameters_and_says_which() {
+    // two revolute joints with vertical axes: no gravity torque, motion in the horizontal plane
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("planar.toml");
+    std::fs::write(
+        &file,
+        "name = \"planar2r\"\ndh = \"standard\"\n[[joint]]\nname = \"j1\"\na = 0.5\nlower = -3.0\nupper = 3.0\ninertial = { mass = 4.0, com = [-0.25, 0.0, 0.0], inertia = [0.01, 0.0, 0.0, 0.08, 0.0, 0.08] }\n[[joint]]\nname = \"j2\"\na = 0.4\nlower = -3.0\nupper = 3.0\ninertial = { mass = 2.0, com = [-0.2, 0.0, 0.0], inertia = [0.005, 0.0, 0.0, 0.03, 0.0, 0.03] }\n",
+    )
+    .unwrap();
+    let robot = idexp::robot::load(&file).unwrap();
+    let mount = Mount::new(&robot, None, "test", "frame").unwrap();
+    let st = idexp::payload::identify::structural(&robot, &mount).unwrap();
+    // independently: the rank of the payload's columns Y_L T over random states
+    let w = idexp::params::random_stack(&robot, 200, 3);
+    let o = robot.link_param_offset(mount.link);
+    let a = w.columns(o, 10) * mount.t;
+    let rank = a.clone().svd(false, false).rank(1e-9 * a.norm());
+    assert_eq!(st.names.len(), rank, "{:?}", st.names);
+    assert_eq!(rank, 4, "in-plane: M, MX, MY and ZZ");
+    let mut un = st.unidentifiable.clone();
+    un.sort();
+    assert_eq!(un, ["MZ", "XX", "XY", "XZ", "YY", "YZ"]);
+    assert_eq!(st.k.nrows(), st.names.len());
+    // on the UR5 all ten, each alone
+    let ur5 = idexp::robot::load(&root("designs/robots/ur5.toml")).unwrap();
+    let m5 = Mount::new(&ur5, Some("tool0"), "test", "frame").unwrap();
+    let s5 = idexp::payload::identify::structural(&ur5, &m5).unwrap();
+    assert_eq!(s5.independent, (0..10).collect::<Vec<_>>());
+    assert!((s5.k.clone() - nalgebra::DMatrix::<f64>::identity(10, 10)).abs().max() < 1e-12);
+}
+
+#[test]
+fn cli_identifies_writes_the_exports_and_rejects_bad_designs() {
+    let dir = runs();
+    let d = dir.path();
+    let robot = root("designs/robots/ur5.toml");
+    let good = format!(
+        "robot = \"{}\"\nexport = [\"urscript\", \"kuka\"]\n[[loaded]]\nfiles = [\"loaded\"]\nharmonics = 4\n[[unloaded]]\nfiles = [\"unloaded\"]\nharmonics = 4\n",
+        robot.display()
+    );
+    std::fs::write(d.join("tool.toml"), &good).unwrap();
+    let out = d.join("out");
+    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .args(["payload", "identify"])
+        .arg(d.join("tool.toml"))
+        .arg("--out")
+        .arg(&out)
+        .env("IDEXP_NO_PROGRESS", "1")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in [
+        "payload.json",
+        "report.txt",
+        "design.json",
+        "payload.script",
+        "kuka_load.txt",
+        "status.json",
+        "residuals.svg",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    assert!(!out.join("payload.urdf").exists(), "only the exports asked for");
+    let ur = std::fs::read_to_string(out.join("payload.script")).unwrap();
+    let (m, _, _) = parse_urscript(&ur).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("payload.json")).unwrap()).unwrap();
+    assert_eq!(json["payload"]["mass"].as_f64(), Some(m));
+    let st: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("status.json")).unwrap()).unwrap();
+    assert_eq!(st["status"], "complete");
+
+    // bad designs: exit 1, the file, the field and what is allowed named, no folder written
+    let cases = [
+        (
+            good.replace(
+                "[[unloaded]]\nfiles = [\"unloaded\"]\nharmonics = 4\n",
+                "[[unloaded]]\nfiles = [\"unloaded\"]\n[[unloaded]]\nname = \"u2\"\nfiles = [\"unloaded\"]\n",
+            ),
+            "unloaded",
+        ),
+        (good.replace("export = [\"urscript\", \"kuka\"]", "export = [\"abb\"]"), "export"),
+        (format!("{good}[guess]\nmass = -1.0\n"), "guess.mass"),
+        (good.replace("robot = ", "frame = \"no_such_frame\"\nrobot = "), "no_such_frame"),
+    ];
+    for (i, (text, needle)) in cases.iter().enumerate() {
+        let p = d.join(format!("bad{i}.toml"));
+        std::fs::write(&p, text).unwrap();
+        let bad_out = d.join(format!("bad_out{i}"));
+        let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
+            .args(["payload", "identify"])
+            .arg(&p)
+            .arg("--out")
+            .arg(&bad_out)
+            .env("IDEXP_NO_PROGRESS", "1")
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "case {i}: {err}");
+        assert!(err.contains(needle), "case {i}: `{needle}` not in {err}");
+        assert!(!bad_out.exists(), "case {i}: a folder was written");
+    }
+    // payload excite refuses a design that does not excite a payload
+    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .args(["payload", "excite"])
+        .arg(root("designs/excite_ur5.toml"))
+        .arg("--out")
+        .arg(d.join("ex"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("objective.columns = \"payload\""));
+}
