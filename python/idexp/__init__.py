@@ -19,6 +19,8 @@ The problems:
   prior) from a study file or dict, as ``idexp identify study.toml``;
 - :func:`identify` identifies the base parameters from a run (folder, arrays or
   a :class:`SimRun`);
+- :func:`payload` identifies a tool's or payload's mass, centre of mass and
+  inertia from loaded (and unloaded) runs, as ``idexp payload identify``;
 - :func:`positions` selects optimal measurement positions (with a
   Kiefer-Wolfowitz certificate); :func:`fit` fits the elastic gray-box model
   to FRF data from many starts.
@@ -45,6 +47,7 @@ from ._idexp import (
     IdexpError,
     Identifiability,
     Identification,
+    PayloadFit,
     PositionsResult,
     Robot,
     SimRun,
@@ -59,6 +62,7 @@ from ._idexp import (
     log_info,
     mjcf,
     multisine,
+    payload,
     positions,
     read_log,
     simulate,
@@ -74,6 +78,7 @@ __all__ = [
     "IdexpError",
     "Identifiability",
     "Identification",
+    "PayloadFit",
     "PositionsResult",
     "Robot",
     "SimRun",
@@ -88,6 +93,7 @@ __all__ = [
     "log_info",
     "mjcf",
     "multisine",
+    "payload",
     "positions",
     "read_log",
     "simulate",

@@ -311,6 +311,36 @@ def study(
     """Runs an identification study from a study file or a dict with the file's keys
     (experiments and validation runs relative to the file's folder, or to base_dir for a dict)."""
 
+class PayloadFit:
+    """A payload identification (idexp.payload; `idexp payload identify payload.toml`)."""
+    state: str
+    """What status.json says: complete, failed or interrupted."""
+    mass: Optional[float]
+    """Mass (kg)."""
+    com: Optional[F64]
+    """Centre of mass in the payload's frame (m)."""
+    inertia: Optional[F64]
+    """Inertia about the centre of mass, (3, 3), frame axes (kg·m²)."""
+    params: Optional[F64]
+    """The ten standard parameters XX, XY, XZ, YY, YZ, ZZ, MX, MY, MZ, M about the frame's origin."""
+    std: Optional[dict]
+    """σ of mass, com and inertia (when every parameter is identifiable)."""
+    report: dict
+    def kuka(self) -> Optional[dict]:
+        """KUKA load data: M, X, Y, Z (mm), A, B, C (deg), JX, JY, JZ."""
+    def text(self) -> str: ...
+    def write(self, folder: PathLike) -> str: ...
+
+def payload(
+    design: Union[PathLike, dict],
+    base_dir: Optional[PathLike] = None,
+    time_limit: Optional[float] = None,
+    progress: Progress = None,
+) -> PayloadFit:
+    """Identifies a payload from a payload design file or a dict with the file's keys
+    ([[loaded]] runs, optional [[unloaded]] twins, [guess], export; paths relative to the
+    file's folder, or to base_dir for a dict)."""
+
 class PositionsResult:
     param_names: list[str]
     n_candidates: int

@@ -30,6 +30,7 @@ mod mjcf;
 mod preview;
 mod problems;
 mod robot;
+mod payload;
 mod study;
 
 /// The native module `idexp._idexp`; `idexp/__init__.py` re-exports it.
@@ -46,6 +47,8 @@ fn _idexp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<problems::FitResult>()?;
     m.add_class::<study::Study>()?;
     m.add_function(wrap_pyfunction!(study::study, m)?)?;
+    m.add_class::<payload::PayloadFit>()?;
+    m.add_function(wrap_pyfunction!(payload::payload, m)?)?;
     m.add_function(wrap_pyfunction!(problems::excite, m)?)?;
     m.add_function(wrap_pyfunction!(problems::assess, m)?)?;
     m.add_function(wrap_pyfunction!(problems::simulate, m)?)?;
