@@ -139,10 +139,10 @@ fn exports_read_back_to_the_identified_payload() {
     assert_eq!(f["F_x_Cload"][2].as_f64(), Some(p.com[2]));
     assert_eq!(f["load_inertia"][3].as_f64(), Some(p.inertia[1])); // (0, 1) in column 1
                                                                    // KUKA: principal axes re-composed give the tensor
-    let (km, xyz, abc, j) = export::parse_kuka(&export::kuka(&p, &[])).unwrap();
-    assert_eq!(km, p.mass);
-    assert!((xyz[2] - 55.1).abs() < 1e-9);
-    let t = export::tensor_from_kuka(abc, j);
+    let k = export::parse_kuka(&export::kuka(&p, &[])).unwrap();
+    assert_eq!(k.m, p.mass);
+    assert!((k.xyz_mm[2] - 55.1).abs() < 1e-9);
+    let t = export::tensor_from_kuka(k.abc_deg, k.j);
     assert!((t - p.inertia_matrix()).abs().max() < 1e-12);
     // URDF: a fixed payload link, read by urdf-rs
     let u = urdf_rs::read_from_string(&export::urdf(&p, "tool0", &["h -- x".into()])).unwrap();

@@ -5,7 +5,7 @@
 //! robot = "robots/ur5.toml"       # the robot's model: nominal, or idexp's identified robot.toml
 //! frame = "tool0"                 # the payload's frame (default: the end effector)
 //! truth = "../out/sim_payload"    # optional: a simulated run whose design carries the true [payload]
-//! export = ["urscript", "franka", "kuka", "urdf", "mjcf"]   # default: all
+//! export = ["urscript", "franka", "kuka", "urdf", "mjcf", "idexp"]   # default: all
 //!
 //! [guess]                         # optional prior guess (CAD, datasheet): decides what the motion leaves open
 //! mass = 2.0
@@ -55,16 +55,19 @@ pub enum PayloadExport {
     Urdf,
     /// `payload_mjcf.xml`: a MuJoCo body with the payload's inertial.
     Mjcf,
+    /// `payload.toml`: the `[payload]` table of idexp's excite and simulate designs.
+    Idexp,
 }
 
 impl PayloadExport {
     /// Every format.
-    pub const ALL: [PayloadExport; 5] = [
+    pub const ALL: [PayloadExport; 6] = [
         PayloadExport::Urscript,
         PayloadExport::Franka,
         PayloadExport::Kuka,
         PayloadExport::Urdf,
         PayloadExport::Mjcf,
+        PayloadExport::Idexp,
     ];
 }
 

@@ -156,8 +156,21 @@ pub fn kuka(p: &Payload, header: &[String]) -> String {
     s
 }
 
-/// Reads back the `LOAD_DATA` line of [`kuka`]: (M, [X, Y, Z] mm, [A, B, C] deg, [JX, JY, JZ]).
-pub fn parse_kuka(text: &str) -> Option<(f64, [f64; 3], [f64; 3], [f64; 3])> {
+/// KUKA load data as written in `kuka_load.txt`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct KukaLoad {
+    /// M (kg).
+    pub m: f64,
+    /// X, Y, Z: centre of mass (mm).
+    pub xyz_mm: [f64; 3],
+    /// A, B, C: the principal axes (deg).
+    pub abc_deg: [f64; 3],
+    /// JX, JY, JZ: principal moments (kg·m²).
+    pub j: [f64; 3],
+}
+
+/// Reads back the `LOAD_DATA` line of [`kuka`].
+pub fn parse_kuka(text: &str) -> Option<KukaLoad> {
     let line = text.lines().find(|l| l.trim_start().starts_with("LOAD_DATA"))?;
     let body = line.split_once('=')?.1;
     let mut vals: Vec<(String, f64)> = Vec::new();
@@ -181,12 +194,12 @@ pub fn parse_kuka(text: &str) -> Option<(f64, [f64; 3], [f64; 3], [f64; 3])> {
         }
     }
     let get = |k: &str| vals.iter().find(|(n, _)| n == k).map(|(_, v)| *v);
-    Some((
-        get("M")?,
-        [get("CM.X")?, get("CM.Y")?, get("CM.Z")?],
-        [get("CM.A")?, get("CM.B")?, get("CM.C")?],
-        [get("J.X")?, get("J.Y")?, get("J.Z")?],
-    ))
+    Some(KukaLoad {
+        m: get("M")?,
+        xyz_mm: [get("CM.X")?, get("CM.Y")?, get("CM.Z")?],
+        abc_deg: [get("CM.A")?, get("CM.B")?, get("CM.C")?],
+        j: [get("J.X")?, get("J.Y")?, get("J.Z")?],
+    })
 }
 
 /// The inertia tensor about the centre of mass from KUKA's principal data:
@@ -268,6 +281,29 @@ pub fn mjcf(p: &Payload, frame: &str, header: &[String]) -> String {
     s
 }
 
+/// `payload.toml`: the `[payload]` table of idexp's excite and simulate
+/// designs (the robot then carries the identified payload).
+pub fn idexp_table(p: &Payload, frame: &str, header: &[String]) -> crate::error::Result<String> {
+    let spec = crate::robot::payload::PayloadSpec {
+        frame: Some(frame.to_string()),
+        mass: p.mass,
+        com: p.com,
+        inertia: p.inertia,
+    };
+    #[derive(Serialize)]
+    struct Table<'a> {
+        payload: &'a crate::robot::payload::PayloadSpec,
+    }
+    let body = toml::to_string(&Table { payload: &spec }).map_err(|e| crate::error::Error::Numerical(e.to_string()))?;
+    let mut s = String::new();
+    for h in header {
+        let _ = writeln!(s, "# {h}");
+    }
+    let _ = writeln!(s, "# paste into an idexp excite or simulate design: the robot then carries this payload");
+    s.push_str(&body);
+    Ok(s)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -284,12 +320,12 @@ mod tests {
     fn kuka_principal_axes_recompose_the_tensor() {
         let p = sample();
         let text = kuka(&p, &["test".into()]);
-        let (m, xyz, abc, j) = parse_kuka(&text).unwrap();
-        assert_eq!(m, p.mass);
-        for k in 0..3 {
-            assert!((xyz[k] - 1000.0 * p.com[k]).abs() < 1e-9);
+        let k = parse_kuka(&text).unwrap();
+        assert_eq!(k.m, p.mass);
+        for i in 0..3 {
+            assert!((k.xyz_mm[i] - 1000.0 * p.com[i]).abs() < 1e-9);
         }
-        let t = tensor_from_kuka(abc, j);
+        let t = tensor_from_kuka(k.abc_deg, k.j);
         let e = (t - p.inertia_matrix()).abs().max();
         assert!(e < 1e-12, "recomposed tensor off by {e}");
         // a diagonal tensor gives zero angles and JX, JY, JZ = Ixx, Iyy, Izz
@@ -300,6 +336,19 @@ mod tests {
         let pr = principal(&d);
         assert!(pr.abc_deg.iter().all(|a| a.abs() < 1e-9), "{:?}", pr.abc_deg);
         assert_eq!(pr.moments, [0.01, 0.02, 0.03]);
+    }
+
+    #[test]
+    fn idexp_table_reads_back_as_the_payload_spec() {
+        let p = sample();
+        #[derive(serde::Deserialize)]
+        struct T {
+            payload: crate::robot::payload::PayloadSpec,
+        }
+        let t: T = toml::from_str(&idexp_table(&p, "tool0", &["h".into()]).unwrap()).unwrap();
+        let back = Payload::from_spec(&t.payload, "t", "payload").unwrap();
+        assert_eq!(back, p);
+        assert_eq!(t.payload.frame.as_deref(), Some("tool0"));
     }
 
     #[test]

@@ -21,7 +21,7 @@
 //! | `report.txt` | the text report |
 //! | `design.json` | the resolved design |
 //! | `residuals.svg` | per joint: the payload's torque b and its prediction A φ̂ (first run) |
-//! | `payload.script`, `franka_load.json`, `kuka_load.txt`, `payload.urdf`, `payload_mjcf.xml` | the exports |
+//! | `payload.script`, `franka_load.json`, `kuka_load.txt`, `payload.urdf`, `payload_mjcf.xml`, `payload.toml` | the exports |
 //! | `status.json` | how it ended |
 
 pub mod design;
@@ -251,6 +251,7 @@ impl PayloadResult {
                     PayloadExport::Kuka => put("kuka_load.txt", export::kuka(p, &h).as_bytes())?,
                     PayloadExport::Urdf => put("payload.urdf", export::urdf(p, &e.frame, &h).as_bytes())?,
                     PayloadExport::Mjcf => put("payload_mjcf.xml", export::mjcf(p, &e.frame, &h).as_bytes())?,
+                    PayloadExport::Idexp => put("payload.toml", export::idexp_table(p, &e.frame, &h)?.as_bytes())?,
                 }
             }
         }
