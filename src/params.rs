@@ -238,7 +238,11 @@ impl BaseParams {
     pub fn of_stack_columns(robot: &Robot, mut w: DMatrix<f64>, cols: &[usize], opts: &BaseOptions) -> Result<BaseParams> {
         let p = robot.n_params();
         if cols.is_empty() || cols.iter().any(|&c| c >= p) {
-            return Err(Error::invalid("base parameters", "columns", format!("expected column indices below {p}, found {cols:?}")));
+            return Err(Error::invalid(
+                "base parameters",
+                "columns",
+                format!("expected column indices below {p}, found {cols:?}"),
+            ));
         }
         for c in 0..p {
             if !cols.contains(&c) {

@@ -236,6 +236,20 @@ fn cli_identifies_writes_the_exports_and_rejects_bad_designs() {
     assert_eq!(json["payload"]["mass"].as_f64(), Some(m));
     let st: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("status.json")).unwrap()).unwrap();
     assert_eq!(st["status"], "complete");
+    // the same files on one thread, byte for byte (status.json aside: its times)
+    let out1 = d.join("out1");
+    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .args(["--threads", "1", "payload", "identify"])
+        .arg(d.join("tool.toml"))
+        .arg("--out")
+        .arg(&out1)
+        .env("IDEXP_NO_PROGRESS", "1")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["payload.json", "report.txt", "payload.script", "kuka_load.txt", "residuals.svg"] {
+        assert_eq!(std::fs::read(out.join(f)).unwrap(), std::fs::read(out1.join(f)).unwrap(), "{f} differs between 2 threads and 1");
+    }
 
     // bad designs: exit 1, the file, the field and what is allowed named, no folder written
     let cases = [

@@ -27,10 +27,10 @@ mod exports;
 mod logs;
 mod long;
 mod mjcf;
+mod payload;
 mod preview;
 mod problems;
 mod robot;
-mod payload;
 mod study;
 
 /// The native module `idexp._idexp`; `idexp/__init__.py` re-exports it.

@@ -275,7 +275,9 @@ impl Problem {
                 // the report lists the independent ones when fewer than ten are (a planar robot)
                 BaseParams::of_columns(&robot, &cols, &opts)?
             }
-            (Some(names), _) => BaseParams::with_columns(&robot, names, &opts).map_err(|e| crate::Error::invalid(ctx, "objective.base_columns", e.to_string()))?,
+            (Some(names), _) => {
+                BaseParams::with_columns(&robot, names, &opts).map_err(|e| crate::Error::invalid(ctx, "objective.base_columns", e.to_string()))?
+            }
             (None, _) => BaseParams::compute(&robot, &opts)?,
         };
         let theta = robot.nominal_params();

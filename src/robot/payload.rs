@@ -72,10 +72,18 @@ impl Payload {
     /// of mass positive semidefinite and satisfying the triangle inequalities).
     pub fn from_spec(s: &PayloadSpec, ctx: &str, field: &str) -> Result<Payload> {
         if !(s.mass.is_finite() && s.mass > 0.0) {
-            return Err(Error::invalid(ctx, format!("{field}.mass"), format!("expected a positive mass (kg), found {}", s.mass)));
+            return Err(Error::invalid(
+                ctx,
+                format!("{field}.mass"),
+                format!("expected a positive mass (kg), found {}", s.mass),
+            ));
         }
         if let Some(v) = s.com.iter().find(|v| !v.is_finite()) {
-            return Err(Error::invalid(ctx, format!("{field}.com"), format!("expected finite coordinates (m), found {v}")));
+            return Err(Error::invalid(
+                ctx,
+                format!("{field}.com"),
+                format!("expected finite coordinates (m), found {v}"),
+            ));
         }
         super::validate::check_com_inertia(ctx, &format!("{field}.inertia"), s.mass, &sym(&s.inertia))?;
         Ok(Payload {
@@ -125,7 +133,11 @@ impl Mount {
             Some(name) => robot.find_frame(name).ok_or_else(|| {
                 let mut all: Vec<&str> = robot.links.iter().map(|l| l.name.as_str()).collect();
                 all.extend(robot.frames.iter().map(|f| f.name.as_str()));
-                Error::invalid(ctx, field, format!("no frame or link `{name}` in robot `{}`; known: {}", robot.name, all.join(", ")))
+                Error::invalid(
+                    ctx,
+                    field,
+                    format!("no frame or link `{name}` in robot `{}`; known: {}", robot.name, all.join(", ")),
+                )
             })?,
             None => robot.end_effector(),
         };
@@ -133,7 +145,10 @@ impl Mount {
             Error::invalid(
                 ctx,
                 field,
-                format!("frame `{}` is fixed to the base of robot `{}`: a payload must be carried by a moving link", f.name, robot.name),
+                format!(
+                    "frame `{}` is fixed to the base of robot `{}`: a payload must be carried by a moving link",
+                    f.name, robot.name
+                ),
             )
         })?;
         let mut t = Matrix10::zeros();
