@@ -21,7 +21,7 @@ run robot_info robot info designs/robots/puma560.toml
 run robot_info_json robot info designs/robots/puma560.toml --json
 run robot_torques robot torques designs/robots/ur5.toml --states tests/data/ur5_states.csv
 run robot_regressor robot regressor designs/robots/ur5.toml --states tests/data/ur5_states.csv --base --out "$O/robot_regressor"
-for d in excite_ur5 excite_industrial6_full excite_industrial6_restrained excite_panda_table; do
+for d in excite_ur5 excite_industrial6_full excite_industrial6_restrained excite_panda_table payload_ur5_excite; do
   run "$d" excite designs/$d.toml --out "$O/$d"
 done
 run assess_ur5 assess designs/robots/ur5.toml "$O/excite_ur5/trajectory.csv" --every 100 --out "$O/assess_ur5"
