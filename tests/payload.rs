@@ -166,16 +166,14 @@ fn exports_read_back_to_the_identified_payload() {
     assert!((loaded.links[mount.link].inertial.mass - robot.links[mount.link].inertial.mass - p.mass).abs() < 1e-12);
 }
 
+const PLANAR: &str = "name = \"planar2r\"\ndh = \"standard\"\n[[joint]]\nname = \"j1\"\na = 0.5\nlower = -3.0\nupper = 3.0\nvelocity = 3.0\neffort = 100.0\ninertial = { mass = 4.0, com = [-0.25, 0.0, 0.0], inertia = [0.01, 0.0, 0.0, 0.08, 0.0, 0.08] }\n[[joint]]\nname = \"j2\"\na = 0.4\nlower = -3.0\nupper = 3.0\nvelocity = 3.0\neffort = 100.0\ninertial = { mass = 2.0, com = [-0.2, 0.0, 0.0], inertia = [0.005, 0.0, 0.0, 0.03, 0.0, 0.03] }\n";
+
 #[test]
 fn a_planar_arm_senses_fewer_than_ten_payload_parameters_and_says_which() {
     // two revolute joints with vertical axes: no gravity torque, motion in the horizontal plane
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("planar.toml");
-    std::fs::write(
-        &file,
-        "name = \"planar2r\"\ndh = \"standard\"\n[[joint]]\nname = \"j1\"\na = 0.5\nlower = -3.0\nupper = 3.0\ninertial = { mass = 4.0, com = [-0.25, 0.0, 0.0], inertia = [0.01, 0.0, 0.0, 0.08, 0.0, 0.08] }\n[[joint]]\nname = \"j2\"\na = 0.4\nlower = -3.0\nupper = 3.0\ninertial = { mass = 2.0, com = [-0.2, 0.0, 0.0], inertia = [0.005, 0.0, 0.0, 0.03, 0.0, 0.03] }\n",
-    )
-    .unwrap();
+    std::fs::write(&file, PLANAR).unwrap();
     let robot = idexp::robot::load(&file).unwrap();
     let mount = Mount::new(&robot, None, "test", "frame").unwrap();
     let st = idexp::payload::identify::structural(&robot, &mount).unwrap();
@@ -248,7 +246,11 @@ fn cli_identifies_writes_the_exports_and_rejects_bad_designs() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     for f in ["payload.json", "report.txt", "payload.script", "kuka_load.txt", "residuals.svg"] {
-        assert_eq!(std::fs::read(out.join(f)).unwrap(), std::fs::read(out1.join(f)).unwrap(), "{f} differs between 2 threads and 1");
+        assert_eq!(
+            std::fs::read(out.join(f)).unwrap(),
+            std::fs::read(out1.join(f)).unwrap(),
+            "{f} differs between 2 threads and 1"
+        );
     }
 
     // bad designs: exit 1, the file, the field and what is allowed named, no folder written
@@ -291,4 +293,39 @@ fn cli_identifies_writes_the_exports_and_rejects_bad_designs() {
         .unwrap();
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("objective.columns = \"payload\""));
+}
+
+#[test]
+fn what_a_planar_arm_cannot_sense_comes_from_the_guess() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let file = d.join("planar.toml");
+    std::fs::write(&file, PLANAR).unwrap();
+    let sim = format!(
+        "name = \"planar\"\nrobot = \"{}\"\nrate = 1000.0\ndecimate = 5\nrepetitions = 5\nseed = 3\n[controller]\nbandwidth = 10.0\n[noise]\ntorque = 0.02\nposition = 1e-6\n[reference]\nkind = \"random_fourier\"\nn_h = 4\nfrequency = 0.1\namplitude = 0.6\nseed = 5\n[payload]\nmass = 1.5\ncom = [0.03, -0.02, 0.04]\ninertia = [0.004, 0.0, 0.0, 0.005, 0.0, 0.003]\n",
+        file.display()
+    );
+    let sd = design(&sim);
+    simulate(&sd).write(&d.join("loaded"), &sd).unwrap();
+    let text = format!(
+        "robot = \"{}\"\ntruth = \"loaded\"\n[guess]\nmass = 1.0\ncom = [0.0, 0.0, 0.07]\ninertia = [0.002, 0.0, 0.0, 0.002, 0.0, 0.002]\n[[loaded]]\nfiles = [\"loaded\"]\nharmonics = 4\n",
+        file.display()
+    );
+    std::fs::write(d.join("p.toml"), text).unwrap();
+    let pd = PayloadDesign::read(&d.join("p.toml")).unwrap();
+    let e = idexp::payload::identify(&pd, d, &Control::new()).unwrap();
+    assert_eq!(e.structural.names.len(), 4);
+    assert!(e.payload_std.is_none(), "no σ of the whole payload when 6 parameters are unseen");
+    let p = e.payload.expect("consistent with the guess");
+    let t = e.truth.unwrap();
+    // seen: the mass and the in-plane centre of mass
+    assert!((p.mass / t.mass - 1.0).abs() < 0.01, "mass {}", p.mass);
+    assert!((p.com[0] - t.com[0]).abs() < 0.002 && (p.com[1] - t.com[1]).abs() < 0.002, "{:?}", p.com);
+    // unseen: the height of the centre of mass stays near the guess's, not the truth's
+    assert!((p.com[2] - 0.07).abs() < 1e-3, "com z {} (guess 0.07, truth {})", p.com[2], t.com[2]);
+    // and the seen combinations are the least-squares ones (the prior is consistent with them)
+    let c = e.consistent.as_ref().unwrap();
+    assert!(c.extra_cost < 1e-3, "extra weighted SSR {}", c.extra_cost);
+    assert!(e.notes.iter().any(|n| n.contains("4 of the payload's 10")), "{:?}", e.notes);
+    assert!(e.text().contains("no effect on the torques: "));
 }

@@ -494,7 +494,16 @@ pub fn identify(design: &PayloadDesign, dir: &Path, ctl: &Control) -> Result<Pay
     }
     // consistent fit: one pseudo-inertia, the guess (or nothing) for what the data leave open
     let kinds: Vec<Kind> = (0..10).map(Kind::Inertial).collect();
-    let nominal = DVector::from_vec(guess.map(|g| g.params().to_vec()).unwrap_or_else(|| vec![0.0; 10]));
+    // the prior: the guess's inertia about its centre of mass (per unit mass),
+    // placed at a centre of mass and with a mass that agree with what the data
+    // see — the guess's φ corrected by the least change (in the scales s) that
+    // reproduces θ̂_b, then rebuilt as a rigid body — so that what the data
+    // leave open (e.g. the height of the centre of mass on a planar arm) is
+    // the guess's, and the prior itself is physically consistent
+    let nominal = DVector::from_vec(match guess {
+        Some(g) => prior_from_guess(&g, &st.k, &stk.theta, &kinds),
+        None => vec![0.0; 10],
+    });
     let scale = consistent::regularization_scale(&kinds, &nominal);
     let (consistent, interrupted) = if ctl.interrupted() {
         (None, true)
@@ -593,6 +602,37 @@ pub fn identify(design: &PayloadDesign, dir: &Path, ctl: &Control) -> Result<Pay
         interrupted,
         plot,
     })
+}
+
+/// The consistent prior of a guess given the base estimate θ̂_b = K φ (see [`identify`]).
+fn prior_from_guess(g: &Payload, k: &DMatrix<f64>, theta_b: &DVector<f64>, kinds: &[Kind]) -> Vec<f64> {
+    let guess = DVector::from_column_slice(&g.params());
+    let s = consistent::regularization_scale(kinds, &guess);
+    let s2 = DMatrix::from_diagonal(&s.map(|v| v * v));
+    let Some(chol) = (k * &s2 * k.transpose()).cholesky() else {
+        return guess.iter().copied().collect();
+    };
+    // the guess scaled to a mass, corrected to reproduce θ̂_b; twice: first to
+    // find the mass the data see, then with the guess scaled to it (the
+    // unseen first moments are then the guess's centre times that mass)
+    let mut mass = g.mass;
+    let mut mix = guess.clone();
+    for _ in 0..2 {
+        let phi = &guess * (mass / g.mass);
+        mix = &phi + &s2 * k.transpose() * chol.solve(&(theta_b - k * &phi));
+        if !(mix[9].is_finite() && mix[9] > 0.0) {
+            return guess.iter().copied().collect();
+        }
+        mass = mix[9];
+    }
+    let f = mass / g.mass;
+    Payload {
+        mass,
+        com: [mix[6] / mass, mix[7] / mass, mix[8] / mass],
+        inertia: g.inertia.map(|v| v * f),
+    }
+    .params()
+    .to_vec()
 }
 
 fn rms_per_joint(d: &Dataset, v: &DVector<f64>, n: usize) -> Vec<f64> {
