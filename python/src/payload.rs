@@ -4,7 +4,7 @@
 use crate::arrays::{out1, out_rows};
 use crate::err::IntoPy;
 use crate::long::run_long;
-use crate::problems::{base_dir, from_dict, source, to_dict, Source};
+use crate::problems::{design_and_dir, to_dict};
 use idexp::payload::{export, PayloadDesign, PayloadResult};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
@@ -100,17 +100,18 @@ pub fn payload(
     time_limit: Option<f64>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<PayloadFit> {
-    let (d, dir) = match source(design)? {
-        Source::File(p) => (PayloadDesign::read(&p).py()?, p.parent().map(Path::to_path_buf).unwrap_or_default()),
-        Source::Dict(v) => {
-            let mut d: PayloadDesign = from_dict(v, "payload design")?;
+    let (d, dir) = design_and_dir(
+        design,
+        base_dir,
+        "payload design",
+        PayloadDesign::read,
+        |d| {
             if d.name.is_empty() {
                 d.name = "payload".into();
             }
-            d.validate("payload design (dict)").py()?;
-            (d, self::base_dir(base_dir))
-        }
-    };
+        },
+        PayloadDesign::validate,
+    )?;
     let res = run_long(py, time_limit, progress.as_ref(), |ctl| idexp::payload::run(&d, &dir, ctl))?;
     Ok(PayloadFit { inner: Arc::new(res) })
 }

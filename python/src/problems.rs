@@ -68,6 +68,28 @@ pub(crate) fn base_dir(b: Option<PathBuf>) -> PathBuf {
     b.unwrap_or_else(|| PathBuf::from("."))
 }
 
+/// A design and the folder its relative paths start from: a file is read by
+/// `read` (its folder); a dict is deserialised (`what` names it in errors),
+/// given its default name by `name` and checked by `validate` (`base_dir`).
+pub(crate) fn design_and_dir<T: serde::de::DeserializeOwned>(
+    design: &Bound<'_, PyAny>,
+    base_dir: Option<PathBuf>,
+    what: &str,
+    read: impl FnOnce(&Path) -> idexp::Result<T>,
+    name: impl FnOnce(&mut T),
+    validate: impl FnOnce(&T, &str) -> idexp::Result<()>,
+) -> PyResult<(T, PathBuf)> {
+    Ok(match source(design)? {
+        Source::File(p) => (read(&p).py()?, p.parent().map(Path::to_path_buf).unwrap_or_default()),
+        Source::Dict(v) => {
+            let mut d: T = from_dict(v, what)?;
+            name(&mut d);
+            validate(&d, &format!("{what} (dict)")).py()?;
+            (d, self::base_dir(base_dir))
+        }
+    })
+}
+
 fn resolve(dir: &Path, p: &Path) -> PathBuf {
     if p.is_relative() {
         dir.join(p)

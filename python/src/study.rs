@@ -4,7 +4,7 @@
 use crate::arrays::{out1, out_rows};
 use crate::err::IntoPy;
 use crate::long::run_long;
-use crate::problems::{base_dir, from_dict, source, to_dict, Source};
+use crate::problems::{design_and_dir, to_dict};
 use crate::robot::Robot;
 use idexp::ident::study::{run_study, StudyDesign, StudyResult};
 use numpy::{PyArray1, PyArray2};
@@ -123,17 +123,18 @@ pub fn study(
     time_limit: Option<f64>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<Study> {
-    let (d, dir) = match source(design)? {
-        Source::File(p) => (StudyDesign::read(&p).py()?, p.parent().map(Path::to_path_buf).unwrap_or_default()),
-        Source::Dict(v) => {
-            let mut d: StudyDesign = from_dict(v, "study design")?;
+    let (d, dir) = design_and_dir(
+        design,
+        base_dir,
+        "study design",
+        StudyDesign::read,
+        |d| {
             if d.name.is_empty() {
                 d.name = "study".into();
             }
-            d.validate("study design (dict)").py()?;
-            (d, self::base_dir(base_dir))
-        }
-    };
+        },
+        StudyDesign::validate,
+    )?;
     let res = run_long(py, time_limit, progress.as_ref(), |ctl| run_study(&d, &dir, ctl))?;
     Ok(Study { inner: Arc::new(res) })
 }

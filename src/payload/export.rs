@@ -72,10 +72,7 @@ fn num(v: f64) -> String {
 /// `payload.script`: URScript's `set_target_payload` (the payload's frame is
 /// taken as UR's tool flange; `header` lines become comments).
 pub fn urscript(p: &Payload, frame: &str, header: &[String]) -> String {
-    let mut s = String::new();
-    for h in header {
-        let _ = writeln!(s, "# {h}");
-    }
+    let mut s = comments(header, "# ", "");
     let _ = writeln!(
         s,
         "# mass (kg), centre of gravity in the {frame} frame (m), inertia about it [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] (kg·m²)"
@@ -131,10 +128,7 @@ pub fn franka(p: &Payload) -> FrankaLoad {
 pub fn kuka(p: &Payload, header: &[String]) -> String {
     let pr = principal(p);
     let mm = |v: f64| v * 1000.0;
-    let mut s = String::new();
-    for h in header {
-        let _ = writeln!(s, "; {h}");
-    }
+    let mut s = comments(header, "; ", "");
     let _ = writeln!(
         s,
         "; M (kg), X Y Z centre of mass (mm), A B C orientation of the principal axes (deg, Z-Y'-X''), JX JY JZ principal moments (kg·m²)"
@@ -222,29 +216,46 @@ fn inertia_attrs(p: &Payload) -> String {
     )
 }
 
+/// The header lines as comments: `open` text `close` on each line (`--`
+/// shortened in XML comments, where it may not appear).
+fn comments(header: &[String], open: &str, close: &str) -> String {
+    header
+        .iter()
+        .map(|h| {
+            let h = if open == "<!-- " { h.replace("--", "-") } else { h.clone() };
+            format!("{open}{h}{close}\n")
+        })
+        .collect()
+}
+
 /// `payload.urdf`: a link `payload` fixed to `frame`, with the payload's
 /// inertial (merge it into the robot's URDF, or include it with xacro).
 pub fn urdf(p: &Payload, frame: &str, header: &[String]) -> String {
-    let mut s = String::from("<?xml version=\"1.0\"?>\n");
-    for h in header {
-        let _ = writeln!(s, "<!-- {} -->", h.replace("--", "-"));
-    }
-    let _ = writeln!(s, "<robot name=\"payload\">");
-    let _ = writeln!(s, "  <link name=\"{frame}\"/>");
-    let _ = writeln!(s, "  <link name=\"payload\">");
-    let _ = writeln!(s, "    <inertial>");
-    let _ = writeln!(s, "      <origin xyz=\"{} {} {}\" rpy=\"0 0 0\"/>", num(p.com[0]), num(p.com[1]), num(p.com[2]));
-    let _ = writeln!(s, "      <mass value=\"{}\"/>", num(p.mass));
-    let _ = writeln!(s, "      <inertia {}/>", inertia_attrs(p));
-    let _ = writeln!(s, "    </inertial>");
-    let _ = writeln!(s, "  </link>");
-    let _ = writeln!(s, "  <joint name=\"{frame}_payload\" type=\"fixed\">");
-    let _ = writeln!(s, "    <parent link=\"{frame}\"/>");
-    let _ = writeln!(s, "    <child link=\"payload\"/>");
-    let _ = writeln!(s, "    <origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>");
-    let _ = writeln!(s, "  </joint>");
-    let _ = writeln!(s, "</robot>");
-    s
+    format!(
+        r#"<?xml version="1.0"?>
+{c}<robot name="payload">
+  <link name="{frame}"/>
+  <link name="payload">
+    <inertial>
+      <origin xyz="{x} {y} {z}" rpy="0 0 0"/>
+      <mass value="{m}"/>
+      <inertia {i}/>
+    </inertial>
+  </link>
+  <joint name="{frame}_payload" type="fixed">
+    <parent link="{frame}"/>
+    <child link="payload"/>
+    <origin xyz="0 0 0" rpy="0 0 0"/>
+  </joint>
+</robot>
+"#,
+        c = comments(header, "<!-- ", " -->"),
+        x = num(p.com[0]),
+        y = num(p.com[1]),
+        z = num(p.com[2]),
+        m = num(p.mass),
+        i = inertia_attrs(p)
+    )
 }
 
 /// `payload_mjcf.xml`: a MuJoCo model whose body `payload` (inside a body
@@ -252,33 +263,29 @@ pub fn urdf(p: &Payload, frame: &str, header: &[String]) -> String {
 /// `payload` body into the frame's body of the robot's MJCF.
 pub fn mjcf(p: &Payload, frame: &str, header: &[String]) -> String {
     let i = &p.inertia;
-    let mut s = String::new();
-    for h in header {
-        let _ = writeln!(s, "<!-- {} -->", h.replace("--", "-"));
-    }
-    let _ = writeln!(s, "<mujoco model=\"payload\">");
-    let _ = writeln!(s, "  <worldbody>");
-    let _ = writeln!(s, "    <body name=\"{frame}\">");
-    let _ = writeln!(s, "      <body name=\"payload\">");
-    let _ = writeln!(
-        s,
-        "        <inertial pos=\"{} {} {}\" mass=\"{}\" fullinertia=\"{} {} {} {} {} {}\"/>",
-        num(p.com[0]),
-        num(p.com[1]),
-        num(p.com[2]),
-        num(p.mass),
-        num(i[0]),
-        num(i[3]),
-        num(i[5]),
-        num(i[1]),
-        num(i[2]),
-        num(i[4])
-    );
-    let _ = writeln!(s, "      </body>");
-    let _ = writeln!(s, "    </body>");
-    let _ = writeln!(s, "  </worldbody>");
-    let _ = writeln!(s, "</mujoco>");
-    s
+    format!(
+        r#"{c}<mujoco model="payload">
+  <worldbody>
+    <body name="{frame}">
+      <body name="payload">
+        <inertial pos="{x} {y} {z}" mass="{m}" fullinertia="{ixx} {iyy} {izz} {ixy} {ixz} {iyz}"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"#,
+        c = comments(header, "<!-- ", " -->"),
+        x = num(p.com[0]),
+        y = num(p.com[1]),
+        z = num(p.com[2]),
+        m = num(p.mass),
+        ixx = num(i[0]),
+        iyy = num(i[3]),
+        izz = num(i[5]),
+        ixy = num(i[1]),
+        ixz = num(i[2]),
+        iyz = num(i[4])
+    )
 }
 
 /// `payload.toml`: the `[payload]` table of idexp's excite and simulate
@@ -295,10 +302,7 @@ pub fn idexp_table(p: &Payload, frame: &str, header: &[String]) -> crate::error:
         payload: &'a crate::robot::payload::PayloadSpec,
     }
     let body = toml::to_string(&Table { payload: &spec }).map_err(|e| crate::error::Error::Numerical(e.to_string()))?;
-    let mut s = String::new();
-    for h in header {
-        let _ = writeln!(s, "# {h}");
-    }
+    let mut s = comments(header, "# ", "");
     let _ = writeln!(s, "# paste into an idexp excite or simulate design: the robot then carries this payload");
     s.push_str(&body);
     Ok(s)

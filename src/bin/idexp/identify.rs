@@ -255,19 +255,15 @@ fn run_study(a: &IdentifyArgs, ctl: &Control, started: SystemTime) -> anyhow::Re
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&design.name));
     idexp::io::folder::check_out_dir(&out)?;
     let res = idexp::ident::study::run_study(&design, &dir, ctl)?;
-    idexp::io::folder::begin(&out, "identify", &fingerprint_of(&design)?)?;
-    let (files, state) = res.write(&out, Some(started))?;
-    if a.json {
-        crate::print_json(&res.estimate)?;
-    } else {
-        print!("{}", res.estimate.text());
-        println!("\n{} files written to {}", files.len(), out.display());
-    }
-    Ok(match (state, res.estimate.unusable_reason()) {
-        (RunState::Interrupted, _) => Outcome::Interrupted,
-        (_, Some(why)) => Outcome::Unusable(why),
-        _ => Outcome::Done,
-    })
+    crate::write_folder(
+        &out,
+        "identify",
+        &fingerprint_of(&design)?,
+        || res.write(&out, Some(started)),
+        a.json.then_some(&res.estimate),
+        &res.estimate.text(),
+        res.estimate.unusable_reason(),
+    )
 }
 
 /// The log spec of `--log-format` / `--log-map` (with `--topic`), if any.

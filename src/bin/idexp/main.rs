@@ -81,6 +81,35 @@ pub enum Outcome {
     Interrupted,
 }
 
+/// The end of a command that runs a library job and writes its folder:
+/// prepares `out` (`io::folder::begin`), writes it with `write` (files and
+/// state), prints `json` with `--json` or else the text report and the file
+/// count, and maps the state and `unusable` reason to the outcome.
+pub fn write_folder<T: serde::Serialize + ?Sized>(
+    out: &std::path::Path,
+    command: &str,
+    fingerprint: &str,
+    write: impl FnOnce() -> idexp::Result<(Vec<std::path::PathBuf>, idexp::io::status::RunState)>,
+    json: Option<&T>,
+    text: &str,
+    unusable: Option<String>,
+) -> anyhow::Result<Outcome> {
+    idexp::io::folder::begin(out, command, fingerprint)?;
+    let (files, state) = write()?;
+    match json {
+        Some(v) => print_json(v)?,
+        None => {
+            print!("{text}");
+            println!("\n{} files written to {}", files.len(), out.display());
+        }
+    }
+    Ok(match (state, unusable) {
+        (idexp::io::status::RunState::Interrupted, _) => Outcome::Interrupted,
+        (_, Some(why)) => Outcome::Unusable(why),
+        _ => Outcome::Done,
+    })
+}
+
 /// Exit code of an error in the input (files, values).
 const EXIT_INPUT: i32 = 1;
 /// Exit code of a run whose result is not usable.

@@ -6,7 +6,7 @@ use crate::Outcome;
 use anyhow::bail;
 use idexp::excitation::design::ExciteDesign;
 use idexp::excitation::objective::Columns;
-use idexp::io::status::{fingerprint_of, RunState};
+use idexp::io::status::fingerprint_of;
 use idexp::optim::Control;
 use idexp::payload::PayloadDesign;
 use std::path::{Path, PathBuf};
@@ -65,17 +65,13 @@ fn identify(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&design.name));
     idexp::io::folder::check_out_dir(&out)?;
     let res = idexp::payload::run(&design, &dir, ctl)?;
-    idexp::io::folder::begin(&out, "payload identify", &fingerprint_of(&design)?)?;
-    let (files, state) = res.write(&out, Some(started))?;
-    if a.json {
-        crate::print_json(&res.estimate)?;
-    } else {
-        print!("{}", res.estimate.text());
-        println!("\n{} files written to {}", files.len(), out.display());
-    }
-    Ok(match (state, res.estimate.unusable_reason()) {
-        (RunState::Interrupted, _) => Outcome::Interrupted,
-        (_, Some(why)) => Outcome::Unusable(why),
-        _ => Outcome::Done,
-    })
+    crate::write_folder(
+        &out,
+        "payload identify",
+        &fingerprint_of(&design)?,
+        || res.write(&out, Some(started)),
+        a.json.then_some(&res.estimate),
+        &res.estimate.text(),
+        res.estimate.unusable_reason(),
+    )
 }
