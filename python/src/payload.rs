@@ -8,7 +8,7 @@ use crate::problems::{design_and_dir, to_dict};
 use idexp::payload::{export, PayloadDesign, PayloadResult};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 
 /// The result of a payload identification (`idexp.payload`).

@@ -9,7 +9,7 @@ use crate::robot::Robot;
 use idexp::ident::study::{run_study, StudyDesign, StudyResult};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 
 /// The result of an identification study (`idexp.study`).
