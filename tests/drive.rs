@@ -533,7 +533,7 @@ fn bad_drive_inputs_are_errors_naming_file_and_joint() {
 #[test]
 fn friction_coefficient_signs_are_checked_under_their_file_keys() {
     let asym = |k: &str, v: f64| {
-        let mut vals = vec![("fc_pos", 1.0), ("fc_neg", -1.0), ("fv_pos", 0.5), ("fv_neg", 0.5)];
+        let mut vals = [("fc_pos", 1.0), ("fc_neg", -1.0), ("fv_pos", 0.5), ("fv_neg", 0.5)];
         for e in vals.iter_mut().filter(|e| e.0 == k) {
             e.1 = v;
         }
