@@ -2,7 +2,7 @@
 //! (rotor inertia, gear ratio, friction), joint coupling, named frames, and the
 //! layout of the standard parameter vector.
 //!
-//! Size (~950 lines, above the house's ~800): the model's types, their
+//! Size (~980 lines, above the house's ~800): the model's types, their
 //! construction checks and the parameter layout are one concern (what a
 //! valid `Robot` is); the drive-parameter walk itself lives in
 //! `dynamics/friction.rs` (`visit_drive_params`).
