@@ -525,6 +525,52 @@ fn bad_drive_inputs_are_errors_naming_file_and_joint() {
     );
 }
 
+/// The robot file's sign check of the friction coefficients walks the drive
+/// parameters with `ParamKind::sign`: every signed coefficient of both models
+/// is checked under its file key (a wrong sign is an error naming the joint,
+/// the key, the value and the allowed sign), the free ones (F0, Stribeck)
+/// take either sign.
+#[test]
+fn friction_coefficient_signs_are_checked_under_their_file_keys() {
+    let asym = |k: &str, v: f64| {
+        let mut vals = [("fc_pos", 1.0), ("fc_neg", -1.0), ("fv_pos", 0.5), ("fv_neg", 0.5)];
+        for e in vals.iter_mut().filter(|e| e.0 == k) {
+            e.1 = v;
+        }
+        let body: String = vals.iter().map(|(k, v)| format!("{k} = {v}\n")).collect();
+        rpr_with("", &format!("[[drive]]\njoint = \"slide\"\nfriction = \"asymmetric\"\n{body}"))
+    };
+    for (key, bad, allowed) in [
+        ("fc_pos", -0.5, "≥ 0"),
+        ("fc_neg", 0.5, "≤ 0"),
+        ("fv_pos", -0.5, "≥ 0"),
+        ("fv_neg", -0.5, "≥ 0"),
+    ] {
+        let e = err_text(parse(&asym(key, bad)));
+        assert!(
+            e.contains("drive_test.toml") && e.contains(&format!("joint `slide` {key}")) && e.contains(allowed) && e.contains(&format!("found {bad}")),
+            "{key}: {e}"
+        );
+    }
+    for (key, bad) in [("fc", -0.5), ("fv", -0.5)] {
+        let e = err_text(parse(&rpr_with(
+            "",
+            &format!("[[drive]]\njoint = \"base\"\nfc = 1.0\nfv = 1.0\n{key} = {bad}\n").replacen(&format!("{key} = 1.0\n"), "", 1),
+        )));
+        assert!(
+            e.contains(&format!("joint `base` {key}")) && e.contains("≥ 0") && e.contains(&format!("found {bad}")),
+            "{key}: {e}"
+        );
+    }
+    // offsets and Stribeck coefficients are free
+    let free = rpr_with(
+        "",
+        "[[drive]]\njoint = \"slide\"\nfriction = \"asymmetric\"\nfc_pos = 1.0\nfc_neg = -1.0\nfv_pos = 0.5\nfv_neg = 0.5\nf0 = -0.3\ncoulomb = \"stribeck\"\nvelocity_scale = 0.01\nstribeck_velocity = 0.1\nfs_pos = -0.2\nfs_neg = 0.2\n",
+    );
+    parse(&free).unwrap();
+    parse(&rpr_with("", "[[drive]]\njoint = \"base\"\nfc = 1.0\nfv = 1.0\nf0 = -2.0\n")).unwrap();
+}
+
 /// Why the tanh model misses the standstill acceptance on the shipped
 /// pick-and-place (measured, see docs/robots.md, "Drives"): the arm is not at rest
 /// during the dwell (it creeps at 0.1–1 v_s, so q̇ = q̈ = 0 is no fix), and

@@ -34,7 +34,7 @@ use crate::error::{Error, Result};
 use crate::optim::conic::{self as bridge, ConicStatus, Entries as Triplets, Program, Settings};
 use crate::optim::Control;
 use crate::params::BaseParams;
-use crate::robot::{ParamKind, Robot};
+use crate::robot::{ParamKind, ParamSign, Robot};
 use clarabel::solver::SupportedConeT;
 use nalgebra::{DMatrix, DVector, Matrix4, SymmetricEigen};
 use serde::Serialize;
@@ -55,15 +55,16 @@ pub enum Kind {
 /// The role of every standard parameter of `robot`, and the index of each
 /// link's first inertial parameter.
 pub fn kinds_of(robot: &Robot) -> (Vec<Kind>, Vec<usize>) {
-    use ParamKind::*;
     let kinds = robot
         .params()
         .iter()
         .map(|p| match p.kind {
             k if k.is_inertial() => Kind::Inertial(ParamKind::INERTIAL.iter().position(|x| *x == k).unwrap_or(0)),
-            Ia | Fc | Fv | FcPos | FvPos | FvNeg => Kind::NonNegative,
-            FcNeg => Kind::NonPositive,
-            _ => Kind::Free,
+            k => match k.sign() {
+                ParamSign::NonNegative => Kind::NonNegative,
+                ParamSign::NonPositive => Kind::NonPositive,
+                ParamSign::Free => Kind::Free,
+            },
         })
         .collect();
     let links = (0..robot.dof()).map(|i| robot.link_param_offset(i)).collect();

@@ -17,7 +17,7 @@
 
 use crate::error::{Error, Result};
 use crate::params::BaseParams;
-use crate::robot::{regressor_rows, ParamKind, Robot, Workspace};
+use crate::robot::{regressor_rows, ParamSign, Robot, Workspace};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -495,9 +495,9 @@ pub fn errors(ds: &Dataset, theta: &[f64]) -> Errors {
 /// Base parameters that must be positive: every standard parameter in their
 /// combination enters with a positive coefficient and is itself non-negative
 /// for any physical robot (masses, inertias XX/YY/ZZ about the link origin,
-/// rotor inertias, symmetric Coulomb and viscous friction, Fc⁺, Fv⁺, Fv⁻).
+/// rotor inertias, symmetric Coulomb and viscous friction, Fc⁺, Fv⁺, Fv⁻:
+/// [`ParamKind::sign`](crate::robot::ParamKind::sign)).
 pub fn must_be_positive(robot: &Robot, base: &BaseParams) -> Vec<bool> {
-    use ParamKind::*;
     let info = robot.params();
     (0..base.n_base())
         .map(|i| {
@@ -507,7 +507,7 @@ pub fn must_be_positive(robot: &Robot, base: &BaseParams) -> Vec<bool> {
                 if v == 0.0 {
                     continue;
                 }
-                let nonneg = matches!(info[c].kind, XX | YY | ZZ | M | Ia | Fc | Fv | FcPos | FvPos | FvNeg);
+                let nonneg = info[c].kind.sign() == ParamSign::NonNegative;
                 if v < 0.0 || !nonneg {
                     return false;
                 }

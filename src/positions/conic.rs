@@ -131,6 +131,30 @@ fn push_weighted_information(a: &mut Triplets, bb: &mut [f64], r: usize, pb: &Pr
     }
 }
 
+/// Appends u_j ≤ ln x_j for j in 0..p (u_j in the columns `u0 + j`, x_j in
+/// the column `x(j)`): one exponential cone (u_j, 1, x_j) each.
+fn push_log_epigraphs(a: &mut Triplets, b: &mut Vec<f64>, cones: &mut Vec<SupportedConeT<f64>>, u0: usize, p: usize, x: impl Fn(usize) -> usize) {
+    for j in 0..p {
+        let r = a.rows(3);
+        a.push(r, u0 + j, -1.0);
+        a.push(r + 2, x(j), -1.0);
+        b.extend_from_slice(&[0.0, 1.0, 0.0]);
+        cones.push(SupportedConeT::ExponentialConeT());
+    }
+}
+
+/// The program min qᵀx s.t. b − Ax ∈ cones (no quadratic term).
+fn linear(n_var: usize, q: Vec<f64>, a: Triplets, b: Vec<f64>, cones: Vec<SupportedConeT<f64>>) -> Program {
+    Program {
+        n_var,
+        p: None,
+        q,
+        a,
+        b,
+        cones,
+    }
+}
+
 /// Solves `prog` with Clarabel (the bridge [`crate::optim::conic`]) at
 /// tolerance `tol`; the first `n_w` variables are the weights. Returns
 /// Clarabel's dual solution beside the result (empty when not set up).
@@ -266,28 +290,8 @@ pub fn solve_d_socp(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicRe
         }
     }
     // exponential cones (u_j, 1, J_jj)
-    for j in 0..p {
-        let r = a.rows(3);
-        a.push(r, u0 + j, -1.0);
-        a.push(r + 2, jidx(j, j), -1.0);
-        b.extend_from_slice(&[0.0, 1.0, 0.0]);
-        cones.push(SupportedConeT::ExponentialConeT());
-    }
-    solve(
-        Program {
-            n_var,
-            p: None,
-            q,
-            a,
-            b,
-            cones,
-        },
-        set,
-        set.clarabel_tol,
-        k,
-        ctl,
-    )
-    .1
+    push_log_epigraphs(&mut a, &mut b, &mut cones, u0, p, |j| jidx(j, j));
+    solve(linear(n_var, q, a, b, cones), set, set.clarabel_tol, k, ctl).1
 }
 
 /// D-optimal design, lifted semidefinite form (see the module docs).
@@ -324,28 +328,8 @@ pub fn solve_d_sdp(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicRes
     }
     b.extend_from_slice(&bb);
     cones.push(SupportedConeT::PSDTriangleConeT(n2));
-    for j in 0..p {
-        let r = a.rows(3);
-        a.push(r, u0 + j, -1.0);
-        a.push(r + 2, zidx(j, j), -1.0);
-        b.extend_from_slice(&[0.0, 1.0, 0.0]);
-        cones.push(SupportedConeT::ExponentialConeT());
-    }
-    solve(
-        Program {
-            n_var,
-            p: None,
-            q,
-            a,
-            b,
-            cones,
-        },
-        set,
-        set.clarabel_tol,
-        k,
-        ctl,
-    )
-    .1
+    push_log_epigraphs(&mut a, &mut b, &mut cones, u0, p, |j| zidx(j, j));
+    solve(linear(n_var, q, a, b, cones), set, set.clarabel_tol, k, ctl).1
 }
 
 /// A-optimal design: min tr(Kᵀ M(w)⁻¹ K) (K p×p, e.g. the identity).
@@ -417,21 +401,7 @@ pub fn solve_a(pb: &Problem, kmat: &DMatrix<f64>, set: &SolverOptions, ctl: &Con
         }
         cones.push(SupportedConeT::SecondOrderConeT(l * p + 2));
     }
-    solve(
-        Program {
-            n_var,
-            p: None,
-            q,
-            a,
-            b,
-            cones,
-        },
-        set,
-        1e-2 * set.clarabel_tol,
-        k,
-        ctl,
-    )
-    .1
+    solve(linear(n_var, q, a, b, cones), set, 1e-2 * set.clarabel_tol, k, ctl).1
 }
 
 /// E-optimal design: max t s.t. M(w) − tI ⪰ 0. Returns the PSD dual matrix in `dual`.
@@ -455,20 +425,7 @@ pub fn solve_e(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicResult 
     }
     b.extend_from_slice(&bb);
     cones.push(SupportedConeT::PSDTriangleConeT(p));
-    let (z, mut res) = solve(
-        Program {
-            n_var,
-            p: None,
-            q,
-            a,
-            b,
-            cones,
-        },
-        set,
-        1e-2 * set.clarabel_tol,
-        k,
-        ctl,
-    );
+    let (z, mut res) = solve(linear(n_var, q, a, b, cones), set, 1e-2 * set.clarabel_tol, k, ctl);
     {
         // the dual rows of the PSD block follow the 1 + k rows before it
         let base = 1 + k;

@@ -403,7 +403,7 @@ pub fn run_design(design: &PositionsDesign, dir: &Path, ctl: &Control) -> Result
                 scale: *scale,
             };
             let omegas: Vec<f64> = set.frequencies_hz.iter().map(|f| 2.0 * std::f64::consts::PI * f).collect();
-            robot = Some(model.rigid.clone());
+            // the source owns the model (its rigid robot is the run's robot, handed back below, not cloned)
             let src = ElasticSource::new(model, omegas, set.noise, set.estimator, set.output, *scale)?;
             let obs = ctl.observer();
             obs.phase("information", Some(c.q.len() as u64));
@@ -430,8 +430,10 @@ pub fn run_design(design: &PositionsDesign, dir: &Path, ctl: &Control) -> Result
                 }
                 None => None,
             };
+            let names = src.names();
+            robot = Some(src.model.rigid);
             (
-                src.names(),
+                names,
                 c.q,
                 factors,
                 c.costs,
@@ -446,8 +448,9 @@ pub fn run_design(design: &PositionsDesign, dir: &Path, ctl: &Control) -> Result
             samples,
             noise,
         } => {
+            // the source owns the robot while it computes; handed back below, not cloned
             let r = robot
-                .clone()
+                .take()
                 .ok_or_else(|| Error::invalid(&ctx, "robot", "source = \"rigid\" needs a robot file"))?;
             let n = r.dof();
             let amp = amplitude.resolve(n, &ctx, "information.amplitude")?;
@@ -478,8 +481,10 @@ pub fn run_design(design: &PositionsDesign, dir: &Path, ctl: &Control) -> Result
                 Some(pp) => Some(read_prior(&dir.join(pp), src.n_params())?),
                 None => None,
             };
+            let names = src.names();
+            robot = Some(src.robot);
             (
-                src.names(),
+                names,
                 c.q,
                 factors,
                 c.costs,

@@ -614,6 +614,11 @@ fn apply_drive(
 
 /// The friction model of a `[[drive]]` entry; `current` (from the URDF or the
 /// default) supplies symmetric coefficients not given.
+///
+/// Written per variant, not over the drive-parameter walk
+/// (`dynamics::visit_drive_params`): the walk visits the coefficients of a
+/// model that exists, while this decides which model the entry declares and
+/// which keys it may carry (each misplaced key is an error naming it).
 fn drive_friction(ctx: &str, k: usize, ds: &DriveSpec, current: Friction, default_friction: FrictionName) -> Result<Friction> {
     let field = |s: &str| format!("drive[{k}] (joint `{}`).{s}", ds.joint);
     let model = ds.friction.unwrap_or(default_friction);

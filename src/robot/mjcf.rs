@@ -106,6 +106,10 @@ fn drive_attrs(robot: &Robot, j: usize) -> (String, Vec<String>) {
     if let Some(ia) = d.rotor_inertia {
         let _ = write!(a, " armature=\"{}\"", num(ia));
     }
+    // not a walk over the drive parameters (`dynamics::visit_drive_params`):
+    // MJCF has one symmetric dry and one viscous coefficient, so the model is
+    // translated by its meaning (the symmetric part of the asymmetric model),
+    // which needs the variant, and each coefficient it cannot express is named
     let (fc, fv) = match d.friction {
         Friction::None => (0.0, 0.0),
         Friction::Symmetric { fc, fv, offset } => {

@@ -2,7 +2,7 @@
 //! (rotor inertia, gear ratio, friction), joint coupling, named frames, and the
 //! layout of the standard parameter vector.
 //!
-//! Size (~950 lines, above the house's ~800): the model's types, their
+//! Size (~980 lines, above the house's ~800): the model's types, their
 //! construction checks and the parameter layout are one concern (what a
 //! valid `Robot` is); the drive-parameter walk itself lives in
 //! `dynamics/friction.rs` (`visit_drive_params`).
@@ -445,6 +445,22 @@ impl ParamKind {
         })
     }
 
+    /// The sign of this kind's value in any physical robot ([`ParamSign`]):
+    /// masses, the inertias XX/YY/ZZ about the link origin, rotor inertias,
+    /// symmetric Coulomb and viscous friction, Fc⁺, Fv⁺ and Fv⁻ are ≥ 0, Fc⁻
+    /// is ≤ 0, the rest (products of inertia, first moments, offsets F0,
+    /// Stribeck coefficients) are free. The one statement of these signs: the
+    /// robot file's checks, the plausibility flags of an estimate and the
+    /// bounds of the consistent fit read it.
+    pub fn sign(self) -> ParamSign {
+        use ParamKind::*;
+        match self {
+            XX | YY | ZZ | M | Ia | Fc | Fv | FcPos | FvPos | FvNeg => ParamSign::NonNegative,
+            FcNeg => ParamSign::NonPositive,
+            XY | XZ | YZ | MX | MY | MZ | F0 | Fs | FsPos | FsNeg => ParamSign::Free,
+        }
+    }
+
     /// True for the 10 rigid-body inertial parameters.
     pub fn is_inertial(self) -> bool {
         matches!(self as u8, 0..=9)
@@ -467,6 +483,17 @@ impl ParamKind {
         ParamKind::MZ,
         ParamKind::M,
     ];
+}
+
+/// The sign a parameter's value has in any physical robot ([`ParamKind::sign`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ParamSign {
+    /// ≥ 0.
+    NonNegative,
+    /// ≤ 0 (Fc⁻ of the asymmetric model: the Coulomb term opposes negative velocity).
+    NonPositive,
+    /// Either sign.
+    Free,
 }
 
 /// One entry of the standard parameter vector.

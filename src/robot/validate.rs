@@ -8,7 +8,8 @@
 //! uniquely named joints, links and frames with finite placements, a
 //! well-conditioned coupling matrix and a gravity of sane magnitude.
 
-use super::model::{Friction, Inertial, Robot, RobotParts};
+use super::dynamics::drive_params;
+use super::model::{Inertial, ParamSign, Robot, RobotParts};
 use crate::error::{Error, Result};
 use nalgebra::{Isometry3, Matrix3};
 use std::path::Path;
@@ -160,23 +161,14 @@ pub fn check(file: &Path, p: &RobotParts) -> Result<()> {
     }
     for (i, d) in p.drives.iter().enumerate() {
         let jn = p.joints.get(i).map(|j| j.name.as_str()).unwrap_or("?");
-        let coeffs: Vec<(&str, f64, bool)> = match d.friction {
-            Friction::None => vec![],
-            // (name, value, must be ≥ 0; false: must be ≤ 0)
-            Friction::Symmetric { fc, fv, .. } => vec![("fc", fc, true), ("fv", fv, true)],
-            Friction::Asymmetric {
-                fc_pos,
-                fc_neg,
-                fv_pos,
-                fv_neg,
-                ..
-            } => vec![
-                ("fc_pos", fc_pos, true),
-                ("fc_neg", fc_neg, false),
-                ("fv_pos", fv_pos, true),
-                ("fv_neg", fv_neg, true),
-            ],
-        };
+        // the friction coefficients with a sign (`ParamKind::sign`), by their
+        // file keys, in the layout order of the drive-parameter walk
+        let params = drive_params(d);
+        let coeffs = params.friction().iter().filter_map(|&(k, v)| match k.sign() {
+            ParamSign::NonNegative => Some((k.drive_key().unwrap_or(k.label()), v, true)),
+            ParamSign::NonPositive => Some((k.drive_key().unwrap_or(k.label()), v, false)),
+            ParamSign::Free => None,
+        });
         for (name, v, nonneg) in coeffs {
             let ok = v.is_finite() && if nonneg { v >= 0.0 } else { v <= 0.0 };
             if !ok {

@@ -1,0 +1,198 @@
+//! One run made ready for estimation, shared by the one-run pipeline
+//! ([`super::identify`]) and the study: its filter, its coordinates, the
+//! processed samples and the rows the standstill rule keeps.
+
+use super::{process_with, Coordinates, Dataset, Filter, FilterChoice, IdentOptions, Method, Processed, RowsUsed, Run, Standstill};
+use crate::error::{Error, Result};
+use crate::params::BaseParams;
+use crate::robot::Robot;
+use crate::trajectory::FourierTrajectory;
+
+/// Chooses the filter: a given one, or Fourier filtering at the trajectory's
+/// ω and n_h when known, else a 10 Hz low-pass.
+pub fn resolve_filter(choice: &FilterChoice, trajectory: Option<&FourierTrajectory>, harmonics: Option<usize>) -> Filter {
+    match (choice, trajectory) {
+        (FilterChoice::Given(Filter::Fourier { omega, n_h }), _) => Filter::Fourier {
+            omega: *omega,
+            n_h: harmonics.unwrap_or(*n_h),
+        },
+        (FilterChoice::Given(f), _) => f.clone(),
+        (FilterChoice::Auto, Some(t)) => Filter::Fourier {
+            omega: t.omega,
+            n_h: harmonics.unwrap_or(t.n_harmonics()),
+        },
+        (FilterChoice::Auto, None) => Filter::LowPass { cutoff: 10.0 },
+    }
+}
+
+/// The Fourier trajectory stored next to a run (`trajectory.json` in its folder), if any.
+pub fn run_trajectory(run: &Run) -> Result<Option<FourierTrajectory>> {
+    match run.folder().map(|d| d.join("trajectory.json")) {
+        Some(p) if p.exists() => Ok(Some(FourierTrajectory::load(&p)?)),
+        _ => Ok(None),
+    }
+}
+
+/// A run in joint coordinates (runs logged motor-side mapped through the coupling).
+pub fn in_joint_coordinates<'a>(robot: &Robot, run: &'a Run, coordinates: Coordinates) -> Result<std::borrow::Cow<'a, Run>> {
+    Ok(match coordinates {
+        Coordinates::Joint => std::borrow::Cow::Borrowed(run),
+        Coordinates::Motor => {
+            let mut r = run.clone();
+            r.to_joint_coordinates(&robot.coupling_matrix())?;
+            std::borrow::Cow::Owned(r)
+        }
+    })
+}
+
+/// A run ready for estimation ([`prepare`]).
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    /// The processed (averaged, filtered, decimated) run.
+    pub pr: Processed,
+    /// The filter used.
+    pub filter: Filter,
+    /// Every sample's rows (every base column).
+    pub every: Dataset,
+    /// The rows the standstill rule keeps.
+    pub full: Dataset,
+    /// Per joint: the standstill rule drops its slow rows.
+    pub drop: Vec<bool>,
+    /// Per joint: the rows used and why.
+    pub rows_used: Vec<RowsUsed>,
+    /// Slow-row fraction applied.
+    pub slow: f64,
+    /// Slow-row speed applied.
+    pub vmin: f64,
+}
+
+/// Processes a run (in joint coordinates) as `opts` says — filter, decimation,
+/// standstill rule — and stacks its base regressor. With
+/// `needs_sample_weights`, a run without repetitions or variances is an error
+/// that names the alternatives.
+pub fn prepare(
+    robot: &Robot,
+    base: &BaseParams,
+    run: &Run,
+    trajectory: Option<&FourierTrajectory>,
+    opts: &IdentOptions,
+    needs_sample_weights: bool,
+) -> Result<Prepared> {
+    let filter = resolve_filter(&opts.filter, trajectory, opts.harmonics);
+    let pr = process_with(run, &filter, opts.velocity_from)?.decimated(opts.decimate);
+    if !(opts.slow_ratio.is_finite() && (0.0..1.0).contains(&opts.slow_ratio)) {
+        return Err(Error::invalid("identify", "slow_ratio", "expected a fraction in [0, 1)"));
+    }
+    if !(opts.min_speed.is_finite() && opts.min_speed >= 0.0) {
+        return Err(Error::invalid("identify", "min_speed", "expected a speed ≥ 0"));
+    }
+    let (slow, vmin) = if matches!(opts.method, Method::Projection) {
+        (0.0, 0.0)
+    } else {
+        (opts.slow_ratio, opts.min_speed)
+    };
+    if needs_sample_weights && pr.tau_var.is_none() {
+        let file = run.files.first().map(|f| f.display().to_string()).unwrap_or_else(|| "run".into());
+        return Err(Error::invalid(
+            file,
+            "--weights",
+            format!(
+                "the run has {} repetition and no variance columns, so sample weights (paper 000 eq. 7–9) are not possible; use --weights joint (per-joint residual variance of an OLS fit), --method ols, more repetitions, or an averaged run with var_tau1..var_tau{} columns and --repetitions N",
+                run.reps.len(),
+                robot.dof()
+            ),
+        ));
+    }
+    let drop: Vec<bool> = robot
+        .drives
+        .iter()
+        .map(|d| match opts.standstill {
+            Standstill::Auto => d.discontinuous_at_rest(),
+            Standstill::Drop => true,
+            Standstill::Keep => false,
+        })
+        .collect();
+    let every = Dataset::every_row(robot, base, &pr);
+    let full = every.moving_rows_of(&pr, slow, vmin, &drop);
+    if full.c.nrows() <= full.c.ncols() && every.c.nrows() > every.c.ncols() {
+        let vmax: Vec<String> = (0..robot.dof())
+            .map(|j| format!("{:.3e}", pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max)))
+            .collect();
+        return Err(Error::invalid(run.files.first().map_or_else(|| "identify".to_string(), |f| f.display().to_string()), "min_speed", format!("no row is fast enough: {} of {} rows left after the speed rule |q̇_j| ≥ max({slow} · max |q̇_j|, {vmin} rad/s) (--slow-ratio, --min-speed), more than {} needed; largest |q̇_j| of the run: [{}] rad/s", full.c.nrows(), every.c.nrows(), full.c.ncols(), vmax.join(", "))));
+    }
+    let rows_used = rows_used(robot, &full, pr.len(), &drop, slow, vmin, opts);
+    Ok(Prepared {
+        pr,
+        filter,
+        every,
+        full,
+        drop,
+        rows_used,
+        slow,
+        vmin,
+    })
+}
+
+/// The rows of each joint in `full` and the standstill rule that chose them.
+fn rows_used(robot: &Robot, full: &Dataset, total: usize, drop: &[bool], slow: f64, vmin: f64, opts: &IdentOptions) -> Vec<RowsUsed> {
+    (0..robot.dof())
+        .map(|j| {
+            let used = full.joint.iter().filter(|&&k| k == j).count();
+            let d = &robot.drives[j];
+            let shape = if matches!(d.friction, crate::robot::Friction::None) {
+                "no friction".to_string()
+            } else {
+                format!("Coulomb {}", d.coulomb.describe())
+            };
+            let reason = if matches!(opts.method, Method::Projection) {
+                "every row kept: the projection method needs every sample".to_string()
+            } else if slow <= 0.0 && vmin <= 0.0 {
+                "every row kept: --slow-ratio 0 and --min-speed 0".to_string()
+            } else if drop[j] {
+                let why = match opts.standstill {
+                    Standstill::Drop => "--standstill drop".to_string(),
+                    _ => format!("{shape} is discontinuous at rest"),
+                };
+                format!("rows with |q̇| < max({slow}·max|q̇|, {vmin}) left out: {why}")
+            } else {
+                let why = match opts.standstill {
+                    Standstill::Keep => "--standstill keep".to_string(),
+                    _ => format!("{shape} is continuous at rest"),
+                };
+                format!("every row kept, standstill included: {why}")
+            };
+            RowsUsed {
+                joint: robot.joints[j].name.clone(),
+                used,
+                total,
+                slow_dropped: used < total,
+                reason,
+            }
+        })
+        .collect()
+}
+
+/// Joints whose filter residual exceeds 3× the noise of the averaged positions.
+pub(crate) fn filter_warnings(pr: &Processed) -> Vec<String> {
+    let mut w = Vec::new();
+    for (j, (res, noise)) in pr.filter_residual.iter().enumerate() {
+        if let Some(nz) = noise {
+            if *res > 3.0 * nz && *res > 0.0 {
+                let hint = match pr.filter {
+                    Filter::Fourier { n_h, .. } => format!(
+                        "the closed-loop response has harmonics above the {n_h} kept (tracking errors of a nonlinear plant); dropping them biases q̈: consider --harmonics {}",
+                        4 * n_h
+                    ),
+                    Filter::LowPass { cutoff } => format!("the low-pass at {cutoff} Hz removes motion: consider a higher --cutoff"),
+                    Filter::None => String::new(),
+                };
+                w.push(format!(
+                    "joint {}: the filter removes {res:.3e} rad RMS from the averaged positions, {:.1}× their noise ({nz:.3e}); {hint}",
+                    j + 1,
+                    res / nz
+                ));
+            }
+        }
+    }
+    w
+}

@@ -1,0 +1,181 @@
+//! The study's physically consistent estimate with a prior (`[consistent]`):
+//! the weight (given, or chosen on the validation runs), the estimate per
+//! link beside the prior, implausible values flagged, and the directions the
+//! prior decided.
+
+use super::{validation_sum, ConsistentReport, ConsistentSpec, Direction, Flag, LinkPrior, Loaded, Stacked, WeightRule, WeightSpec};
+use crate::error::{Error, Result};
+use crate::ident::consistent::{kinds_of, ConsistentStatus, Kind};
+use crate::ident::estimate::{errors, Dataset};
+use crate::ident::prior::PriorProblem;
+use crate::optim::Control;
+use crate::params::BaseParams;
+use crate::robot::Robot;
+use nalgebra::{DMatrix, DVector, SymmetricEigen};
+
+/// The consistent estimate with a prior; None when interrupted.
+#[allow(clippy::too_many_arguments)] // the study's parts, each needed once
+pub(super) fn consistent_with_prior(
+    robot: &Robot,
+    base: &BaseParams,
+    prior_robot: Option<&Robot>,
+    cs: &ConsistentSpec,
+    st: &Stacked,
+    experiments: &[Loaded],
+    validations: &[Loaded],
+    ctl: &Control,
+) -> Result<Option<ConsistentReport>> {
+    let (kinds, links) = kinds_of(robot);
+    let (theta0, scale) = crate::ident::prior::prior_of(robot, prior_robot, cs.scale)?;
+    let link_names: Vec<String> = robot.links.iter().map(|l| l.name.clone()).collect();
+    let pb = PriorProblem {
+        r: &st.r,
+        theta_b: &st.theta,
+        k: &base.k,
+        links: &links,
+        link_names: &link_names,
+        kinds: &kinds,
+        prior: &theta0,
+        scale: &scale,
+    };
+    let every_val: Vec<&Dataset> = validations.iter().map(|v| &v.prep.every).collect();
+    let (weight, curve, sol) = match cs.weight {
+        WeightSpec::Value(w) => (w, Vec::new(), crate::ident::prior::solve(&pb, cs.metric, w, cs.margin, ctl)?),
+        WeightSpec::Rule(WeightRule::Validation) => {
+            let obs = ctl.observer();
+            obs.phase("identify prior weight", Some(cs.weight_grid.len() as u64));
+            let mut best: Option<(f64, f64, crate::ident::consistent::Solution)> = None;
+            let mut curve = Vec::new();
+            for (i, &w) in cs.weight_grid.iter().enumerate() {
+                if ctl.interrupted() {
+                    obs.phase_done();
+                    return Ok(None);
+                }
+                let sol = crate::ident::prior::solve(&pb, cs.metric, w, cs.margin, ctl)?;
+                let ok = ConsistentStatus::of(&sol.status).is_ok();
+                let score = if ok {
+                    validation_sum(&every_val, sol.base.as_slice()).map_or(f64::INFINITY, |t| t.1)
+                } else {
+                    f64::INFINITY
+                };
+                curve.push((w, score, sol.extra_cost));
+                obs.progress(i as u64 + 1, &format!("weight {w:e}: validation {score:.4}"));
+                if best.as_ref().is_none_or(|b| score < b.1) {
+                    best = Some((w, score, sol));
+                }
+            }
+            obs.phase_done();
+            let (w, _, sol) = best.ok_or_else(|| Error::invalid("consistent", "weight_grid", "no candidate weight"))?;
+            (w, curve, sol)
+        }
+    };
+    let status = ConsistentStatus::of(&sol.status);
+    let names = robot.param_names();
+    let th = sol.theta.as_slice();
+    let active = crate::ident::consistent::active_constraints(robot, &kinds, &links, &sol, cs.margin, &scale);
+    let mut flags = Vec::new();
+    let [lo, hi] = cs.plausible;
+    let ratio_flag = |flags: &mut Vec<Flag>, what: String, v: f64, p: f64, unit: &str| {
+        if p > 0.0 && (v < lo * p || v > hi * p) {
+            flags.push(Flag {
+                what,
+                value: v,
+                prior: p,
+                reason: format!("{:.3}× the prior's {p:.4e} {unit} (plausible: {lo}–{hi}×)", v / p),
+            });
+        }
+    };
+    let mut link_rows = Vec::new();
+    for (i, &l) in links.iter().enumerate() {
+        let (b, b0) = (&th[l..l + 10], &theta0.as_slice()[l..l + 10]);
+        let com = |b: &[f64]| if b[9] > 0.0 { [b[6] / b[9], b[7] / b[9], b[8] / b[9]] } else { [0.0; 3] };
+        // tr(I_c) = tr(I_o) − 2 m |c|²
+        let trc = |b: &[f64]| {
+            let c = com(b);
+            b[0] + b[3] + b[5] - 2.0 * b[9] * (c[0] * c[0] + c[1] * c[1] + c[2] * c[2])
+        };
+        let name = &link_names[i];
+        ratio_flag(&mut flags, format!("{name} mass"), b[9], b0[9], "kg");
+        ratio_flag(&mut flags, format!("{name} inertia about the COM (trace)"), trc(b), trc(b0), "kg·m²");
+        link_rows.push(LinkPrior {
+            link: name.clone(),
+            mass: [b[9], b0[9]],
+            com: [com(b), com(b0)],
+            inertia_trace: [trc(b), trc(b0)],
+            divergence: crate::ident::prior::divergence(b, b0),
+        });
+    }
+    for (j, kd) in kinds.iter().enumerate() {
+        if matches!(kd, Kind::NonNegative | Kind::NonPositive) {
+            ratio_flag(&mut flags, names[j].clone(), th[j].abs(), theta0[j].abs(), "");
+        }
+    }
+    let (unidentifiable, prior_decided, n_prior_decided) = directions(&st.r, &base.k, &scale, &sol.theta, &theta0, weight, &names);
+    let consistent_experiments = experiments.iter().map(|e| errors(&e.prep.every, sol.base.as_slice())).collect();
+    let total: usize = experiments.iter().map(|e| e.prep.full.y.len()).sum();
+    let ssr_wls: f64 = st.blocks.iter().map(|b| b.chi2).sum();
+    Ok(Some(ConsistentReport {
+        status,
+        prior: cs.prior.clone(),
+        metric: cs.metric,
+        weight,
+        weight_curve: curve,
+        scale: cs.scale,
+        margin: cs.margin,
+        standard_names: names,
+        standard: th.to_vec(),
+        prior_standard: theta0.as_slice().to_vec(),
+        prior_scale: scale.as_slice().to_vec(),
+        base: sol.base.as_slice().to_vec(),
+        extra_cost: sol.extra_cost,
+        chi2_dof: (ssr_wls + sol.extra_cost) / total.saturating_sub(st.rank).max(1) as f64,
+        min_eigenvalue: sol.min_eig.clone(),
+        active,
+        links: link_rows,
+        flags,
+        unidentifiable,
+        prior_decided,
+        n_prior_decided,
+        experiments: consistent_experiments,
+        iterations: sol.iterations,
+        solve_time: sol.solve_time,
+    }))
+}
+
+/// The directions of the standard parameters (in prior scales) that the fit
+/// does not see (curvature ≤ 1e-10 of the largest) and those it sees less
+/// than the prior (curvature below `weight`): (count unseen, weakest listed, count weak).
+fn directions(
+    r: &DMatrix<f64>,
+    k: &DMatrix<f64>,
+    scale: &DVector<f64>,
+    theta: &DVector<f64>,
+    theta0: &DVector<f64>,
+    weight: f64,
+    names: &[String],
+) -> (usize, Vec<Direction>, usize) {
+    let a = r * k * DMatrix::from_diagonal(scale);
+    let h = a.transpose() * &a;
+    let eig = SymmetricEigen::new(h);
+    let lmax = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
+    let x = (theta - theta0).component_div(scale);
+    let mut order: Vec<usize> = (0..eig.eigenvalues.len()).collect();
+    order.sort_by(|&i, &j| eig.eigenvalues[i].total_cmp(&eig.eigenvalues[j]));
+    let unseen = order.iter().filter(|&&i| eig.eigenvalues[i] <= 1e-10 * lmax).count();
+    let weak: Vec<usize> = order.iter().copied().filter(|&i| eig.eigenvalues[i] < weight).collect();
+    let listed = weak
+        .iter()
+        .take(12)
+        .map(|&i| {
+            let v = eig.eigenvectors.column(i);
+            let mut comp: Vec<(usize, f64)> = v.iter().copied().enumerate().collect();
+            comp.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+            Direction {
+                curvature: eig.eigenvalues[i].max(0.0),
+                components: comp.iter().take(3).map(|&(j, c)| (names[j].clone(), c)).collect(),
+                offset: v.dot(&x),
+            }
+        })
+        .collect();
+    (unseen, listed, weak.len())
+}

@@ -1,0 +1,144 @@
+//! One entry of a study read and processed ([`load_entry`]): its files (logs
+//! or run CSVs, resampled and converted by the drives), its coordinates, its
+//! trajectory and filter, and the rows its standstill rule keeps.
+
+use super::{ExperimentKind, ExperimentSpec, FilterName, StudyMethod};
+use crate::data::{Run, Sampling, SamplingOptions, TorqueSource};
+use crate::error::{Error, Result};
+use crate::ident::{in_joint_coordinates, prepare, resolve_filter, run_trajectory, Filter, FilterChoice, IdentOptions, Method, Prepared};
+use crate::params::BaseParams;
+use crate::robot::Robot;
+use crate::trajectory::FourierTrajectory;
+use std::path::{Path, PathBuf};
+
+/// One experiment or validation run, read and processed.
+#[derive(Debug, Clone)]
+pub struct Loaded {
+    /// Its name.
+    pub name: String,
+    /// Its entry.
+    pub spec: ExperimentSpec,
+    /// The files read.
+    pub files: Vec<PathBuf>,
+    /// Repetitions.
+    pub n_reps: usize,
+    /// How the torques were obtained.
+    pub torque_source: TorqueSource,
+    /// What was done with the time stamps.
+    pub sampling: Sampling,
+    /// The processed run and its datasets.
+    pub prep: Prepared,
+}
+
+/// Reads and processes one entry of a study (paths relative to `dir`).
+pub fn load_entry(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, dir: &Path, method: StudyMethod, sample_limit: usize) -> Result<Loaded> {
+    let name = spec.resolved_name();
+    let paths: Vec<PathBuf> = spec.files.iter().map(|f| dir.join(f)).collect();
+    for p in &paths {
+        crate::io::status::require_complete(p, false)?;
+    }
+    let (run, torque_source, sampling) = match &spec.log {
+        Some(l) => {
+            let (run, src, sampling, _) = crate::data::logs::read_run(&paths, robot, l, spec.resample, sample_limit)?;
+            (run, src, sampling)
+        }
+        None => {
+            let (run, src, sampling) = Run::read_drives_sampled(
+                &paths,
+                robot,
+                spec.repetitions,
+                spec.torque_from,
+                spec.current_tolerance,
+                Some(SamplingOptions {
+                    rate: spec.resample,
+                    limit: sample_limit,
+                }),
+            )?;
+            let sampling = sampling.unwrap_or_else(|| unreachable_sampling(&run));
+            (run, src, sampling)
+        }
+    };
+    let run = in_joint_coordinates(robot, &run, spec.coordinates)?.into_owned();
+    let traj: Option<FourierTrajectory> = match &spec.trajectory {
+        Some(p) => {
+            let p = dir.join(p);
+            let t = FourierTrajectory::load(&p)?;
+            if t.n_joints() != robot.dof() {
+                return Err(Error::invalid(
+                    p.display().to_string(),
+                    "trajectory",
+                    format!(
+                        "{} joints in the trajectory, {} in robot {}: expected the experiment's own trajectory",
+                        t.n_joints(),
+                        robot.dof(),
+                        robot.name
+                    ),
+                ));
+            }
+            Some(t)
+        }
+        None => run_trajectory(&run)?,
+    };
+    let lowpass = FilterChoice::Given(Filter::LowPass { cutoff: spec.cutoff });
+    let filter = match spec.filter {
+        FilterName::Auto if traj.is_some() && spec.kind == ExperimentKind::Excitation => FilterChoice::Auto,
+        FilterName::Auto => lowpass,
+        FilterName::Fourier => match &traj {
+            Some(t) => FilterChoice::Given(resolve_filter(&FilterChoice::Auto, Some(t), None)),
+            None => {
+                return Err(Error::invalid(
+                    format!("experiment `{name}`"),
+                    "filter",
+                    "\"fourier\" needs the Fourier trajectory: give `trajectory` or put trajectory.json beside the run",
+                ))
+            }
+        },
+        FilterName::Lowpass => lowpass,
+        FilterName::None => FilterChoice::Given(Filter::None),
+    };
+    let opts = IdentOptions {
+        method: match method {
+            StudyMethod::Wls => Method::Wls,
+            StudyMethod::Ols => Method::Ols,
+        },
+        filter,
+        harmonics: spec.harmonics,
+        decimate: spec.decimate,
+        slow_ratio: spec.slow_ratio,
+        min_speed: spec.min_speed,
+        standstill: spec.standstill.unwrap_or(spec.kind.default_standstill()),
+        velocity_from: spec.velocity_from,
+        ..Default::default()
+    };
+    let prep = prepare(robot, base, &run, traj.as_ref(), &opts, false).map_err(|e| match e {
+        Error::Invalid { context, field, msg } => Error::Invalid {
+            context: format!("experiment `{name}` ({context})"),
+            field,
+            msg,
+        },
+        e => e,
+    })?;
+    Ok(Loaded {
+        name,
+        spec: spec.clone(),
+        files: run.files.clone(),
+        n_reps: run.n_reps(),
+        torque_source,
+        sampling,
+        prep,
+    })
+}
+
+/// The sampling record of a run read without resampling (not reached: the
+/// study always reads with sampling options; kept total for safety).
+fn unreachable_sampling(run: &Run) -> Sampling {
+    let (a, m, b) = crate::data::resample::step_stats(&run.reps[0].t);
+    Sampling {
+        irregular: false,
+        min_step: a,
+        median_step: m,
+        max_step: b,
+        resampled_to: None,
+        samples: (run.reps[0].len(), run.reps[0].len()),
+    }
+}
