@@ -3,8 +3,9 @@
 //!
 //! # The stacked regressor
 //!
-//! For the trajectory q(t; x) of design vector x ([`FourierLayout`]) and the
-//! sample times t_1..t_N (one period at the design's sample rate), the stacked
+//! For the trajectory q(t; x) of design vector x (a [`Shape`]: Fourier series
+//! or B-spline) and the sample times t_1..t_N (one period, or the whole
+//! rest-to-rest motion, at the design's sample rate), the stacked
 //! base regressor is
 //!
 //! C(x) = [ W½ Y_b(q(t_1), q̇(t_1), q̈(t_1)) ; … ; W½ Y_b(q(t_N), …) ]   (N·n × m),
@@ -36,8 +37,9 @@
 //! G = C̃ M is pulled back through the scaling (for unit columns
 //! dc̃_j = (dc_j − c̃_j c̃_jᵀ dc_j)/‖c_j‖) to H with dJ = ⟨H, dC⟩, then through
 //! the regressor, per sample, ∂J/∂q_k(t_i) = Σ_{r,j} H_(i,r),j ∂Y_b,rj/∂q_k
-//! (likewise q̇, q̈), and finally through the Fourier basis ([`FourierTrajectory::basis`]) and
-//! the layout ([`FourierLayout::pullback`]).
+//! (likewise q̇, q̈), and finally through the trajectory shape's Jacobian of
+//! the samples ([`TrajectoryShape::grid_accumulate`]: for the Fourier series
+//! its basis at t_i and [`crate::trajectory::FourierLayout::pullback`]).
 //!
 //! The per-sample contraction never forms ∂Y: since τ = Y θ for every θ,
 //! Σ_j H_rj ∂Y_rj/∂q_k = ∂τ_r(θ_r)/∂q_k with θ_r = row r of the sample's
@@ -58,19 +60,20 @@
 //! and is summed in chunk order. An evaluation therefore does not depend on
 //! the thread count.
 
-use super::grid::TrigGrid;
 use crate::error::{Error, Result};
 use crate::robot::dynamics::{id_derivative_rows, regressor_dual_directions, regressor_generic, Terms};
 use crate::robot::kinematics::joint_transforms;
 use crate::robot::kinematics::Kin;
 use crate::robot::{regressor_rows, Robot, Workspace};
-use crate::trajectory::{Basis, FourierLayout, FourierTrajectory};
+use crate::trajectory::shapes::{ShapeGrid, ShapeScratch};
+use crate::trajectory::{Shape, ShapeMotion, TimeGrid, TrajectoryShape};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::evd::{self_adjoint_evd, self_adjoint_evd_scratch, ComputeEigenvectors};
 use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
 use faer::{Mat, MatMut, MatRef, Par};
 use num_dual::Dual64;
 use rayon::prelude::*;
+use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 
@@ -125,10 +128,11 @@ pub const COND_CAP: f64 = 1e12;
 /// depend on x (robot, columns, sample times, weights, scaling).
 #[derive(Debug, Clone)]
 pub struct Objective {
-    /// The robot (nominal parameters used by [`Scaling::Nominal`]).
-    pub robot: Robot,
+    /// The robot (nominal parameters used by [`Scaling::Nominal`]), shared
+    /// with the problem's constraints.
+    pub robot: Arc<Robot>,
     /// Design vector ↔ trajectory.
-    pub layout: FourierLayout,
+    pub shape: Shape,
     /// Standard-parameter indices of C's columns.
     pub columns: Vec<usize>,
     /// Names of the columns (base-parameter names).
@@ -143,8 +147,8 @@ pub struct Objective {
     pub row_weight: Vec<f64>,
     /// Fixed column factors for [`Scaling::Nominal`] (|θ_b,j|, floored), else ones.
     pub fixed_scale: Vec<f64>,
-    /// The sample grid with its trigonometric table.
-    pub grid: TrigGrid,
+    /// The sample grid, prepared by the shape (the Fourier series' sin/cos table).
+    pub grid: ShapeGrid,
 }
 
 /// Per-thread buffers of [`Objective`] evaluations.
@@ -230,9 +234,11 @@ pub struct Scoring {
 }
 
 impl Objective {
-    /// Builds the objective for `robot`, the design-vector layout, the columns
-    /// of C, the sample times (s) over one period and the scoring.
-    pub fn new(robot: Robot, layout: FourierLayout, columns: BaseColumns, times: Vec<f64>, scoring: Scoring) -> Result<Self> {
+    /// Builds the objective for `robot`, the trajectory shape, the columns
+    /// of C, the sample times (s) over one period (or the rest-to-rest
+    /// motion) and the scoring.
+    pub fn new(robot: impl Into<Arc<Robot>>, shape: impl Into<Shape>, columns: BaseColumns, times: Vec<f64>, scoring: Scoring) -> Result<Self> {
+        let (robot, shape) = (robot.into(), shape.into());
         let BaseColumns {
             indices: columns,
             names: column_names,
@@ -240,8 +246,8 @@ impl Objective {
         } = columns;
         let Scoring { criterion, scaling, noise } = scoring;
         let n = robot.dof();
-        if layout.n != n {
-            return Err(Error::dim("trajectory joints vs robot joints", n, layout.n));
+        if shape.n_joints() != n {
+            return Err(Error::dim("trajectory joints vs robot joints", n, shape.n_joints()));
         }
         if noise.len() != n {
             return Err(Error::dim("noise levels (one per joint)", n, noise.len()));
@@ -275,12 +281,12 @@ impl Objective {
             }
             _ => vec![1.0; columns.len()],
         };
-        let grid = TrigGrid::new(times.clone(), layout.omega, layout.n_h);
+        let grid = shape.grid(times.clone());
         Ok(Objective {
             grid,
             row_weight: noise.iter().map(|s| 1.0 / s).collect(),
             robot,
-            layout,
+            shape,
             columns,
             column_names,
             times,
@@ -331,13 +337,13 @@ impl Objective {
     }
 
     /// Fills C and C̃ for the trajectory `tr`.
-    fn fill(&self, tr: &FourierTrajectory, w: &mut ObjectiveWorkspace) {
+    fn fill(&self, tr: &ShapeMotion, w: &mut ObjectiveWorkspace) {
         let n = self.robot.dof();
         let p = self.robot.n_params();
         let rows = w.rows;
         for i in 0..self.grid.len() {
             let [q, qd, qdd] = &mut w.states[i];
-            self.grid.state(tr, i, q, qd, qdd);
+            self.shape.grid_state(&self.grid, tr, i, q, qd, qdd);
             // velocities that are zero up to round-off (t = 0 of an at-rest
             // trajectory) must give sign(q̇) = 0, not a random ±1
             for v in qd.iter_mut() {
@@ -436,12 +442,12 @@ impl Objective {
     /// The criterion J(x). Rank-deficient regressors give the capped value
     /// (cond = [`COND_CAP`]); non-finite regressors give +∞.
     pub fn value(&self, x: &[f64], w: &mut ObjectiveWorkspace) -> f64 {
-        let tr = self.layout.trajectory(x);
+        let tr = self.shape.motion(x);
         self.value_of(&tr, w)
     }
 
     /// The criterion of a given trajectory.
-    pub fn value_of(&self, tr: &FourierTrajectory, w: &mut ObjectiveWorkspace) -> f64 {
+    pub fn value_of(&self, tr: &ShapeMotion, w: &mut ObjectiveWorkspace) -> f64 {
         w.evaluations += 1;
         self.fill(tr, w);
         if !self.decompose(w, false) {
@@ -451,7 +457,7 @@ impl Objective {
     }
 
     /// Singular values, condition number and criterion of a trajectory.
-    pub fn spectrum(&self, tr: &FourierTrajectory, w: &mut ObjectiveWorkspace) -> Result<Spectrum> {
+    pub fn spectrum(&self, tr: &ShapeMotion, w: &mut ObjectiveWorkspace) -> Result<Spectrum> {
         let j = self.value_of(tr, w);
         if !j.is_finite() && j != f64::INFINITY {
             return Err(Error::Numerical("criterion is not a number".into()));
@@ -481,7 +487,7 @@ impl Objective {
     /// [`ZERO_VELOCITY`] already set to 0), the column norms ‖c_j‖ of the
     /// weighted matrix W½C over these samples, the column factors D
     /// (C̃ = W½ C D) and the spectrum of C̃.
-    pub fn record(&self, tr: &FourierTrajectory) -> Result<GridRecord> {
+    pub fn record(&self, tr: &ShapeMotion) -> Result<GridRecord> {
         let mut w = self.workspace();
         let spectrum = self.spectrum(tr, &mut w)?;
         let m = self.n_cols();
@@ -515,10 +521,10 @@ impl Objective {
     }
 
     fn value_grad_mode(&self, x: &[f64], w: &mut ObjectiveWorkspace, grad: &mut [f64], soft: Option<f64>) -> f64 {
-        assert_eq!(grad.len(), self.layout.n_vars(), "gradient length");
+        assert_eq!(grad.len(), self.shape.n_vars(), "gradient length");
         w.evaluations += 1;
         w.gradients += 1;
-        let tr = self.layout.trajectory(x);
+        let tr = self.shape.motion(x);
         self.fill(&tr, w);
         if !self.decompose(w, true) {
             grad.iter_mut().for_each(|g| *g = 0.0);
@@ -577,7 +583,7 @@ impl Objective {
             faer::linalg::matmul::matmul(hm, faer::Accum::Replace, cs, mm.as_ref(), 1.0, Par::Seq);
         }
         self.scale_pullback(&w.col_norm, &w.cs, &mut h);
-        self.contract(&w.states, &[&h], grad);
+        self.contract(&tr, &w.states, &[&h], grad);
         w.h = h;
         jval
     }
@@ -621,12 +627,11 @@ impl Objective {
     /// per-sample work runs in fixed chunks of samples in parallel and is
     /// summed in chunk order (the result does not depend on the thread
     /// count). `out` holds one gradient of `n_vars` values per H_t.
-    fn contract(&self, states: &[[Vec<f64>; 3]], hs: &[&[f64]], out: &mut [f64]) {
+    fn contract(&self, tr: &ShapeMotion, states: &[[Vec<f64>; 3]], hs: &[&[f64]], out: &mut [f64]) {
         let n = self.robot.dof();
-        let nh = self.layout.n_h;
-        let nv = self.layout.n_vars();
+        let nv = self.shape.n_vars();
         let rows = self.n_rows();
-        let len = 1 + 2 * nh;
+        let len = self.shape.acc_len();
         let nt = hs.len();
         let nchunks = self.grid.len().div_ceil(GRAD_CHUNK);
         let parts: Vec<Vec<f64>> = (0..nchunks)
@@ -634,41 +639,23 @@ impl Objective {
             .map_init(
                 || SampleBuffers::new(&self.robot),
                 |buf, c| {
-                    let mut acc = vec![0.0; nt * n * len];
+                    let mut acc = vec![0.0; nt * len];
                     let mut g = vec![0.0; nt * 3 * n];
                     for i in c * GRAD_CHUNK..((c + 1) * GRAD_CHUNK).min(self.grid.len()) {
                         self.sample_gradient(i, &states[i], hs, rows, buf, &mut g);
-                        self.grid.basis(i, &mut buf.basis);
-                        for t in 0..nt {
-                            let (g, acc) = (&g[t * 3 * n..(t + 1) * 3 * n], &mut acc[t * n * len..(t + 1) * n * len]);
-                            for j in 0..n {
-                                let (gq, gqd, gqdd) = (g[j], g[n + j], g[2 * n + j]);
-                                acc[j * len] += gq;
-                                for k in 0..nh {
-                                    let b = &buf.basis.k[k];
-                                    acc[j * len + 1 + k] += gq * b[0] + gqd * b[2] + gqdd * b[4];
-                                    acc[j * len + 1 + nh + k] += gq * b[1] + gqd * b[3] + gqdd * b[5];
-                                }
-                            }
-                        }
+                        self.shape.grid_accumulate(&self.grid, tr, i, &g, &mut buf.shape, &mut acc);
                     }
                     acc
                 },
             )
             .collect();
-        let mut g_q0 = vec![0.0; n];
-        let mut g_a = vec![vec![0.0; nh]; n];
-        let mut g_b = vec![vec![0.0; nh]; n];
+        let mut sum = vec![0.0; len];
         for t in 0..nt {
-            let o = t * n * len;
-            for j in 0..n {
-                g_q0[j] = parts.iter().map(|a| a[o + j * len]).sum();
-                for k in 0..nh {
-                    g_a[j][k] = parts.iter().map(|a| a[o + j * len + 1 + k]).sum();
-                    g_b[j][k] = parts.iter().map(|a| a[o + j * len + 1 + nh + k]).sum();
-                }
+            let o = t * len;
+            for (k, v) in sum.iter_mut().enumerate() {
+                *v = parts.iter().map(|a| a[o + k]).sum();
             }
-            self.layout.pullback(&g_q0, &g_a, &g_b, &mut out[t * nv..(t + 1) * nv]);
+            self.shape.grid_finish(&sum, &mut out[t * nv..(t + 1) * nv]);
         }
     }
 
@@ -685,12 +672,12 @@ impl Objective {
     /// (`refine.bundle`). σ_i below σ_1/[`COND_CAP`] count as that floor.
     pub fn log_eigen_bundle(&self, x: &[f64], w: &mut ObjectiveWorkspace, top: usize, bottom: usize, vals: &mut [f64], grads: Option<&mut [f64]>) -> f64 {
         let m = self.n_cols();
-        let nv = self.layout.n_vars();
+        let nv = self.shape.n_vars();
         let nt = top + bottom;
         assert!(top <= m && bottom <= m, "bundle larger than the spectrum");
         assert!(vals.len() == nt && grads.as_ref().is_none_or(|g| g.len() == nt * nv), "bundle buffer lengths");
         w.evaluations += 1;
-        let tr = self.layout.trajectory(x);
+        let tr = self.shape.motion(x);
         self.fill(&tr, w);
         if !self.decompose(w, true) {
             if let Some(g) = grads {
@@ -744,7 +731,7 @@ impl Objective {
         }
         {
             let hs: Vec<&[f64]> = hb.iter().map(|h| h.as_slice()).collect();
-            self.contract(&w.states, &hs, grads);
+            self.contract(&tr, &w.states, &hs, grads);
         }
         w.hb = hb;
         jval
@@ -771,7 +758,7 @@ struct SampleBuffers {
     q_: Vec<Dual64>,
     qd_: Vec<Dual64>,
     qdd_: Vec<Dual64>,
-    basis: Basis,
+    shape: ShapeScratch,
     hloc: Vec<f64>,
     ycol: Vec<f64>,
     zeros: Vec<f64>,
@@ -797,7 +784,7 @@ impl SampleBuffers {
             q_: vec![Dual64::from(0.0); n],
             qd_: vec![Dual64::from(0.0); n],
             qdd_: vec![Dual64::from(0.0); n],
-            basis: Basis::default(),
+            shape: ShapeScratch::default(),
             hloc: Vec::new(),
             ycol: Vec::new(),
             zeros: vec![0.0; n],

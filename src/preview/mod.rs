@@ -153,8 +153,8 @@ impl Motion {
                     v.push((0.0, d.lead_in_duration(), LEAD_IN));
                 }
                 for k in 0..d.periods {
-                    let t0 = d.periodic_start() + k as f64 * d.periodic.period();
-                    v.push((t0, t0 + d.periodic.period(), k as i64 + 1));
+                    let t0 = d.periodic_start() + k as f64 * crate::trajectory::Motion::duration(&d.periodic);
+                    v.push((t0, t0 + crate::trajectory::Motion::duration(&d.periodic), k as i64 + 1));
                 }
                 if d.lead_out_duration() > 0.0 {
                     v.push((d.periodic_end(), d.duration(), LEAD_OUT));
@@ -657,7 +657,7 @@ pub fn report_instants(margins: &[serde_json::Value], lead_in: f64) -> Vec<Repor
 /// hook of the excite command: written beside `trajectory.csv`).
 pub fn write_for_result(p: &crate::excitation::Problem, r: &crate::excitation::ExciteResult, dir: &Path, opts: &PreviewOptions) -> Result<Written> {
     let d = &p.design;
-    let mut setup = Setup::from_design(d, p.robot.clone(), &d.name)?;
+    let mut setup = Setup::from_design(d, (*p.robot).clone(), &d.name)?;
     let delivered = delivered_or_periodic(r.execution.delivered.as_ref(), &r.trajectory);
     let margins: Vec<serde_json::Value> = r
         .margins
@@ -675,11 +675,11 @@ pub fn write_for_result(p: &crate::excitation::Problem, r: &crate::excitation::E
 
 /// The delivered trajectory, or one period when none is playable (as
 /// `trajectory.csv` then holds).
-fn delivered_or_periodic(d: Option<&Delivered>, tr: &crate::trajectory::FourierTrajectory) -> Delivered {
+fn delivered_or_periodic(d: Option<&Delivered>, tr: &crate::trajectory::ShapeMotion) -> Delivered {
     match d {
         Some(d) => d.clone(),
         None => Delivered {
-            home: tr.q0.clone(),
+            home: crate::trajectory::Motion::rest_pose(tr),
             lead_in: None,
             periodic: tr.clone(),
             periods: 1,
@@ -714,7 +714,7 @@ pub fn write_for_folder(dir: &Path, out_dir: Option<&Path>, opts: &PreviewOption
     let robot = crate::robot::load(&design.robot)?;
     let coeff_path = dir.join("coefficients.json");
     let coeff = read_json(&coeff_path)?;
-    let tr: crate::trajectory::FourierTrajectory =
+    let tr: crate::trajectory::ShapeMotion =
         serde_json::from_value(coeff["trajectory"].clone()).map_err(|e| Error::invalid(coeff_path.display().to_string(), "trajectory", e.to_string()))?;
     let delivered: Option<Delivered> =
         serde_json::from_value(coeff["delivered"].clone()).map_err(|e| Error::invalid(coeff_path.display().to_string(), "delivered", e.to_string()))?;
