@@ -19,7 +19,7 @@
 //! within the position limits keep the motion within them: that is the box
 //! of x ([`TrajectoryShape::bounds`]).
 
-use super::shape::{Ends, JointBox, Motion, PlainGrid, StateGradient, TimeGrid, TrajectoryShape};
+use super::shape::{Ends, JointBox, Motion, StateGradient, TimeGrid, TrajectoryShape};
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
@@ -134,6 +134,37 @@ pub struct BSplineScratch;
 
 /// Basis values N_{span−p+r,p}^{(k)}(t), `ders[k][r]` for k ≤ 4, r ≤ p.
 type Ders = [[f64; MAX_DEGREE + 1]; 5];
+
+/// A fixed time grid with the knot span and the basis values (orders 0 … 2)
+/// at each time: the knots are the layout's, so they serve every motion of
+/// it, and a grid evaluation costs p + 1 multiply-adds per joint and order.
+#[derive(Debug, Clone)]
+pub struct BSplineGrid {
+    times: Vec<f64>,
+    span: Vec<usize>,
+    ders: Vec<[[f64; MAX_DEGREE + 1]; 3]>,
+}
+
+impl TimeGrid for BSplineGrid {
+    fn times(&self) -> &[f64] {
+        &self.times
+    }
+}
+
+impl BSplineGrid {
+    /// q_j^(order) (order ≤ 2) of `m` at grid time i, as [`Motion::eval`] computes it.
+    #[inline]
+    fn value(&self, m: &BSplineMotion, j: usize, order: usize, i: usize) -> f64 {
+        let (first, d) = (self.span[i] - m.degree, &self.ders[i][order]);
+        let c = &m.control[j];
+        let s: f64 = (0..=m.degree).map(|r| d[r] * (c[first + r] - c[0])).sum();
+        if order == 0 {
+            c[0] + s
+        } else {
+            s
+        }
+    }
+}
 
 impl BSplineMotion {
     /// Checks a motion read from a file: degree 3 … 5, a clamped
@@ -345,7 +376,7 @@ impl Motion for BSplineMotion {
 impl TrajectoryShape for BSplineLayout {
     type Motion = BSplineMotion;
     type Scratch = BSplineScratch;
-    type Grid = PlainGrid;
+    type Grid = BSplineGrid;
 
     fn n_vars(&self) -> usize {
         self.n * self.vars_per_joint()
@@ -383,15 +414,37 @@ impl TrajectoryShape for BSplineLayout {
         (0..ns).map(|i| self.duration * i as f64 / ns as f64).collect()
     }
 
-    fn grid(&self, times: Vec<f64>) -> PlainGrid {
-        PlainGrid { times }
+    fn grid(&self, times: Vec<f64>) -> BSplineGrid {
+        let m = self.motion(&vec![0.0; TrajectoryShape::n_vars(self)]);
+        let (mut span, mut ders) = (Vec::with_capacity(times.len()), Vec::with_capacity(times.len()));
+        for &t in &times {
+            let (s, d) = m.basis(t, 2);
+            span.push(s);
+            ders.push([d[0], d[1], d[2]]);
+        }
+        BSplineGrid { times, span, ders }
+    }
+
+    fn grid_state(&self, grid: &BSplineGrid, m: &BSplineMotion, i: usize, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
+        for j in 0..self.n {
+            q[j] = grid.value(m, j, 0, i);
+            qd[j] = grid.value(m, j, 1, i);
+            qdd[j] = grid.value(m, j, 2, i);
+        }
+    }
+
+    fn grid_derivative(&self, grid: &BSplineGrid, m: &BSplineMotion, j: usize, order: usize, i: usize) -> f64 {
+        if order <= 2 {
+            grid.value(m, j, order, i)
+        } else {
+            m.derivatives(j, order, grid.times[i])[0]
+        }
     }
 
     /// The basis values at t_i times each block of `g`, added to the free
     /// control points they touch (as [`TrajectoryShape::pull_back`], without buffers).
-    fn grid_accumulate(&self, grid: &PlainGrid, m: &BSplineMotion, i: usize, g: &[f64], _: &mut BSplineScratch, acc: &mut [f64]) {
-        let (span, d) = m.basis(grid.times()[i], 2);
-        let first = span - self.degree;
+    fn grid_accumulate(&self, grid: &BSplineGrid, _: &BSplineMotion, i: usize, g: &[f64], _: &mut BSplineScratch, acc: &mut [f64]) {
+        let (first, d) = (grid.span[i] - self.degree, &grid.ders[i]);
         let (n, vpj) = (self.n, self.vars_per_joint());
         for (g, acc) in g.chunks_exact(3 * n).zip(acc.chunks_exact_mut(n * vpj)) {
             for a in 0..n {

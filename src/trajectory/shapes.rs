@@ -17,8 +17,8 @@
 //! always made by the same shape ([`TrajectoryShape::motion`],
 //! [`TrajectoryShape::grid`]); a mismatched scratch is replaced.
 
-use super::bspline::{BSplineLayout, BSplineMotion, BSplineScratch};
-use super::shape::{Ends, JointBox, Motion, PlainGrid, StateGradient, TimeGrid, TrajectoryShape};
+use super::bspline::{BSplineGrid, BSplineLayout, BSplineMotion, BSplineScratch};
+use super::shape::{Ends, JointBox, Motion, StateGradient, TimeGrid, TrajectoryShape};
 use super::{period_grid, seconds_text, FourierLayout, FourierScratch, FourierTrajectory, TrigGrid};
 use crate::error::Result;
 use crate::io::States;
@@ -50,8 +50,8 @@ pub enum ShapeMotion {
 pub enum ShapeGrid {
     /// With the sin/cos table.
     Fourier(TrigGrid),
-    /// Times only.
-    BSpline(PlainGrid),
+    /// With the basis values.
+    BSpline(BSplineGrid),
 }
 
 /// The pull-back buffers of a [`Shape`].
