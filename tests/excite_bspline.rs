@@ -85,10 +85,10 @@ fn bspline_constraint_gradients_match_finite_differences() {
     let n = r.dof();
     let lim = |f: fn(&idexp::robot::Joint) -> f64| r.joints.iter().map(|j| 0.9 * f(j)).collect::<Vec<f64>>();
     let limits = JointLimitSpec {
-        position: r.joints.iter().map(|j| [0.9 * j.lower, 0.9 * j.upper]).collect(),
-        velocity: lim(|j| j.velocity),
+        position: r.joints.iter().map(|j| [0.9 * j.limits.lower, 0.9 * j.limits.upper]).collect(),
+        velocity: lim(|j| j.limits.velocity),
         acceleration: vec![3.0; n],
-        torque: lim(|j| j.effort),
+        torque: lim(|j| j.limits.effort),
     };
     let cart = vec![CartesianConstraint {
         frame: Some("tool0".into()),
@@ -135,7 +135,7 @@ fn bspline_fields_are_validated_with_the_field_named() {
         ("degree = 5", "degree = 7", "trajectory.degree"),
         ("segments = 11", "segments = 1", "trajectory.segments"),
         ("duration = 10.0", "duration = -1.0", "trajectory.duration"),
-        ("shape = \"bspline\"", "shape = \"bezier\"", "shape"),
+        ("shape = \"bspline\"", "shape = \"bezier\"", "expected `fourier` or `bspline`"),
         ("shape = \"bspline\"", "shape = \"fourier\"", "trajectory.degree"),
         ("degree = 5", "degree = 5\nat_rest = true", "trajectory.at_rest"),
     ] {
