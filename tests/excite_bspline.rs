@@ -34,7 +34,8 @@ fn values(n: usize, scale: f64, seed: f64) -> Vec<f64> {
 #[test]
 fn bspline_objective_gradient_matches_finite_differences() {
     let r = load("ur5");
-    let q0 = vec![0.0, -1.5707963267948966, 0.0, -1.5707963267948966, 0.0, 0.0];
+    let h = std::f64::consts::FRAC_PI_2;
+    let q0 = vec![0.0, -h, 0.0, -h, 0.0, 0.0];
     let lay = BSplineLayout::new(q0, 4, 7, 6.0).unwrap();
     let b = BaseParams::compute(&r, &BaseOptions::default()).unwrap();
     let nom: Vec<f64> = b.base_values(r.nominal_params().as_slice()).iter().copied().collect();

@@ -839,7 +839,9 @@ fn read_trajectory(obj: &Bound<'_, PyAny>) -> PyResult<FourierTrajectory> {
     if let Ok(e) = obj.cast::<ExciteResult>() {
         return match &e.get().result.trajectory {
             idexp::trajectory::ShapeMotion::Fourier(t) => Ok(t.clone()),
-            _ => Err(value("trajectory: a B-spline excitation has no Fourier series to filter with; pass no trajectory (the measured samples are used as they are)")),
+            _ => Err(value(
+                "trajectory: a B-spline excitation has no Fourier series to filter with; pass no trajectory (the measured samples are used as they are)",
+            )),
         };
     }
     let p: PathBuf = obj

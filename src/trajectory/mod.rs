@@ -172,23 +172,9 @@ impl FourierTrajectory {
         Ok(self.sample_at(&times))
     }
 
-    /// Evaluates the trajectory at the given times.
+    /// Evaluates the trajectory at the given times ([`Motion::sample_at`]).
     pub fn sample_at(&self, times: &[f64]) -> States {
-        let n = self.n_joints();
-        let mut s = States {
-            t: Some(times.to_vec()),
-            q: Vec::with_capacity(times.len()),
-            qd: Vec::with_capacity(times.len()),
-            qdd: Vec::with_capacity(times.len()),
-        };
-        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        for &t in times {
-            self.eval(t, &mut q, &mut qd, &mut qdd);
-            s.q.push(q.clone());
-            s.qd.push(qd.clone());
-            s.qdd.push(qdd.clone());
-        }
-        s
+        <Self as Motion>::sample_at(self, times)
     }
 
     /// Analytic bounds valid for all t, per joint: (max |q − q0|, max |q̇|, max |q̈|)
@@ -488,10 +474,6 @@ impl Motion for FourierTrajectory {
 
     fn rest_pose(&self) -> Vec<f64> {
         self.q0.clone()
-    }
-
-    fn sample_at(&self, times: &[f64]) -> States {
-        FourierTrajectory::sample_at(self, times)
     }
 }
 

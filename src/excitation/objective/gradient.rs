@@ -3,11 +3,11 @@
 //! pull-back through the column scaling, and the sum over the samples
 //! through the trajectory shape's Jacobian.
 
+use super::sample::{SampleBuffers, GRAD_CHUNK};
 use super::{Criterion, Objective, ObjectiveWorkspace, Scaling, COND_CAP};
 use crate::trajectory::{ShapeMotion, TimeGrid, TrajectoryShape};
 use faer::{Mat, MatMut, MatRef, Par};
 use rayon::prelude::*;
-use super::sample::{SampleBuffers, GRAD_CHUNK};
 
 impl Objective {
     /// J(x) and its gradient ∂J/∂x (analytic, see the module docs) into `grad`.
@@ -241,4 +241,3 @@ impl Objective {
         jval
     }
 }
-

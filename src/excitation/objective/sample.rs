@@ -183,4 +183,3 @@ fn contract_sample(hloc: &[f64], ycol: &[f64], n: usize, idx: usize, g: &mut [f6
         g[t * 3 * n + idx] = acc;
     }
 }
-
