@@ -46,7 +46,7 @@ fn bench(c: &mut Criterion) {
         let mut grp = c.benchmark_group(format!("collision_{label}"));
         for on in [false, true] {
             let p = problem(design, on);
-            let nv = p.layout.n_vars();
+            let nv = idexp::trajectory::TrajectoryShape::n_vars(&p.shape);
             let mut g = rand_chacha::ChaCha8Rng::seed_from_u64(5);
             let mut x: Vec<f64> = (0..nv).map(|i| g.random_range(p.lower[i]..p.upper[i]) * 0.3).collect();
             p.constraints.repair_joints(&mut x, &p.limits, 1e-6);
@@ -102,12 +102,12 @@ fn bench(c: &mut Criterion) {
             if on {
                 let sc = p.constraints.scene().expect("scene");
                 let mut kin = Kin::new(p.robot.dof());
-                let q = p.layout.trajectory(&x).q0.clone();
+                let q = p.shape.fourier().expect("a Fourier design").trajectory(&x).q0.clone();
                 grp.bench_function("all_pairs_one_configuration", |b| {
                     b.iter(|| black_box(sc.distances(&p.robot, &mut kin, black_box(&q), sc.cap)))
                 });
                 // one second of the trajectory at 1 kHz, as the delivered-trajectory check sees it
-                let tr = p.layout.trajectory(&x);
+                let tr = p.shape.fourier().expect("a Fourier design").trajectory(&x);
                 let n = p.robot.dof();
                 let path: Vec<Vec<f64>> = (0..1000)
                     .map(|i| {

@@ -93,7 +93,7 @@ fn bench(c: &mut Criterion) {
     design_run();
     seeds_run();
     let p = problem();
-    let nv = p.layout.n_vars();
+    let nv = idexp::trajectory::TrajectoryShape::n_vars(&p.shape);
     let mut g = rand_chacha::ChaCha8Rng::seed_from_u64(5);
     let mut x: Vec<f64> = (0..nv).map(|i| g.random_range(p.lower[i]..p.upper[i]) * 0.5).collect();
     p.constraints.repair_joints(&mut x, &p.limits, 1e-6);

@@ -544,7 +544,7 @@ fn culled_constraints_equal_the_exhaustive_evaluation() {
     for design in ["excite_ur5.toml", "excite_panda_table.toml"] {
         let p = design_problem(design);
         assert!(p.constraints.scene().is_some());
-        let nv = p.layout.n_vars();
+        let nv = idexp::trajectory::TrajectoryShape::n_vars(&p.shape);
         let m = p.constraints.len();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
         let mut culled = p.constraints.workspace();
@@ -728,7 +728,7 @@ fn selection_evaluation_gives_the_violation_of_the_full_one() {
     // below the margin between grid times
     for design in ["excite_ur5.toml", "excite_panda_table.toml"] {
         let p = design_problem(design);
-        let nv = p.layout.n_vars();
+        let nv = idexp::trajectory::TrajectoryShape::n_vars(&p.shape);
         let m = p.constraints.len();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(29);
         let mut cw = p.constraints.workspace();
@@ -847,7 +847,7 @@ fn support_bound_spares_exact_queries_on_the_design_grid() {
     // refinement's evaluation
     for design in ["excite_ur5.toml", "excite_panda_table.toml"] {
         let p = design_problem(design);
-        let nv = p.layout.n_vars();
+        let nv = idexp::trajectory::TrajectoryShape::n_vars(&p.shape);
         let m = p.constraints.len();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(41);
         let mut cw = p.constraints.workspace();

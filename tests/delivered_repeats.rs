@@ -29,7 +29,7 @@ fn delivered(periods: usize, frequency: f64) -> Delivered {
     Delivered {
         home,
         lead_in: Some(lead_in),
-        periodic: tr,
+        periodic: tr.into(),
         periods,
         lead_out: Some(lead_out),
     }

@@ -198,7 +198,7 @@ fn constraint_gradients_match_finite_differences_for_every_constraint_type() {
             shape,
         })
         .collect();
-    let c = Constraints::new(&r, &lay, &limits_for(&r, 0.9, true), &cart, 200.0, "test").unwrap();
+    let c = Constraints::new(r.clone(), lay.clone(), &limits_for(&r, 0.9, true), &cart, 200.0, "test").unwrap();
     let kinds: std::collections::BTreeSet<String> = c.info.iter().map(|i| format!("{:?}", i.kind)).collect();
     assert_eq!(kinds.len(), 5, "{kinds:?}");
     let mut cw = c.workspace();
@@ -245,11 +245,12 @@ fn continuous_joint_extrema_bound_a_dense_grid_and_are_attained() {
     .unwrap();
     let period = tr.period();
     let scan = TrigGrid::new((0..120).map(|i| period * i as f64 / 120.0).collect(), tr.omega, 5);
+    let shape = FourierLayout::new(tr.q0.clone(), 5, tr.omega, false, false).unwrap();
     let dense = tr.sample(20000.0 / period).unwrap();
     for j in 0..2 {
         for order in 0..3 {
             for upper in [true, false] {
-                let (v, t) = joint_extremum(&tr, &scan, j, order, upper);
+                let (v, t) = joint_extremum(&shape, &tr, &scan, j, order, upper);
                 let col: Vec<f64> = match order {
                     0 => dense.q.iter().map(|r| r[j]).collect(),
                     1 => dense.qd.iter().map(|r| r[j]).collect(),

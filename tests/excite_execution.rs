@@ -118,7 +118,7 @@ fn every_shipped_design_delivers_a_rest_to_rest_trajectory_within_all_limits_on_
         }
         let d = r.execution.delivered.as_ref().unwrap_or_else(|| panic!("{name}: {:?}", r.execution.problem));
         assert_eq!(d.periods, 3, "{name}: three periods by default");
-        assert_eq!(d.home, r.trajectory.q0, "{name}: home defaults to q0");
+        assert_eq!(d.home, idexp::trajectory::Motion::rest_pose(&r.trajectory), "{name}: home defaults to q0");
         if r.status == Status::Feasible {
             assert_playable(&p, d);
         }
@@ -340,7 +340,7 @@ fn segments_switch_on_the_sample_grid_for_every_lead_duration() {
         let d = Delivered {
             home: home.q.clone(),
             lead_in: Some(Quintic::new(&home, &start, t_in)),
-            periodic: periodic.clone(),
+            periodic: periodic.clone().into(),
             periods: 3,
             lead_out: Some(Quintic::new(&start, &home, t_out)),
         };

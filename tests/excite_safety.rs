@@ -107,7 +107,7 @@ fn the_check_of_a_still_trajectory_is_the_distance_at_its_pose() {
     for (q0, safe) in [(vec![0.0; 6], false), (safe_q0, true)] {
         let p = design("excite_ur5_bench", |d| d.trajectory.q0 = Some(q0.clone()));
         let tr = FourierTrajectory::at_rest(q0.clone(), 5, 2.0 * std::f64::consts::PI * 0.1);
-        let e = deliver(&p, &tr).unwrap();
+        let e = deliver(&p, &tr.into()).unwrap();
         let s = &e.safety;
         assert_eq!(s.collisions, CollisionCheck::CheckedAfterwards);
         assert_eq!(s.safe, Some(safe), "{}", s.statement);

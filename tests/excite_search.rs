@@ -62,7 +62,7 @@ fn eigenvalue_bundle_matches_the_spectrum_and_finite_differences() {
         let mut grads = vec![0.0; nt * nv];
         let j = o.log_eigen_bundle(&x, &mut w, top, bottom, &mut vals, Some(&mut grads));
         // values: ln σ_i² of the spectrum, and J the exact criterion
-        let sp = o.spectrum(&lay.trajectory(&x), &mut w).unwrap();
+        let sp = o.spectrum(&lay.trajectory(&x).into(), &mut w).unwrap();
         let m = sp.singular_values.len();
         let which: Vec<usize> = (0..top).chain(m - bottom..m).collect();
         for (t, &i) in which.iter().enumerate() {

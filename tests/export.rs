@@ -37,7 +37,7 @@ fn delivered() -> Delivered {
     Delivered {
         home,
         lead_in: Some(lead_in),
-        periodic: tr,
+        periodic: tr.into(),
         periods: 2,
         lead_out: Some(lead_out),
     }
@@ -128,8 +128,8 @@ fn delivered_trajectory_starts_and_ends_at_rest_is_continuous_and_labels_its_seg
     let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let t_in = d.lead_in_duration();
     for k in (0..s.len()).filter(|&k| s.segment[k] >= 1).step_by(97) {
-        let local = s.t[k] - t_in - (s.segment[k] - 1) as f64 * d.periodic.period();
-        d.periodic.eval(local, &mut q, &mut qd, &mut qdd);
+        let local = s.t[k] - t_in - (s.segment[k] - 1) as f64 * d.periodic.fourier().unwrap().period();
+        d.periodic.fourier().unwrap().eval(local, &mut q, &mut qd, &mut qdd);
         for j in 0..n {
             assert!((q[j] - s.q[k][j]).abs() < 1e-12 && (qd[j] - s.qd[k][j]).abs() < 1e-12);
         }
@@ -156,7 +156,7 @@ fn jerk_bound(d: &Delivered) -> f64 {
             b = b.max(6.0 * c[3].abs() + 24.0 * c[4].abs() * t + 60.0 * c[5].abs() * t * t);
         }
     }
-    let tr = &d.periodic;
+    let tr = d.periodic.fourier().unwrap();
     for j in 0..tr.n_joints() {
         let s: f64 = (0..tr.n_harmonics())
             .map(|k| ((k + 1) as f64 * tr.omega).powi(2) * tr.a[j][k].hypot(tr.b[j][k]))

@@ -129,7 +129,7 @@ pub fn delivered_dict<'py>(py: Python<'py>, d: &Delivered, rate: f64, n: usize) 
     if d.lead_in.is_some() {
         codes.push((LEAD_IN, 0.0, d.lead_in_duration()));
     }
-    let period = d.periodic.period();
+    let period = idexp::trajectory::Motion::duration(&d.periodic);
     for k in 1..=d.periods {
         let start = d.periodic_start() + (k - 1) as f64 * period;
         codes.push((k as i64, start, start + period));

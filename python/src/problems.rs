@@ -151,10 +151,24 @@ impl ExciteResult {
     }
     /// Fourier coefficients: dict with omega (rad/s), period (s), q0 (n,),
     /// a (n, n_h) and b (n, n_h) (rad/s) of q_j(t) = q0_j + Σ_k a_kj/(kω)
-    /// sin(kωt) − b_kj/(kω) cos(kωt).
+    /// sin(kωt) − b_kj/(kω) cos(kωt). For a B-spline design
+    /// (`shape = "bspline"`): shape ("bspline"), degree, duration (s), knots
+    /// and control (n, s + p) (rad or m).
     #[getter]
     fn coefficients<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let t = &self.result.trajectory;
+        let t = match &self.result.trajectory {
+            idexp::trajectory::ShapeMotion::Fourier(t) => t,
+            idexp::trajectory::ShapeMotion::BSpline(m) => {
+                let d = PyDict::new(py);
+                d.set_item("shape", "bspline")?;
+                d.set_item("degree", m.degree)?;
+                d.set_item("duration", idexp::trajectory::Motion::duration(m))?;
+                d.set_item("knots", out1(py, m.knots.clone()))?;
+                let (n, c) = (m.control.len(), m.control[0].len());
+                d.set_item("control", out2(py, n, c, m.control.iter().flatten().copied().collect()))?;
+                return Ok(d);
+            }
+        };
         let (n, nh) = (t.n_joints(), t.n_harmonics());
         let d = PyDict::new(py);
         d.set_item("omega", t.omega)?;
@@ -845,7 +859,12 @@ fn read_run(py: Python<'_>, obj: &Bound<'_, PyAny>, drives: &Drives<'_>, what: &
 
 fn read_trajectory(obj: &Bound<'_, PyAny>) -> PyResult<FourierTrajectory> {
     if let Ok(e) = obj.cast::<ExciteResult>() {
-        return Ok(e.get().result.trajectory.clone());
+        return match &e.get().result.trajectory {
+            idexp::trajectory::ShapeMotion::Fourier(t) => Ok(t.clone()),
+            _ => Err(value(
+                "trajectory: a B-spline excitation has no Fourier series to filter with; pass no trajectory (the measured samples are used as they are)",
+            )),
+        };
     }
     let p: PathBuf = obj
         .extract()

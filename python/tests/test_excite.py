@@ -187,3 +187,20 @@ def test_restarts_and_stall_from_a_dict(tmp_path):
     spec["refine"]["stall"] = -1
     with pytest.raises(idexp.IdexpError, match="stall"):
         idexp.excite(spec)
+
+
+def test_bspline_design_from_the_file(tmp_path):
+    """designs/excite_ur5_bspline.toml (small GA): a B-spline at rest at both ends."""
+    s = (DESIGNS / "excite_ur5_bspline.toml").read_text()
+    s = s.replace('robot = "robots/ur5.toml"', f'robot = "{ROBOTS / "ur5.toml"}"')
+    s = s.replace("population = 32", "population = 12").replace("generations = 20", "generations = 4")
+    s = s.replace("starts = 2", "starts = 1").replace("max_evals = 200", "max_evals = 25")
+    p = tmp_path / "bspline.toml"
+    p.write_text(s)
+    r = idexp.excite(p, seed=3)
+    c = r.coefficients
+    assert c["shape"] == "bspline" and c["degree"] == 5 and c["duration"] == 10.0
+    assert c["control"].shape == (6, 16) and c["knots"].shape == (22,)
+    s = r.sample(1000.0)
+    assert s["t"].shape[0] == 10000
+    assert np.allclose(s["qd"][0], 0.0, atol=1e-12) and np.allclose(s["qdd"][0], 0.0, atol=1e-12)

@@ -14,6 +14,11 @@
 //! vary_q0 = false                   # q0 a design variable too
 //! at_rest = false                   # start and end at rest (q̇ = q̈ = 0 at t = 0)
 //! controller_rate = 1000.0          # rate of trajectory.csv (Hz)
+//! shape = "fourier"                 # fourier (periodic, the default) | bspline (rest to rest)
+//! # with shape = "bspline" (harmonics, vary_q0 and at_rest do not apply):
+//! degree = 5                        # 3, 4 or 5
+//! segments = 11                     # equal knot intervals (≥ 7 − degree); (segments + degree − 6) free control points per joint
+//! duration = 10.0                   # length of the motion (s); default 1/frequency
 //!
 //! [objective]
 //! criterion = "cond"                # cond | log_det | inv_sigma_min
@@ -161,6 +166,117 @@ pub struct TrajectorySpec {
     pub at_rest: bool,
     /// Rate of trajectory.csv (Hz).
     pub controller_rate: f64,
+    /// The trajectory shape (default the Fourier series).
+    #[serde(skip_serializing_if = "ShapeKind::is_fourier")]
+    pub shape: ShapeKind,
+    /// B-spline degree (3 … 5; default [`DEFAULT_DEGREE`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub degree: Option<usize>,
+    /// B-spline segments (default [`DEFAULT_SEGMENTS`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub segments: Option<usize>,
+    /// B-spline duration (s; default one period 1/frequency).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub duration: Option<f64>,
+}
+
+/// `[trajectory] shape`: which [`crate::trajectory::Shape`] the design uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ShapeKind {
+    /// Periodic finite Fourier series (default).
+    #[default]
+    Fourier,
+    /// Clamped uniform B-spline at rest at both ends ([`crate::trajectory::bspline`]).
+    Bspline,
+}
+
+impl ShapeKind {
+    fn is_fourier(&self) -> bool {
+        *self == ShapeKind::Fourier
+    }
+}
+
+/// Default B-spline degree (quintic).
+pub const DEFAULT_DEGREE: usize = 5;
+/// Default number of B-spline segments: with degree 5, ten free control
+/// points per joint, as many design variables as the default five harmonics.
+pub const DEFAULT_SEGMENTS: usize = 11;
+
+impl TrajectorySpec {
+    /// The duration of the motion (s): one period 1/frequency, or a B-spline's `duration`.
+    pub fn motion_duration(&self) -> f64 {
+        match self.shape {
+            ShapeKind::Fourier => 1.0 / self.frequency,
+            ShapeKind::Bspline => self.duration.unwrap_or(1.0 / self.frequency),
+        }
+    }
+
+    /// The shape of this design for the start (and end) pose, or centre, `q0`
+    /// (errors name the field).
+    pub fn shape(&self, q0: Vec<f64>) -> Result<crate::trajectory::Shape> {
+        Ok(match self.shape {
+            ShapeKind::Fourier => {
+                crate::trajectory::FourierLayout::new(q0, self.harmonics, std::f64::consts::TAU * self.frequency, self.vary_q0, self.at_rest)?.into()
+            }
+            ShapeKind::Bspline => crate::trajectory::bspline::BSplineLayout::new(
+                q0,
+                self.degree.unwrap_or(DEFAULT_DEGREE),
+                self.segments.unwrap_or(DEFAULT_SEGMENTS),
+                self.motion_duration(),
+            )?
+            .into(),
+        })
+    }
+
+    /// The checks of the shape's fields (`ctx` names the file).
+    fn validate_shape(&self, ctx: &str) -> Result<()> {
+        let bad = |field: &str, msg: String| Err(Error::invalid(ctx, field, msg));
+        match self.shape {
+            ShapeKind::Fourier => {
+                for (f, given) in [
+                    ("trajectory.degree", self.degree.is_some()),
+                    ("trajectory.segments", self.segments.is_some()),
+                    ("trajectory.duration", self.duration.is_some()),
+                ] {
+                    if given {
+                        return bad(
+                            f,
+                            "applies to shape = \"bspline\" only (the Fourier series: harmonics and frequency); remove it or set shape = \"bspline\"".into(),
+                        );
+                    }
+                }
+            }
+            ShapeKind::Bspline => {
+                let p = self.degree.unwrap_or(DEFAULT_DEGREE);
+                if !(3..=crate::trajectory::bspline::MAX_DEGREE).contains(&p) {
+                    return bad("trajectory.degree", format!("expected a B-spline degree of 3, 4 or 5, got {p}"));
+                }
+                let s = self.segments.unwrap_or(DEFAULT_SEGMENTS);
+                if s + p < 7 || s > 1000 {
+                    return bad(
+                        "trajectory.segments",
+                        format!(
+                            "expected {}..=1000 segments for degree {p} (three control points are fixed at each end), got {s}",
+                            7 - p.min(6)
+                        ),
+                    );
+                }
+                if let Some(d) = self.duration {
+                    if !(d.is_finite() && d > 0.0 && d <= 1e5) {
+                        return bad("trajectory.duration", format!("expected a duration in (0, 100000] s, got {d}"));
+                    }
+                }
+                if self.vary_q0 || self.at_rest {
+                    return bad(
+                        if self.vary_q0 { "trajectory.vary_q0" } else { "trajectory.at_rest" },
+                        "applies to shape = \"fourier\" only (a B-spline starts and ends at rest at q0); remove it".into(),
+                    );
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Default for TrajectorySpec {
@@ -172,6 +288,10 @@ impl Default for TrajectorySpec {
             vary_q0: false,
             at_rest: false,
             controller_rate: 1000.0,
+            shape: ShapeKind::Fourier,
+            degree: None,
+            segments: None,
+            duration: None,
         }
     }
 }
@@ -405,19 +525,25 @@ impl ExciteDesign {
                 return bad(&format!("trajectory.q0[{j}]"), "expected a finite number".into());
             }
         }
+        tr.validate_shape(ctx)?;
         let o = &self.objective;
-        let nyq = 2.0 * tr.harmonics as f64 * tr.frequency;
+        // two samples per period of the highest harmonic, or per B-spline segment
+        let nyq = match tr.shape {
+            ShapeKind::Fourier => 2.0 * tr.harmonics as f64 * tr.frequency,
+            ShapeKind::Bspline => 2.0 * tr.segments.unwrap_or(DEFAULT_SEGMENTS) as f64 / tr.motion_duration(),
+        };
         if !(o.sample_rate.is_finite() && o.sample_rate > 0.0) {
             return bad("objective.sample_rate", format!("expected a positive rate in Hz, got {}", o.sample_rate));
         }
-        if o.sample_rate / tr.frequency > 1e6 {
+        if o.sample_rate * tr.motion_duration() > 1e6 {
             return bad("objective.sample_rate", "more than 10⁶ samples per period".into());
         }
         if o.sample_rate < nyq {
-            return bad(
-                "objective.sample_rate",
-                format!("{} Hz is below twice the highest harmonic ({nyq} Hz)", o.sample_rate),
-            );
+            let what = match tr.shape {
+                ShapeKind::Fourier => "the highest harmonic",
+                ShapeKind::Bspline => "segments per second",
+            };
+            return bad("objective.sample_rate", format!("{} Hz is below twice {what} ({nyq} Hz)", o.sample_rate));
         }
         if let Some(nz) = &o.noise {
             if let Some(j) = nz.iter().position(|v| !(v.is_finite() && *v > 0.0)) {

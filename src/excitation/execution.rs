@@ -1,6 +1,11 @@
 //! `[execution]`: how the designed periodic trajectory is played on the
 //! robot, and the delivered trajectory built from it.
 //!
+//! A rest-to-rest motion (a B-spline, [`crate::trajectory::Ends::RestToRest`])
+//! starts and ends at rest at its start pose, the default home: it is played
+//! `periods` times back to back without a lead-in or lead-out (leads are
+//! built only when `home` is set to another pose).
+//!
 //! By default (`rest_to_rest = true`) the robot starts at rest at the home
 //! pose (default: q0), follows a quintic lead-in to the periodic part's
 //! state at t = 0 (position, velocity and acceleration matched, so q, q̇, q̈
@@ -28,7 +33,7 @@ use crate::error::{Error, Result};
 use crate::robot::cartesian::Shape;
 use crate::robot::{inverse_dynamics, Frame, Robot, Workspace};
 use crate::trajectory::lead::{self, CheckResult, Delivered, State};
-use crate::trajectory::FourierTrajectory;
+use crate::trajectory::{Motion, ShapeMotion};
 use serde::{Deserialize, Serialize};
 
 /// `[execution]`.
@@ -448,23 +453,25 @@ fn closest_on(p: &Problem, sc: &crate::robot::collision::CollisionScene, d: &Del
     })
 }
 
-/// The home pose of a design: `execution.home`, else the trajectory's q0.
-pub fn home_of(p: &Problem, tr: &FourierTrajectory) -> Vec<f64> {
-    p.design.execution.home.clone().unwrap_or_else(|| tr.q0.clone())
+/// The home pose of a design: `execution.home`, else the motion's rest
+/// pose ([`Motion::rest_pose`]: a Fourier series' q0, a rest-to-rest
+/// motion's start).
+pub fn home_of(p: &Problem, tr: &ShapeMotion) -> Vec<f64> {
+    p.design.execution.home.clone().unwrap_or_else(|| tr.rest_pose())
 }
 
 /// Builds the delivered trajectory of `tr` for design `p`: home → lead-in →
 /// `periods` periods → lead-out → home, every lead sample checked with
 /// [`StateCheck`] on the `check_rate` grid, then the whole delivered
 /// trajectory verified on that grid.
-pub fn deliver(p: &Problem, tr: &FourierTrajectory) -> Result<Execution> {
+pub fn deliver(p: &Problem, tr: &ShapeMotion) -> Result<Execution> {
     let e = &p.design.execution;
     let rate = p.design.limits.check_rate;
     let dt = 1.0 / rate;
     let mut check = StateCheck::new(p)?;
     if !e.rest_to_rest {
         let d = Delivered {
-            home: tr.q0.clone(),
+            home: tr.rest_pose(),
             lead_in: None,
             periodic: tr.clone(),
             periods: e.periods,

@@ -7,7 +7,12 @@
 //!
 //! For joint j, q_j(t) = q0_j + Σ_{k=1..n_h} [a_kj/(kω) sin(kωt) − b_kj/(kω) cos(kωt)]
 //! ([`crate::trajectory::FourierTrajectory`]; design vector x = (a, b[, q0]) by
-//! [`crate::trajectory::FourierLayout`], optionally starting and ending at rest).
+//! [`crate::trajectory::FourierLayout`], optionally starting and ending at rest),
+//! or, with `[trajectory] shape = "bspline"`, a clamped B-spline that starts
+//! and ends at rest at q0 (x its free control points,
+//! [`crate::trajectory::bspline`]). Everything below goes through the
+//! trajectory-shape seam ([`crate::trajectory::TrajectoryShape`],
+//! [`crate::trajectory::Shape`]).
 //!
 //! minimise J(C̃(x))  subject to  c_i(x) ≤ 0,  x in a box,
 //!
@@ -53,11 +58,12 @@ use crate::error::{Error, Result};
 use crate::optim::{Control, Termination};
 use crate::params::{BaseOptions, BaseParams};
 use crate::robot::Robot;
-use crate::trajectory::{period_grid, FourierLayout, FourierTrajectory, TrajectoryShape};
+use crate::trajectory::{period_grid, Shape, ShapeMotion, TrajectoryShape};
 use constraints::{Constraints, JointLimitSpec, Margin};
 use design::{ExciteDesign, RefineAlgorithm};
 use objective::{BaseColumns, Columns, Objective, Scoring, Spectrum};
 use serde::Serialize;
+use std::sync::Arc;
 use std::time::Instant;
 
 pub use design::{GaSpec, LimitsSpec, ObjectiveSpec, RefineSpec, TrajectorySpec};
@@ -69,14 +75,14 @@ pub use report::{assess, assess_delivered, Identifiability};
 pub struct Problem {
     /// The design (validated, robot path resolved).
     pub design: ExciteDesign,
-    /// The robot.
-    pub robot: Robot,
+    /// The robot (shared with the objective and the constraints).
+    pub robot: Arc<Robot>,
     /// Base parameters (numerical, Gautier 1991).
     pub base: BaseParams,
     /// Nominal base-parameter values K θ_nominal.
     pub nominal_base: Vec<f64>,
-    /// Design vector layout.
-    pub layout: FourierLayout,
+    /// The trajectory shape: design vector ↔ motion.
+    pub shape: Shape,
     /// The criterion.
     pub objective: Objective,
     /// The constraints.
@@ -181,8 +187,8 @@ pub struct ExciteResult {
     pub status: Status,
     /// Whether the run was cut short (time limit, Ctrl-C) and by what.
     pub stopped_by: Option<StoppedBy>,
-    /// The designed trajectory.
-    pub trajectory: FourierTrajectory,
+    /// The designed trajectory (a Fourier series, or a B-spline).
+    pub trajectory: ShapeMotion,
     /// Its design vector.
     pub x: Vec<f64>,
     /// Criterion value.
@@ -292,13 +298,13 @@ impl Problem {
                 .map(|&[lo, hi]| if lo.is_finite() && hi.is_finite() { 0.5 * (lo + hi) } else { 0.0 })
                 .collect(),
         };
-        let omega = std::f64::consts::TAU * tr.frequency;
-        let layout = FourierLayout::new(q0.clone(), tr.harmonics, omega, tr.vary_q0, tr.at_rest)?;
-        let times = period_grid(1.0 / tr.frequency, design.objective.sample_rate)?;
+        let shape = tr.shape(q0)?;
+        let times = period_grid(tr.motion_duration(), design.objective.sample_rate)?;
+        let robot = Arc::new(robot);
         let noise = design.objective.noise.clone().unwrap_or_else(|| vec![1.0; n]);
         let objective = Objective::new(
-            robot.clone(),
-            layout.clone(),
+            Arc::clone(&robot),
+            shape.clone(),
             BaseColumns {
                 indices: base.independent.clone(),
                 names: base.names.clone(),
@@ -311,27 +317,24 @@ impl Problem {
                 noise: noise.clone(),
             },
         )?;
-        let mut constraints = Constraints::new(&robot, &layout, &limits, &design.workspace, design.limits.grid_rate, ctx)?;
+        let mut constraints = Constraints::new(Arc::clone(&robot), shape.clone(), &limits, &design.workspace, design.limits.grid_rate, ctx)?;
         if let Some(scene) = crate::robot::collision::CollisionScene::new(&robot, &design.collision, std::path::Path::new(""), ctx)? {
             if !scene.is_empty() {
                 constraints = constraints.with_collision(scene);
             }
         }
         // the box of x: the shape's, from the joint limits
-        let (lower, upper) = TrajectoryShape::bounds(
-            &layout,
-            &crate::trajectory::JointBox {
-                position: &position,
-                velocity: &limits.velocity,
-                acceleration: &limits.acceleration,
-            },
-        );
+        let (lower, upper) = shape.bounds(&crate::trajectory::JointBox {
+            position: &position,
+            velocity: &limits.velocity,
+            acceleration: &limits.acceleration,
+        });
         Ok(Problem {
             design,
             robot,
             base,
             nominal_base,
-            layout,
+            shape,
             objective,
             constraints,
             limits,
@@ -358,7 +361,7 @@ impl Problem {
 /// A candidate design after verification on the check grid.
 struct Finalised {
     x: Vec<f64>,
-    trajectory: FourierTrajectory,
+    trajectory: ShapeMotion,
     spectrum: Spectrum,
     margins: Vec<Margin>,
     violated: Vec<Margin>,
@@ -387,23 +390,23 @@ fn scale_of(m: &Margin) -> f64 {
 const SHRINK_STEPS: [f64; 9] = [0.9999, 0.9995, 0.999, 0.998, 0.995, 0.99, 0.98, 0.95, 0.9];
 
 /// Verifies x on the check grid; if some constraint is violated there but
-/// the rest pose at q0 is feasible, scales the harmonics by the first factor
-/// of [`SHRINK_STEPS`] that meets every constraint (none below 0.9).
+/// the rest pose at the centre is feasible, scales every joint's motion
+/// about its centre ([`TrajectoryShape::joint_vars`]: the harmonics, the
+/// B-spline's control points) by the first factor of [`SHRINK_STEPS`] that
+/// meets every constraint (none below 0.9).
 fn finalise(p: &Problem, x: &[f64]) -> Result<Finalised> {
     let rate = p.design.limits.check_rate;
     let n = p.robot.dof();
-    let vpj = p.layout.vars_per_joint();
-    let off = usize::from(p.layout.vary_q0);
     let scaled = |s: f64| -> Vec<f64> {
         let mut y = x.to_vec();
         for j in 0..n {
-            for v in &mut y[j * vpj + off..(j + 1) * vpj] {
+            for v in &mut y[p.shape.joint_vars(j)] {
                 *v *= s;
             }
         }
         y
     };
-    let check = |y: &[f64]| -> Result<Vec<Margin>> { p.constraints.verify(&p.layout.trajectory(y), rate) };
+    let check = |y: &[f64]| -> Result<Vec<Margin>> { p.constraints.verify(&p.shape.motion(y), rate) };
     let feasible = |m: &[Margin]| m.iter().all(|m| m.margin >= 0.0);
     let mut margins = check(x)?;
     let mut xs = x.to_vec();
@@ -419,7 +422,7 @@ fn finalise(p: &Problem, x: &[f64]) -> Result<Finalised> {
             }
         }
     }
-    let trajectory = p.layout.trajectory(&xs);
+    let trajectory = p.shape.motion(&xs);
     let mut ow = p.objective.workspace();
     let spectrum = p.objective.spectrum(&trajectory, &mut ow)?;
     let mut violated: Vec<Margin> = margins.iter().filter(|m| m.margin < 0.0).cloned().collect();
@@ -452,12 +455,8 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
     let ctl_all = ctl.sub(d.time_limit.map(|t| 0.97 * t));
     let ctl_ga = ctl_all.sub(d.time_limit.map(|t| t * d.ga.time_fraction));
     let obs = ctl.observer();
-    // shrink centre: the rest trajectory at q0 (harmonics zero)
-    let centre = p.layout.vars(&crate::trajectory::FourierTrajectory::at_rest(
-        p.layout.q0.clone(),
-        p.layout.n_h,
-        p.layout.omega,
-    ));
+    // shrink centre: the motion at rest at q0 (harmonics, control-point offsets zero)
+    let centre = p.shape.rest_vars();
     obs.phase("excite GA", Some(d.ga.generations as u64));
     let problem = ga::FnProblem {
         make_ws: || (p.objective.workspace(), p.constraints.workspace(), Vec::new()),

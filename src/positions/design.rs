@@ -54,6 +54,7 @@ use nalgebra::DMatrix;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// One value for every joint, or one per joint.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -312,8 +313,8 @@ impl PositionsDesign {
 pub struct PositionsRun {
     /// The design as run (defaults filled in).
     pub design: PositionsDesign,
-    /// The robot, if the design names one.
-    pub robot: Option<Robot>,
+    /// The robot, if the design names one (shared with the information source).
+    pub robot: Option<Arc<Robot>>,
     /// Parameter names (p).
     pub names: Vec<String>,
     /// Joint values per candidate (empty vectors when unknown).
@@ -356,7 +357,7 @@ pub fn run_design(design: &PositionsDesign, dir: &Path, ctl: &Control) -> Result
     let ctx = format!("positions design `{}` (files relative to {})", design.name, dir.display());
     design.validate(&ctx)?;
     let mut robot = match &design.robot {
-        Some(r) => Some(robot::load(&dir.join(r))?),
+        Some(r) => Some(Arc::new(robot::load(&dir.join(r))?)),
         None => None,
     };
     let t_info = std::time::Instant::now();
@@ -431,7 +432,7 @@ pub fn run_design(design: &PositionsDesign, dir: &Path, ctl: &Control) -> Result
                 None => None,
             };
             let names = src.names();
-            robot = Some(src.model.rigid);
+            robot = Some(Arc::new(src.model.rigid));
             (
                 names,
                 c.q,

@@ -55,6 +55,7 @@ use crate::robot::{regressor_rows, Robot, Workspace};
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// The information one experiment at configuration q gives about p parameters.
 pub trait InformationSource: Sync {
@@ -73,8 +74,8 @@ pub trait InformationSource: Sync {
 /// Rigid-body local-excitation information (see the module docs).
 #[derive(Debug, Clone)]
 pub struct RigidSource {
-    /// The robot.
-    pub robot: Robot,
+    /// The robot (shared, not copied, with the run).
+    pub robot: Arc<Robot>,
     /// Base parameters (columns of the regressor kept).
     pub base: BaseParams,
     /// Amplitude A_j per joint (rad or m).
@@ -141,7 +142,7 @@ impl RigidSource {
     /// Builds the source: the base parameters are computed from the stacked
     /// local-motion regressors of (up to 100 of) the `candidates`.
     pub fn new(
-        robot: Robot,
+        robot: impl Into<Arc<Robot>>,
         candidates: &[Vec<f64>],
         inertial_only: bool,
         amplitude: Vec<f64>,
@@ -149,6 +150,7 @@ impl RigidSource {
         samples: usize,
         noise: Vec<f64>,
     ) -> Result<RigidSource> {
+        let robot: Arc<Robot> = robot.into();
         let n = robot.dof();
         if amplitude.len() != n || noise.len() != n {
             return Err(Error::dim("amplitude/noise per joint", n, amplitude.len().min(noise.len())));

@@ -156,8 +156,8 @@ impl Motion {
                     v.push((0.0, d.lead_in_duration(), LEAD_IN));
                 }
                 for k in 0..d.periods {
-                    let t0 = d.periodic_start() + k as f64 * d.periodic.period();
-                    v.push((t0, t0 + d.periodic.period(), k as i64 + 1));
+                    let t0 = d.periodic_start() + k as f64 * crate::trajectory::Motion::duration(&d.periodic);
+                    v.push((t0, t0 + crate::trajectory::Motion::duration(&d.periodic), k as i64 + 1));
                 }
                 if d.lead_out_duration() > 0.0 {
                     v.push((d.periodic_end(), d.duration(), LEAD_OUT));

@@ -39,7 +39,7 @@ pub fn report_instants(margins: &[serde_json::Value], lead_in: f64) -> Vec<Repor
 /// hook of the excite command: written beside `trajectory.csv`).
 pub fn write_for_result(p: &crate::excitation::Problem, r: &crate::excitation::ExciteResult, dir: &Path, opts: &PreviewOptions) -> Result<Written> {
     let d = &p.design;
-    let mut setup = Setup::from_design(d, p.robot.clone(), &d.name)?;
+    let mut setup = Setup::from_design(d, (*p.robot).clone(), &d.name)?;
     let delivered = delivered_or_periodic(r.execution.delivered.as_ref(), &r.trajectory);
     let margins: Vec<serde_json::Value> = r
         .margins
@@ -57,11 +57,11 @@ pub fn write_for_result(p: &crate::excitation::Problem, r: &crate::excitation::E
 
 /// The delivered trajectory, or one period when none is playable (as
 /// `trajectory.csv` then holds).
-fn delivered_or_periodic(d: Option<&Delivered>, tr: &crate::trajectory::FourierTrajectory) -> Delivered {
+fn delivered_or_periodic(d: Option<&Delivered>, tr: &crate::trajectory::ShapeMotion) -> Delivered {
     match d {
         Some(d) => d.clone(),
         None => Delivered {
-            home: tr.q0.clone(),
+            home: crate::trajectory::Motion::rest_pose(tr),
             lead_in: None,
             periodic: tr.clone(),
             periods: 1,
@@ -96,7 +96,7 @@ pub fn write_for_folder(dir: &Path, out_dir: Option<&Path>, opts: &PreviewOption
     let robot = crate::robot::load(&design.robot)?;
     let coeff_path = dir.join("coefficients.json");
     let coeff = read_json(&coeff_path)?;
-    let tr: crate::trajectory::FourierTrajectory =
+    let tr: crate::trajectory::ShapeMotion =
         serde_json::from_value(coeff["trajectory"].clone()).map_err(|e| Error::invalid(coeff_path.display().to_string(), "trajectory", e.to_string()))?;
     let delivered: Option<Delivered> =
         serde_json::from_value(coeff["delivered"].clone()).map_err(|e| Error::invalid(coeff_path.display().to_string(), "delivered", e.to_string()))?;

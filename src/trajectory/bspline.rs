@@ -19,7 +19,7 @@
 //! within the position limits keep the motion within them: that is the box
 //! of x ([`TrajectoryShape::bounds`]).
 
-use super::shape::{Ends, JointBox, Motion, StateGradient, TrajectoryShape};
+use super::shape::{Ends, JointBox, Motion, StateGradient, TimeGrid, TrajectoryShape};
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
@@ -29,8 +29,13 @@ pub const MAX_DEGREE: usize = 5;
 /// Control points fixed at each end (the rest conditions q, q̇, q̈).
 const FIXED: usize = 3;
 
+/// Scan points per segment bracketing the joint extrema (the knots among
+/// them: the acceleration of a cubic is extremal at a knot).
+pub const SCAN_PER_SEGMENT: usize = 16;
+
 /// A clamped uniform B-spline motion: degree, knots and control points per joint.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct BSplineMotion {
     /// Degree p.
     pub degree: usize,
@@ -130,7 +135,89 @@ pub struct BSplineScratch;
 /// Basis values N_{span−p+r,p}^{(k)}(t), `ders[k][r]` for k ≤ 4, r ≤ p.
 type Ders = [[f64; MAX_DEGREE + 1]; 5];
 
+/// A fixed time grid with the knot span and the basis values (orders 0 … 2)
+/// at each time: the knots are the layout's, so they serve every motion of
+/// it, and a grid evaluation costs p + 1 multiply-adds per joint and order.
+#[derive(Debug, Clone)]
+pub struct BSplineGrid {
+    times: Vec<f64>,
+    span: Vec<usize>,
+    ders: Vec<[[f64; MAX_DEGREE + 1]; 3]>,
+}
+
+impl TimeGrid for BSplineGrid {
+    fn times(&self) -> &[f64] {
+        &self.times
+    }
+}
+
+impl BSplineGrid {
+    /// q_j^(order) (order ≤ 2) of `m` at grid time i, as [`Motion::eval`] computes it.
+    #[inline]
+    fn value(&self, m: &BSplineMotion, j: usize, order: usize, i: usize) -> f64 {
+        let (first, d) = (self.span[i] - m.degree, &self.ders[i][order]);
+        let c = &m.control[j];
+        let s: f64 = (0..=m.degree).map(|r| d[r] * (c[first + r] - c[0])).sum();
+        if order == 0 {
+            c[0] + s
+        } else {
+            s
+        }
+    }
+}
+
 impl BSplineMotion {
+    /// Checks a motion read from a file: degree 3 … 5, a clamped
+    /// nondecreasing knot vector from 0, s + p control points per joint,
+    /// all finite, at rest at both ends (the first and last three control
+    /// points of each joint equal); `ctx` names the source.
+    pub fn validate(&self, ctx: &str) -> Result<()> {
+        let p = self.degree;
+        if !(3..=MAX_DEGREE).contains(&p) {
+            return Err(Error::invalid(ctx, "degree", format!("expected a B-spline degree of 3, 4 or 5, got {p}")));
+        }
+        let u = &self.knots;
+        let ok_knots = u.len() >= 2 * p + 2
+            && u.iter().all(|v| v.is_finite())
+            && u.windows(2).all(|w| w[0] <= w[1])
+            && u[0] == 0.0
+            && u[..=p].iter().all(|&v| v == u[0])
+            && u[u.len() - p - 1..].iter().all(|&v| v == u[u.len() - 1])
+            && u[u.len() - 1] > 0.0;
+        if !ok_knots {
+            return Err(Error::invalid(
+                ctx,
+                "knots",
+                format!("expected a clamped nondecreasing knot vector from 0 with {} equal values at each end", p + 1),
+            ));
+        }
+        let m = u.len() - p - 1;
+        if self.control.is_empty() {
+            return Err(Error::invalid(ctx, "control", "expected one row of control points per joint, got none"));
+        }
+        for (j, c) in self.control.iter().enumerate() {
+            if c.len() != m {
+                return Err(Error::invalid(
+                    ctx,
+                    format!("control[{j}]"),
+                    format!("expected {m} control points (knots − degree − 1), got {}", c.len()),
+                ));
+            }
+            if let Some(i) = c.iter().position(|v| !v.is_finite()) {
+                return Err(Error::invalid(ctx, format!("control[{j}][{i}]"), "expected a finite number"));
+            }
+            let (a, b) = (c[0], c[m - 1]);
+            if m < 2 * FIXED || c[..FIXED].iter().any(|&v| v != a) || c[m - FIXED..].iter().any(|&v| v != b) {
+                return Err(Error::invalid(
+                    ctx,
+                    format!("control[{j}]"),
+                    "expected the first three and the last three control points equal (at rest at both ends)",
+                ));
+            }
+        }
+        Ok(())
+    }
+
     fn n_control(&self) -> usize {
         self.knots.len() - self.degree - 1
     }
@@ -243,13 +330,20 @@ impl Motion for BSplineMotion {
         Ends::RestToRest
     }
 
+    fn rest_pose(&self) -> Vec<f64> {
+        self.control.iter().map(|c| c[0]).collect()
+    }
+
     fn eval(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
         let (span, d) = self.basis(t, 2);
         let first = span - self.degree;
         for (j, c) in self.control.iter().enumerate() {
-            let (mut p, mut v, mut a) = (0.0, 0.0, 0.0);
+            // offsets from the start point: the derivatives of a motion at
+            // rest are exactly 0 (Σ_r N_r^(k) = 0 for k ≥ 1 holds only to rounding)
+            let c0 = c[0];
+            let (mut p, mut v, mut a) = (c0, 0.0, 0.0);
             for r in 0..=self.degree {
-                let pc = c[first + r];
+                let pc = c[first + r] - c0;
                 p += d[0][r] * pc;
                 v += d[1][r] * pc;
                 a += d[2][r] * pc;
@@ -267,11 +361,13 @@ impl Motion for BSplineMotion {
         }
         let (span, d) = self.basis(t, (m + 2).min(4));
         let first = span - self.degree;
+        let c = &self.control[j];
         for (o, order) in out.iter_mut().zip(m..m + 3) {
             if order > self.degree || order > 4 {
                 continue;
             }
-            *o = (0..=self.degree).map(|r| d[order][r] * self.control[j][first + r]).sum();
+            let s: f64 = (0..=self.degree).map(|r| d[order][r] * (c[first + r] - c[0])).sum();
+            *o = if order == 0 { c[0] + s } else { s };
         }
         out
     }
@@ -280,9 +376,87 @@ impl Motion for BSplineMotion {
 impl TrajectoryShape for BSplineLayout {
     type Motion = BSplineMotion;
     type Scratch = BSplineScratch;
+    type Grid = BSplineGrid;
 
     fn n_vars(&self) -> usize {
         self.n * self.vars_per_joint()
+    }
+
+    fn n_joints(&self) -> usize {
+        self.n
+    }
+
+    fn duration(&self) -> f64 {
+        self.duration
+    }
+
+    fn ends(&self) -> Ends {
+        Ends::RestToRest
+    }
+
+    /// Every free control point at q0.
+    fn rest_vars(&self) -> Vec<f64> {
+        vec![0.0; TrajectoryShape::n_vars(self)]
+    }
+
+    fn joint_vars(&self, j: usize) -> std::ops::Range<usize> {
+        let vpj = self.vars_per_joint();
+        j * vpj..(j + 1) * vpj
+    }
+
+    fn centre(&self, _: &[f64], j: usize) -> f64 {
+        self.q0[j]
+    }
+
+    /// [`SCAN_PER_SEGMENT`] points per segment, the knots among them.
+    fn scan_times(&self) -> Vec<f64> {
+        let ns = SCAN_PER_SEGMENT * self.segments;
+        (0..ns).map(|i| self.duration * i as f64 / ns as f64).collect()
+    }
+
+    fn grid(&self, times: Vec<f64>) -> BSplineGrid {
+        let m = self.motion(&vec![0.0; TrajectoryShape::n_vars(self)]);
+        let (mut span, mut ders) = (Vec::with_capacity(times.len()), Vec::with_capacity(times.len()));
+        for &t in &times {
+            let (s, d) = m.basis(t, 2);
+            span.push(s);
+            ders.push([d[0], d[1], d[2]]);
+        }
+        BSplineGrid { times, span, ders }
+    }
+
+    fn grid_state(&self, grid: &BSplineGrid, m: &BSplineMotion, i: usize, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
+        for j in 0..self.n {
+            q[j] = grid.value(m, j, 0, i);
+            qd[j] = grid.value(m, j, 1, i);
+            qdd[j] = grid.value(m, j, 2, i);
+        }
+    }
+
+    fn grid_derivative(&self, grid: &BSplineGrid, m: &BSplineMotion, j: usize, order: usize, i: usize) -> f64 {
+        if order <= 2 {
+            grid.value(m, j, order, i)
+        } else {
+            m.derivatives(j, order, grid.times[i])[0]
+        }
+    }
+
+    /// The basis values at t_i times each block of `g`, added to the free
+    /// control points they touch (as [`TrajectoryShape::pull_back`], without buffers).
+    fn grid_accumulate(&self, grid: &BSplineGrid, _: &BSplineMotion, i: usize, g: &[f64], _: &mut BSplineScratch, acc: &mut [f64]) {
+        let (first, d) = (grid.span[i] - self.degree, &grid.ders[i]);
+        let (n, vpj) = (self.n, self.vars_per_joint());
+        for (g, acc) in g.chunks_exact(3 * n).zip(acc.chunks_exact_mut(n * vpj)) {
+            for a in 0..n {
+                for r in 0..=self.degree {
+                    let idx = first + r;
+                    if idx < FIXED || idx >= FIXED + vpj {
+                        continue;
+                    }
+                    acc[a * vpj + idx - FIXED] += g[a] * d[0][r] + g[n + a] * d[1][r] + g[2 * n + a] * d[2][r];
+                }
+            }
+        }
     }
 
     fn motion(&self, x: &[f64]) -> BSplineMotion {

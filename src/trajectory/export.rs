@@ -481,7 +481,7 @@ impl Designed {
         if revolute.len() != n {
             return Err(bad("revolute", revolute.len()));
         }
-        if delivered.home.len() != n || delivered.periodic.n_joints() != n {
+        if delivered.home.len() != n || super::Motion::n_joints(&delivered.periodic) != n {
             return Err(bad("delivered.home", delivered.home.len()));
         }
         for (what, l) in [("delivered.lead_in", &delivered.lead_in), ("delivered.lead_out", &delivered.lead_out)] {

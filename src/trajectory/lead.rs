@@ -10,7 +10,7 @@
 //! [`DURATION_QUANTUM`]) whose motion passes the caller's check (joint
 //! limits, torques, workspace, collision), sampled `dt` apart.
 
-use super::{FourierTrajectory, Motion};
+use super::{Motion, ShapeMotion};
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
@@ -177,8 +177,10 @@ pub struct Delivered {
     pub home: Vec<f64>,
     /// Lead-in from home at rest to the periodic part's state at t = 0.
     pub lead_in: Option<Quintic>,
-    /// The periodic excitation.
-    pub periodic: FourierTrajectory,
+    /// The excitation: a period of a periodic motion (a Fourier series),
+    /// or a whole rest-to-rest motion (a B-spline, played without leads
+    /// from and back to home = its start pose), repeated `periods` times.
+    pub periodic: ShapeMotion,
     /// Number of periods played (≥ 1).
     pub periods: usize,
     /// Lead-out from the periodic part's state at the end of the last period
@@ -204,7 +206,7 @@ impl Delivered {
 
     /// End time of the periodic part (s).
     pub fn periodic_end(&self) -> f64 {
-        self.lead_in_duration() + self.periods as f64 * self.periodic.period()
+        self.lead_in_duration() + self.periods as f64 * self.periodic.duration()
     }
 
     /// Total duration (s).
@@ -227,7 +229,7 @@ impl Delivered {
         }
         if t < self.periodic_end() - BOUNDARY_TOL {
             let s = (t - t_in).max(0.0);
-            let k = (((s + BOUNDARY_TOL) / self.periodic.period()).floor() as usize).min(self.periods - 1);
+            let k = (((s + BOUNDARY_TOL) / self.periodic.duration()).floor() as usize).min(self.periods - 1);
             return k as i64 + 1;
         }
         LEAD_OUT
@@ -268,7 +270,7 @@ impl Delivered {
                 // periodic, and the phase stays exact however many periods
                 // are played
                 let s = (t - self.lead_in_duration()).max(0.0);
-                self.periodic.eval((s - (k - 1) as f64 * self.periodic.period()).max(0.0), q, qd, qdd);
+                self.periodic.eval((s - (k - 1) as f64 * self.periodic.duration()).max(0.0), q, qd, qdd);
             }
         }
         seg
@@ -281,7 +283,7 @@ impl Delivered {
         // relative: over 1000 periods of 10 s a phase error below 10⁻⁸ s):
         // the rows of period s ≥ 2 are at the phases of period 1's rows,
         // (s − 1)·N rows earlier
-        let nf = self.periodic.period() * rate;
+        let nf = self.periodic.duration() * rate;
         let per = nf.round();
         let period_rows = (self.periods > 1 && per >= 1.0 && (nf - per).abs() <= 1e-12 * per).then_some(per as usize);
         RowPlan { rate, period_rows }

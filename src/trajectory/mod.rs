@@ -17,14 +17,18 @@
 pub mod bspline;
 pub mod differentiate;
 pub mod export;
+mod fourier_shape;
 pub mod lead;
 pub mod multisine;
 pub mod reference;
 pub mod shape;
+pub mod shapes;
 
 pub use differentiate::differentiate;
+pub use fourier_shape::{FourierScratch, TrigGrid, SCAN_PER_HARMONIC};
 pub use reference::{Reference, ReferenceSpec};
-pub use shape::{Ends, JointBox, Motion, StateGradient, TrajectoryShape};
+pub use shape::{Ends, JointBox, Motion, PlainGrid, StateGradient, TimeGrid, TrajectoryShape};
+pub use shapes::{Shape, ShapeMotion};
 
 use crate::error::{Error, Result};
 use crate::io::States;
@@ -168,23 +172,9 @@ impl FourierTrajectory {
         Ok(self.sample_at(&times))
     }
 
-    /// Evaluates the trajectory at the given times.
+    /// Evaluates the trajectory at the given times ([`Motion::sample_at`]).
     pub fn sample_at(&self, times: &[f64]) -> States {
-        let n = self.n_joints();
-        let mut s = States {
-            t: Some(times.to_vec()),
-            q: Vec::with_capacity(times.len()),
-            qd: Vec::with_capacity(times.len()),
-            qdd: Vec::with_capacity(times.len()),
-        };
-        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        for &t in times {
-            self.eval(t, &mut q, &mut qd, &mut qdd);
-            s.q.push(q.clone());
-            s.qd.push(qd.clone());
-            s.qdd.push(qdd.clone());
-        }
-        s
+        <Self as Motion>::sample_at(self, times)
     }
 
     /// Analytic bounds valid for all t, per joint: (max |q − q0|, max |q̇|, max |q̈|)
@@ -430,16 +420,6 @@ impl FourierLayout {
     }
 }
 
-/// Buffers of [`FourierLayout`]'s [`TrajectoryShape::pull_back`]: the basis at t and
-/// the gradient with respect to the full coefficients (q0, a, b).
-#[derive(Debug, Clone, Default)]
-pub struct FourierScratch {
-    basis: Basis,
-    g_q0: Vec<f64>,
-    g_a: Vec<Vec<f64>>,
-    g_b: Vec<Vec<f64>>,
-}
-
 impl FourierTrajectory {
     /// Time derivatives of orders m, m+1, m+2 of q_j at t (order 0 includes q0),
     /// with one sin_cos and the angle-addition recurrence for the harmonics.
@@ -491,91 +471,9 @@ impl Motion for FourierTrajectory {
     fn derivatives(&self, j: usize, m: usize, t: f64) -> [f64; 3] {
         FourierTrajectory::derivatives(self, j, m, t)
     }
-}
 
-impl TrajectoryShape for FourierLayout {
-    type Motion = FourierTrajectory;
-    type Scratch = FourierScratch;
-
-    fn n_vars(&self) -> usize {
-        FourierLayout::n_vars(self)
-    }
-
-    fn motion(&self, x: &[f64]) -> FourierTrajectory {
-        self.trajectory(x)
-    }
-
-    /// Each harmonic alone within the joint's limits: |a_kj|, |b_kj| ≤
-    /// min(kω·room, q̇_max, q̈_max/(kω)), room the distance from q0 to the
-    /// nearer position limit (half the range when q0 is free, π without
-    /// limits); a free q0 within the position limits (q0 ± π without).
-    fn bounds(&self, limits: &JointBox) -> (Vec<f64>, Vec<f64>) {
-        let (position, q0, omega) = (limits.position, &self.q0, self.omega);
-        let mut lower = vec![0.0; FourierLayout::n_vars(self)];
-        let mut upper = vec![0.0; FourierLayout::n_vars(self)];
-        let vpj = self.vars_per_joint();
-        for j in 0..self.n {
-            let [lo, hi] = position[j];
-            let room = if self.vary_q0 {
-                if lo.is_finite() && hi.is_finite() {
-                    0.5 * (hi - lo)
-                } else {
-                    std::f64::consts::PI
-                }
-            } else {
-                let r = (hi - q0[j]).min(q0[j] - lo);
-                if r.is_finite() {
-                    r.max(1e-9)
-                } else {
-                    std::f64::consts::PI
-                }
-            };
-            if self.vary_q0 {
-                let (a, b) = if lo.is_finite() && hi.is_finite() {
-                    (lo, hi)
-                } else {
-                    (q0[j] - std::f64::consts::PI, q0[j] + std::f64::consts::PI)
-                };
-                lower[j * vpj] = a;
-                upper[j * vpj] = b;
-            }
-            for k0 in usize::from(self.at_rest)..self.n_h {
-                let kw = (k0 + 1) as f64 * omega;
-                let mut r = kw * room;
-                if limits.velocity[j].is_finite() {
-                    r = r.min(limits.velocity[j]);
-                }
-                if limits.acceleration[j].is_finite() {
-                    r = r.min(limits.acceleration[j] / kw);
-                }
-                let (ia, ib) = self.index(j, k0);
-                for i in [ia, ib] {
-                    lower[i] = -r;
-                    upper[i] = r;
-                }
-            }
-        }
-        (lower, upper)
-    }
-
-    /// Through the Fourier basis at t ([`FourierTrajectory::basis`]) to the
-    /// full coefficients, then [`FourierLayout::pullback`].
-    fn pull_back(&self, m: &FourierTrajectory, t: f64, g: &StateGradient, s: &mut FourierScratch, gx: &mut [f64]) {
-        let (n, nh) = (self.n, self.n_h);
-        m.basis(t, &mut s.basis);
-        s.g_q0.resize(n, 0.0);
-        s.g_a.resize_with(n, || vec![0.0; nh]);
-        s.g_b.resize_with(n, || vec![0.0; nh]);
-        let f = g.factor;
-        for a in 0..n {
-            s.g_q0[a] = f * g.q[a];
-            for k in 0..nh {
-                let b = &s.basis.k[k];
-                s.g_a[a][k] = f * (g.q[a] * b[0] + g.qd[a] * b[2] + g.qdd[a] * b[4]);
-                s.g_b[a][k] = f * (g.q[a] * b[1] + g.qd[a] * b[3] + g.qdd[a] * b[5]);
-            }
-        }
-        self.pullback(&s.g_q0, &s.g_a, &s.g_b, gx);
+    fn rest_pose(&self) -> Vec<f64> {
+        self.q0.clone()
     }
 }
 

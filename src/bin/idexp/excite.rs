@@ -94,7 +94,7 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         p.design.name,
         p.robot.name,
         p.robot.dof(),
-        p.layout.n_vars(),
+        idexp::trajectory::TrajectoryShape::n_vars(&p.shape),
         p.constraints.len(),
         p.objective.n_cols()
     );

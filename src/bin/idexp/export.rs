@@ -118,11 +118,15 @@ pub fn run(a: &ExportArgs, _ctl: &Control) -> anyhow::Result<Outcome> {
         .clone()
         .unwrap_or_else(|| a.coefficients.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from(".")));
     println!(
-        "export `{}`: {:.2} s from home at rest to home at rest ({} period(s) of {} s)",
+        "export `{}`: {:.2} s from home at rest to home at rest ({} {} of {} s)",
         des.design,
         des.delivered.duration(),
         des.delivered.periods,
-        des.delivered.periodic.period_text()
+        match idexp::trajectory::Motion::ends(&des.delivered.periodic) {
+            idexp::trajectory::Ends::Periodic => "period(s)",
+            idexp::trajectory::Ends::RestToRest => "rest-to-rest motion(s)",
+        },
+        des.delivered.periodic.duration_text()
     );
     for p in export(&dir, &des.design, &des.names, &des.revolute, &des.delivered, f, des.controller_rate, &a.opts)? {
         println!("  wrote {}", p.display());

@@ -5,7 +5,7 @@ use super::{frame_point, joint_extremum, ConstraintInfo, ConstraintWorkspace, Co
 use crate::robot::collision::DistanceSeries;
 use crate::robot::kinematics::forward_kinematics;
 use crate::robot::{frame_jacobian, id_derivatives, inverse_dynamics, motor_inertia};
-use crate::trajectory::{FourierTrajectory, TrajectoryShape};
+use crate::trajectory::{Motion, ShapeMotion, TimeGrid, TrajectoryShape};
 use rayon::prelude::*;
 
 impl Constraints {
@@ -20,9 +20,9 @@ impl Constraints {
     /// then each constraint's value and, with `jac`, its gradient with
     /// respect to the state at the time of its worst value (joint, torque,
     /// Cartesian or distance), pulled back to x (`pull_back`).
-    pub fn eval_traj(&self, tr: &FourierTrajectory, cw: &mut ConstraintWorkspace, c: &mut [f64], mut jac: Option<&mut [f64]>) {
+    pub fn eval_traj(&self, tr: &ShapeMotion, cw: &mut ConstraintWorkspace, c: &mut [f64], mut jac: Option<&mut [f64]>) {
         assert_eq!(c.len(), self.len(), "constraint output length");
-        let nv = self.layout.n_vars();
+        let nv = self.shape.n_vars();
         self.torque_grid(tr, cw);
         self.distance_grid(tr, cw);
         let mut last_cart = usize::MAX;
@@ -56,12 +56,12 @@ impl Constraints {
     }
 
     /// τ(t_g) of inverse dynamics at every constraint grid time (when a torque is limited).
-    fn torque_grid(&self, tr: &FourierTrajectory, cw: &mut ConstraintWorkspace) {
+    fn torque_grid(&self, tr: &ShapeMotion, cw: &mut ConstraintWorkspace) {
         if !self.items.iter().any(|i| matches!(i, Item::Torque { .. })) {
             return;
         }
         for g in 0..self.grid.len() {
-            self.grid.state(tr, g, &mut cw.q, &mut cw.qd, &mut cw.qdd);
+            self.shape.grid_state(&self.grid, tr, g, &mut cw.q, &mut cw.qd, &mut cw.qdd);
             inverse_dynamics(&self.robot, &mut cw.ws, &self.theta, &cw.q, &cw.qd, &cw.qdd, &mut cw.tau);
             cw.tau_grid[g].copy_from_slice(&cw.tau);
         }
@@ -69,12 +69,12 @@ impl Constraints {
 
     /// Body poses once per grid time, then per pair the exact distance only
     /// where it can be the pair's minimum over the grid (when collisions are checked).
-    fn distance_grid(&self, tr: &FourierTrajectory, cw: &mut ConstraintWorkspace) {
+    fn distance_grid(&self, tr: &ShapeMotion, cw: &mut ConstraintWorkspace) {
         let Some(sc) = self.scene.as_deref() else {
             return;
         };
         for g in 0..self.grid.len() {
-            self.grid.state(tr, g, &mut cw.q, &mut cw.qd, &mut cw.qdd);
+            self.shape.grid_state(&self.grid, tr, g, &mut cw.q, &mut cw.qd, &mut cw.qdd);
             forward_kinematics(&self.robot, &cw.q, &mut cw.ws.kin);
             sc.poses(&cw.ws.kin, &mut cw.pose_grid[g]);
         }
@@ -95,10 +95,10 @@ impl Constraints {
     }
 
     /// The margins of Cartesian constraint `idx` at every grid time.
-    fn margin_grid(&self, tr: &FourierTrajectory, idx: usize, cw: &mut ConstraintWorkspace) {
+    fn margin_grid(&self, tr: &ShapeMotion, idx: usize, cw: &mut ConstraintWorkspace) {
         let ci = &self.cart[idx];
         for g in 0..self.grid.len() {
-            self.grid.state(tr, g, &mut cw.q, &mut cw.qd, &mut cw.qdd);
+            self.shape.grid_state(&self.grid, tr, g, &mut cw.q, &mut cw.qd, &mut cw.qdd);
             let p = frame_point(&self.robot, &mut cw.ws, &cw.q, &ci.frame);
             cw.margins.clear();
             ci.shape.margins(&p, &mut cw.margins);
@@ -111,17 +111,9 @@ impl Constraints {
     /// Joint position, velocity or acceleration limit: the extremum of
     /// q_j^(order) over the continuous period; gradient ∂q_j^(order)(t*)/∂x.
     /// Returns (value, t* when the gradient was set).
-    fn joint_value(
-        &self,
-        tr: &FourierTrajectory,
-        inf: &ConstraintInfo,
-        j: usize,
-        order: usize,
-        want_grad: bool,
-        cw: &mut ConstraintWorkspace,
-    ) -> (f64, Option<f64>) {
+    fn joint_value(&self, tr: &ShapeMotion, inf: &ConstraintInfo, j: usize, order: usize, want_grad: bool, cw: &mut ConstraintWorkspace) -> (f64, Option<f64>) {
         let sgn = if inf.upper { 1.0 } else { -1.0 };
-        let (v, t) = joint_extremum(tr, &self.scan, j, order, inf.upper);
+        let (v, t) = joint_extremum(&self.shape, tr, &self.scan, j, order, inf.upper);
         if !want_grad {
             return (sgn * (v - inf.limit) / inf.scale, None);
         }
@@ -133,7 +125,7 @@ impl Constraints {
 
     /// Joint torque limit: the extremum of τ_j on the grid refined by a
     /// parabola; gradient ∂τ_j/∂q · ∂q/∂x + ∂τ_j/∂q̇ · ∂q̇/∂x + M_j · ∂q̈/∂x at t*.
-    fn torque_value(&self, tr: &FourierTrajectory, inf: &ConstraintInfo, j: usize, want_grad: bool, cw: &mut ConstraintWorkspace) -> (f64, Option<f64>) {
+    fn torque_value(&self, tr: &ShapeMotion, inf: &ConstraintInfo, j: usize, want_grad: bool, cw: &mut ConstraintWorkspace) -> (f64, Option<f64>) {
         let sgn = if inf.upper { 1.0 } else { -1.0 };
         let vals: Vec<f64> = cw.tau_grid.iter().map(|r| sgn * r[j]).collect();
         let (fv, t) = self.refine_grid(
@@ -165,7 +157,7 @@ impl Constraints {
     /// Cartesian margin `margin` of constraint `idx` (its grid from
     /// [`Self::margin_grid`]): the minimum on the grid refined by a parabola;
     /// gradient −∂g/∂p · J_v(q(t*)) · ∂q/∂x.
-    fn cartesian_value(&self, tr: &FourierTrajectory, idx: usize, margin: usize, want_grad: bool, cw: &mut ConstraintWorkspace) -> (f64, Option<f64>) {
+    fn cartesian_value(&self, tr: &ShapeMotion, idx: usize, margin: usize, want_grad: bool, cw: &mut ConstraintWorkspace) -> (f64, Option<f64>) {
         let ci = &self.cart[idx];
         // minimise the margin: maximise −g
         let vals: Vec<f64> = cw.marg_grid.iter().map(|r| -r[margin]).collect();
@@ -201,7 +193,7 @@ impl Constraints {
     /// [`Self::distance_grid`]): the grid minimum refined by a parabola;
     /// gradient −∂d/∂q · ∂q/∂x / [`DISTANCE_SCALE`] at t*. In the GA's
     /// selection a pair that keeps the margin at every grid time gives 0.
-    fn distance_value(&self, tr: &FourierTrajectory, pair: usize, want_grad: bool, cw: &mut ConstraintWorkspace) -> (f64, Option<f64>) {
+    fn distance_value(&self, tr: &ShapeMotion, pair: usize, want_grad: bool, cw: &mut ConstraintWorkspace) -> (f64, Option<f64>) {
         let sc = self.scene.as_deref().expect("distance constraints have a scene");
         // the parabola through the grid minimum needs its neighbours exact
         let ng = cw.pose_grid.len();
@@ -252,11 +244,12 @@ impl Constraints {
 
     /// Pulls the state gradient `cw.grad` at time t back to x into `row`
     /// through the shape's Jacobian ([`TrajectoryShape::pull_back`]).
-    fn pull_back(&self, tr: &FourierTrajectory, t: f64, cw: &mut ConstraintWorkspace, row: &mut [f64]) {
-        TrajectoryShape::pull_back(&self.layout, tr, t, &cw.grad, &mut cw.pull, row);
+    fn pull_back(&self, tr: &ShapeMotion, t: f64, cw: &mut ConstraintWorkspace, row: &mut [f64]) {
+        self.shape.pull_back(tr, t, &cw.grad, &mut cw.pull, row);
     }
 
-    /// Maximum of a function sampled on the constraint grid (periodic), refined
+    /// Maximum of a function sampled on the constraint grid (taken as
+    /// periodic: a rest-to-rest motion ends where it starts), refined
     /// by a parabola through the best grid point and its neighbours. Returns (value, time).
     fn refine_grid(&self, vals: &[f64], f: impl Fn(f64, &mut ConstraintWorkspace) -> f64, cw: &mut ConstraintWorkspace) -> (f64, f64) {
         let ng = vals.len();
@@ -266,7 +259,7 @@ impl Constraints {
                 ib = i;
             }
         }
-        let grid = &self.grid.times;
+        let grid = self.grid.times();
         let h = if ng > 1 { grid[1] - grid[0] } else { 0.0 };
         let (fm, f0, fp) = (vals[(ib + ng - 1) % ng], vals[ib], vals[(ib + 1) % ng]);
         let den = fm - 2.0 * f0 + fp;

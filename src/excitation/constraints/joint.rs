@@ -1,30 +1,30 @@
 //! The extrema of a joint's position, velocity or acceleration over the
-//! continuous period of a Fourier trajectory: a scan, then Newton steps on
+//! continuous motion of a trajectory shape: a scan, then Newton steps on
 //! the analytic derivatives.
 
-use crate::excitation::grid::TrigGrid;
-use crate::trajectory::FourierTrajectory;
+use crate::trajectory::{Motion, TimeGrid, TrajectoryShape};
 
-/// m-th time derivative of q_j at t (m = 0 includes q0).
-pub fn series_derivative(tr: &FourierTrajectory, j: usize, m: usize, t: f64) -> f64 {
+/// m-th time derivative of q_j at t (m = 0 is q_j itself).
+pub fn series_derivative<M: Motion + ?Sized>(tr: &M, j: usize, m: usize, t: f64) -> f64 {
     series_derivatives(tr, j, m, t)[0]
 }
 
-/// Time derivatives of orders m, m+1, m+2 of q_j at t (order 0 includes q0),
-/// with one sin_cos and the angle-addition recurrence for the harmonics.
-pub fn series_derivatives(tr: &FourierTrajectory, j: usize, m: usize, t: f64) -> [f64; 3] {
+/// Time derivatives of orders m, m+1, m+2 of q_j at t ([`Motion::derivatives`]:
+/// for a Fourier series with one sin_cos and the angle-addition recurrence).
+pub fn series_derivatives<M: Motion + ?Sized>(tr: &M, j: usize, m: usize, t: f64) -> [f64; 3] {
     tr.derivatives(j, m, t)
 }
 
-/// Extremum of q_j^(order) over the continuous period: (value, time).
-/// `upper`: maximum, else minimum. `scan` is a uniform grid over the period:
-/// the best two grid local extrema are refined by Newton steps on
-/// d/dt q_j^(order) = 0.
-pub fn joint_extremum(tr: &FourierTrajectory, scan: &TrigGrid, j: usize, order: usize, upper: bool) -> (f64, f64) {
+/// Extremum of q_j^(order) over the continuous motion: (value, time).
+/// `upper`: maximum, else minimum. `scan` is the shape's uniform grid over
+/// the motion ([`TrajectoryShape::scan_times`], taken as periodic: a
+/// rest-to-rest motion ends where it starts): the best two grid local
+/// extrema are refined by Newton steps on d/dt q_j^(order) = 0.
+pub fn joint_extremum<S: TrajectoryShape>(shape: &S, tr: &S::Motion, scan: &S::Grid, j: usize, order: usize, upper: bool) -> (f64, f64) {
     let sgn = if upper { 1.0 } else { -1.0 };
     let ns = scan.len();
-    let vals: Vec<f64> = (0..ns).map(|i| sgn * scan.derivative(tr, j, order, i)).collect();
-    let scan = &scan.times;
+    let vals: Vec<f64> = (0..ns).map(|i| sgn * shape.grid_derivative(scan, tr, j, order, i)).collect();
+    let scan = scan.times();
     let mut cand: [Option<usize>; 2] = [None, None];
     for i in 0..ns {
         if vals[i] >= vals[(i + ns - 1) % ns] && vals[i] >= vals[(i + 1) % ns] {

@@ -4,12 +4,13 @@
 //! dimensionless: c_i = (worst value over the period − limit) / scale.
 //!
 //! * **Joint position, velocity, acceleration** (per joint, upper and lower):
-//!   the extremum over the *continuous* period of the trigonometric
-//!   polynomial q_j^(m)(t), m = 0, 1, 2. It is found by scanning a grid of
-//!   [`SCAN_PER_HARMONIC`] points per period of the highest harmonic, then
+//!   the extremum over the *continuous* motion of q_j^(m)(t), m = 0, 1, 2.
+//!   It is found by scanning the shape's scan grid
+//!   ([`TrajectoryShape::scan_times`]: for the Fourier series
+//!   [`SCAN_PER_HARMONIC`] points per period of the highest harmonic), then
 //!   Newton steps on d/dt q_j^(m) = 0 from the best grid local extrema
 //!   (analytic derivatives up to order 4). By the envelope theorem the
-//!   gradient is ∂q_j^(m)(t*)/∂x — the Fourier basis at t*. Scale: half the
+//!   gradient is ∂q_j^(m)(t*)/∂x — the shape's Jacobian at t*. Scale: half the
 //!   allowed position range, the velocity or acceleration limit.
 //! * **Joint torque** (per joint, upper and lower): τ_j(t) of inverse dynamics
 //!   with the nominal parameters (motor side, friction included) on the
@@ -30,18 +31,17 @@ mod verify;
 
 pub use joint::{joint_extremum, series_derivative, series_derivatives};
 
-use super::grid::TrigGrid;
 use crate::error::{Error, Result};
 use crate::robot::cartesian::{CartesianConstraint, Shape};
 use crate::robot::collision::{CollisionScene, DistanceSeries, NarrowPhase, PairClass};
 use crate::robot::kinematics::forward_kinematics;
 use crate::robot::{Frame, Robot, Workspace};
-use crate::trajectory::{period_grid, FourierLayout, StateGradient, TrajectoryShape};
+use crate::trajectory::shapes::{ShapeGrid, ShapeScratch};
+pub use crate::trajectory::SCAN_PER_HARMONIC;
+use crate::trajectory::{period_grid, Shape as TrajShape, StateGradient, TimeGrid, TrajectoryShape};
 use nalgebra::Vector3;
 use serde::Serialize;
-
-/// Grid points per period of the highest harmonic used to bracket joint extrema.
-pub const SCAN_PER_HARMONIC: usize = 24;
+use std::sync::Arc;
 
 /// What a constraint limits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -118,15 +118,15 @@ struct CartItem {
 /// The constraint set of a design.
 #[derive(Debug, Clone)]
 pub struct Constraints {
-    robot: Robot,
-    layout: FourierLayout,
+    robot: Arc<Robot>,
+    shape: TrajShape,
     /// One entry per scalar constraint.
     pub info: Vec<ConstraintInfo>,
     items: Vec<Item>,
     cart: Vec<CartItem>,
     scene: Option<std::sync::Arc<CollisionScene>>,
-    grid: TrigGrid,
-    scan: TrigGrid,
+    grid: ShapeGrid,
+    scan: ShapeGrid,
     theta: Vec<f64>,
 }
 
@@ -150,7 +150,7 @@ pub struct ConstraintWorkspace {
     /// state at its time t* (pulled back to x by [`Constraints::pull_back`]).
     grad: StateGradient,
     /// Buffers of the shape's pull-back.
-    pull: <FourierLayout as TrajectoryShape>::Scratch,
+    pull: ShapeScratch,
     exhaustive: bool,
     /// Evaluation for the GA's selection ([`Constraints::eval_selection`]).
     selection: bool,
@@ -225,8 +225,18 @@ fn order_name(order: usize) -> (&'static str, ConstraintKind, &'static str) {
 impl Constraints {
     /// Builds the constraint set: joint limits from `limits` (infinite entries
     /// are skipped), Cartesian constraints resolved on `robot`, `grid_rate`
-    /// (Hz) the constraint grid for torques and Cartesian margins.
-    pub fn new(robot: &Robot, layout: &FourierLayout, limits: &JointLimitSpec, cartesian: &[CartesianConstraint], grid_rate: f64, ctx: &str) -> Result<Self> {
+    /// (Hz) the constraint grid for torques and Cartesian margins (over one
+    /// period, or the whole rest-to-rest motion, of the shape).
+    pub fn new(
+        robot: impl Into<Arc<Robot>>,
+        shape: impl Into<TrajShape>,
+        limits: &JointLimitSpec,
+        cartesian: &[CartesianConstraint],
+        grid_rate: f64,
+        ctx: &str,
+    ) -> Result<Self> {
+        let (robot, shape): (Arc<Robot>, TrajShape) = (robot.into(), shape.into());
+        let robot = &robot;
         let n = robot.dof();
         for (name, len) in [
             ("position", limits.position.len()),
@@ -325,13 +335,11 @@ impl Constraints {
                 label,
             });
         }
-        let period = std::f64::consts::TAU / layout.omega;
-        let grid = TrigGrid::new(period_grid(period, grid_rate)?, layout.omega, layout.n_h);
-        let ns = (SCAN_PER_HARMONIC * layout.n_h).max(32);
-        let scan = TrigGrid::new((0..ns).map(|i| period * i as f64 / ns as f64).collect(), layout.omega, layout.n_h);
+        let grid = shape.grid(period_grid(shape.duration(), grid_rate)?);
+        let scan = shape.grid(shape.scan_times());
         Ok(Constraints {
-            robot: robot.clone(),
-            layout: layout.clone(),
+            robot: Arc::clone(robot),
+            shape,
             info,
             items,
             cart,
@@ -461,7 +469,7 @@ impl Constraints {
     /// Constraint values c(x) (≤ 0 feasible) into `c`, and if `jac` is given
     /// the Jacobian, row-major (`jac[i * n_vars + v]` = ∂c_i/∂x_v, the nlopt layout).
     pub fn eval(&self, x: &[f64], cw: &mut ConstraintWorkspace, c: &mut [f64], jac: Option<&mut [f64]>) {
-        let tr = self.layout.trajectory(x);
+        let tr = self.shape.motion(x);
         self.eval_traj(&tr, cw, c, jac)
     }
 
@@ -478,7 +486,7 @@ impl Constraints {
     /// through its grid minimum dips below it (then 0 here, a small positive
     /// value there): the selection counts a design feasible on the grid.
     pub fn eval_selection(&self, x: &[f64], cw: &mut ConstraintWorkspace, c: &mut [f64]) {
-        let tr = self.layout.trajectory(x);
+        let tr = self.shape.motion(x);
         cw.selection = true;
         self.eval_traj(&tr, cw, c, None);
         cw.selection = false;
@@ -489,31 +497,23 @@ impl Constraints {
         c.iter().map(|v| v.max(0.0)).sum()
     }
 
-    /// Scales each joint's harmonics (about q0) so that its position,
-    /// velocity and acceleration constraints hold with relative slack
-    /// `slack` (the GA's repair operator; torque and Cartesian constraints are
-    /// left to the feasibility-first selection). `x` is changed in place; q0
-    /// (if a design variable) is first clamped into the allowed range.
+    /// Scales each joint's motion about its centre (the shape's
+    /// [`TrajectoryShape::joint_vars`]: the Fourier harmonics about q0, the
+    /// B-spline's control points about q0) so that its position, velocity
+    /// and acceleration constraints hold with relative slack `slack` (the
+    /// GA's repair operator; torque and Cartesian constraints are left to the
+    /// feasibility-first selection). `x` is changed in place; a centre that is
+    /// a design variable (q0 with `vary_q0`) is first clamped into the allowed range.
     pub fn repair_joints(&self, x: &mut [f64], limits: &JointLimitSpec, slack: f64) {
         let n = self.robot.dof();
-        let vpj = self.layout.vars_per_joint();
-        if self.layout.vary_q0 {
-            for j in 0..n {
-                let [lo, hi] = limits.position[j];
-                let v = &mut x[j * vpj];
-                if lo.is_finite() && hi.is_finite() {
-                    let pad = 1e-3 * (hi - lo);
-                    *v = v.clamp(lo + pad, hi - pad);
-                }
-            }
-        }
-        let tr = self.layout.trajectory(x);
+        self.shape.clamp_centre(x, &limits.position);
+        let tr = self.shape.motion(x);
         for j in 0..n {
-            let q0 = tr.q0[j];
+            let q0 = self.shape.centre(x, j);
             let mut s: f64 = 1.0;
             let [lo, hi] = limits.position[j];
-            let (mx, _) = joint_extremum(&tr, &self.scan, j, 0, true);
-            let (mn, _) = joint_extremum(&tr, &self.scan, j, 0, false);
+            let (mx, _) = joint_extremum(&self.shape, &tr, &self.scan, j, 0, true);
+            let (mn, _) = joint_extremum(&self.shape, &tr, &self.scan, j, 0, false);
             if hi.is_finite() && mx - q0 > 0.0 {
                 s = s.min(((hi - q0) / (mx - q0)).max(0.0));
             }
@@ -524,8 +524,8 @@ impl Constraints {
                 if !lim.is_finite() {
                     continue;
                 }
-                let (vmax, _) = joint_extremum(&tr, &self.scan, j, order, true);
-                let (vmin, _) = joint_extremum(&tr, &self.scan, j, order, false);
+                let (vmax, _) = joint_extremum(&self.shape, &tr, &self.scan, j, order, true);
+                let (vmin, _) = joint_extremum(&self.shape, &tr, &self.scan, j, order, false);
                 let amp = vmax.max(-vmin);
                 if amp > 0.0 {
                     s = s.min(lim / amp);
@@ -533,12 +533,16 @@ impl Constraints {
             }
             if s < 1.0 {
                 let s = s * (1.0 - slack);
-                let base = j * vpj + usize::from(self.layout.vary_q0);
-                for v in &mut x[base..(j + 1) * vpj] {
+                for v in &mut x[self.shape.joint_vars(j)] {
                     *v *= s;
                 }
             }
         }
+    }
+
+    /// The trajectory shape the constraints are evaluated for.
+    pub fn shape(&self) -> &TrajShape {
+        &self.shape
     }
 }
 

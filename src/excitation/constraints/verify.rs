@@ -5,14 +5,14 @@ use crate::error::Result;
 use crate::robot::collision::DistanceSeries;
 use crate::robot::kinematics::forward_kinematics;
 use crate::robot::{inverse_dynamics, Workspace};
-use crate::trajectory::{period_grid, FourierTrajectory};
+use crate::trajectory::{period_grid, Motion, ShapeMotion};
 use rayon::prelude::*;
 
 impl Constraints {
     /// Every constraint evaluated on a uniform grid at `rate` Hz over one
-    /// period, in natural units.
-    pub fn verify(&self, tr: &FourierTrajectory, rate: f64) -> Result<Vec<Margin>> {
-        let times = period_grid(tr.period(), rate)?;
+    /// period (the whole motion of a rest-to-rest shape), in natural units.
+    pub fn verify(&self, tr: &ShapeMotion, rate: f64) -> Result<Vec<Margin>> {
+        let times = period_grid(tr.duration(), rate)?;
         let n = self.robot.dof();
         let mut ws = Workspace::new(&self.robot);
         let s = tr.sample_at(&times);

@@ -10,7 +10,7 @@ use crate::io::status::RunState;
 use crate::optim::Termination;
 use crate::params::BaseParams;
 use crate::robot::Robot;
-use crate::trajectory::seconds_text;
+use crate::trajectory::{seconds_text, Ends, TrajectoryShape};
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -215,26 +215,29 @@ pub fn criterion_sample_set(p: &Problem) -> SampleSet {
     let d = &p.design;
     let ratio = d.trajectory.controller_rate / d.objective.sample_rate;
     let k = ratio.round();
+    let what = match p.shape.ends() {
+        Ends::Periodic => "one period of the periodic trajectory",
+        Ends::RestToRest => "the whole rest-to-rest motion",
+    };
     let note = if (ratio - k).abs() < 1e-9 && k >= 1.0 {
         format!(
-            "one period of the periodic trajectory, t_i = i/{} s; the times of rows 0, {k}, {}, … of periodic.csv",
+            "{what}, t_i = i/{} s; the times of rows 0, {k}, {}, … of periodic.csv",
             d.objective.sample_rate,
             2.0 * k
         )
     } else {
-        format!("one period of the periodic trajectory, t_i = i/{} s", d.objective.sample_rate)
+        format!("{what}, t_i = i/{} s", d.objective.sample_rate)
     };
     SampleSet::new("criterion_samples.csv", 1, Some(&p.objective.times), &note)
 }
 
 /// The samples of the delivered trajectory as written to trajectory.csv, as a [`SampleSet`].
-fn delivered_sample_set(t: &[f64], periods: usize) -> SampleSet {
-    SampleSet::new(
-        "trajectory.csv",
-        1,
-        Some(t),
-        &format!("the delivered trajectory: lead-in, {periods} period(s), lead-out, rest to rest"),
-    )
+fn delivered_sample_set(t: &[f64], periods: usize, ends: Ends) -> SampleSet {
+    let what = match ends {
+        Ends::Periodic => format!("the delivered trajectory: lead-in, {periods} period(s), lead-out, rest to rest"),
+        Ends::RestToRest => format!("the delivered trajectory: {periods} repetition(s) of the rest-to-rest motion, no lead-in or lead-out"),
+    };
+    SampleSet::new("trajectory.csv", 1, Some(t), &what)
 }
 
 /// Writes the outputs of a design run into `dir`: coefficients.json,
@@ -272,7 +275,7 @@ pub fn write_outputs_with(p: &Problem, r: &ExciteResult, dir: &Path, extra: impl
         "frequency_hz": d.trajectory.frequency,
         "harmonics": d.trajectory.harmonics,
         "at_rest": d.trajectory.at_rest,
-        "layout": p.layout,
+        "layout": p.shape,
         "x": r.x,
         "trajectory": r.trajectory,
         "joint_names": p.robot.joints.iter().map(|j| j.name.clone()).collect::<Vec<_>>(),
@@ -281,13 +284,18 @@ pub fn write_outputs_with(p: &Problem, r: &ExciteResult, dir: &Path, extra: impl
         "delivered": r.execution.delivered,
         "safety": r.execution.safety,
     });
+    let mut coeff = coeff;
+    if p.shape.fourier().is_none() {
+        // the shape's name (absent: the Fourier series, as before the B-splines)
+        coeff["shape"] = serde_json::json!(p.shape.name());
+    }
     crate::io::write_json(&dir.join("coefficients.json"), &coeff)?;
     // trajectory.csv: the delivered trajectory (lead-in, periods, lead-out)
     // with its segment column; periodic.csv: one period, the former layout
     let delivered = match &r.execution.delivered {
         Some(dl) => dl.clone(),
         None => crate::trajectory::lead::Delivered {
-            home: r.trajectory.q0.clone(),
+            home: crate::trajectory::Motion::rest_pose(&r.trajectory),
             lead_in: None,
             periodic: r.trajectory.clone(),
             periods: 1,
@@ -307,7 +315,7 @@ pub fn write_outputs_with(p: &Problem, r: &ExciteResult, dir: &Path, extra: impl
     );
     written_csv?;
     let mut delivered_ident = delivered_ident?;
-    let delivered_set = delivered_sample_set(&ds.t, delivered.periods);
+    let delivered_set = delivered_sample_set(&ds.t, delivered.periods, p.shape.ends());
     // the criterion's samples as rows of trajectory.csv: period 1 (segment 1,
     // which starts after the lead-in, not at t = 0), every k-th row, when the
     // criterion's rate divides the controller's
@@ -329,7 +337,10 @@ pub fn write_outputs_with(p: &Problem, r: &ExciteResult, dir: &Path, extra: impl
                 "trajectory.csv",
                 k,
                 Some(&t),
-                "segment 1 only: period 1 of the delivered trajectory, which starts after the lead-in (trajectory.csv's t = 0 is the start of the lead-in, not of a period); the criterion's samples",
+                match p.shape.ends() {
+                    Ends::Periodic => "segment 1 only: period 1 of the delivered trajectory, which starts after the lead-in (trajectory.csv's t = 0 is the start of the lead-in, not of a period); the criterion's samples",
+                    Ends::RestToRest => "segment 1 only: the first repetition of the rest-to-rest motion, from t = 0 (no lead-in); the criterion's samples",
+                },
             );
             set.segment = Some(1);
             let mut id = assess(&p.robot, &p.base, &states, &noise)?;

@@ -5,7 +5,7 @@ use super::assess::{column_parameters, Identifiability};
 use super::outputs::criterion_sample_set;
 use crate::excitation::constraints::{ConstraintKind, Margin};
 use crate::excitation::{Criterion, ExciteResult, Problem, Scaling, Status};
-use crate::trajectory::seconds_text;
+use crate::trajectory::{seconds_text, TrajectoryShape};
 use std::fmt::Write as _;
 
 /// `2nd`, `3rd`, `7th`, `11th`, `21st`, ...
@@ -144,16 +144,30 @@ pub fn excite_report_text(
 fn design_section(s: &mut String, p: &Problem) {
     let d = &p.design;
     let _ = writeln!(s, "excitation design `{}` for robot `{}` ({})", d.name, p.robot.name, d.robot.display());
-    let _ = writeln!(
-        s,
-        "trajectory: {} harmonics of {} Hz (period {} s), {} design variables{}{}",
-        d.trajectory.harmonics,
-        d.trajectory.frequency,
-        seconds_text(1.0 / d.trajectory.frequency),
-        p.layout.n_vars(),
-        if d.trajectory.vary_q0 { ", q0 free" } else { "" },
-        if d.trajectory.at_rest { ", starts and ends at rest" } else { "" }
-    );
+    match &p.shape {
+        crate::trajectory::Shape::BSpline(b) => {
+            let _ = writeln!(
+                s,
+                "trajectory: B-spline of degree {}, {} segments over {} s, starts and ends at rest at q0, {} design variables",
+                b.degree,
+                b.segments,
+                seconds_text(b.duration),
+                crate::trajectory::TrajectoryShape::n_vars(&p.shape)
+            );
+        }
+        crate::trajectory::Shape::Fourier(_) => {
+            let _ = writeln!(
+                s,
+                "trajectory: {} harmonics of {} Hz (period {} s), {} design variables{}{}",
+                d.trajectory.harmonics,
+                d.trajectory.frequency,
+                seconds_text(1.0 / d.trajectory.frequency),
+                crate::trajectory::TrajectoryShape::n_vars(&p.shape),
+                if d.trajectory.vary_q0 { ", q0 free" } else { "" },
+                if d.trajectory.at_rest { ", starts and ends at rest" } else { "" }
+            );
+        }
+    }
     let grid_set = criterion_sample_set(p);
     let noise = d.objective.noise.clone().unwrap_or_else(|| vec![1.0; p.robot.dof()]);
     let _ = writeln!(
@@ -216,18 +230,23 @@ fn outcome_section(s: &mut String, p: &Problem, r: &ExciteResult, delivered: Opt
     let _ = writeln!(s, "criterion value: {}", fmt_num(r.criterion));
     let _ = writeln!(s, "condition number: {} (on the criterion's samples above)", fmt_num(r.spectrum.cond));
     if let Some((pi, src)) = period.and_then(|pi| pi.source.as_ref().map(|src| (pi, src))) {
+        let start = match p.shape.ends() {
+            crate::trajectory::Ends::Periodic => format!(
+                "trajectory.csv starts with the lead-in at t = 0: its first {} s are not a period",
+                r.trajectory.duration_text()
+            ),
+            crate::trajectory::Ends::RestToRest => "a rest-to-rest motion has no lead-in: segment 1 starts at t = 0".to_string(),
+        };
         let _ = writeln!(
             s,
             "  the same samples in trajectory.csv: segment 1, every {} row, t = {} s: condition number {} (unit columns; \
-             `idexp assess {} trajectory.csv --segment 1 --every {}`). trajectory.csv starts with the lead-in at t = 0: \
-             its first {} s are not a period",
+             `idexp assess {} trajectory.csv --segment 1 --every {}`). {start}",
             ordinal(src.every),
             src.t_range
                 .map_or("?".to_string(), |[a, b]| format!("{} … {}", seconds_text(a), seconds_text(b))),
             fmt_num(pi.cond),
             p.design.robot.display(),
             src.every,
-            r.trajectory.period_text()
         );
     }
     if let Some(dl) = delivered {
@@ -274,11 +293,15 @@ fn delivered_section(s: &mut String, p: &Problem, r: &ExciteResult) {
         (Some(dl), problem) => {
             let _ = writeln!(
                 s,
-                "  from home {} at rest: lead-in {:.2} s, {} period(s) of {} s, lead-out {:.2} s back to home at rest; total {:.2} s",
+                "  from home {} at rest: lead-in {:.2} s, {} {} of {} s, lead-out {:.2} s back to home at rest; total {:.2} s",
                 fmt_list(&dl.home),
                 dl.lead_in_duration(),
                 dl.periods,
-                dl.periodic.period_text(),
+                match crate::trajectory::Motion::ends(&dl.periodic) {
+                    crate::trajectory::Ends::Periodic => "period(s)",
+                    crate::trajectory::Ends::RestToRest => "rest-to-rest motion(s)",
+                },
+                dl.periodic.duration_text(),
                 dl.lead_out_duration(),
                 dl.duration()
             );
