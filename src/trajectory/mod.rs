@@ -20,6 +20,7 @@ pub mod export;
 mod fourier_shape;
 pub mod lead;
 pub mod multisine;
+mod process;
 pub mod reference;
 pub mod shape;
 pub mod shapes;
