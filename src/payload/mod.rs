@@ -1,7 +1,7 @@
 //! Payloads: identify a tool's mass, centre of mass and inertia after the
 //! robot's own model is known, and write it where controllers read it.
 //!
-//! * Excitation: an [`crate::excitation::ExciteDesign`] with a `[payload]`
+//! * Excitation: an [`crate::excitation::design::ExciteDesign`] with a `[payload]`
 //!   (its nominal values and, in `[[collision.attached]]`, its geometry) and
 //!   `objective.columns = "payload"` optimises the criterion on the payload
 //!   link's ten columns only (`idexp payload excite`, the same engine as
