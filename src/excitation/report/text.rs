@@ -231,10 +231,15 @@ fn outcome_section(s: &mut String, p: &Problem, r: &ExciteResult, delivered: Opt
     let _ = writeln!(s, "condition number: {} (on the criterion's samples above)", fmt_num(r.spectrum.cond));
     if let Some((pi, src)) = period.and_then(|pi| pi.source.as_ref().map(|src| (pi, src))) {
         let start = match p.shape.ends() {
-            crate::trajectory::Ends::Periodic => format!(
-                "trajectory.csv starts with the lead-in at t = 0: its first {} s are not a period",
-                r.trajectory.duration_text()
-            ),
+            crate::trajectory::Ends::Periodic => match src.t_range {
+                Some([a, _]) if a > 0.0 => {
+                    format!(
+                        "trajectory.csv starts with the lead-in at t = 0: its first {} s are not part of a period",
+                        seconds_text(a)
+                    )
+                }
+                _ => "trajectory.csv has no lead-in: segment 1 starts at t = 0".to_string(),
+            },
             crate::trajectory::Ends::RestToRest => "a rest-to-rest motion has no lead-in: segment 1 starts at t = 0".to_string(),
         };
         let _ = writeln!(
