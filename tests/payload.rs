@@ -50,6 +50,18 @@ fn runs() -> tempfile::TempDir {
     dir
 }
 
+/// `idexp ARGS DESIGN --out OUT` without the progress bar.
+fn idexp(args: &[&str], design: &Path, out: &Path) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .args(args)
+        .arg(design)
+        .arg("--out")
+        .arg(out)
+        .env("IDEXP_NO_PROGRESS", "1")
+        .output()
+        .unwrap()
+}
+
 fn com_error(p: &Payload, t: &Payload) -> f64 {
     (0..3).map(|k| (p.com[k] - t.com[k]).powi(2)).sum::<f64>().sqrt()
 }
@@ -207,14 +219,7 @@ fn cli_identifies_writes_the_exports_and_rejects_bad_designs() {
     );
     std::fs::write(d.join("tool.toml"), &good).unwrap();
     let out = d.join("out");
-    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
-        .args(["payload", "identify"])
-        .arg(d.join("tool.toml"))
-        .arg("--out")
-        .arg(&out)
-        .env("IDEXP_NO_PROGRESS", "1")
-        .output()
-        .unwrap();
+    let o = idexp(&["payload", "identify"], &d.join("tool.toml"), &out);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     for f in [
         "payload.json",
@@ -236,14 +241,7 @@ fn cli_identifies_writes_the_exports_and_rejects_bad_designs() {
     assert_eq!(st["status"], "complete");
     // the same files on one thread, byte for byte (status.json aside: its times)
     let out1 = d.join("out1");
-    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
-        .args(["--threads", "1", "payload", "identify"])
-        .arg(d.join("tool.toml"))
-        .arg("--out")
-        .arg(&out1)
-        .env("IDEXP_NO_PROGRESS", "1")
-        .output()
-        .unwrap();
+    let o = idexp(&["--threads", "1", "payload", "identify"], &d.join("tool.toml"), &out1);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     for f in ["payload.json", "report.txt", "payload.script", "kuka_load.txt", "residuals.svg"] {
         assert_eq!(
@@ -270,27 +268,14 @@ fn cli_identifies_writes_the_exports_and_rejects_bad_designs() {
         let p = d.join(format!("bad{i}.toml"));
         std::fs::write(&p, text).unwrap();
         let bad_out = d.join(format!("bad_out{i}"));
-        let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
-            .args(["payload", "identify"])
-            .arg(&p)
-            .arg("--out")
-            .arg(&bad_out)
-            .env("IDEXP_NO_PROGRESS", "1")
-            .output()
-            .unwrap();
+        let o = idexp(&["payload", "identify"], &p, &bad_out);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(1), "case {i}: {err}");
         assert!(err.contains(needle), "case {i}: `{needle}` not in {err}");
         assert!(!bad_out.exists(), "case {i}: a folder was written");
     }
     // payload excite refuses a design that does not excite a payload
-    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
-        .args(["payload", "excite"])
-        .arg(root("designs/excite_ur5.toml"))
-        .arg("--out")
-        .arg(d.join("ex"))
-        .output()
-        .unwrap();
+    let o = idexp(&["payload", "excite"], &root("designs/excite_ur5.toml"), &d.join("ex"));
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("objective.columns = \"payload\""));
 }
@@ -355,14 +340,7 @@ fn payload_excitation_recomputed_from_its_trajectory_with_the_arm_held_near_home
     );
     std::fs::write(d.join("wrist.toml"), &text).unwrap();
     let out = d.join("out");
-    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
-        .args(["payload", "excite"])
-        .arg(d.join("wrist.toml"))
-        .arg("--out")
-        .arg(&out)
-        .env("IDEXP_NO_PROGRESS", "1")
-        .output()
-        .unwrap();
+    let o = idexp(&["payload", "excite"], &d.join("wrist.toml"), &out);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let st: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("status.json")).unwrap()).unwrap();
     assert_eq!(st["summary"]["safe_to_play"], true);
