@@ -390,3 +390,51 @@ fn payload_excitation_recomputed_from_its_trajectory_with_the_arm_held_near_home
     // holding the arm costs a little (1.56 on the shipped design): still well conditioned
     assert!(cond < 2.5, "cond {cond}");
 }
+
+/// The rest-to-rest chain: the shipped payload excitation as a B-spline,
+/// played (loaded and unloaded) by `idexp simulate` through `kind =
+/// "states"` on a robot 10 % off its file, and `payload identify` with the
+/// low-pass filter (a rest-to-rest run has no period for the Fourier
+/// filter): mass within 1 %, centre of mass within 2 mm.
+#[test]
+fn a_rest_to_rest_payload_excitation_played_and_identified() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let robot = format!("robot = \"{}\"", root("designs/robots/ur5.toml").display());
+    let read = |f: &str| std::fs::read_to_string(root(&format!("designs/{f}"))).unwrap();
+    let ex = read("payload_ur5_excite.toml")
+        .replace("robot = \"robots/ur5.toml\"", &robot)
+        .replace("harmonics = 4\nfrequency = 0.1\n", "shape = \"bspline\"\nduration = 10.0\n");
+    assert!(ex.contains("bspline") && !ex.contains("\"robots/"), "the shipped design changed shape");
+    std::fs::write(d.join("ex.toml"), ex).unwrap();
+    let o = idexp(&["payload", "excite"], &d.join("ex.toml"), &d.join("ex"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["sim_ur5_payload", "sim_ur5_payload_unloaded"] {
+        let text = read(&format!("{f}.toml"))
+            .replace("robot = \"robots/ur5.toml\"", &robot)
+            .replace("repetitions = 5", "repetitions = 2")
+            .replace(
+                "kind = \"fourier\"\nfile = \"../out/payload_ur5_excite/coefficients.json\"",
+                &format!("kind = \"states\"\nperiodic = false\nfile = \"{}\"", d.join("ex/trajectory.csv").display()),
+            );
+        assert!(text.contains("\"states\"") && text.contains("repetitions = 2"), "{f} changed shape");
+        std::fs::write(d.join(format!("{f}.toml")), text).unwrap();
+        let o = idexp(&["simulate"], &d.join(format!("{f}.toml")), &d.join(f));
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let id = read("payload_ur5.toml")
+        .replace("robot = \"robots/ur5.toml\"", &robot)
+        .replace("../out/", "")
+        .replace("harmonics = 4", "filter = \"lowpass\"");
+    assert_eq!(id.matches("filter = \"lowpass\"").count(), 2, "the shipped design changed shape");
+    std::fs::write(d.join("id.toml"), id).unwrap();
+    let o = idexp(&["payload", "identify"], &d.join("id.toml"), &d.join("id"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("id/payload.json")).unwrap()).unwrap();
+    let m = json["payload"]["mass"].as_f64().unwrap();
+    let c: Vec<f64> = json["payload"]["com"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    let truth = [0.012, -0.008, 0.055];
+    let dc = (0..3).map(|k| (c[k] - truth[k]).powi(2)).sum::<f64>().sqrt();
+    assert!((m - 1.8).abs() < 0.018, "mass {m}");
+    assert!(dc < 2e-3, "centre of mass {c:?}, {dc} m off");
+}
