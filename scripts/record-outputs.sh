@@ -46,4 +46,18 @@ run fit_time fit designs/elastic_industrial6_time.toml --starts 2 --out "$O/elas
 for d in positions_industrial6_rigid positions_file_d positions_file_a positions_file_e positions_elastic6 positions_elastic6_small; do
   run "$d" positions designs/$d.toml --out "$O/$d"
 done
+# the README's study and payload chains: their designs read ../out/… beside designs/,
+# so they run in a copy of designs/ and tests/data/ whose out/ is inside the record
+T=$OUT/tree; rm -rf "$T"; mkdir -p "$T/tests"; cp -r designs "$T/"; cp -r tests/data "$T/tests/"
+run_in_tree() { local name=$1; shift; echo "== $name: (in $T) idexp $*" >> "$log"
+  (cd "$T" && "$BIN" "$@" > "$OUT/$name.stdout" 2> "$OUT/$name.stderr"); echo "exit $?" >> "$log"; }
+for d in sim_rpr_fourier sim_rpr_study_b sim_rpr_study_gravity sim_rpr_fourier_validate sim_rpr_study_validate; do
+  run_in_tree "tree_$d" simulate designs/$d.toml
+done
+run_in_tree study_rpr identify designs/study_rpr.toml
+run_in_tree tree_payload_excite payload excite designs/payload_ur5_excite.toml
+run_in_tree tree_sim_ur5_payload simulate designs/sim_ur5_payload.toml
+run_in_tree tree_sim_ur5_payload_unloaded simulate designs/sim_ur5_payload_unloaded.toml
+run_in_tree payload_ur5 payload identify designs/payload_ur5.toml
+rm -rf "$T/designs" "$T/tests"
 echo "recorded into $OUT"
