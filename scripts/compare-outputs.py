@@ -51,7 +51,8 @@ def first_diff(a, b, path="$"):
 def main(before, after):
     bad = 0
     checked = 0
-    for d, _, files in os.walk(os.path.join(before, "out")):
+    walks = [os.walk(os.path.join(before, sub)) for sub in ("out", os.path.join("tree", "out"))]
+    for d, _, files in (w for walk in walks for w in walk):
         for f in sorted(files):
             pa = os.path.join(d, f)
             rel = os.path.relpath(pa, before)
