@@ -728,7 +728,8 @@ fn a_missing_robot_path_names_the_design_file_and_the_field() {
     let out = tmp.path().join("out");
     let out = out.to_str().unwrap();
     // (design, robot line as shipped, field, command before the design, after it)
-    let cases: [(&str, &str, &str, &[&str], &[&str]); 8] = [
+    type Case<'a> = (&'a str, &'a str, &'a str, &'a [&'a str], &'a [&'a str]);
+    let cases: [Case; 8] = [
         ("designs/excite_ur5.toml", "robot = \"robots/ur5.toml\"", "robot", &["excite"], &["--out", out]),
         (
             "designs/payload_ur5_excite.toml",
