@@ -204,7 +204,7 @@ fn urdf_duplicate_joint_names_are_refused() {
 }
 
 #[test]
-fn urdf_mimic_joints_are_refused_with_the_reason() {
+fn urdf_mimic_joints_in_the_arm_are_refused_with_the_reason() {
     robot_refused(
         TREE,
         "mimic.urdf",
@@ -212,7 +212,12 @@ fn urdf_mimic_joints_are_refused_with_the_reason() {
             "effort=\"50\" velocity=\"3\"/>",
             "effort=\"50\" velocity=\"3\"/><mimic joint=\"shoulder_a\" multiplier=\"2\"/>",
         )],
-        &["joint `elbow_b` <mimic> (line 30, column 191)", "not supported", "independent"],
+        &[
+            "joint `elbow_b` <mimic> (line 30, column 191)",
+            "only when it is all that moves below the link carrying it (a gripper's fingers on `torso`)",
+            "joint `slide_b` moves below `torso` too",
+            "independent",
+        ],
     );
 }
 
@@ -711,4 +716,115 @@ fn merge_names_the_truncated_shard() {
     assert!(err.contains("starts.shard-1-of-2.jsonl"), "{err}");
     assert!(!err.contains("starts.shard-0-of-2.jsonl"), "{err}");
     assert!(err.contains("1 of 4 starts missing"), "{err}");
+}
+
+/// Every design kind with `robot` (or `[model] robot`) naming a file that
+/// does not exist: exit 1, and the message names the design file, the field,
+/// the path as written and what it resolved to (relative to the design's
+/// folder). A robot file whose `urdf` is missing likewise.
+#[test]
+fn a_missing_robot_path_names_the_design_file_and_the_field() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let out = out.to_str().unwrap();
+    // (design, robot line as shipped, field, command before the design, after it)
+    type Case<'a> = (&'a str, &'a str, &'a str, &'a [&'a str], &'a [&'a str]);
+    let cases: [Case; 8] = [
+        ("designs/excite_ur5.toml", "robot = \"robots/ur5.toml\"", "robot", &["excite"], &["--out", out]),
+        (
+            "designs/payload_ur5_excite.toml",
+            "robot = \"robots/ur5.toml\"",
+            "robot",
+            &["payload", "excite"],
+            &["--out", out],
+        ),
+        (
+            "designs/payload_ur5.toml",
+            "robot = \"robots/ur5.toml\"",
+            "robot",
+            &["payload", "identify"],
+            &["--out", out],
+        ),
+        (
+            "designs/study_rpr.toml",
+            "robot = \"../tests/data/ident/rpr_drives.toml\"",
+            "robot",
+            &["identify"],
+            &["--out", out],
+        ),
+        (
+            "designs/sim_rpr_fourier.toml",
+            "robot = \"../tests/data/ident/rpr_drives.toml\"",
+            "robot",
+            &["simulate"],
+            &["--out", out],
+        ),
+        (
+            "designs/positions_industrial6_rigid.toml",
+            "robot = \"robots/industrial6.toml\"",
+            "robot",
+            &["positions"],
+            &["--out", out],
+        ),
+        (
+            "designs/elastic_industrial6.toml",
+            "robot = \"robots/industrial6.toml\"",
+            "model.robot",
+            &["frf"],
+            &["--out", out],
+        ),
+        (
+            "designs/elastic_industrial6.toml",
+            "robot = \"robots/industrial6.toml\"",
+            "model.robot",
+            &["fit"],
+            &["--out", out],
+        ),
+    ];
+    for (k, (src, line, field, before, after)) in cases.iter().enumerate() {
+        let name = format!("design_{k}.toml");
+        let p = variant(tmp.path(), src, &name, &[(line, "robot = \"robots/no_such_robot.toml\"")]);
+        let mut args: Vec<&str> = before.to_vec();
+        args.push(&p);
+        args.extend_from_slice(after);
+        let resolved = tmp.path().join("robots/no_such_robot.toml");
+        refused(
+            &args,
+            &[
+                &p,
+                &format!("field `{field}`"),
+                "`robots/no_such_robot.toml` does not exist",
+                &resolved.display().to_string(),
+            ],
+        );
+    }
+    // a robot file's `urdf`
+    let robot = tmp.path().join("robot.toml");
+    std::fs::write(&robot, "urdf = \"urdf/arm.urdf\"\n").unwrap();
+    refused(
+        &["robot", "info", robot.to_str().unwrap()],
+        &[robot.to_str().unwrap(), "field `urdf`", "`urdf/arm.urdf` does not exist", "(no folder "],
+    );
+    // an excite design's obstacle mesh
+    let p = variant(
+        tmp.path(),
+        "designs/excite_ur5.toml",
+        "mesh.toml",
+        &[
+            (
+                "robot = \"robots/ur5.toml\"",
+                &format!("robot = {:?}", root("designs/robots/ur5.toml").to_str().unwrap()),
+            ),
+            (
+                "[collision]\nmargin = 0.01\n",
+                "[collision]\nmargin = 0.01\nobstacle = [{ name = \"fixture\", shape = { type = \"mesh\", file = \"cell/fixture.stl\" } }]\n",
+            ),
+        ],
+    );
+    let (code, err) = limited(&["excite", &p, "--out", out]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains(&p) && err.contains("field `collision.obstacle[0].shape.file`") && err.contains("`cell/fixture.stl` does not exist"),
+        "{err}"
+    );
 }

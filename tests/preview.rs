@@ -272,3 +272,53 @@ fn view_writes_the_page_for_a_folder_and_for_a_csv_and_refuses_bad_input() {
     let st = idexp().args(["view", "--robot", "designs/robots/ur5.toml"]).output().unwrap();
     assert_eq!(st.status.code(), Some(2));
 }
+
+/// report.json labels the clock of its worst instants: `result.margins[].at`
+/// is on the period's clock, `worst_instants[].at_delivered_s` on the
+/// delivered clock of trajectory.csv and the preview. Checked against
+/// trajectory.csv itself: at every joint-state margin's delivered instant the
+/// row (in period 1) holds the worst value reported; read on the period's
+/// clock instead, the rows hold other values (the clocks differ by the lead-in).
+#[test]
+fn the_reports_worst_instants_are_labelled_and_found_in_trajectory_csv() {
+    let dir = ur5_folder();
+    let report = read_json(&dir.join("report.json"));
+    assert!(report["margins_at_clock"].as_str().unwrap().contains("from the start of the period"));
+    let margins = report["result"]["margins"].as_array().unwrap();
+    let instants = report["worst_instants"].as_array().unwrap();
+    assert_eq!(margins.len(), instants.len());
+    let text = std::fs::read_to_string(dir.join("trajectory.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (tc, sc) = (col("t"), col("segment"));
+    let row_at = |t: f64| rows.iter().find(|r| (r[tc] - t).abs() < 1e-9);
+    let (mut checked, mut other_clock_differs) = (0, 0);
+    for (m, w) in margins.iter().zip(instants) {
+        assert_eq!(m["name"], w["name"]);
+        assert_eq!(m["at"], w["at_period_s"]);
+        if !matches!(m["kind"].as_str(), Some("position" | "velocity" | "acceleration")) {
+            continue;
+        }
+        let c = col(m["name"].as_str().unwrap().split(' ').next().unwrap());
+        let worst = m["worst"].as_f64().unwrap();
+        let r = row_at(w["at_delivered_s"].as_f64().unwrap()).expect("a row at the delivered instant");
+        assert_eq!(r[sc], 1.0, "{m}: period 1");
+        assert!((r[c] - worst).abs() <= 1e-12 * worst.abs().max(1.0), "{m}: trajectory.csv has {}", r[c]);
+        checked += 1;
+        let p = row_at(w["at_period_s"].as_f64().unwrap()).unwrap();
+        if (p[c] - worst).abs() > 1e-6 {
+            other_clock_differs += 1;
+        }
+    }
+    assert_eq!(checked, 36, "q, qd, qdd upper and lower for six joints");
+    assert!(other_clock_differs > 30, "{other_clock_differs} of 36");
+    // report.txt says which clock each instant is on
+    let txt = std::fs::read_to_string(dir.join("report.txt")).unwrap();
+    let line = txt.lines().find(|l| l.contains("worst self distance")).unwrap();
+    assert!(
+        line.contains("into the period (t = ") && line.contains("on the delivered clock of trajectory.csv and the preview"),
+        "{line}"
+    );
+}

@@ -420,8 +420,142 @@ fn identify_exports_the_consistent_model_as_mjcf_beside_its_toml() {
     let model = robot::load(&out.join("robot.toml")).unwrap();
     let xml = std::fs::read_to_string(out.join("robot.xml")).unwrap();
     let body = |x: &str| x.lines().filter(|l| !l.contains("written by idexp")).collect::<Vec<_>>().join("\n");
-    assert_eq!(body(&xml), body(&robot::export::mjcf_string(&model)));
+    // the same text, numbers to 1e-12 relative: robot.toml's inertials are
+    // written per link and read back through the centre of mass, which moves
+    // the last digit of some products
+    let (a, b) = (body(&xml), body(&robot::export::mjcf_string(&model)));
+    let (ta, tb): (Vec<&str>, Vec<&str>) = (a.split('"').collect(), b.split('"').collect());
+    assert_eq!(ta.len(), tb.len(), "{a}\n{b}");
+    for (u, v) in ta.iter().zip(&tb) {
+        let nums = |t: &str| t.split(' ').map(|w| w.parse::<f64>()).collect::<Result<Vec<f64>, _>>();
+        match (nums(u), nums(v)) {
+            (Ok(x), Ok(y)) if x.len() == y.len() => {
+                for (p, q) in x.iter().zip(&y) {
+                    assert!((p - q).abs() <= 1e-12 * p.abs().max(q.abs()).max(1e-3), "{u} vs {v}");
+                }
+            }
+            _ => assert_eq!(u, v),
+        }
+    }
     // and not the nominal model's
     let nominal = robot::load(&robot_file).unwrap();
     assert_ne!(body(&xml), body(&robot::export::mjcf_string(&nominal)));
+}
+
+#[test]
+fn a_package_is_found_by_its_folder_name_and_the_hint_works_as_written() {
+    // example-robot-data: package.xml names `example_robot_descriptions`, the
+    // URIs and the folder say `example-robot-data`
+    assert_eq!(idexp::robot::resolve::package_name(&erd()).as_deref(), Some("example_robot_descriptions"));
+    let uri = "package://example-robot-data/robots/ur_description/meshes/ur10/collision/base.stl";
+    let want = erd().join("robots/ur_description/meshes/ur10/collision/base.stl");
+    let d = tempfile::tempdir().unwrap();
+    let none = MeshResolver {
+        urdf_dir: d.path().to_path_buf(),
+        mesh_path: vec![],
+        packages: PackageSearch::default(),
+    };
+    let hint = none.resolve(uri).unwrap_err();
+    // what the hint advises, each followed as written
+    assert!(
+        hint.contains("set ROS_PACKAGE_PATH to the package folder `example-robot-data` or a folder at most 4 levels above it")
+            && hint.contains("AMENT_PREFIX_PATH to the install prefix holding share/example-robot-data")
+            && hint.contains("mesh_path naming the package folder or the folder holding it"),
+        "{hint}"
+    );
+    let ros = |p: PathBuf| MeshResolver {
+        packages: PackageSearch {
+            ros_package_path: Some(vec![p]),
+            ament_prefix_path: None,
+        },
+        ..none.clone()
+    };
+    // the package folder itself, and folders above it (crawled: the folder name, not package.xml's name)
+    assert_eq!(ros(erd()).resolve(uri).unwrap(), want);
+    assert_eq!(ros(root("tests/data/ros")).resolve(uri).unwrap(), want);
+    assert_eq!(ros(root("tests/data")).resolve(uri).unwrap(), want);
+    // an install prefix holding share/example-robot-data (as pip's cmeel.prefix does)
+    let prefix = d.path().join("prefix");
+    std::fs::create_dir_all(prefix.join("share")).unwrap();
+    std::os::unix::fs::symlink(erd(), prefix.join("share/example-robot-data")).unwrap();
+    let ament = MeshResolver {
+        packages: PackageSearch {
+            ros_package_path: None,
+            ament_prefix_path: Some(vec![prefix.clone()]),
+        },
+        ..none.clone()
+    };
+    assert!(ament.resolve(uri).unwrap().is_file());
+    // ROS_PACKAGE_PATH = the prefix's share/ folder (the folder holding the package): found by crawling
+    assert!(ros(prefix.join("share")).resolve(uri).unwrap().is_file());
+    // mesh_path: the package folder, or the folder holding it
+    for m in [erd(), root("tests/data/ros")] {
+        let r = MeshResolver {
+            mesh_path: vec![m],
+            ..none.clone()
+        };
+        assert_eq!(r.resolve(uri).unwrap(), want);
+    }
+    // a sibling of a URDF's ancestors named like the package, whose package.xml says otherwise
+    let ws = d.path().join("ws");
+    std::fs::create_dir_all(ws.join("robot/urdf")).unwrap();
+    std::os::unix::fs::symlink(erd(), ws.join("example-robot-data")).unwrap();
+    let walk = MeshResolver {
+        urdf_dir: ws.join("robot/urdf"),
+        ..none.clone()
+    };
+    assert!(walk.resolve(uri).unwrap().is_file());
+}
+
+#[test]
+fn the_panda_as_it_ships_loads_as_an_arm_with_its_fingers_locked() {
+    // no tip_link: the <mimic> finger group on panda_hand is locked and merged
+    let urdf = erd().join("robots/panda_description/urdf/panda.urdf");
+    let p = robot::load(&urdf).unwrap();
+    assert_eq!(p.dof(), 7);
+    assert!(p.joints.iter().all(|j| !j.name.contains("finger")));
+    let g = p.collision.as_ref().unwrap();
+    assert!(g.members[7].iter().any(|m| m == "panda_leftfinger") && g.members[7].iter().any(|m| m == "panda_rightfinger"));
+    let prov = idexp::robot::provenance::provenance(&urdf).unwrap();
+    assert_eq!(prov.left_out.len(), 1, "{:?}", prov.left_out);
+    assert!(
+        prov.left_out[0].contains("`panda_finger_joint1`, `panda_finger_joint2` locked at 0")
+            && prov.left_out[0].contains("`panda_finger_joint2` follows `panda_finger_joint1`")
+            && prov.left_out[0].contains("merged into `panda_link7`"),
+        "{}",
+        prov.left_out[0]
+    );
+    // the hand with its fingers weighs more than the hand alone (tip_link = panda_hand leaves them out, and says so)
+    let d = tempfile::tempdir().unwrap();
+    let t = d.path().join("panda.toml");
+    std::fs::write(&t, format!("urdf = {:?}\ntip_link = \"panda_hand\"\n", urdf.to_str().unwrap())).unwrap();
+    let cut = robot::load(&t).unwrap();
+    let fingers = p.links[6].inertial.mass - cut.links[6].inertial.mass;
+    assert!((fingers - 2.0 * 0.015).abs() < 1e-12, "{fingers} kg");
+    let prov = idexp::robot::provenance::provenance(&t).unwrap();
+    assert!(
+        prov.left_out.len() == 1
+            && prov.left_out[0].contains("`panda_hand_tcp_joint`, `panda_finger_joint1`, `panda_finger_joint2` and everything below them")
+            && prov.left_out[0].contains("tip_link `panda_hand`"),
+        "{:?}",
+        prov.left_out
+    );
+    // robot info says it, text and JSON, and names each link's mesh file
+    let (code, out, err) = idexp(&["robot", "info", urdf.to_str().unwrap()], &[]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("Left out of the model:") && out.contains("panda_finger_joint2"), "{out}");
+    let mesh = erd().join("robots/panda_description/meshes/collision/link3.stl");
+    assert!(
+        out.contains(&format!("panda_link3: panda_link3, URDF <collision>, mesh {}", mesh.display())),
+        "{out}"
+    );
+    let (code, out, err) = idexp(&["robot", "info", urdf.to_str().unwrap(), "--json"], &[]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["left_out"].as_array().unwrap().len(), 1);
+    let c = v["collision_geometry"].as_array().unwrap();
+    let l3 = c.iter().find(|c| c["link"] == "panda_link3").unwrap();
+    assert_eq!(l3["file"].as_str().unwrap(), mesh.to_str().unwrap());
+    assert_eq!(l3["uri"], "package://example-robot-data/robots/panda_description/meshes/collision/link3.stl");
+    assert_eq!(c.iter().find(|c| c["link"] == "panda_leftfinger").unwrap()["body"], "panda_link7");
 }

@@ -112,14 +112,25 @@ def test_keyboard_interrupt_on_long_excite(tmp_path):
     d = small_design(tmp_path, generations=100000)
     seen = []
     sent = []
+    # A process started by `cmd &` in a non-interactive shell (or by nohup)
+    # inherits SIGINT as ignored: Python then installs no handler and the
+    # signal below would be lost. Install the handler this test relies on
+    # (restored after), and bound the run by a time limit so that a lost
+    # signal fails the test (no KeyboardInterrupt) instead of running for hours.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(1.5, lambda: (sent.append((time.monotonic(), time.process_time())),
                                           os.kill(os.getpid(), signal.SIGINT)))
-    timer.start()
-    t0 = time.monotonic()
-    with pytest.raises(KeyboardInterrupt):
-        idexp.excite(d, progress=lambda *a: seen.append(a))
-    stopped, stopped_cpu = time.monotonic(), time.process_time()
-    timer.join()
+    try:
+        timer.start()
+        t0 = time.monotonic()
+        with pytest.raises(KeyboardInterrupt):
+            r = idexp.excite(d, progress=lambda *a: seen.append(a), time_limit=60.0)
+            pytest.fail(f"no KeyboardInterrupt; the design stopped by {r.stopped_by}")
+        stopped, stopped_cpu = time.monotonic(), time.process_time()
+        timer.join()
+    finally:
+        timer.cancel()
+        signal.signal(signal.SIGINT, previous)
     (sent_wall, sent_cpu), = sent
     # within a second after SIGINT on an idle machine: the CPU time of this
     # process (all threads) from the signal to the return, which does not grow

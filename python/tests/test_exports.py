@@ -251,3 +251,42 @@ def test_model_export_of_a_urdf_robot(tmp_path):
     assert any("link" in w.lower() or "mass" in w.lower() for w in ur5.with_params(bad).inertial_warnings)
     with pytest.raises(ValueError, match=r"theta: expected shape \(%d,\)" % ur5.n_params):
         ur5.with_params(th[:-1])
+
+
+def test_exported_urdf_loads_in_pinocchio_with_the_same_torques(tmp_path):
+    """robot.urdf of a changed (identified-like) model, read by Pinocchio (an
+    independent URDF reader and RNEA): its `rnea` equals idexp's rigid-body
+    torques Y θ (inertial columns) of the model on random states; the nominal
+    model's differ. For the UR5 and for a flat body on the triangle boundary."""
+    pin = pytest.importorskip("pinocchio")
+    ur5 = idexp.Robot.load(ROBOTS / "ur5.toml")
+    mask = np.array(ur5.inertial_mask)
+    rng = np.random.default_rng(8)
+    th = ur5.nominal_params.copy()
+    th[mask] *= np.repeat(rng.uniform(0.8, 1.3, ur5.dof), 10)
+    # link 3: a flat body (principal moments a, b, a + b), rotated
+    names = ur5.param_names
+    o = names.index("XX3")
+    m = th[names.index("M3")]
+    c = np.array(th[o + 6:o + 9]) / m
+    q_, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    ic = q_ @ np.diag([0.01, 0.03, 0.04]) @ q_.T
+    io = ic + m * (c @ c * np.eye(3) - np.outer(c, c))
+    th[o:o + 10] = [io[0, 0], io[0, 1], io[0, 2], io[1, 1], io[1, 2], io[2, 2], *(m * c), m]
+    model_i = ur5.with_params(th)
+    (path,) = model_i.export(tmp_path, ["urdf"])
+    pm = pin.buildModelFromUrdf(str(path))
+    data = pm.createData()
+    assert list(pm.names)[1:] == model_i.joint_names
+    worst, off = 0.0, 0.0
+    for _ in range(50):
+        q = rng.uniform(-3, 3, 6)
+        v = rng.uniform(-2, 2, 6)
+        a = rng.uniform(-5, 5, 6)
+        y = model_i.regressor(q, v, a)[:, mask]
+        tau = y @ th[mask]
+        ref = pin.rnea(pm, data, q, v, a)
+        worst = max(worst, np.max(np.abs(tau - ref)))
+        off = max(off, np.max(np.abs(y @ ur5.nominal_params[mask] - ref)))
+    assert worst < 1e-9, worst
+    assert off > 1e-3, off

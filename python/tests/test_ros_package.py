@@ -10,9 +10,13 @@ which lie outside the meshes)."""
 
 import importlib.util
 import json
+import pathlib
 import sys
 
+import numpy as np
 import pytest
+
+import idexp
 
 from conftest import ROOT
 
@@ -106,3 +110,75 @@ def test_package_urdf_is_collision_checked_and_the_replay_agrees(cli, tmp_path, 
         assert dp[:, i].min() >= hull - 1e-9, f"{p.label}: mesh {dp[:, i].min()} < idexp's least hull distance {hull}"
         checked += 1
     assert checked >= 1
+
+
+def installed_erd_file(rel):
+    """A file of the example-robot-data package as pip installed it (its
+    cmeel prefix: share/example-robot-data/...); scripts/python-test.sh
+    installs the package, so it is an error when it is missing."""
+    import importlib.metadata as md
+
+    try:
+        dist = md.distribution("example-robot-data")
+    except md.PackageNotFoundError:
+        pytest.fail("the PyPI package example-robot-data is not installed (scripts/python-test.sh installs it)")
+    hits = [f for f in dist.files if str(f).endswith(rel)]
+    assert hits, f"example-robot-data has no {rel}"
+    return pathlib.Path(dist.locate_file(hits[0]))
+
+
+def test_the_installed_panda_loads_as_an_arm_with_its_fingers_locked(cli):
+    """example-robot-data's panda.urdf as pip installs it, given directly (no
+    robot file, no tip_link): the two finger joints (`panda_finger_joint2`
+    mimics `panda_finger_joint1`) are locked at 0 and merged into the hand,
+    the arm's seven joints are the model; `robot info` says so, and names
+    the mesh file of each link's collision geometry. The arm's torques equal
+    Pinocchio's RNEA on the same file reduced with the fingers locked at
+    their neutral position (`pin.buildReducedModel`), plus the URDF's joint
+    damping (read as viscous friction)."""
+    urdf = installed_erd_file("robots/panda_description/urdf/panda.urdf")
+    robot = idexp.Robot.load(urdf)
+    assert robot.dof == 7
+    assert robot.joint_names == [f"panda_joint{i}" for i in range(1, 8)]
+    info = json.loads(cli("robot", "info", urdf, "--json"))
+    (left,) = info["left_out"]
+    assert "`panda_finger_joint1`" in left and "`panda_finger_joint2`" in left and "<mimic>" in left, left
+    text = cli("robot", "info", urdf)
+    assert "Left out of the model:" in text and "panda_finger_joint2` follows `panda_finger_joint1`" in text, text
+    # every link's collision meshes: found inside the installed package, named by body
+    geo = info["collision_geometry"]
+    links = {g["link"] for g in geo}
+    assert {f"panda_link{i}" for i in range(8)} | {"panda_hand", "panda_leftfinger", "panda_rightfinger"} <= links, links
+    share = urdf.parents[3]
+    for g in geo:
+        assert g["problem"] is None, g
+        if g["shape"] == "mesh":
+            f = pathlib.Path(g["file"])
+            assert f.is_file() and share in f.parents, g
+            assert g["uri"].startswith("package://example-robot-data/"), g
+            assert g["uri"].split("/", 3)[3] == str(f.relative_to(share)), g
+    fingers = [g for g in geo if g["link"] in ("panda_leftfinger", "panda_rightfinger")]
+    assert fingers and all(g["body"] == "panda_link7" for g in fingers), fingers
+    assert any(str(pathlib.Path(g["file"])) in text for g in geo if g["file"]), text
+
+    full = pin.buildModelFromUrdf(str(urdf))
+    locked = [full.getJointId(n) for n in ("panda_finger_joint1", "panda_finger_joint2")]
+    model = pin.buildReducedModel(full, locked, pin.neutral(full))
+    data = model.createData()
+    assert list(model.names)[1:] == robot.joint_names
+    damping = np.full(7, 0.003)  # <dynamics damping="0.003"> of every arm joint
+    g = np.random.default_rng(11)
+    lo, hi = robot.limits["lower"], robot.limits["upper"]
+    worst = 0.0
+    for _ in range(50):
+        q = g.uniform(lo, hi)
+        v = g.uniform(-2, 2, 7)
+        a = g.uniform(-5, 5, 7)
+        ref = pin.rnea(model, data, q, v, a) + damping * v
+        tau = robot.rnea(q, v, a)
+        np.testing.assert_allclose(tau, ref, rtol=0, atol=1e-9)
+        worst = max(worst, np.abs(tau - ref).max())
+    # a comparison that can fail: the locked fingers carry mass (left out, the torques would differ)
+    mass_fingers = sum(full.inertias[j].mass for j in locked)
+    assert mass_fingers > 0.01
+    print(f"panda (installed): max |idexp − pinocchio reduced| = {worst:.2e} N·m; fingers {mass_fingers:.3f} kg merged")

@@ -562,6 +562,7 @@ impl ElasticModel {
             .clone()
             .try_into()
             .map_err(|e: toml::de::Error| Error::parse(path, format!("[model]: {}", e.message())))?;
+        crate::io::design_path(path, "model.robot", Path::new(&spec.robot))?;
         let base = path.parent().unwrap_or(Path::new("."));
         Self::from_spec(&spec, base, &path.display().to_string())
     }

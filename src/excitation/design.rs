@@ -454,24 +454,15 @@ impl ExciteDesign {
         if d.name.is_empty() {
             d.name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "excite".into());
         }
-        if d.robot.is_relative() {
-            if let Some(dir) = path.parent() {
-                d.robot = dir.join(&d.robot);
-            }
-        }
-        if let Some(dir) = path.parent() {
+        d.robot = crate::io::design_path(path, "robot", &d.robot)?;
+        {
             use crate::robot::collision::ShapeSpec;
-            let shapes = d
-                .collision
-                .obstacle
-                .iter_mut()
-                .map(|o| &mut o.shape)
-                .chain(d.collision.attached.iter_mut().map(|a| &mut a.shape));
-            for sh in shapes {
+            let shapes = (d.collision.obstacle.iter_mut().enumerate())
+                .map(|(k, o)| (format!("collision.obstacle[{k}].shape.file"), &mut o.shape))
+                .chain((d.collision.attached.iter_mut().enumerate()).map(|(k, a)| (format!("collision.attached[{k}].shape.file"), &mut a.shape)));
+            for (field, sh) in shapes {
                 if let ShapeSpec::Mesh { file, .. } = sh {
-                    if file.is_relative() {
-                        *file = dir.join(&*file);
-                    }
+                    *file = crate::io::design_path(path, &field, file)?;
                 }
             }
         }

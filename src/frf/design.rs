@@ -201,6 +201,7 @@ impl Design {
     /// Reads and validates a design file; returns it with the loaded model.
     pub fn load(path: &Path) -> Result<(Design, ElasticModel)> {
         let d: Design = crate::io::read_toml(path)?;
+        crate::io::design_path(path, "model.robot", Path::new(&d.model.robot))?;
         let base = path.parent().unwrap_or(Path::new("."));
         let ctx = path.display().to_string();
         let model = ElasticModel::from_spec(&d.model, base, &ctx)?;

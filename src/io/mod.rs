@@ -177,6 +177,37 @@ pub fn read_to_string_bounded(path: &Path, max_bytes: u64) -> Result<String> {
     Ok(text)
 }
 
+/// A path written in a design (or robot) file, resolved as every design
+/// resolves its paths: relative to the folder of `file` (absolute paths
+/// kept), and checked to exist. A path that does not exist is an error
+/// naming `file`, `field`, the path as written, the path it resolved to and
+/// the folder it is relative to (and when the folder above it does not
+/// exist either, that too).
+pub fn design_path(file: &Path, field: &str, written: &Path) -> Result<std::path::PathBuf> {
+    let dir = file.parent().unwrap_or(Path::new(""));
+    let resolved = if written.is_absolute() { written.to_path_buf() } else { dir.join(written) };
+    if resolved.exists() {
+        return Ok(resolved);
+    }
+    let shown = if dir.as_os_str().is_empty() { Path::new(".") } else { dir };
+    let why = if written.is_absolute() {
+        format!("`{}` does not exist", written.display())
+    } else {
+        format!(
+            "`{}` does not exist: a relative path is relative to the folder of the file that writes it ({}), so it names {}",
+            written.display(),
+            shown.display(),
+            resolved.display()
+        )
+    };
+    let missing_dir = resolved
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty() && !p.exists())
+        .map(|p| format!(" (no folder {})", p.display()))
+        .unwrap_or_default();
+    Err(Error::invalid(file.display().to_string(), field, format!("{why}{missing_dir}")))
+}
+
 /// Reads a TOML file into `T`, reporting syntax and field errors with the file
 /// name, line and column.
 pub fn read_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {

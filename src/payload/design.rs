@@ -150,6 +150,7 @@ impl PayloadDesign {
         if d.name.is_empty() {
             d.name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "payload".into());
         }
+        crate::io::design_path(path, "robot", &d.robot)?;
         d.validate(&path.display().to_string())?;
         Ok(d)
     }

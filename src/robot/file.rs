@@ -354,7 +354,7 @@ fn collision_geometry(path: &Path, f: &RobotFile, robot: &Robot, ctx: &str) -> R
     let mut problems: Vec<(String, String)> = Vec::new();
     let (mut bodies, mut members) = match &f.urdf {
         Some(u) => {
-            let upath = dir.join(u);
+            let upath = crate::io::design_path(path, "urdf", Path::new(u))?;
             let parts = load_urdf(&upath, f.base_link.as_deref(), f.tip_link.as_deref())?;
             let resolver = MeshResolver::new(upath.parent().unwrap_or(Path::new(".")), &mesh_path);
             let g = super::urdf::load_collision(&upath, &parts, f.base_link.as_deref(), &resolver, mode)?;
@@ -443,7 +443,7 @@ fn collision_geometry(path: &Path, f: &RobotFile, robot: &Robot, ctx: &str) -> R
         allowed.push(a.clone());
     }
     if let Some(s) = &f.srdf {
-        let spath = dir.join(s);
+        let spath = crate::io::design_path(path, "srdf", Path::new(s))?;
         let text = crate::io::read_to_string(&spath)?;
         let srdf: Srdf = quick_xml::de::from_str(&text).map_err(|e| Error::parse(&spath, format!("malformed SRDF: {e}")))?;
         let accepted: Vec<String> = f.srdf_reasons.clone().unwrap_or_else(|| vec!["Adjacent".into()]);
@@ -532,7 +532,7 @@ fn structure(path: &Path, f: &RobotFile, ctx: &str) -> Result<(String, Vec<Joint
                     "[[joint]] rows are for DH robots; a URDF robot takes its joints from the URDF",
                 ));
             }
-            let upath = path.parent().unwrap_or(Path::new(".")).join(u);
+            let upath = crate::io::design_path(path, "urdf", Path::new(u))?;
             let parts = load_urdf(&upath, f.base_link.as_deref(), f.tip_link.as_deref())?;
             (parts.name, parts.joints, parts.links, parts.drives, parts.frames)
         }

@@ -9,7 +9,12 @@
 //!   constant motion(offset) · `post` (DH offsets and the standard-DH
 //!   `post`), so MuJoCo's `qpos` equals idexp's q, with no `ref`;
 //! * `<inertial>`: `mass`, `pos` = the centre of mass and `fullinertia` =
-//!   the inertia about it, in the body frame;
+//!   the inertia about it, in the body frame; an inertia on the
+//!   triangle-inequality boundary (principal moments A + B = C: a flat body,
+//!   which a physically consistent fit gives where the data allow it) is
+//!   lifted by the smallest δ·1 that gives A + B − C ≥ 10⁻⁹ (A + B + C)
+//!   ([`TRIANGLE_MARGIN`]), said in a comment at the body: MuJoCo refuses
+//!   the exact boundary by rounding;
 //! * `<joint>`: `type` = `hinge` (revolute) or `slide` (prismatic), `axis`,
 //!   `range` when both position limits are finite, `armature` = the
 //!   reflected rotor inertia Ia (idexp's Ia is already referred to the joint
@@ -86,15 +91,59 @@ fn body_to_link(robot: &Robot, j: usize) -> Isometry3<f64> {
     m * jt.post
 }
 
-/// `<inertial>` of an inertial given in the body frame.
-fn inertial_xml(ine: &Inertial) -> String {
+/// Relative margin of the triangle inequality in the written inertias:
+/// every principal moment pair satisfies A + B − C ≥ `TRIANGLE_MARGIN`·(A + B + C).
+///
+/// MuJoCo (4.0.1) refuses a `fullinertia` whose principal moments, as its
+/// own eigen-decomposition finds them, violate A + B ≥ C ("inertia must
+/// satisfy A + B >= C") or are not positive; a body on the boundary (a flat
+/// body, a rod: what a physically consistent fit gives when the data allow
+/// it) is refused in about 4 cases out of 10 by rounding alone. 1e-10 was
+/// enough in 1000 random flat bodies over eight decades of size; 1e-9 is
+/// written.
+pub const TRIANGLE_MARGIN: f64 = 1e-9;
+
+/// The inertia about the centre of mass as written to MuJoCo: `ic` when its
+/// principal moments keep [`TRIANGLE_MARGIN`], else `ic + δ·1` with the
+/// smallest δ that makes them keep it (the same δ added to all three
+/// principal moments, the axes unchanged); returns δ (0: unchanged).
+pub fn mujoco_inertia(ic: &nalgebra::Matrix3<f64>) -> (nalgebra::Matrix3<f64>, f64) {
+    let sym = (ic + ic.transpose()) * 0.5;
+    let ev = nalgebra::SymmetricEigen::new(sym).eigenvalues;
+    let mut e = [ev[0], ev[1], ev[2]];
+    e.sort_by(f64::total_cmp);
+    let tr = e[0] + e[1] + e[2];
+    if !(tr.is_finite() && tr > 0.0) {
+        return (*ic, 0.0);
+    }
+    // the tightest of A + B − C over the permutations, and the smallest moment
+    let gap = e[0] + e[1] - e[2];
+    let want = TRIANGLE_MARGIN * tr;
+    // adding δ to each moment adds δ to A + B − C and to the trace's 3δ: solve gap + δ ≥ margin·(tr + 3δ)
+    let delta_gap = ((want - gap) / (1.0 - 3.0 * TRIANGLE_MARGIN)).max(0.0);
+    let delta_pos = (want - e[0]).max(0.0);
+    let delta = delta_gap.max(delta_pos);
+    if delta == 0.0 {
+        (*ic, 0.0)
+    } else {
+        (ic + nalgebra::Matrix3::identity() * delta, delta)
+    }
+}
+
+/// `<inertial>` of an inertial given in the body frame, and the δ added to
+/// its principal moments ([`mujoco_inertia`]; 0: written as it is).
+fn inertial_xml(ine: &Inertial) -> (String, f64) {
     let m = ine.mass;
     let (c, ic) = super::export::com_inertia(ine);
-    format!(
-        "<inertial pos=\"{}\" mass=\"{}\" fullinertia=\"{}\"/>",
-        nums(&[c.x, c.y, c.z]),
-        num(m),
-        nums(&[ic[(0, 0)], ic[(1, 1)], ic[(2, 2)], ic[(0, 1)], ic[(0, 2)], ic[(1, 2)]])
+    let (ic, delta) = mujoco_inertia(&ic);
+    (
+        format!(
+            "<inertial pos=\"{}\" mass=\"{}\" fullinertia=\"{}\"/>",
+            nums(&[c.x, c.y, c.z]),
+            num(m),
+            nums(&[ic[(0, 0)], ic[(1, 1)], ic[(2, 2)], ic[(0, 1)], ic[(0, 2)], ic[(1, 2)]])
+        ),
+        delta,
     )
 }
 
@@ -226,7 +275,17 @@ pub fn mjcf_string(robot: &Robot) -> String {
             attr(&robot.links[j].name),
             pose_attrs(&(parent_e * jt.placement))
         );
-        let _ = writeln!(x, "{ind}  {}", inertial_xml(&robot.links[j].inertial.transformed(&e)));
+        let (inertial, delta) = inertial_xml(&robot.links[j].inertial.transformed(&e));
+        if delta > 0.0 {
+            let _ = writeln!(
+                x,
+                "{ind}  <!-- link `{}`: its inertia lies on the triangle-inequality boundary (a flat body or a rod, as a physically consistent fit may give): {} kg m^2 added to each principal moment so that MuJoCo accepts it (A + B - C >= {} (A + B + C)) -->",
+                comment_text(&robot.links[j].name),
+                num(delta),
+                num(TRIANGLE_MARGIN)
+            );
+        }
+        let _ = writeln!(x, "{ind}  {inertial}");
         let (drive, notes) = drive_attrs(robot, j);
         for note in notes {
             let _ = writeln!(x, "{ind}  <!-- joint `{}`: {} -->", comment_text(&jt.name), comment_text(&note));

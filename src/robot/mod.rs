@@ -15,6 +15,7 @@ pub mod kinematics;
 pub mod mjcf;
 pub mod model;
 pub mod payload;
+pub mod provenance;
 pub mod resolve;
 pub mod urdf;
 pub mod validate;

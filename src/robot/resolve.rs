@@ -9,11 +9,14 @@
 //!      `package.xml` names PKG, or its name is PKG) or holds packages below
 //!      it (searched down to [`CRAWL_DEPTH`] levels, hidden folders and those
 //!      with a `CATKIN_IGNORE`, `COLCON_IGNORE` or `AMENT_IGNORE` skipped, a
-//!      package's own subfolders not entered);
+//!      package's own subfolders not entered). A package is found by its
+//!      `package.xml` name or by its folder's name: example-robot-data's
+//!      `package.xml` says `example_robot_descriptions` while its URIs (and
+//!      its install folder `share/example-robot-data`) say `example-robot-data`;
 //!   2. `AMENT_PREFIX_PATH` (ROS 2, the ament index): `<prefix>/share/PKG`;
 //!   3. the folder holding the URDF and every folder above it: a folder named
 //!      PKG, a folder whose `package.xml` names PKG, or a folder holding a
-//!      package PKG (`PKG/package.xml`, a sibling package of a source
+//!      package folder PKG (`PKG/package.xml`, a sibling package of a source
 //!      workspace, or `share/PKG` of an install prefix);
 //!   4. the robot file's `mesh_path` folders (idexp's own key: the longest
 //!      tail of `PKG/path/in/package.stl` that exists below one of them).
@@ -111,7 +114,7 @@ fn crawl(root: &Path, pkg: &str) -> Option<PathBuf> {
                 return None;
             }
             if d.join("package.xml").is_file() {
-                if is_package(&d, pkg) {
+                if d.file_name().is_some_and(|n| n == pkg) || is_package(&d, pkg) {
                     return Some(d);
                 }
                 continue; // a package's subfolders hold no other package
@@ -122,7 +125,7 @@ fn crawl(root: &Path, pkg: &str) -> Option<PathBuf> {
             let Ok(rd) = std::fs::read_dir(&d) else { continue };
             let mut subs: Vec<PathBuf> = rd
                 .filter_map(|e| e.ok())
-                .filter(|e| e.file_type().is_ok_and(|t| t.is_dir()))
+                .filter(|e| e.path().is_dir()) // links to folders followed, as rospack does
                 .filter(|e| !e.file_name().to_string_lossy().starts_with('.'))
                 .map(|e| e.path())
                 .collect();
@@ -159,7 +162,7 @@ fn package_candidates(r: &MeshResolver, pkg: &str) -> Vec<(PathBuf, &'static str
     for a in start.ancestors() {
         if (a.file_name().is_some_and(|n| n == pkg) && a.is_dir()) || is_package(a, pkg) {
             push(a.to_path_buf(), "the URDF's folder");
-        } else if is_package(&a.join(pkg), pkg) {
+        } else if a.join(pkg).join("package.xml").is_file() {
             push(a.join(pkg), "the URDF's folder");
         } else if a.join("share").join(pkg).join("package.xml").is_file() {
             push(a.join("share").join(pkg), "the URDF's folder");
@@ -247,11 +250,11 @@ impl MeshResolver {
             };
             let start = std::path::absolute(&self.urdf_dir).unwrap_or_else(|_| self.urdf_dir.clone());
             return Err(format!(
-                "not found: {found}; searched {}, {} (as <prefix>/share/{pkg}), the URDF's folder {} and the folders above it (a folder named `{pkg}`, or with a package.xml naming it, or holding {pkg}/package.xml or share/{pkg}), and {}; set ROS_PACKAGE_PATH or AMENT_PREFIX_PATH to the folder holding the package (or source the workspace's setup script), or give the robot file a mesh_path",
+                "not found: {found}; searched {}, {} (as <prefix>/share/{pkg}), the URDF's folder {} and the folders above it (a folder named `{pkg}`, or with a package.xml naming it, or holding {pkg}/package.xml or share/{pkg}), and {}; set ROS_PACKAGE_PATH to the package folder `{pkg}` or a folder at most {CRAWL_DEPTH} levels above it, or AMENT_PREFIX_PATH to the install prefix holding share/{pkg} (or source the workspace's setup script), or give the robot file a mesh_path naming the package folder or the folder holding it",
                 env("ROS_PACKAGE_PATH", &self.packages.ros_package_path),
                 env("AMENT_PREFIX_PATH", &self.packages.ament_prefix_path),
                 start.display(),
-                self.mesh_path_text()
+                self.mesh_path_text(),
             ));
         }
         let plain = match uri.strip_prefix("file://") {

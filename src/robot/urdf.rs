@@ -19,8 +19,14 @@ pub struct UrdfParts {
     pub links: Vec<Link>,
     /// Drives from `<dynamics damping friction>` (Fv, Fc).
     pub drives: Vec<Drive>,
-    /// Frames of links attached by fixed joints.
+    /// Frames of links attached by fixed joints (and of links moved by a
+    /// locked joint, see [`UrdfParts::left_out`]).
     pub frames: Vec<Frame>,
+    /// What of the URDF is not part of the model, and why: joints below the
+    /// tip (`tip_link`) or beside the chain to it, and `<mimic>` groups (a
+    /// gripper's fingers) locked at their reference position with their
+    /// bodies merged into the link that carries them. One sentence each.
+    pub left_out: Vec<String>,
 }
 
 pub(crate) fn pose_to_iso(xyz: [f64; 3], rpy: [f64; 3]) -> Isometry3<f64> {
@@ -48,8 +54,10 @@ struct RawJoint {
     at: (usize, usize),
     /// The `<limit>` element's attributes, if the element is present.
     limit: Option<Vec<(String, String)>>,
-    /// Line and column of a `<mimic>` element.
+    /// Line and column of a `<mimic>` element, and the joint it names.
     mimic: Option<(usize, usize)>,
+    /// The `joint` attribute of the `<mimic>` element (the leader).
+    mimic_of: Option<String>,
 }
 
 /// What urdf-rs does not tell from the URDF text: which links have an
@@ -129,6 +137,7 @@ fn scan_urdf(path: &Path, text: &str) -> Result<RawUrdf> {
             ("mimic", Some("joint")) => {
                 if let Some((_, j)) = out.joints.last_mut() {
                     j.mimic = Some(at);
+                    j.mimic_of = attr(&e, "joint");
                 }
             }
             _ => {}
@@ -255,6 +264,10 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
         }
     };
 
+    let locked = mimic_groups(&ctx, &raw, &u, &children)?;
+    // what is left out: (locked joint, its group, position, the link carrying it); joints off the chain to the tip
+    let mut locked_seen: Vec<(String, usize, f64, String)> = Vec::new();
+    let mut off_chain: Vec<String> = Vec::new();
     let mut joints = Vec::new();
     let mut links: Vec<Link> = Vec::new();
     let mut drives = Vec::new();
@@ -297,6 +310,7 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
             let j = &u.joints[k];
             if let Some(a) = &allowed {
                 if !a.contains(&j.child.link) {
+                    off_chain.push(j.name.clone());
                     continue;
                 }
             }
@@ -309,6 +323,7 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
             }
             let origin = pose_to_iso(j.origin.xyz.0, j.origin.rpy.0);
             let kind = match j.joint_type {
+                _ if locked.contains_key(&j.name) => None,
                 urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => Some(JointKind::Revolute),
                 urdf_rs::JointType::Prismatic => Some(JointKind::Prismatic),
                 urdf_rs::JointType::Fixed => None,
@@ -322,7 +337,25 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
             };
             match kind {
                 None => {
-                    let pl = placement * origin;
+                    // a joint of a <mimic> group: fixed at its reference position
+                    let motion = match (locked.get(&j.name), &j.joint_type) {
+                        (Some(&(group, q0)), t) => {
+                            let carrier = owner.map_or(root.clone(), |o| links[o].name.clone());
+                            locked_seen.push((j.name.clone(), group, q0, carrier));
+                            let axis = Vector3::from(j.axis.xyz.0);
+                            if axis.iter().any(|v| !v.is_finite()) || axis.norm() <= 1e-12 {
+                                return Err(Error::invalid(&ctx, format!("joint `{}` <axis>", j.name), "expected a non-zero axis"));
+                            }
+                            let axis = Unit::new_normalize(axis);
+                            if *t == urdf_rs::JointType::Prismatic {
+                                Isometry3::from_parts(Translation3::from(axis.into_inner() * q0), UnitQuaternion::identity())
+                            } else {
+                                Isometry3::from_parts(Translation3::identity(), UnitQuaternion::from_axis_angle(&axis, q0))
+                            }
+                        }
+                        _ => Isometry3::identity(),
+                    };
+                    let pl = placement * origin * motion;
                     frames.push(Frame {
                         name: j.child.link.clone(),
                         link: owner,
@@ -452,6 +485,39 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
     if joints.is_empty() {
         return Err(Error::invalid(&ctx, "joints", "no revolute, continuous or prismatic joint found"));
     }
+    let mut left_out = Vec::new();
+    let mut groups: Vec<usize> = locked_seen.iter().map(|l| l.1).collect();
+    groups.sort_unstable();
+    groups.dedup();
+    for g in groups {
+        let mut members: Vec<&(String, usize, f64, String)> = locked_seen.iter().filter(|l| l.1 == g).collect();
+        // in the URDF's order
+        members.sort_by_key(|l| raw.joints.iter().position(|(n, _)| n == &l.0));
+        let names = members.iter().map(|l| format!("`{}`", l.0)).collect::<Vec<_>>().join(", ");
+        let at = members.iter().map(|l| format!("{}", l.2)).collect::<Vec<_>>();
+        let at = if at.iter().all(|a| *a == at[0]) { at[0].clone() } else { at.join(", ") };
+        let follows = raw
+            .joints
+            .iter()
+            .filter(|(n, r)| r.mimic_of.is_some() && members.iter().any(|l| &l.0 == n))
+            .map(|(n, r)| format!("`{n}` follows `{}`", r.mimic_of.as_deref().unwrap_or("")))
+            .collect::<Vec<_>>()
+            .join(", ");
+        left_out.push(format!(
+            "joints {names} locked at {at}: a <mimic> group ({follows}) at the end of the tree, e.g. a gripper's fingers, is not part of the arm; their links are merged into `{}` as fixed bodies (their mass and collision geometry stay)",
+            members[0].3
+        ));
+    }
+    if !off_chain.is_empty() {
+        off_chain.sort_by_key(|n| raw.joints.iter().position(|(r, _)| r == n));
+        left_out.push(format!(
+            "joint{} {} and everything below {}: not on the chain from `{root}` to tip_link `{}` (their links' mass is not in the model)",
+            if off_chain.len() == 1 { "" } else { "s" },
+            off_chain.iter().map(|n| format!("`{n}`")).collect::<Vec<_>>().join(", "),
+            if off_chain.len() == 1 { "it" } else { "them" },
+            tip_link.unwrap_or("")
+        ));
+    }
     // topological order is guaranteed by the DFS (parents pushed before children)
     Ok(UrdfParts {
         name: u.name.clone(),
@@ -459,7 +525,101 @@ pub fn parse_urdf(path: &Path, text: &str, base_link: Option<&str>, tip_link: Op
         links,
         drives,
         frames,
+        left_out,
     })
+}
+
+/// The joints of `<mimic>` groups that are locked, each with its group's
+/// number and the position it is locked at (0, or the limit nearest to 0).
+///
+/// A group is a mimicking joint and the joint it follows (groups sharing a
+/// joint are one). It is locked when it is all that moves below the link
+/// carrying the joint the others follow: a gripper's fingers at the end of
+/// the arm (example-robot-data's Panda: `panda_finger_joint2` follows
+/// `panda_finger_joint1`, both on `panda_hand`). Any other `<mimic>` joint is
+/// refused, naming the `<mimic>` element.
+fn mimic_groups(ctx: &str, raw: &RawUrdf, u: &urdf_rs::Robot, children: &HashMap<&str, Vec<usize>>) -> Result<HashMap<String, (usize, f64)>> {
+    let mut groups: Vec<Vec<String>> = Vec::new();
+    for (name, r) in &raw.joints {
+        let Some(_) = r.mimic else { continue };
+        let mut g = vec![name.clone()];
+        if let Some(l) = &r.mimic_of {
+            if u.joints.iter().any(|j| &j.name == l) && l != name {
+                g.push(l.clone());
+            }
+        }
+        // merge with the groups it shares a joint with
+        let mut k = 0;
+        while k < groups.len() {
+            if groups[k].iter().any(|x| g.contains(x)) {
+                for x in groups.swap_remove(k) {
+                    if !g.contains(&x) {
+                        g.push(x);
+                    }
+                }
+            } else {
+                k += 1;
+            }
+        }
+        groups.push(g);
+    }
+    let mut out = HashMap::new();
+    for (gi, g) in groups.iter().enumerate() {
+        // the link carrying the group: the parent of the joint the others follow
+        let leader = g.iter().find(|n| raw.joint(n).is_some_and(|r| r.mimic.is_none())).unwrap_or(&g[0]);
+        let carrier = u.joints.iter().find(|j| &j.name == leader).map(|j| j.parent.link.as_str()).unwrap_or("");
+        // every joint moving below the carrier must belong to the group
+        let (follower, r) = raw
+            .joints
+            .iter()
+            .find(|(n, r)| r.mimic.is_some() && g.contains(n))
+            .expect("a group holds a mimicking joint");
+        let (ml, mc) = r.mimic.unwrap_or_default();
+        let mut inside = Vec::new();
+        let mut stack = vec![carrier];
+        while let Some(l) = stack.pop() {
+            for &k in children.get(l).map(|v| v.as_slice()).unwrap_or(&[]) {
+                let below = &u.joints[k];
+                inside.push(below.name.as_str());
+                if below.joint_type != urdf_rs::JointType::Fixed && !g.contains(&below.name) {
+                    return Err(Error::invalid(
+                        ctx,
+                        format!("joint `{follower}` <mimic> (line {ml}, column {mc})"),
+                        format!(
+                            "a <mimic> group ({}) is left out of the model only when it is all that moves below the link carrying it (a gripper's fingers on `{carrier}`), but joint `{}` moves below `{carrier}` too: every joint of the arm is an independent coordinate with its own drive; make the mimicking joint fixed, or model it as an actuated joint without <mimic>",
+                            g.iter().map(|x| format!("`{x}`")).collect::<Vec<_>>().join(", "),
+                            below.name
+                        ),
+                    ));
+                }
+                stack.push(below.child.link.as_str());
+            }
+        }
+        if let Some(outside) = g.iter().find(|n| !inside.contains(&n.as_str())) {
+            return Err(Error::invalid(
+                ctx,
+                format!("joint `{follower}` <mimic> (line {ml}, column {mc})"),
+                format!("joint `{outside}` of the <mimic> group is not below `{carrier}`, the link carrying the joint `{leader}` it follows: a <mimic> group is left out only as a gripper's fingers on one link"),
+            ));
+        }
+        for name in g {
+            let Some(j) = u.joints.iter().find(|j| &j.name == name) else { continue };
+            let l = &j.limit;
+            let q0 = if j.joint_type == urdf_rs::JointType::Continuous || !(l.lower <= 0.0 && 0.0 <= l.upper) {
+                if j.joint_type == urdf_rs::JointType::Continuous || !(l.lower.is_finite() && l.upper.is_finite()) {
+                    0.0
+                } else if l.lower > 0.0 {
+                    l.lower
+                } else {
+                    l.upper
+                }
+            } else {
+                0.0
+            };
+            out.insert(name.clone(), (gi, q0));
+        }
+    }
+    Ok(out)
 }
 
 /// Collision geometry of a URDF robot, as [`load_collision`] reads it.
@@ -473,6 +633,27 @@ pub struct UrdfGeometry {
     /// link, mesh name) and why (folders searched, or why the file is not
     /// readable); their bodies are left without those shapes.
     pub problems: Vec<(String, String)>,
+    /// Every `<collision>` element of the model, where it came from.
+    pub sources: Vec<CollisionSource>,
+}
+
+/// Where one collision shape of a robot came from (`robot info`).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct CollisionSource {
+    /// The body it belongs to: the base link or a moving link.
+    pub body: String,
+    /// The URDF link (or robot-file `[[collision]]` link) that writes it.
+    pub link: String,
+    /// Where it is written: `URDF <collision>` or `robot file [[collision]] k`.
+    pub written_in: String,
+    /// `mesh`, `box`, `cylinder`, `capsule` or `sphere`.
+    pub shape: String,
+    /// A mesh's name as written (`package://…`, `file://…` or a path).
+    pub uri: Option<String>,
+    /// The mesh file read (`None`: a primitive, or a mesh not found).
+    pub file: Option<std::path::PathBuf>,
+    /// Why the mesh was not found or not read.
+    pub problem: Option<String>,
 }
 
 /// Collision geometry of a URDF robot: the `<collision>` elements of every
@@ -508,6 +689,7 @@ pub fn load_collision(
         .collect();
     let mut members: Vec<Vec<String>> = bodies.iter().map(|b| vec![b.name.clone()]).collect();
     let mut problems = Vec::new();
+    let mut sources = Vec::new();
     'links: for ul in &u.links {
         // which body and where in its frame
         let (idx, at) = if ul.name == root {
@@ -524,8 +706,25 @@ pub fn load_collision(
             continue; // outside the modelled chain
         };
         let mut specs = Vec::new();
+        let first_source = sources.len();
         for c in &ul.collision {
             let origin = pose_to_iso(c.origin.xyz.0, c.origin.rpy.0);
+            let mut source = CollisionSource {
+                body: bodies[idx].name.clone(),
+                link: ul.name.clone(),
+                written_in: "URDF <collision>".into(),
+                shape: match &c.geometry {
+                    urdf_rs::Geometry::Box { .. } => "box",
+                    urdf_rs::Geometry::Cylinder { .. } => "cylinder",
+                    urdf_rs::Geometry::Capsule { .. } => "capsule",
+                    urdf_rs::Geometry::Sphere { .. } => "sphere",
+                    urdf_rs::Geometry::Mesh { .. } => "mesh",
+                }
+                .into(),
+                uri: None,
+                file: None,
+                problem: None,
+            };
             let primitive = match &c.geometry {
                 urdf_rs::Geometry::Box { size } => Primitive::Box { size: size.0 },
                 urdf_rs::Geometry::Cylinder { radius, length } => Primitive::Cylinder {
@@ -537,17 +736,26 @@ pub fn load_collision(
                     length: *length,
                 },
                 urdf_rs::Geometry::Sphere { radius } => Primitive::Sphere { radius: *radius },
-                urdf_rs::Geometry::Mesh { filename, scale } => match resolver.resolve(filename) {
-                    Ok(p) => Primitive::Mesh {
-                        file: p,
-                        scale: scale.map_or([1.0; 3], |s| s.0),
-                    },
-                    Err(why) => {
-                        problems.push((format!("{ctx}: link `{}` <collision> mesh `{filename}`", ul.name), why));
-                        continue 'links;
+                urdf_rs::Geometry::Mesh { filename, scale } => {
+                    source.uri = Some(filename.clone());
+                    match resolver.resolve(filename) {
+                        Ok(p) => {
+                            source.file = Some(p.clone());
+                            Primitive::Mesh {
+                                file: p,
+                                scale: scale.map_or([1.0; 3], |s| s.0),
+                            }
+                        }
+                        Err(why) => {
+                            source.problem = Some(why.clone());
+                            sources.push(source);
+                            problems.push((format!("{ctx}: link `{}` <collision> mesh `{filename}`", ul.name), why));
+                            continue 'links;
+                        }
                     }
-                },
+                }
             };
+            sources.push(source);
             specs.push(GeometrySpec { primitive, origin });
         }
         if specs.is_empty() {
@@ -555,9 +763,19 @@ pub fn load_collision(
         }
         match Body::new(&ul.name, &specs, mode, &format!("{ctx}: link `{}` <collision>", ul.name)) {
             Ok(b) => bodies[idx].merge(&b, &at),
-            Err(e) => problems.push((format!("{ctx}: link `{}` <collision>", ul.name), e.to_string())),
+            Err(e) => {
+                for s in &mut sources[first_source..] {
+                    s.problem = Some(e.to_string());
+                }
+                problems.push((format!("{ctx}: link `{}` <collision>", ul.name), e.to_string()))
+            }
         }
     }
     debug_assert_eq!(bodies.len(), n + 1);
-    Ok(UrdfGeometry { bodies, members, problems })
+    Ok(UrdfGeometry {
+        bodies,
+        members,
+        problems,
+        sources,
+    })
 }

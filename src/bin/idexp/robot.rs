@@ -22,7 +22,7 @@ pub struct RobotArgs {
 /// Robot subcommands.
 #[derive(clap::Subcommand, Debug)]
 pub enum RobotCmd {
-    /// Joints, limits, drives, standard and base parameters (with their groupings).
+    /// Joints, limits, drives, standard and base parameters (with their groupings); what of a URDF is left out of the model and the file each collision shape was read from.
     Info {
         /// Robot file (.toml robot file or .urdf).
         robot: PathBuf,
@@ -95,10 +95,17 @@ pub fn run(args: &RobotArgs, _ctl: &Control) -> anyhow::Result<Outcome> {
             }
             let r = load_warn(robot)?;
             let info = RobotInfo::new(&r, *rank_tol, *samples)?;
+            // what of the URDF was left out, and where each collision shape came from
+            let prov = idexp::robot::provenance::provenance(robot)?;
             if *json {
-                crate::print_json(&info)?;
+                let mut v = serde_json::to_value(&info)?;
+                if let Some(o) = v.as_object_mut() {
+                    o.insert("left_out".into(), serde_json::to_value(&prov.left_out)?);
+                    o.insert("collision_geometry".into(), serde_json::to_value(&prov.collision)?);
+                }
+                crate::print_json(&v)?;
             } else {
-                print!("{}", info.text());
+                print!("{}{}", info.text(), prov.text());
             }
         }
         RobotCmd::Torques { robot, states, out } => {

@@ -197,6 +197,22 @@ struct ExciteReport<'a> {
     criterion_samples: &'a SampleSet,
     verification_rate: f64,
     applied_limits: &'a [crate::excitation::limits::AppliedLimit],
+    /// Which clock `result.margins[].at` is on, in words.
+    margins_at_clock: &'static str,
+    /// Every margin's worst instant on both clocks, labelled by key.
+    worst_instants: Vec<WorstInstant>,
+}
+
+/// A margin's worst instant on the period's clock and on the delivered one.
+#[derive(Debug, Serialize)]
+struct WorstInstant {
+    /// The constraint (as `result.margins[].name`).
+    name: String,
+    /// Seconds from the start of the period (the whole motion of a rest-to-rest shape): `result.margins[].at`.
+    at_period_s: f64,
+    /// The same instant on the delivered clock of trajectory.csv and the preview (t = 0 at the start of the lead-in), in period 1; absent without a delivered trajectory.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    at_delivered_s: Option<f64>,
 }
 
 /// What [`write_outputs`] computed for the reports.
@@ -447,6 +463,18 @@ pub fn write_outputs_with(p: &Problem, r: &ExciteResult, dir: &Path, extra: impl
             criterion_samples: &grid_set,
             verification_rate: d.limits.check_rate,
             applied_limits: &p.applied_limits,
+            margins_at_clock: "result.margins[].at and result.violated[].at: seconds from the start of the period (of the whole motion for a rest-to-rest shape); trajectory.csv and the preview run on the delivered clock, t = 0 at the start of the lead-in: see worst_instants[].at_delivered_s",
+            worst_instants: {
+                let clock = super::text::Clock::of(p, r);
+                r.margins
+                    .iter()
+                    .map(|m| WorstInstant {
+                        name: m.name.clone(),
+                        at_period_s: m.at,
+                        at_delivered_s: clock.delivered(m.at),
+                    })
+                    .collect()
+            },
         },
     )?;
     crate::io::write_atomic(

@@ -126,8 +126,9 @@ pub fn excite_report_text(
     let mut s = String::new();
     design_section(&mut s, p);
     outcome_section(&mut s, p, r, delivered, period);
-    violations_section(&mut s, r, check_rate);
-    s.push_str(&collision_text(p, &r.margins, check_rate));
+    let clock = Clock::of(p, r);
+    violations_section(&mut s, r, check_rate, clock);
+    s.push_str(&collision_text_on(p, &r.margins, check_rate, clock));
     delivered_section(&mut s, p, r);
     limits_section(&mut s, p, r);
     solver_section(&mut s, r);
@@ -266,24 +267,66 @@ fn outcome_section(s: &mut String, p: &Problem, r: &ExciteResult, delivered: Opt
     }
 }
 
+/// The clocks of the times in the report: the margins' worst instants are
+/// found on one period of the design (t = 0 at the period's start; the
+/// whole motion for a rest-to-rest shape), trajectory.csv and the preview
+/// run on the delivered clock (t = 0 at the start of the lead-in).
+#[derive(Debug, Clone, Copy)]
+pub struct Clock {
+    /// Lead-in duration (s): period 1 starts at this time on the delivered
+    /// clock (`None`: no delivered trajectory, so no delivered clock).
+    pub lead_in: Option<f64>,
+    /// Periodic (a period) or rest-to-rest (the whole motion).
+    pub periodic: bool,
+}
+
+impl Clock {
+    /// The clocks of a design run.
+    pub fn of(p: &Problem, r: &ExciteResult) -> Clock {
+        Clock {
+            lead_in: r.execution.delivered.as_ref().map(|dl| dl.lead_in_duration()),
+            periodic: p.shape.ends() == crate::trajectory::Ends::Periodic,
+        }
+    }
+
+    /// A worst instant `at` (s, on the period's clock) in words, with the same
+    /// instant on the delivered clock when there is one.
+    pub fn at_text(&self, at: f64) -> String {
+        let on = if self.periodic { "into the period" } else { "into the motion" };
+        match self.lead_in {
+            Some(l) => format!(
+                "t = {at:.3} s {on} (t = {:.3} s on the delivered clock of trajectory.csv and the preview, {} 1)",
+                at + l,
+                if self.periodic { "period" } else { "repetition" }
+            ),
+            None => format!("t = {at:.3} s {on}"),
+        }
+    }
+
+    /// The same instant on the delivered clock (s), when there is one.
+    pub fn delivered(&self, at: f64) -> Option<f64> {
+        self.lead_in.map(|l| at + l)
+    }
+}
+
 /// The violated constraints on the verification grid (`check_rate` Hz), worst first.
-fn violations_section(s: &mut String, r: &ExciteResult, check_rate: f64) {
+fn violations_section(s: &mut String, r: &ExciteResult, check_rate: f64, clock: Clock) {
     if r.violated.is_empty() {
         return;
     }
     let _ = writeln!(s, "\nviolated constraints (on the {check_rate} Hz verification grid), worst first:");
     for m in &r.violated {
         if is_distance(m) {
-            let _ = writeln!(s, "  {}", distance_violation(m));
+            let _ = writeln!(s, "  {}", distance_violation(m, clock));
             continue;
         }
         let _ = writeln!(
             s,
-            "  {}: reaches {} {} at t = {:.3} s, {} {} beyond the limit",
+            "  {}: reaches {} {} at {}, {} {} beyond the limit",
             m.name,
             fmt_num(m.worst),
             m.unit,
-            m.at,
+            clock.at_text(m.at),
             fmt_num(-m.margin),
             m.unit
         );
@@ -385,7 +428,7 @@ pub fn violation_lines(m: &[Margin]) -> Vec<String> {
         .filter(|m| m.margin < 0.0)
         .map(|m| {
             if is_distance(m) {
-                distance_violation(m)
+                distance_violation(m, Clock { lead_in: None, periodic: true })
             } else {
                 format!("{}: {} {} beyond the limit", m.name, fmt_num(-m.margin), m.unit)
             }
@@ -397,9 +440,10 @@ fn is_distance(m: &Margin) -> bool {
     matches!(m.kind, ConstraintKind::SelfCollision | ConstraintKind::WorldCollision)
 }
 
-/// `collision self: forearm_link – wrist_2_link at t = 3.141 s: distance −0.0130 m
-/// (penetration 0.0130 m), 0.0330 m inside the 0.02 m margin`.
-fn distance_violation(m: &Margin) -> String {
+/// `collision self: forearm_link – wrist_2_link at t = 3.141 s into the period
+/// (…on the delivered clock…): distance −0.0130 m (penetration 0.0130 m),
+/// 0.0330 m inside the 0.02 m margin`.
+fn distance_violation(m: &Margin, clock: Clock) -> String {
     let pair = m.name.trim_start_matches("distance ").split(" ≥ ").next().unwrap_or(&m.name);
     let pen = if m.worst < 0.0 {
         format!("penetration depth {:.4} m", -m.worst)
@@ -407,14 +451,31 @@ fn distance_violation(m: &Margin) -> String {
         "no contact".to_string()
     };
     format!(
-        "collision {pair} at t = {:.3} s: distance {:.4} m ({pen}), {:.4} m inside the {} m margin",
-        m.at, m.worst, -m.margin, m.limit
+        "collision {pair} at {}: distance {:.4} m ({pen}), {:.4} m inside the {} m margin",
+        clock.at_text(m.at),
+        m.worst,
+        -m.margin,
+        m.limit
     )
 }
 
 /// The collision lines of the report: geometry, checked and excluded pairs,
-/// the worst distance per class on the verification grid.
+/// the worst distance per class on the verification grid (its instant on
+/// the period's clock, [`Clock`]).
 pub fn collision_text(p: &Problem, margins: &[Margin], rate: f64) -> String {
+    collision_text_on(
+        p,
+        margins,
+        rate,
+        Clock {
+            lead_in: None,
+            periodic: p.shape.ends() == crate::trajectory::Ends::Periodic,
+        },
+    )
+}
+
+/// [`collision_text`] with each instant also on the delivered clock.
+pub fn collision_text_on(p: &Problem, margins: &[Margin], rate: f64, clock: Clock) -> String {
     let mut s = String::new();
     let Some(sc) = p.constraints.scene() else {
         let why = if !p.design.collision.enabled {
@@ -478,9 +539,9 @@ pub fn collision_text(p: &Problem, margins: &[Margin], rate: f64) -> String {
             let pair = w.name.trim_start_matches("distance ").split(" ≥ ").next().unwrap_or(&w.name);
             let _ = writeln!(
                 s,
-                "  worst {label} distance on the {rate} Hz grid: {:.4} m ({pair}, t = {:.3} s){}",
+                "  worst {label} distance on the {rate} Hz grid: {:.4} m ({pair}, {}){}",
                 w.worst,
-                w.at,
+                clock.at_text(w.at),
                 if w.margin < 0.0 { " — VIOLATES the margin" } else { "" }
             );
         }

@@ -423,6 +423,7 @@ impl StudyDesign {
         if d.name.is_empty() {
             d.name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "study".into());
         }
+        crate::io::design_path(path, "robot", &d.robot)?;
         d.validate(&path.display().to_string())?;
         Ok(d)
     }
