@@ -28,7 +28,9 @@ script exits 3.
 The trajectory: a CSV with a header `t, q1..q6, qd1..qd6, qdd1..qdd6`
 (further columns ignored; idexp's trajectory.csv has `segment` last). With
 --segment K only the rows of that segment are used (idexp: 1 = the designed
-motion), their time taken from the segment's first row. The samples are the
+motion) and the row at its end (the first of the next part: idexp labels a
+boundary sample with the part that starts there), their time taken from the
+segment's first row. The samples are the
 rows at 0, 1/20, 2/20, ... s of the motion (to 1e-6 s), so a 1 kHz file
 gives 241 samples for 12 s; --rate changes 20 Hz. A file at exactly the
 criterion's rate (FIGAROH's own output) is used as it is.
@@ -132,6 +134,7 @@ def read_samples(path: Path, segment: int | None, rate: float):
     if segment is not None and seg_col is None:
         fail(f"{path}: --segment {segment}: the file has no `segment` column")
     data = []
+    inside = False
     for r, row in enumerate(rows[1:], start=2):
         if not row:
             continue
@@ -142,6 +145,12 @@ def read_samples(path: Path, segment: int | None, rate: float):
             fail(f"{path}: row {r}: not a number in {row[:3]}...")
         if segment is None or seg == segment:
             data.append(vals)
+            inside = True
+        elif inside:
+            # the sample at the segment's end: the first row of the next part
+            # (idexp labels a boundary sample with the part that starts there)
+            data.append(vals)
+            break
     if not data:
         fail(f"{path}: no rows" + (f" in segment {segment}" if segment is not None else ""))
     a = np.array(data)

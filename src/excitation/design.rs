@@ -673,6 +673,18 @@ impl ExciteDesign {
                 "the epigraph form applies to criterion = \"cond\" or \"inv_sigma_min\" (log_det is smooth already); set bundle = 0".into(),
             );
         }
+        if r.polish > 0 && r.algorithm != RefineAlgorithm::Slsqp {
+            return bad(
+                "refine.polish",
+                format!(
+                    "an MMA stage after each SLSQP stage: it applies to algorithm = \"slsqp\" only; set polish = 0 (got {})",
+                    r.polish
+                ),
+            );
+        }
+        if r.polish > 1_000_000 {
+            return bad("refine.polish", format!("expected 0 (off) or at most 1000000 evaluations, got {}", r.polish));
+        }
         if !(r.perturb > 0.0 && r.perturb <= 1.0) {
             return bad("refine.perturb", format!("expected a fraction in (0, 1], got {}", r.perturb));
         }
