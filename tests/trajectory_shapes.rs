@@ -164,3 +164,137 @@ fn bspline_layout_errors_name_the_field() {
     let e = BSplineLayout::new(vec![0.0], 5, 6, -1.0).unwrap_err().to_string();
     assert!(e.contains("duration"), "{e}");
 }
+
+/// Every combination of free start and end poses (`[trajectory] start`, `end`).
+fn free_layouts(q0: &[f64], degree: usize, segments: usize, duration: f64) -> Vec<(bool, bool, BSplineLayout)> {
+    [(true, false), (false, true), (true, true)]
+        .into_iter()
+        .map(|(s, e)| (s, e, BSplineLayout::new(q0.to_vec(), degree, segments, duration).unwrap().with_free_ends(s, e)))
+        .collect()
+}
+
+#[test]
+fn bspline_free_ends_jacobian_matches_finite_differences() {
+    for (degree, segments) in [(3, 4), (5, 6), (5, 2)] {
+        for (s, e, l) in free_layouts(&[0.2, -1.0], degree, segments, 8.0) {
+            let fixed = BSplineLayout::new(vec![0.2, -1.0], degree, segments, 8.0).unwrap();
+            assert_eq!(l.n_vars(), fixed.n_vars() + 2 * (usize::from(s) + usize::from(e)));
+            let x: Vec<f64> = values(l.n_vars(), 2.5).iter().map(|v| 0.5 * v).collect();
+            for t in [0.0, 0.3, 1.7, 4.0, 7.99, 8.0] {
+                let err = jacobian_error(&l, &x, t);
+                assert!(err < 1e-7, "start {s}, end {e}, degree {degree}, {segments} segments, t {t}: {err:e}");
+            }
+        }
+    }
+}
+
+#[test]
+fn bspline_free_ends_start_and_end_at_rest_where_the_variables_say() {
+    let q0 = vec![0.3, -1.2, 2.0];
+    for degree in 3..=5 {
+        for (s, e, l) in free_layouts(&q0, degree, 6, 10.0) {
+            let vpj = l.vars_per_joint();
+            let x = values(l.n_vars(), 8.0);
+            let m = l.motion(&x);
+            assert_eq!(m.ends(), Ends::RestToRest);
+            // the block of joint j: [start?] interior… [end?]
+            let start: Vec<f64> = (0..3).map(|j| q0[j] + if s { x[j * vpj] } else { 0.0 }).collect();
+            let end: Vec<f64> = (0..3)
+                .map(|j| match (s, e) {
+                    (_, true) => q0[j] + x[j * vpj + vpj - 1],
+                    (true, false) => start[j],
+                    (false, false) => q0[j],
+                })
+                .collect();
+            for (t, want) in [(0.0, &start), (-1.0, &start), (10.0, &end), (11.0, &end)] {
+                let [q, qd, qdd] = state(&m, t);
+                for j in 0..3 {
+                    assert!(
+                        (q[j] - want[j]).abs() < 1e-12,
+                        "start {s}, end {e}, degree {degree}, t {t}: q{j} = {} not {}",
+                        q[j],
+                        want[j]
+                    );
+                    assert!(
+                        qd[j].abs() < 1e-12 && qdd[j].abs() < 1e-12,
+                        "start {s}, end {e}, degree {degree}, t {t}: not at rest"
+                    );
+                }
+            }
+            assert_eq!(m.rest_pose(), start);
+            // the design vector read back from the motion
+            let back = l.vars(&m);
+            assert!(
+                back.iter().zip(&x).all(|(a, b)| (a - b).abs() < 1e-12),
+                "start {s}, end {e}: vars(motion(x)) != x"
+            );
+        }
+    }
+}
+
+#[test]
+fn bspline_free_ends_grid_gradient_is_the_pull_back() {
+    for (s, e, l) in free_layouts(&[0.0, 0.5, -0.5], 5, 5, 6.0) {
+        let x = values(l.n_vars(), 3.5);
+        let m = l.motion(&x);
+        let times = vec![0.0, 1.1, 2.2, 5.9, 6.0];
+        let grid = l.grid(times.clone());
+        let n = 3;
+        for (i, &t) in times.iter().enumerate() {
+            let g: Vec<f64> = values(3 * n, 4.0 + i as f64);
+            let mut acc = vec![0.0; l.acc_len()];
+            l.grid_accumulate(&grid, &m, i, &g, &mut Default::default(), &mut acc);
+            let mut got = vec![0.0; l.n_vars()];
+            l.grid_finish(&acc, &mut got);
+            let sg = StateGradient {
+                factor: 1.0,
+                q: g[..n].to_vec(),
+                qd: g[n..2 * n].to_vec(),
+                qdd: g[2 * n..].to_vec(),
+            };
+            let mut want = vec![0.0; l.n_vars()];
+            l.pull_back(&m, t, &sg, &mut Default::default(), &mut want);
+            for v in 0..l.n_vars() {
+                assert!(
+                    (got[v] - want[v]).abs() < 1e-12,
+                    "start {s}, end {e}, t {t}, variable {v}: {} vs {}",
+                    got[v],
+                    want[v]
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn bspline_free_ends_box_keeps_the_start_and_end_within_the_limits() {
+    let q0 = vec![0.0, 1.0];
+    let position = [[-2.0, 2.0], [0.5, 3.0]];
+    let limits = JointBox {
+        position: &position,
+        velocity: &[1.0, 1.0],
+        acceleration: &[1.0, 1.0],
+    };
+    for (s, e, l) in free_layouts(&q0, 5, 8, 10.0) {
+        let (lo, hi) = l.bounds(&limits);
+        // the box's corners, alternating, and its two extreme corners
+        let alt: Vec<f64> = (0..l.n_vars()).map(|i| if i % 2 == 0 { lo[i] } else { hi[i] }).collect();
+        for x in [lo.clone(), hi.clone(), alt] {
+            let m = l.motion(&x);
+            for k in 0..=1000 {
+                let [q, _, _] = state(&m, 10.0 * k as f64 / 1000.0);
+                for j in 0..2 {
+                    assert!(
+                        q[j] >= position[j][0] - 1e-12 && q[j] <= position[j][1] + 1e-12,
+                        "start {s}, end {e}: q{j} = {}",
+                        q[j]
+                    );
+                }
+            }
+        }
+        // the free ends reach the limits (the box is not narrower than they are)
+        let m = l.motion(&lo);
+        let [q, _, _] = state(&m, if s { 0.0 } else { 10.0 });
+        assert!((q[0] - position[0][0]).abs() < 1e-12, "start {s}, end {e}: {}", q[0]);
+    }
+}

@@ -19,6 +19,8 @@
 //! degree = 5                        # 3, 4 or 5
 //! segments = 11                     # equal knot intervals (≥ 7 − degree); (segments + degree − 6) free control points per joint
 //! duration = 10.0                   # length of the motion (s); default 1/frequency
+//! start = "q0"                      # q0 | free: the start pose a design variable (within the position limits)
+//! end = "start"                     # start | free: the end pose its own design variable (needs execution.periods = 1)
 //!
 //! [objective]
 //! criterion = "cond"                # cond | log_det | inv_sigma_min
@@ -91,6 +93,8 @@
 //! perturb = 0.05                    # ... this fraction of each variable's half range (uniform)
 //! stall = 0                         # > 0: after this many rounds of restarts without a better point,
 //!                                   # the restarts move on to the next two GA individuals, refined (0: never)
+//! polish = 0                        # > 0: after each SLSQP stage, MMA for at most this many evaluations
+//!                                   # from SLSQP's last iterate (feasible iterates; the better point is kept)
 //! ```
 
 use super::objective::{Columns, Criterion, Scaling};
@@ -178,6 +182,48 @@ pub struct TrajectorySpec {
     /// B-spline duration (s; default one period 1/frequency).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub duration: Option<f64>,
+    /// B-spline start pose: q0 (default) or a design variable.
+    #[serde(skip_serializing_if = "StartPose::is_q0")]
+    pub start: StartPose,
+    /// B-spline end pose: the start pose (default) or a design variable of its own.
+    #[serde(skip_serializing_if = "EndPose::is_start")]
+    pub end: EndPose,
+}
+
+/// `[trajectory] start`: where a B-spline starts (at rest).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum StartPose {
+    /// At q0, the home pose (default).
+    #[default]
+    Q0,
+    /// Anywhere within the position limits: a design variable per joint,
+    /// reached from home by a lead-in.
+    Free,
+}
+
+impl StartPose {
+    fn is_q0(&self) -> bool {
+        *self == StartPose::Q0
+    }
+}
+
+/// `[trajectory] end`: where a B-spline ends (at rest).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum EndPose {
+    /// Where it started (default).
+    #[default]
+    Start,
+    /// Anywhere within the position limits: a design variable per joint,
+    /// left to home by a lead-out.
+    Free,
+}
+
+impl EndPose {
+    fn is_start(&self) -> bool {
+        *self == EndPose::Start
+    }
 }
 
 /// `[trajectory] shape`: which [`crate::trajectory::Shape`] the design uses.
@@ -225,6 +271,7 @@ impl TrajectorySpec {
                 self.segments.unwrap_or(DEFAULT_SEGMENTS),
                 self.motion_duration(),
             )?
+            .with_free_ends(self.start == StartPose::Free, self.end == EndPose::Free)
             .into(),
         })
     }
@@ -238,6 +285,8 @@ impl TrajectorySpec {
                     ("trajectory.degree", self.degree.is_some()),
                     ("trajectory.segments", self.segments.is_some()),
                     ("trajectory.duration", self.duration.is_some()),
+                    ("trajectory.start", self.start != StartPose::Q0),
+                    ("trajectory.end", self.end != EndPose::Start),
                 ] {
                     if given {
                         return bad(
@@ -292,6 +341,8 @@ impl Default for TrajectorySpec {
             degree: None,
             segments: None,
             duration: None,
+            start: StartPose::Q0,
+            end: EndPose::Start,
         }
     }
 }
@@ -425,6 +476,16 @@ pub struct RefineSpec {
     /// refined are refined and the better becomes the point the restarts
     /// perturb (0: never; the restarts always perturb the best point so far).
     pub stall: usize,
+    /// Evaluation budget of an MMA stage after each SLSQP stage, from
+    /// SLSQP's last iterate (0: none). SLSQP crosses infeasible regions and
+    /// can end its budget there; MMA's conservative steps come back to
+    /// feasible points near where SLSQP went.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub polish: u32,
+}
+
+fn is_zero(v: &u32) -> bool {
+    *v == 0
 }
 
 impl Default for RefineSpec {
@@ -442,6 +503,7 @@ impl Default for RefineSpec {
             restarts: 0,
             perturb: 0.05,
             stall: 0,
+            polish: 0,
         }
     }
 }
@@ -517,6 +579,15 @@ impl ExciteDesign {
             }
         }
         tr.validate_shape(ctx)?;
+        if tr.end == EndPose::Free && self.execution.periods != 1 {
+            return bad(
+                "execution.periods",
+                format!(
+                    "trajectory.end = \"free\" ends the motion elsewhere than it starts, so it cannot be repeated back to back: set execution.periods = 1 (got {}), or end = \"start\"",
+                    self.execution.periods
+                ),
+            );
+        }
         let o = &self.objective;
         // two samples per period of the highest harmonic, or per B-spline segment
         let nyq = match tr.shape {
@@ -592,6 +663,18 @@ impl ExciteDesign {
                 "refine.bundle",
                 "the epigraph form applies to criterion = \"cond\" or \"inv_sigma_min\" (log_det is smooth already); set bundle = 0".into(),
             );
+        }
+        if r.polish > 0 && r.algorithm != RefineAlgorithm::Slsqp {
+            return bad(
+                "refine.polish",
+                format!(
+                    "an MMA stage after each SLSQP stage: it applies to algorithm = \"slsqp\" only; set polish = 0 (got {})",
+                    r.polish
+                ),
+            );
+        }
+        if r.polish > 1_000_000 {
+            return bad("refine.polish", format!("expected 0 (off) or at most 1000000 evaluations, got {}", r.polish));
         }
         if !(r.perturb > 0.0 && r.perturb <= 1.0) {
             return bad("refine.perturb", format!("expected a fraction in (0, 1], got {}", r.perturb));

@@ -4,7 +4,10 @@
 //! A rest-to-rest motion (a B-spline, [`crate::trajectory::Ends::RestToRest`])
 //! starts and ends at rest at its start pose, the default home: it is played
 //! `periods` times back to back without a lead-in or lead-out (leads are
-//! built only when `home` is set to another pose).
+//! built only when `home` is set to another pose). A B-spline with a free
+//! start or end pose (`[trajectory] start = "free"`, `end = "free"`) has
+//! q0 as its home: a lead-in from q0 at rest to its start, a lead-out from
+//! its end (each only where that pose is not home).
 //!
 //! By default (`rest_to_rest = true`) the robot starts at rest at the home
 //! pose (default: q0), follows a quintic lead-in to the periodic part's
@@ -457,7 +460,14 @@ fn closest_on(p: &Problem, sc: &crate::robot::collision::CollisionScene, d: &Del
 /// pose ([`Motion::rest_pose`]: a Fourier series' q0, a rest-to-rest
 /// motion's start).
 pub fn home_of(p: &Problem, tr: &ShapeMotion) -> Vec<f64> {
-    p.design.execution.home.clone().unwrap_or_else(|| tr.rest_pose())
+    if let Some(h) = &p.design.execution.home {
+        return h.clone();
+    }
+    match &p.shape {
+        // free ends: the start is the design's, home stays q0
+        crate::trajectory::Shape::BSpline(l) if l.free_start || l.free_end => l.q0.clone(),
+        _ => tr.rest_pose(),
+    }
 }
 
 /// Builds the delivered trajectory of `tr` for design `p`: home → lead-in →
@@ -490,8 +500,30 @@ pub fn deliver(p: &Problem, tr: &ShapeMotion) -> Result<Execution> {
     let home = home_of(p, tr);
     let rest = State::rest(&home);
     let start = State::of(tr, 0.0);
-    let at_home = start.q.iter().zip(&home).all(|(a, b)| (a - b).abs() <= 1e-12) && start.qd.iter().chain(&start.qdd).all(|v| v.abs() <= 1e-12);
-    let (lead_in, lead_out) = if at_home {
+    let at_home = |s: &State| s.q.iter().zip(&home).all(|(a, b)| (a - b).abs() <= 1e-12) && s.qd.iter().chain(&s.qdd).all(|v| v.abs() <= 1e-12);
+    let (lead_in, lead_out) = if tr.ends() == crate::trajectory::Ends::RestToRest {
+        // a rest-to-rest motion: a lead where its start (end) is not home
+        let free_end = matches!(&p.shape, crate::trajectory::Shape::BSpline(l) if l.free_end);
+        // the end of a motion that ends where it starts is its start (as before free ends)
+        let end = if free_end { State::of(tr, tr.duration()) } else { start.clone() };
+        let mut lead = |a: &State, b: &State, what: &str| -> std::result::Result<Option<lead::Quintic>, String> {
+            if (what == "lead-in" && at_home(b)) || (what == "lead-out" && at_home(a)) {
+                return Ok(None);
+            }
+            lead::shortest(a, b, e.min_transition, e.max_transition, dt, |_, q, qd, qdd| check.check(q, qd, qdd))
+                .map(Some)
+                .map_err(|err| format!("{what} {} the home pose: {err}", if what == "lead-in" { "from" } else { "to" }))
+        };
+        let lead_in = match lead(&rest, &start, "lead-in") {
+            Ok(l) => l,
+            Err(msg) => return Ok(failed(msg, rate)),
+        };
+        let lead_out = match lead(&end, &rest, "lead-out") {
+            Ok(l) => l,
+            Err(msg) => return Ok(failed(msg, rate)),
+        };
+        (lead_in, lead_out)
+    } else if at_home(&start) {
         (None, None)
     } else {
         let lead_in = lead::shortest(&rest, &start, e.min_transition, e.max_transition, dt, |_, q, qd, qdd| check.check(q, qd, qdd));

@@ -345,11 +345,28 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], spec: &RefineSpec
         x_start = best.map(|b| b.0).unwrap_or(last);
     }
     let left = s.max_evals.saturating_sub(evals as u32).max(1);
-    let (x, best, status, ev) = match &forms.main {
+    let (mut x, mut best, status, ev) = match &forms.main {
         Form::Epigraph(e) => stage_epigraph(obj, cons, &x_start, &b, e, left),
         Form::Plain(p) => stage(obj, cons, &x_start, &b, *p, left),
     };
     evals += ev;
+    if s.polish > 0 && s.algorithm == RefineAlgorithm::Slsqp && !ctl.should_stop() {
+        // MMA from where SLSQP ended (module docs of RefineSpec::polish)
+        let mma = RefineSpec {
+            algorithm: RefineAlgorithm::Mma,
+            ..s.clone()
+        };
+        let bm = Bounds { spec: &mma, lower, upper, ctl };
+        let (xm, bestm, _, evm) = stage(obj, cons, &x, &bm, Plain::Direct, s.polish);
+        evals += evm;
+        if let Some((bx, bf)) = bestm {
+            if best.as_ref().is_none_or(|b| bf < b.1) {
+                best = Some((bx, bf));
+            }
+        } else if best.is_none() {
+            x = xm;
+        }
+    }
     let status = RefineStatus {
         smooth: status_soft,
         main: status,

@@ -18,6 +18,17 @@
 //! N_{i,p}^{(d)}(t), d = 0, 1, 2. By the convex-hull property, control points
 //! within the position limits keep the motion within them: that is the box
 //! of x ([`TrajectoryShape::bounds`]).
+//!
+//! **Free ends** (FIGAROH's form: a motion between poses of the search's
+//! choosing, at rest at both): with `free_start` the three start control
+//! points are one more design variable per joint, x_{j,s} = P_{j,0} − q0_j
+//! (= P_{j,1} − q0_j = P_{j,2} − q0_j), the first of the joint's block; with
+//! `free_end` the three end control points likewise, the last of the block.
+//! Without `free_end` the end is the start (q0, or the free start pose).
+//! Each x still moves control points only, so the motion stays linear in x,
+//! the box still keeps it within the limits, and scaling a joint's block
+//! scales q_j − q0_j. A motion whose ends are not at home is played between
+//! a lead-in from and a lead-out to home (`excitation::execution`).
 
 use super::shape::{Ends, JointBox, Motion, StateGradient, TimeGrid, TrajectoryShape};
 use crate::error::{Error, Result};
@@ -57,8 +68,15 @@ pub struct BSplineLayout {
     pub segments: usize,
     /// Duration T (s).
     pub duration: f64,
-    /// Start and end configuration (rad or m).
+    /// Start and end configuration (rad or m); with free ends, the home
+    /// pose and the centre of the box.
     pub q0: Vec<f64>,
+    /// The start pose is a design variable (module documentation).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub free_start: bool,
+    /// The end pose is a design variable of its own (else the end is the start).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub free_end: bool,
 }
 
 impl BSplineLayout {
@@ -98,7 +116,33 @@ impl BSplineLayout {
             segments,
             duration,
             q0,
+            free_start: false,
+            free_end: false,
         })
+    }
+
+    /// The same layout with the start and/or end pose free (module documentation).
+    pub fn with_free_ends(mut self, start: bool, end: bool) -> Self {
+        self.free_start = start;
+        self.free_end = end;
+        self
+    }
+
+    /// The entry of a joint's block of x that moves control point i (None: fixed at q0).
+    fn var_of(&self, i: usize) -> Option<usize> {
+        let m = self.n_control();
+        let lead = usize::from(self.free_start);
+        if i < FIXED {
+            self.free_start.then_some(0)
+        } else if i >= m - FIXED {
+            if self.free_end {
+                Some(self.vars_per_joint() - 1)
+            } else {
+                self.free_start.then_some(0)
+            }
+        } else {
+            Some(i - FIXED + lead)
+        }
     }
 
     /// Control points per joint (s + p).
@@ -106,9 +150,9 @@ impl BSplineLayout {
         self.segments + self.degree
     }
 
-    /// Design variables per joint (s + p − 6).
+    /// Design variables per joint (s + p − 6, plus one per free end).
     pub fn vars_per_joint(&self) -> usize {
-        self.n_control() - 2 * FIXED
+        self.n_control() - 2 * FIXED + usize::from(self.free_start) + usize::from(self.free_end)
     }
 
     /// The clamped uniform knot vector.
@@ -123,7 +167,15 @@ impl BSplineLayout {
     /// The design vector of a motion of this layout (the free control points minus q0).
     pub fn vars(&self, m: &BSplineMotion) -> Vec<f64> {
         let vpj = self.vars_per_joint();
-        (0..self.n).flat_map(|j| (0..vpj).map(move |i| m.control[j][FIXED + i] - self.q0[j])).collect()
+        let mut x = vec![0.0; self.n * vpj];
+        for j in 0..self.n {
+            for i in 0..self.n_control() {
+                if let Some(k) = self.var_of(i) {
+                    x[j * vpj + k] = m.control[j][i] - self.q0[j];
+                }
+            }
+        }
+        x
     }
 }
 
@@ -449,11 +501,9 @@ impl TrajectoryShape for BSplineLayout {
         for (g, acc) in g.chunks_exact(3 * n).zip(acc.chunks_exact_mut(n * vpj)) {
             for a in 0..n {
                 for r in 0..=self.degree {
-                    let idx = first + r;
-                    if idx < FIXED || idx >= FIXED + vpj {
-                        continue;
+                    if let Some(k) = self.var_of(first + r) {
+                        acc[a * vpj + k] += g[a] * d[0][r] + g[n + a] * d[1][r] + g[2 * n + a] * d[2][r];
                     }
-                    acc[a * vpj + idx - FIXED] += g[a] * d[0][r] + g[n + a] * d[1][r] + g[2 * n + a] * d[2][r];
                 }
             }
         }
@@ -462,13 +512,7 @@ impl TrajectoryShape for BSplineLayout {
     fn motion(&self, x: &[f64]) -> BSplineMotion {
         let (m, vpj) = (self.n_control(), self.vars_per_joint());
         let control = (0..self.n)
-            .map(|j| {
-                let mut c = vec![self.q0[j]; m];
-                for i in 0..vpj {
-                    c[FIXED + i] = self.q0[j] + x[j * vpj + i];
-                }
-                c
-            })
+            .map(|j| (0..m).map(|i| self.q0[j] + self.var_of(i).map_or(0.0, |k| x[j * vpj + k])).collect())
             .collect();
         BSplineMotion {
             degree: self.degree,
@@ -498,6 +542,7 @@ impl TrajectoryShape for BSplineLayout {
 
     /// ∂q_j(t)/∂x_{j,i} = N_{3+i,p}(t) (likewise q̇, q̈ with the basis
     /// derivatives); zero for the other joints and outside the span of t.
+    /// A free end's entry sums the basis functions of its three control points.
     fn pull_back(&self, m: &BSplineMotion, t: f64, g: &StateGradient, _: &mut BSplineScratch, gx: &mut [f64]) {
         gx.iter_mut().for_each(|v| *v = 0.0);
         let (span, d) = m.basis(t, 2);
@@ -505,11 +550,9 @@ impl TrajectoryShape for BSplineLayout {
         let vpj = self.vars_per_joint();
         for a in 0..self.n {
             for r in 0..=self.degree {
-                let i = first + r;
-                if i < FIXED || i >= FIXED + vpj {
-                    continue;
+                if let Some(k) = self.var_of(first + r) {
+                    gx[a * vpj + k] += g.factor * (g.q[a] * d[0][r] + g.qd[a] * d[1][r] + g.qdd[a] * d[2][r]);
                 }
-                gx[a * vpj + i - FIXED] = g.factor * (g.q[a] * d[0][r] + g.qd[a] * d[1][r] + g.qdd[a] * d[2][r]);
             }
         }
     }

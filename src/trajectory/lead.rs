@@ -262,7 +262,19 @@ impl Delivered {
                 Some(p) => p.eval_into(t - self.periodic_end(), q, qd, qdd),
                 None => {
                     // no lead-out: the periodic part ends at rest at home
+                    // (a rest-to-rest motion at its end, which may differ
+                    // from its start when its start is not home)
                     self.periodic.eval(0.0, q, qd, qdd);
+                    if self.periodic.ends() == super::Ends::RestToRest {
+                        let n = q.len();
+                        let (mut qe, mut qde, mut qdde) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+                        self.periodic.eval(self.periodic.duration(), &mut qe, &mut qde, &mut qdde);
+                        if qe.iter().zip(q.iter()).any(|(a, b)| (a - b).abs() > 1e-12) {
+                            q.copy_from_slice(&qe);
+                            qd.copy_from_slice(&qde);
+                            qdd.copy_from_slice(&qdde);
+                        }
+                    }
                 }
             },
             k => {
