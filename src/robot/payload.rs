@@ -252,7 +252,12 @@ mod tests {
     }
 
     fn random_iso(g: &mut rand_chacha::ChaCha8Rng) -> Isometry3<f64> {
-        let q = nalgebra::Quaternion::new(g.random::<f64>() - 0.5, g.random::<f64>() - 0.5, g.random::<f64>() - 0.5, g.random::<f64>() - 0.5);
+        let q = nalgebra::Quaternion::new(
+            g.random::<f64>() - 0.5,
+            g.random::<f64>() - 0.5,
+            g.random::<f64>() - 0.5,
+            g.random::<f64>() - 0.5,
+        );
         let t = Translation3::new(g.random::<f64>() - 0.5, g.random::<f64>() - 0.5, g.random::<f64>() - 0.5);
         Isometry3::from_parts(t, UnitQuaternion::from_quaternion(q))
     }
@@ -287,7 +292,13 @@ mod tests {
                 let got = Inertial::from_params(e).transformed(iso).to_params();
                 let want = spatial_in_a(e, iso);
                 for k in 0..10 {
-                    assert!((got[k] - want[k]).abs() < 1e-12, "input {e:?}, parameter {}: {} vs {}", PARAM_NAMES[k], got[k], want[k]);
+                    assert!(
+                        (got[k] - want[k]).abs() < 1e-12,
+                        "input {e:?}, parameter {}: {} vs {}",
+                        PARAM_NAMES[k],
+                        got[k],
+                        want[k]
+                    );
                 }
             }
         }
