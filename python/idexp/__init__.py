@@ -67,6 +67,7 @@ from ._idexp import (
     read_log,
     simulate,
     study,
+    with_payload,
     write_mjcf,
     write_preview,
 )
@@ -98,6 +99,7 @@ __all__ = [
     "read_log",
     "simulate",
     "study",
+    "with_payload",
     "write_mjcf",
     "write_preview",
 ]

@@ -25,6 +25,7 @@ from ._idexp import (
     positions as positions,
     simulate as simulate,
     study as study,
+    with_payload as with_payload,
     write_mjcf as write_mjcf,
     write_preview as write_preview,
 )

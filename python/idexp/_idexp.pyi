@@ -341,6 +341,18 @@ def payload(
     ([[loaded]] runs, optional [[unloaded]] twins, [guess], export; paths relative to the
     file's folder, or to base_dir for a dict)."""
 
+def with_payload(
+    robot: Robot,
+    mass: float,
+    com: Sequence[float] = (0.0, 0.0, 0.0),
+    inertia: Sequence[float] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+    frame: Optional[str] = None,
+) -> Robot:
+    """The robot carrying a payload fixed to `frame` (default: the end effector): mass (kg),
+    centre of mass (m) and inertia about it [Ixx, Ixy, Ixz, Iyy, Iyz, Izz] (kg·m²) in the
+    frame's axes, placed by the frame's pose in its link (the URDF meaning, Pinocchio's
+    frame.placement.act(Y))."""
+
 class PositionsResult:
     param_names: list[str]
     n_candidates: int

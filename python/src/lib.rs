@@ -49,6 +49,7 @@ fn _idexp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(study::study, m)?)?;
     m.add_class::<payload::PayloadFit>()?;
     m.add_function(wrap_pyfunction!(payload::payload, m)?)?;
+    m.add_function(wrap_pyfunction!(payload::with_payload, m)?)?;
     m.add_function(wrap_pyfunction!(problems::excite, m)?)?;
     m.add_function(wrap_pyfunction!(problems::assess, m)?)?;
     m.add_function(wrap_pyfunction!(problems::simulate, m)?)?;

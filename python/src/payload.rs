@@ -115,3 +115,33 @@ pub fn payload(
     let res = run_long(py, time_limit, progress.as_ref(), |ctl| idexp::payload::run(&d, &dir, ctl))?;
     Ok(PayloadFit { inner: Arc::new(res) })
 }
+
+/// with_payload(robot, mass, com=(0, 0, 0), inertia=(0,)*6, frame=None) -> Robot
+///
+/// The robot carrying a payload (a rigid body) fixed to `frame` (a frame or
+/// link of the robot file; default: the end effector): mass (kg), centre of
+/// mass (m) and inertia about the centre of mass [Ixx, Ixy, Ixz, Iyy, Iyz,
+/// Izz] (kg·m²), both in the frame's axes — the URDF meaning, the payload's
+/// inertial placed by the frame's pose in its link (Pinocchio's
+/// `frame.placement.act(Y)`), as `idexp simulate`'s `[payload]` and
+/// `idexp payload identify` read them. Its `rnea`, `regressor`, … include
+/// the payload; errors name the field (`idexp.IdexpError`).
+#[pyfunction]
+#[pyo3(signature = (robot, mass, com = [0.0; 3], inertia = [0.0; 6], frame = None))]
+pub fn with_payload(
+    py: Python<'_>,
+    robot: &crate::robot::Robot,
+    mass: f64,
+    com: [f64; 3],
+    inertia: [f64; 6],
+    frame: Option<String>,
+) -> PyResult<crate::robot::Robot> {
+    let spec = idexp::robot::payload::PayloadSpec { frame, mass, com, inertia };
+    let r = py
+        .detach(|| {
+            let (mount, p) = idexp::robot::payload::resolve(&robot.inner, &spec, "with_payload", "payload")?;
+            mount.attach(&robot.inner, &p.params())
+        })
+        .py()?;
+    Ok(crate::robot::Robot::new(r, robot.path.clone()))
+}

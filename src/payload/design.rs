@@ -6,6 +6,7 @@
 //! frame = "tool0"                 # the payload's frame (default: the end effector)
 //! truth = "../out/sim_payload"    # optional: a simulated run whose design carries the true [payload]
 //! export = ["urscript", "franka", "kuka", "urdf", "mjcf", "idexp"]   # default: all
+//! kuka_tool = 1                   # n of KUKA's LOAD_DATA[n] (1 … 16; default 1)
 //!
 //! [guess]                         # optional prior guess (CAD, datasheet): decides what the motion leaves open
 //! mass = 2.0
@@ -86,6 +87,9 @@ fn sample_limit() -> usize {
 fn regularization() -> f64 {
     1e-6
 }
+fn kuka_tool() -> u32 {
+    1
+}
 
 /// A payload identification.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -140,6 +144,9 @@ pub struct PayloadDesign {
     /// Files to write.
     #[serde(default = "all_exports")]
     pub export: Vec<PayloadExport>,
+    /// The KUKA tool number n of `LOAD_DATA[n]` in `kuka_load.txt` (1 … 16; default 1).
+    #[serde(default = "kuka_tool")]
+    pub kuka_tool: u32,
 }
 
 impl PayloadDesign {
@@ -216,6 +223,12 @@ impl PayloadDesign {
                 }
                 names.push(name);
             }
+        }
+        if !(1..=16).contains(&self.kuka_tool) {
+            return bad(
+                "kuka_tool",
+                format!("expected a KUKA tool number 1 … 16 (LOAD_DATA[n]), found {}", self.kuka_tool),
+            );
         }
         let mut seen = Vec::new();
         for f in &self.export {

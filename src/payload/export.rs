@@ -3,10 +3,15 @@
 //! | format | file | content |
 //! |---|---|---|
 //! | URScript | `payload.script` | `set_target_payload(m, [cx, cy, cz], [Ixx, Iyy, Izz, Ixy, Ixz, Iyz])` (tool flange frame, inertia about the centre of gravity) |
-//! | Franka | `franka_load.json` | `mass`, `F_x_Cload` (flange frame, m), `load_inertia` (3×3 about the centre of mass, column-major), the arguments of `setLoad` |
-//! | KUKA | `kuka_load.txt` | `LOAD_DATA`: M (kg), X, Y, Z (mm), A, B, C (deg: the principal axes, Z-Y'-X'' Euler angles), JX, JY, JZ (kg·m², principal moments) |
+//! | Franka | `franka_load.json` | `mass`, `F_x_Cload` (flange frame, m), `load_inertia` (3×3 about the centre of mass, column-major), the arguments of `setLoad`; `frame`: the frame they are in |
+//! | KUKA | `kuka_load.txt` | `LOAD_DATA[n] = {M …, CM {X …, Y …, Z …, A …, B …, C …}, J {X …, Y …, Z …}}`: M (kg), X, Y, Z (mm), A, B, C (deg: the principal axes, Z-Y'-X'' Euler angles), JX, JY, JZ (kg·m², principal moments), each a KRL REAL of at most 7 significant digits |
 //! | URDF | `payload.urdf` | a `payload` link with the inertial and a fixed joint to the frame |
-//! | MJCF | `payload_mjcf.xml` | a MuJoCo `<body>` with the payload's `<inertial>`, to place in the frame's body |
+//! | MJCF | `payload_mjcf.xml` | a MuJoCo `<body>` with the payload's `<inertial>`, to place in the frame's body (see [`mjcf_inertia`]) |
+//!
+//! Every number is in the axes of the payload's frame (the design's `frame`,
+//! e.g. `tool0`, the identification's frame): the controllers take the
+//! flange frame (UR: `tool0` of UR's descriptions; Franka: the flange, `panda_link8`;
+//! KUKA: `$FLANGE`), so identify on that frame. Each file names its frame.
 
 use crate::robot::payload::Payload;
 use nalgebra::{Matrix3, Rotation3, SymmetricEigen};
@@ -75,7 +80,16 @@ pub fn urscript(p: &Payload, frame: &str, header: &[String]) -> String {
     let mut s = comments(header, "# ", "");
     let _ = writeln!(
         s,
-        "# mass (kg), centre of gravity in the {frame} frame (m), inertia about it [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] (kg·m²)"
+        "# mass (kg), centre of gravity in the {frame} frame (m), inertia about it in {frame}'s axes [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] (kg·m²)"
+    );
+    let _ = writeln!(
+        s,
+        "# set_target_payload takes the tool flange frame (tool0 of UR's descriptions){}",
+        if frame == "tool0" {
+            ""
+        } else {
+            ": identify on tool0 if this frame is not the flange"
+        }
     );
     let i = &p.inertia;
     let _ = writeln!(
@@ -105,10 +119,14 @@ pub struct FrankaLoad {
     pub f_x_cload: [f64; 3],
     /// Inertia about the centre of mass, 3×3 column-major (kg·m²).
     pub load_inertia: [f64; 9],
+    /// The frame `F_x_Cload` and `load_inertia` are in (the identification's;
+    /// `setLoad` takes the flange frame).
+    #[serde(default)]
+    pub frame: String,
 }
 
-/// The Franka load of `p`.
-pub fn franka(p: &Payload) -> FrankaLoad {
+/// The Franka load of `p` identified on `frame`.
+pub fn franka(p: &Payload, frame: &str) -> FrankaLoad {
     let m = p.inertia_matrix();
     let mut li = [0.0; 9];
     for c in 0..3 {
@@ -120,32 +138,58 @@ pub fn franka(p: &Payload) -> FrankaLoad {
         mass: p.mass,
         f_x_cload: p.com,
         load_inertia: li,
+        frame: frame.to_string(),
     }
 }
 
-/// `kuka_load.txt`: the load data as KUKA's `LOAD_DATA` structure (and each
-/// value on a line of its own for the HMI's load-data form).
-pub fn kuka(p: &Payload, header: &[String]) -> String {
+/// A KRL REAL literal: at most 7 significant digits (KRL's REAL is a 32-bit
+/// float), plain decimal notation (no exponent), at least one digit after the point.
+pub fn krl_real(v: f64) -> String {
+    // below 1e-12 (kg·m², mm, deg) a value is rounding noise: 0
+    if !v.is_finite() || v.abs() < 1e-12 {
+        return "0.0".into();
+    }
+    let mag = |x: f64| x.abs().log10().floor() as i32;
+    let scale = 10f64.powi(6 - mag(v));
+    let r = (v * scale).round() / scale;
+    let decimals = (6 - mag(r)).clamp(1, 20) as usize;
+    let t = format!("{r:.decimals$}");
+    let t = t.trim_end_matches('0');
+    if t.ends_with('.') {
+        format!("{t}0")
+    } else {
+        t.to_string()
+    }
+}
+
+/// `kuka_load.txt`: the load data as KUKA's KRL statement
+/// `LOAD_DATA[tool] = {M …, CM {X …, Y …, Z …, A …, B …, C …}, J {X …, Y …, Z …}}`
+/// (the tool's entry of the `LOAD_DATA` array of `$config.dat`), each value a
+/// KRL REAL ([`krl_real`]); the centre of mass in `frame`'s axes (KUKA's
+/// `$FLANGE` when identified on the flange).
+pub fn kuka(p: &Payload, tool: u32, frame: &str, header: &[String]) -> String {
     let pr = principal(p);
     let mm = |v: f64| v * 1000.0;
     let mut s = comments(header, "; ", "");
     let _ = writeln!(
         s,
-        "; M (kg), X Y Z centre of mass (mm), A B C orientation of the principal axes (deg, Z-Y'-X''), JX JY JZ principal moments (kg·m²)"
+        "; tool {tool}: M (kg), X Y Z centre of mass in the {frame} frame (mm), A B C orientation of the principal axes (deg, Z-Y'-X''), JX JY JZ principal moments (kg·m²)"
     );
+    let _ = writeln!(s, "; KUKA takes the centre of mass in the flange frame ($FLANGE)");
+    let r = krl_real;
     let _ = writeln!(
         s,
-        "LOAD_DATA = {{M {}, CM {{X {}, Y {}, Z {}, A {}, B {}, C {}}}, J {{X {}, Y {}, Z {}}}}}",
-        num(p.mass),
-        num(mm(p.com[0])),
-        num(mm(p.com[1])),
-        num(mm(p.com[2])),
-        num(pr.abc_deg[0]),
-        num(pr.abc_deg[1]),
-        num(pr.abc_deg[2]),
-        num(pr.moments[0]),
-        num(pr.moments[1]),
-        num(pr.moments[2])
+        "LOAD_DATA[{tool}] = {{M {}, CM {{X {}, Y {}, Z {}, A {}, B {}, C {}}}, J {{X {}, Y {}, Z {}}}}}",
+        r(p.mass),
+        r(mm(p.com[0])),
+        r(mm(p.com[1])),
+        r(mm(p.com[2])),
+        r(pr.abc_deg[0]),
+        r(pr.abc_deg[1]),
+        r(pr.abc_deg[2]),
+        r(pr.moments[0]),
+        r(pr.moments[1]),
+        r(pr.moments[2])
     );
     s
 }
@@ -258,11 +302,50 @@ pub fn urdf(p: &Payload, frame: &str, header: &[String]) -> String {
     )
 }
 
+/// Relative margin of the triangle inequalities in the MJCF export:
+/// A + B ≥ C + 2·MJCF_MARGIN·(A + B + C) for the principal moments.
+pub const MJCF_MARGIN: f64 = 1e-9;
+
+/// The inertia tensor about the centre of mass written to MJCF, and how far
+/// it moved (largest |ΔI| entry, kg·m²). MuJoCo refuses a body whose
+/// principal moments break A + B ≥ C by more than 1e-14 ("inertia must
+/// satisfy A + B >= C"); a consistent fit on the boundary (a flat body:
+/// smallest eigenvalue of Σ = ½ tr(I) 1 − I, the second moment of the mass,
+/// at 0 up to rounding, e.g. −3e-12) lands on either side. Σ's eigenvalues
+/// are raised to at least [`MJCF_MARGIN`]·tr(I) and I = tr(Σ) 1 − Σ rebuilt:
+/// a change of the order of that margin, zero for a tensor already inside.
+/// (MuJoCo's own `balanceinertia` would replace all three moments by their
+/// mean, a large change for a flat body.)
+pub fn mjcf_inertia(p: &Payload) -> ([f64; 6], f64) {
+    let i = p.inertia_matrix();
+    let tr = i.trace();
+    let sigma = Matrix3::identity() * (0.5 * tr) - i;
+    let eig = SymmetricEigen::new(sigma);
+    let floor = MJCF_MARGIN * tr.max(0.0);
+    if eig.eigenvalues.min() >= floor {
+        return (p.inertia, 0.0);
+    }
+    let lam = eig.eigenvalues.map(|v| v.max(floor));
+    let s2 = eig.eigenvectors * Matrix3::from_diagonal(&lam) * eig.eigenvectors.transpose();
+    let i2 = Matrix3::identity() * s2.trace() - s2;
+    let out = [i2[(0, 0)], i2[(0, 1)], i2[(0, 2)], i2[(1, 1)], i2[(1, 2)], i2[(2, 2)]];
+    (out, (i2 - i).abs().max())
+}
+
 /// `payload_mjcf.xml`: a MuJoCo model whose body `payload` (inside a body
 /// named after the frame) carries the payload's inertial; copy the
-/// `payload` body into the frame's body of the robot's MJCF.
+/// `payload` body into the frame's body of the robot's MJCF. The tensor is
+/// [`mjcf_inertia`]'s (a comment says when it moved).
 pub fn mjcf(p: &Payload, frame: &str, header: &[String]) -> String {
-    let i = &p.inertia;
+    let (i, moved) = mjcf_inertia(p);
+    let mut c = comments(header, "<!-- ", " -->");
+    let _ = writeln!(c, "<!-- centre of mass and inertia in the {frame} frame's axes -->");
+    if moved > 0.0 {
+        let _ = writeln!(
+            c,
+            "<!-- the identified inertia lies on the triangle-inequality boundary (a flat body): moved by at most {moved:.1e} kg·m² so that A + B >= C holds with a relative margin of {MJCF_MARGIN:e} (MuJoCo refuses it otherwise) -->"
+        );
+    }
     format!(
         r#"{c}<mujoco model="payload">
   <worldbody>
@@ -274,7 +357,6 @@ pub fn mjcf(p: &Payload, frame: &str, header: &[String]) -> String {
   </worldbody>
 </mujoco>
 "#,
-        c = comments(header, "<!-- ", " -->"),
         x = num(p.com[0]),
         y = num(p.com[1]),
         z = num(p.com[2]),
@@ -323,15 +405,19 @@ mod tests {
     #[test]
     fn kuka_principal_axes_recompose_the_tensor() {
         let p = sample();
-        let text = kuka(&p, &["test".into()]);
+        let text = kuka(&p, 1, "tool0", &["test".into()]);
         let k = parse_kuka(&text).unwrap();
         assert_eq!(k.m, p.mass);
         for i in 0..3 {
-            assert!((k.xyz_mm[i] - 1000.0 * p.com[i]).abs() < 1e-9);
+            assert!((k.xyz_mm[i] - 1000.0 * p.com[i]).abs() < 1e-5);
         }
+        // KRL's 7 digits: the principal data re-compose the tensor to ~1e-6 relative
         let t = tensor_from_kuka(k.abc_deg, k.j);
         let e = (t - p.inertia_matrix()).abs().max();
-        assert!(e < 1e-12, "recomposed tensor off by {e}");
+        assert!(e < 1e-6 * p.inertia_matrix().abs().max(), "recomposed tensor off by {e}");
+        // the full-precision principal data re-compose it exactly
+        let pr = principal(&p);
+        assert!((tensor_from_kuka(pr.abc_deg, pr.moments) - p.inertia_matrix()).abs().max() < 1e-12);
         // a diagonal tensor gives zero angles and JX, JY, JZ = Ixx, Iyy, Izz
         let d = Payload {
             inertia: [0.01, 0.0, 0.0, 0.02, 0.0, 0.03],
@@ -340,6 +426,41 @@ mod tests {
         let pr = principal(&d);
         assert!(pr.abc_deg.iter().all(|a| a.abs() < 1e-9), "{:?}", pr.abc_deg);
         assert_eq!(pr.moments, [0.01, 0.02, 0.03]);
+    }
+
+    #[test]
+    fn krl_reals_have_at_most_seven_significant_digits() {
+        for (v, want) in [
+            (1.80019012345, "1.80019"),
+            (11.8412345678, "11.84123"),
+            (-0.0018173456789, "-0.001817346"),
+            (9.99999996, "10.0"),
+            (-20.85, "-20.85"),
+            (0.0, "0.0"),
+            (-1e-17, "0.0"),
+            (2.5e-9, "0.0000000025"),
+            (123456789.0, "123456800.0"),
+        ] {
+            assert_eq!(krl_real(v), want, "{v}");
+        }
+    }
+
+    #[test]
+    fn mjcf_inertia_moves_only_a_boundary_tensor() {
+        let p = sample();
+        assert_eq!(mjcf_inertia(&p), (p.inertia, 0.0));
+        // a flat body (point masses in the z = 0 plane): Izz = Ixx + Iyy, then 1e-12 beyond it
+        let flat = Payload {
+            inertia: [0.004, 0.001, 0.0, 0.006, 0.0, 0.010 + 1e-12],
+            ..p
+        };
+        let (i, moved) = mjcf_inertia(&flat);
+        assert!(moved > 0.0 && moved < 1e-10, "{moved}");
+        let m = Matrix3::new(i[0], i[1], i[2], i[1], i[3], i[4], i[2], i[4], i[5]);
+        let e = SymmetricEigen::new(m).eigenvalues;
+        let (a, b, c) = (e[0], e[1], e[2]);
+        let slack = [a + b - c, a + c - b, b + c - a];
+        assert!(slack.iter().all(|s| *s >= 1e-9 * (a + b + c)), "{slack:?}");
     }
 
     #[test]
@@ -358,7 +479,7 @@ mod tests {
     #[test]
     fn franka_inertia_is_column_major() {
         let p = sample();
-        let f = franka(&p);
+        let f = franka(&p, "tool0");
         // column-major = row-major for a symmetric tensor; the off-diagonal positions are the check
         assert_eq!(f.load_inertia[1], p.inertia[1]); // (1, 0) = Ixy
         assert_eq!(f.load_inertia[5], p.inertia[4]); // (2, 1) = Iyz

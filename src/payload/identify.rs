@@ -22,6 +22,7 @@
 //! with a positive semidefinite pseudo-inertia ([`crate::ident::consistent`],
 //! one link), the directions the data leave open taken from the guess.
 
+use super::align::{self, Alignment};
 use super::design::PayloadDesign;
 use crate::error::{Error, Result};
 use crate::ident::consistent::{self, ConsistentOptions, ConsistentStatus, Kind};
@@ -37,6 +38,10 @@ use crate::robot::Robot;
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
+
+/// Relative size (of tr J) under which the consistent payload's smallest
+/// pseudo-inertia eigenvalue counts as on the boundary.
+pub const BOUNDARY_REL: f64 = 1e-6;
 
 /// Which combinations of the payload's parameters the robot's joints sense at all.
 #[derive(Debug, Clone, Serialize)]
@@ -67,8 +72,10 @@ pub struct PayloadRun {
     pub unloaded: Option<String>,
     /// Its files.
     pub unloaded_files: Vec<PathBuf>,
-    /// Per joint: largest |q_L − q_U| between the paired samples (rad or m).
+    /// Per joint: largest |q_L − q_U| between the paired samples (rad or m), after alignment.
     pub tracking_difference: Option<Vec<f64>>,
+    /// How the unloaded twin was aligned (time shift, overlap, remaining difference).
+    pub alignment: Option<Alignment>,
     /// Processed samples.
     pub samples: usize,
     /// Rows used.
@@ -107,6 +114,10 @@ pub struct ConsistentPayload {
     pub min_eig: f64,
     /// Increase of the weighted residual sum of squares over least squares.
     pub extra_cost: f64,
+    /// The fit lies on the consistency boundary: smallest pseudo-inertia
+    /// eigenvalue ≤ margin + 1e-6·tr(J) (a flat body, or a line or a point:
+    /// what the data allow, not a physical tool).
+    pub on_boundary: bool,
 }
 
 /// The result of a payload identification.
@@ -227,38 +238,34 @@ pub fn structural(robot: &Robot, mount: &Mount) -> Result<Structural> {
     })
 }
 
-/// The rows of one loaded run (minus its unloaded twin): A (payload base
-/// columns) and b, in a joint-major [`Dataset`].
-fn payload_rows(robot: &Robot, mount: &Mount, st: &Structural, l: &Loaded, u: Option<&Loaded>) -> Result<(Dataset, Option<Vec<f64>>, Vec<f64>)> {
+/// The rows of one loaded run (minus its unloaded twin, aligned in time by
+/// [`super::align`]): A (payload base columns) and b, in a joint-major
+/// [`Dataset`]; the alignment; the rows' times.
+fn payload_rows(robot: &Robot, mount: &Mount, st: &Structural, l: &Loaded, u: Option<&Loaded>) -> Result<(Dataset, Option<Alignment>, Vec<f64>)> {
     let n = robot.dof();
     let p = robot.n_params();
     let pr = &l.prep.pr;
     let m = pr.t.len();
-    if let Some(u) = u {
-        if u.prep.pr.t.len() != m {
-            return Err(Error::invalid(
-                format!("loaded run `{}`", l.name),
-                "unloaded",
-                format!(
-                    "{} processed samples, its unloaded twin `{}` has {}: the unloaded run must play the same trajectory at the same rate, with the same processing (filter, decimate)",
-                    m,
-                    u.name,
-                    u.prep.pr.t.len()
-                ),
-            ));
+    let ctx = format!("loaded run `{}`", l.name);
+    let (al, twin) = match u {
+        Some(u) => {
+            let al = align::align(pr, &u.prep.pr, &ctx, &u.name)?;
+            let tw = align::resample(&u.prep.pr, u.prep.every.var.as_ref().map(|v| v.as_slice()), &al);
+            (Some(al), Some(tw))
         }
-    }
+        None => (None, None),
+    };
+    let [first, end] = al.as_ref().map_or([0, m], |a| a.overlap);
     let kb = st.independent.len();
     let mut ws = Workspace::new(robot);
     let mut y = vec![0.0; n * p];
     let mut cols = vec![0.0; n * 10];
     let mut tau_l = vec![0.0; n];
     let mut tau_u = vec![0.0; n];
-    // per sample: A (n × kb) and the model torque difference
+    // per sample of the overlap: A (n × kb) and the model torque difference
     let mut a_s = vec![0.0; m * n * kb];
     let mut model = vec![0.0; m * n];
-    let mut track = u.map(|_| vec![0.0; n]);
-    for s in 0..m {
+    for s in first..end {
         regressor_rows(robot, &mut ws, &pr.q[s], &pr.qd[s], &pr.qdd[s], &mut y);
         mount.columns(robot, &y, &mut cols);
         for j in 0..n {
@@ -267,42 +274,39 @@ fn payload_rows(robot: &Robot, mount: &Mount, st: &Structural, l: &Loaded, u: Op
             }
         }
         rnea(robot, &mut ws, &pr.q[s], &pr.qd[s], &pr.qdd[s], &mut tau_l);
-        match u {
-            Some(u) => {
-                let up = &u.prep.pr;
-                rnea(robot, &mut ws, &up.q[s], &up.qd[s], &up.qdd[s], &mut tau_u);
+        match &twin {
+            Some(tw) => {
+                let k = s - first;
+                rnea(robot, &mut ws, &tw.q[k], &tw.qd[k], &tw.qdd[k], &mut tau_u);
                 for j in 0..n {
-                    model[s * n + j] = up.tau[s][j] + tau_l[j] - tau_u[j];
-                }
-                if let Some(tr) = track.as_mut() {
-                    for j in 0..n {
-                        tr[j] = f64::max(tr[j], (pr.q[s][j] - up.q[s][j]).abs());
-                    }
+                    model[s * n + j] = tw.tau[k][j] + tau_l[j] - tau_u[j];
                 }
             }
             None => model[s * n..(s + 1) * n].copy_from_slice(&tau_l),
         }
     }
     let full = &l.prep.full;
-    let rows = full.joint.len();
+    let keep: Vec<usize> = (0..full.joint.len()).filter(|&r| (first..end).contains(&full.sample[r])).collect();
+    let rows = keep.len();
     let mut c = DMatrix::zeros(rows, kb);
     let mut b = DVector::zeros(rows);
     // variances of the averaged torques (every_row's, joint-major: row j·m + s)
     let var_l = l.prep.every.var.as_ref();
-    let var_u = u.and_then(|u| u.prep.every.var.as_ref());
+    let var_u = twin.as_ref().and_then(|t| t.var.as_ref());
     let has_var = var_l.is_some() && (u.is_none() || var_u.is_some());
     let mut var = DVector::zeros(if has_var { rows } else { 0 });
-    for r in 0..rows {
+    let len = end - first;
+    for (i, &r) in keep.iter().enumerate() {
         let (j, s) = (full.joint[r], full.sample[r]);
         for bi in 0..kb {
-            c[(r, bi)] = a_s[(s * n + j) * kb + bi];
+            c[(i, bi)] = a_s[(s * n + j) * kb + bi];
         }
-        b[r] = pr.tau[s][j] - model[s * n + j];
+        b[i] = pr.tau[s][j] - model[s * n + j];
         if has_var {
-            var[r] = var_l.map_or(0.0, |v| v[j * m + s]) + var_u.map_or(0.0, |v| v[j * m + s]);
+            var[i] = var_l.map_or(0.0, |v| v[j * m + s]) + var_u.map_or(0.0, |v| v[j * len + s - first]);
         }
     }
-    let times = full.sample.iter().map(|&s| pr.t[s]).collect();
+    let times = keep.iter().map(|&r| pr.t[full.sample[r]]).collect();
     Ok((
         Dataset {
             n,
@@ -311,10 +315,10 @@ fn payload_rows(robot: &Robot, mount: &Mount, st: &Structural, l: &Loaded, u: Op
             y: b,
             var: has_var.then_some(var),
             names: st.names.clone(),
-            joint: full.joint.clone(),
-            sample: full.sample.clone(),
+            joint: keep.iter().map(|&r| full.joint[r]).collect(),
+            sample: keep.iter().map(|&r| full.sample[r]).collect(),
         },
-        track,
+        al,
         times,
     ))
 }
@@ -410,7 +414,7 @@ pub fn identify(design: &PayloadDesign, dir: &Path, ctl: &Control) -> Result<Pay
             None => None,
         };
         obs.progress((i + 1 + usize::from(u.is_some()) * (i + 1)) as u64, &l.name);
-        let (ds, track, times) = payload_rows(&robot, &mount, &st, &l, u.as_ref())?;
+        let (ds, alignment, times) = payload_rows(&robot, &mount, &st, &l, u.as_ref())?;
         row_times.push(times);
         runs.push(PayloadRun {
             name: l.name.clone(),
@@ -418,7 +422,8 @@ pub fn identify(design: &PayloadDesign, dir: &Path, ctl: &Control) -> Result<Pay
             repetitions: l.n_reps,
             unloaded: u.as_ref().map(|u| u.name.clone()),
             unloaded_files: u.as_ref().map(|u| u.files.clone()).unwrap_or_default(),
-            tracking_difference: track,
+            tracking_difference: alignment.as_ref().map(|a| a.max_difference.clone()),
+            alignment,
             samples: ds.n_samples,
             rows: ds.y.len(),
             weights: Vec::new(),
@@ -526,12 +531,17 @@ pub fn identify(design: &PayloadDesign, dir: &Path, ctl: &Control) -> Result<Pay
         )?;
         let status = ConsistentStatus::of(&sol.status);
         let interrupted = ctl.interrupted();
+        let phi: Vec<f64> = sol.theta.iter().copied().collect();
+        // tr J = tr Σ + m = ½ (XX + YY + ZZ) + M about the frame's origin
+        let tr_j = 0.5 * (phi[0] + phi[3] + phi[5]) + phi[9];
+        let on_boundary = sol.min_eig[0] <= design.margin + BOUNDARY_REL * tr_j.abs();
         (
             Some(ConsistentPayload {
                 status,
-                params: sol.theta.iter().copied().collect(),
+                params: phi,
                 min_eig: sol.min_eig[0],
                 extra_cost: sol.extra_cost,
+                on_boundary,
             }),
             interrupted,
         )
@@ -540,6 +550,14 @@ pub fn identify(design: &PayloadDesign, dir: &Path, ctl: &Control) -> Result<Pay
         Some(c) if c.status.is_ok() => Payload::from_params(&c.params).ok(),
         _ => None,
     };
+    if let (Some(c), Some(_)) = (&consistent, &payload) {
+        if c.on_boundary {
+            notes.push(format!(
+                "the consistent payload lies on the consistency boundary (smallest pseudo-inertia eigenvalue {:.2e} kg·m² ≤ margin + {BOUNDARY_REL:e}·tr J): its mass is concentrated on a plane, a line or a point — what these data allow, not a physical tool; the inertia is the least-determined part (more excitation of the payload's rotation, or a guess, decides it)",
+                c.min_eig
+            ));
+        }
+    }
     if let (Some(c), None) = (&consistent, &payload) {
         if c.status.is_ok() {
             notes.push("the consistent fit gives a zero mass: no payload is seen in the torques".into());

@@ -24,6 +24,7 @@
 //! | `payload.script`, `franka_load.json`, `kuka_load.txt`, `payload.urdf`, `payload_mjcf.xml`, `payload.toml` | the exports |
 //! | `status.json` | how it ended |
 
+pub mod align;
 pub mod design;
 pub mod export;
 pub mod identify;
@@ -108,12 +109,21 @@ impl PayloadEstimate {
             let _ = writeln!(s, "    payload torque RMS (N·m):   {}", f(&r.rms_payload));
             let _ = writeln!(s, "    residual RMS (N·m):         {}", f(&r.rms_residual));
             let _ = writeln!(s, "    weight σ (N·m):             {}", f(&r.sigma));
-            if let Some(t) = &r.tracking_difference {
+            if let Some(a) = &r.alignment {
+                let mrad = |t: &[f64]| t.iter().map(|x| format!("{:.2}", 1e3 * x)).collect::<Vec<_>>().join(" ");
                 let _ = writeln!(
                     s,
-                    "    max |q_loaded − q_unloaded| (mrad): {}",
-                    t.iter().map(|x| format!("{:.2}", 1e3 * x)).collect::<Vec<_>>().join(" ")
+                    "    twin aligned: unloaded time = loaded time {:+.5} s ({:+.3} samples); {} and {} samples, {} paired (loaded samples {}..{})",
+                    a.shift_s,
+                    a.shift_samples,
+                    a.samples[0],
+                    a.samples[1],
+                    a.overlap[1] - a.overlap[0],
+                    a.overlap[0],
+                    a.overlap[1]
                 );
+                let _ = writeln!(s, "    RMS |q_loaded − q_unloaded| (mrad): {}", mrad(&a.rms_difference));
+                let _ = writeln!(s, "    max |q_loaded − q_unloaded| (mrad): {}", mrad(&a.max_difference));
             }
         }
         let st = &self.structural;
@@ -161,6 +171,12 @@ impl PayloadEstimate {
                 "\nConsistent fit: {}, smallest pseudo-inertia eigenvalue {:.3e} kg·m², extra weighted SSR {:.3e}",
                 c.status, c.min_eig, c.extra_cost
             );
+            if c.on_boundary {
+                let _ = writeln!(
+                    s,
+                    "  on the consistency boundary (a flat body): what the data allow, not a physical tool (see the note below)"
+                );
+            }
         }
         match &self.payload {
             Some(p) => {
@@ -247,8 +263,8 @@ impl PayloadResult {
             for f in &self.design.export {
                 match f {
                     PayloadExport::Urscript => put("payload.script", export::urscript(p, &e.frame, &h).as_bytes())?,
-                    PayloadExport::Franka => put("franka_load.json", json(&export::franka(p))?.as_bytes())?,
-                    PayloadExport::Kuka => put("kuka_load.txt", export::kuka(p, &h).as_bytes())?,
+                    PayloadExport::Franka => put("franka_load.json", json(&export::franka(p, &e.frame))?.as_bytes())?,
+                    PayloadExport::Kuka => put("kuka_load.txt", export::kuka(p, self.design.kuka_tool, &e.frame, &h).as_bytes())?,
                     PayloadExport::Urdf => put("payload.urdf", export::urdf(p, &e.frame, &h).as_bytes())?,
                     PayloadExport::Mjcf => put("payload_mjcf.xml", export::mjcf(p, &e.frame, &h).as_bytes())?,
                     PayloadExport::Idexp => put("payload.toml", export::idexp_table(p, &e.frame, &h)?.as_bytes())?,

@@ -123,14 +123,14 @@ impl Inertial {
     }
 
     /// Expresses these parameters (given in frame B) in frame A, where `a_t_b`
-    /// maps B coordinates to A coordinates (used to merge fixed links).
+    /// maps B coordinates to A coordinates (used to merge fixed links, place a
+    /// payload): Pinocchio's `a_t_b.act(Y)`, the spatial inertia transformed
+    /// as Xᵀ I X. Linear in the ten parameters (also for a zero mass with a
+    /// non-zero first moment, as the columns of a payload's T are).
     pub fn transformed(&self, a_t_b: &Isometry3<f64>) -> Self {
         let r = a_t_b.rotation.to_rotation_matrix().into_inner();
         let p = a_t_b.translation.vector;
         let m = self.mass;
-        if m == 0.0 && self.inertia == Matrix3::zeros() {
-            return *self;
-        }
         // inertia about B origin, in A orientation
         let io_b = r * self.inertia * r.transpose();
         let h_b = r * self.first_moment; // m c_B (c relative to B origin), A orientation

@@ -219,6 +219,117 @@ pub fn resolve(robot: &Robot, spec: &PayloadSpec, ctx: &str, field: &str) -> Res
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::{Matrix6, Translation3, UnitQuaternion};
+    use rand::{RngExt, SeedableRng};
+
+    /// The 6 × 6 spatial inertia (angular first) about a frame's origin in its
+    /// axes: [[I_O, S(h)], [S(h)ᵀ, m 1]] (Featherstone, RBDA eq. 2.63).
+    fn spatial(p: &[f64; 10]) -> Matrix6<f64> {
+        let i = Inertial::from_params(p);
+        let sh = i.first_moment.cross_matrix();
+        let mut s = Matrix6::zeros();
+        s.fixed_view_mut::<3, 3>(0, 0).copy_from(&i.inertia);
+        s.fixed_view_mut::<3, 3>(0, 3).copy_from(&sh);
+        s.fixed_view_mut::<3, 3>(3, 0).copy_from(&sh.transpose());
+        s.fixed_view_mut::<3, 3>(3, 3).copy_from(&(i.mass * Matrix3::identity()));
+        s
+    }
+
+    /// The same inertia in frame A: I_A = X_{B←A}ᵀ I_B X_{B←A}, with the
+    /// motion transform X_{B←A} = [[Rᵀ, 0], [−Rᵀ S(p), Rᵀ]] of a_t_b = (R, p):
+    /// kinetic energy is frame-independent. Built from the 6 × 6 blocks, not
+    /// from `Inertial::transformed`'s parallel-axis formula.
+    fn spatial_in_a(p: &[f64; 10], a_t_b: &Isometry3<f64>) -> [f64; 10] {
+        let r = a_t_b.rotation.to_rotation_matrix().into_inner();
+        let t = a_t_b.translation.vector;
+        let mut x = Matrix6::zeros();
+        x.fixed_view_mut::<3, 3>(0, 0).copy_from(&r.transpose());
+        x.fixed_view_mut::<3, 3>(3, 0).copy_from(&(-r.transpose() * t.cross_matrix()));
+        x.fixed_view_mut::<3, 3>(3, 3).copy_from(&r.transpose());
+        let s = x.transpose() * spatial(p) * x;
+        let h = Vector3::new(s[(2, 4)], s[(0, 5)], s[(1, 3)]);
+        [s[(0, 0)], s[(0, 1)], s[(0, 2)], s[(1, 1)], s[(1, 2)], s[(2, 2)], h.x, h.y, h.z, s[(3, 3)]]
+    }
+
+    fn random_iso(g: &mut rand_chacha::ChaCha8Rng) -> Isometry3<f64> {
+        let q = nalgebra::Quaternion::new(
+            g.random::<f64>() - 0.5,
+            g.random::<f64>() - 0.5,
+            g.random::<f64>() - 0.5,
+            g.random::<f64>() - 0.5,
+        );
+        let t = Translation3::new(g.random::<f64>() - 0.5, g.random::<f64>() - 0.5, g.random::<f64>() - 0.5);
+        Isometry3::from_parts(t, UnitQuaternion::from_quaternion(q))
+    }
+
+    #[test]
+    fn transformed_is_the_spatial_inertia_transform_also_for_unit_vectors() {
+        let mut g = rand_chacha::ChaCha8Rng::seed_from_u64(43);
+        // UR tool0 against wrist_3_link (rpy −π/2 0 0, 82.3 mm along y), then random frames
+        let mut isos = vec![Isometry3::from_parts(
+            Translation3::new(0.0, 0.0823, 0.0),
+            UnitQuaternion::from_euler_angles(-std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+        )];
+        isos.extend((0..20).map(|_| random_iso(&mut g)));
+        let body = Payload {
+            mass: 2.0,
+            com: [0.03, 0.02, 0.1],
+            inertia: [0.012, 0.001, -0.0005, 0.010, 0.0007, 0.006],
+        }
+        .params();
+        for iso in &isos {
+            let mut inputs: Vec<[f64; 10]> = (0..10)
+                .map(|k| {
+                    let mut e = [0.0; 10];
+                    e[k] = 1.0;
+                    e
+                })
+                .collect();
+            inputs.push(body);
+            // zero mass, zero inertia, a first moment only (the shortcut's case)
+            inputs.push([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.3, -0.2, 0.5, 0.0]);
+            for e in &inputs {
+                let got = Inertial::from_params(e).transformed(iso).to_params();
+                let want = spatial_in_a(e, iso);
+                for k in 0..10 {
+                    assert!(
+                        (got[k] - want[k]).abs() < 1e-12,
+                        "input {e:?}, parameter {}: {} vs {}",
+                        PARAM_NAMES[k],
+                        got[k],
+                        want[k]
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn mount_matrix_is_linear_map_of_transformed() {
+        // T φ = transformed(φ) for a full rigid body, on a rotated and offset frame
+        let mut g = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let iso = random_iso(&mut g);
+        let mut t = Matrix10::zeros();
+        for k in 0..10 {
+            let mut e = [0.0; 10];
+            e[k] = 1.0;
+            let col = spatial_in_a(&e, &iso);
+            for (r, v) in col.iter().enumerate() {
+                t[(r, k)] = *v;
+            }
+        }
+        let phi = Payload {
+            mass: 1.3,
+            com: [-0.01, 0.04, 0.07],
+            inertia: [0.01, 0.0, 0.001, 0.012, -0.002, 0.008],
+        }
+        .params();
+        let lin = t * SMatrix::<f64, 10, 1>::from_column_slice(&phi);
+        let direct = Inertial::from_params(&phi).transformed(&iso).to_params();
+        for k in 0..10 {
+            assert!((lin[k] - direct[k]).abs() < 1e-12);
+        }
+    }
 
     #[test]
     fn params_round_trip() {
