@@ -14,6 +14,7 @@
 //! KUKA: `$FLANGE`), so identify on that frame. Each file names its frame.
 
 use crate::robot::payload::Payload;
+use crate::robot::mjcf::{mujoco_inertia, TRIANGLE_MARGIN};
 use nalgebra::{Matrix3, Rotation3, SymmetricEigen};
 use serde::Serialize;
 use std::fmt::Write;
@@ -302,32 +303,23 @@ pub fn urdf(p: &Payload, frame: &str, header: &[String]) -> String {
     )
 }
 
-/// Relative margin of the triangle inequalities in the MJCF export:
-/// A + B ≥ C + 2·MJCF_MARGIN·(A + B + C) for the principal moments.
-pub const MJCF_MARGIN: f64 = 1e-9;
-
 /// The inertia tensor about the centre of mass written to MJCF, and how far
-/// it moved (largest |ΔI| entry, kg·m²). MuJoCo refuses a body whose
-/// principal moments break A + B ≥ C by more than 1e-14 ("inertia must
-/// satisfy A + B >= C"); a consistent fit on the boundary (a flat body:
-/// smallest eigenvalue of Σ = ½ tr(I) 1 − I, the second moment of the mass,
-/// at 0 up to rounding, e.g. −3e-12) lands on either side. Σ's eigenvalues
-/// are raised to at least [`MJCF_MARGIN`]·tr(I) and I = tr(Σ) 1 − Σ rebuilt:
-/// a change of the order of that margin, zero for a tensor already inside.
-/// (MuJoCo's own `balanceinertia` would replace all three moments by their
-/// mean, a large change for a flat body.)
+/// it moved (largest |ΔI| entry, kg·m²): the robot export's
+/// [`crate::robot::mjcf::mujoco_inertia`] (one rule for every MJCF idexp
+/// writes). MuJoCo refuses a body whose principal moments break A + B ≥ C
+/// ("inertia must satisfy A + B >= C"); a consistent fit on the boundary (a
+/// flat body: smallest eigenvalue of Σ = ½ tr(I) 1 − I, the second moment of
+/// the mass, at 0 up to rounding, e.g. −3e-12) lands on either side. The
+/// smallest δ is added to the three principal moments that keeps
+/// A + B − C ≥ [`TRIANGLE_MARGIN`]·(A + B + C): zero for a tensor already
+/// inside. (MuJoCo's own `balanceinertia` would replace all three moments by
+/// their mean, a large change for a flat body.)
 pub fn mjcf_inertia(p: &Payload) -> ([f64; 6], f64) {
     let i = p.inertia_matrix();
-    let tr = i.trace();
-    let sigma = Matrix3::identity() * (0.5 * tr) - i;
-    let eig = SymmetricEigen::new(sigma);
-    let floor = MJCF_MARGIN * tr.max(0.0);
-    if eig.eigenvalues.min() >= floor {
+    let (i2, delta) = mujoco_inertia(&i);
+    if delta == 0.0 {
         return (p.inertia, 0.0);
     }
-    let lam = eig.eigenvalues.map(|v| v.max(floor));
-    let s2 = eig.eigenvectors * Matrix3::from_diagonal(&lam) * eig.eigenvectors.transpose();
-    let i2 = Matrix3::identity() * s2.trace() - s2;
     let out = [i2[(0, 0)], i2[(0, 1)], i2[(0, 2)], i2[(1, 1)], i2[(1, 2)], i2[(2, 2)]];
     (out, (i2 - i).abs().max())
 }
@@ -343,7 +335,7 @@ pub fn mjcf(p: &Payload, frame: &str, header: &[String]) -> String {
     if moved > 0.0 {
         let _ = writeln!(
             c,
-            "<!-- the identified inertia lies on the triangle-inequality boundary (a flat body): moved by at most {moved:.1e} kg·m² so that A + B >= C holds with a relative margin of {MJCF_MARGIN:e} (MuJoCo refuses it otherwise) -->"
+            "<!-- the identified inertia lies on the triangle-inequality boundary (a flat body): moved by at most {moved:.1e} kg·m² so that A + B >= C holds with a relative margin of {TRIANGLE_MARGIN:e} (MuJoCo refuses it otherwise) -->"
         );
     }
     format!(

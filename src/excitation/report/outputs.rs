@@ -248,10 +248,14 @@ pub fn criterion_sample_set(p: &Problem) -> SampleSet {
 }
 
 /// The samples of the delivered trajectory as written to trajectory.csv, as a [`SampleSet`].
-fn delivered_sample_set(t: &[f64], periods: usize, ends: Ends) -> SampleSet {
-    let what = match ends {
-        Ends::Periodic => format!("the delivered trajectory: lead-in, {periods} period(s), lead-out, rest to rest"),
-        Ends::RestToRest => format!("the delivered trajectory: {periods} repetition(s) of the rest-to-rest motion, no lead-in or lead-out"),
+fn delivered_sample_set(t: &[f64], periods: usize, ends: Ends, leads: bool) -> SampleSet {
+    let what = match (ends, leads) {
+        (Ends::Periodic, _) => format!("the delivered trajectory: lead-in, {periods} period(s), lead-out, rest to rest"),
+        // a motion with free start or end poses: leads from and to the home pose
+        (Ends::RestToRest, true) => {
+            format!("the delivered trajectory: a lead-in from the home pose, {periods} repetition(s) of the rest-to-rest motion, a lead-out to the home pose")
+        }
+        (Ends::RestToRest, false) => format!("the delivered trajectory: {periods} repetition(s) of the rest-to-rest motion, no lead-in or lead-out"),
     };
     SampleSet::new("trajectory.csv", 1, Some(t), &what)
 }
@@ -331,7 +335,9 @@ pub fn write_outputs_with(p: &Problem, r: &ExciteResult, dir: &Path, extra: impl
     );
     written_csv?;
     let mut delivered_ident = delivered_ident?;
-    let delivered_set = delivered_sample_set(&ds.t, delivered.periods, p.shape.ends());
+    // segment 0 is the lead-in, −1 the lead-out (a rest-to-rest motion has them when its ends are free)
+    let leads = ds.segment.iter().any(|&g| g <= 0);
+    let delivered_set = delivered_sample_set(&ds.t, delivered.periods, p.shape.ends(), leads);
     // the criterion's samples as rows of trajectory.csv: period 1 (segment 1,
     // which starts after the lead-in, not at t = 0), every k-th row, when the
     // criterion's rate divides the controller's
@@ -353,9 +359,10 @@ pub fn write_outputs_with(p: &Problem, r: &ExciteResult, dir: &Path, extra: impl
                 "trajectory.csv",
                 k,
                 Some(&t),
-                match p.shape.ends() {
-                    Ends::Periodic => "segment 1 only: period 1 of the delivered trajectory, which starts after the lead-in (trajectory.csv's t = 0 is the start of the lead-in, not of a period); the criterion's samples",
-                    Ends::RestToRest => "segment 1 only: the first repetition of the rest-to-rest motion, from t = 0 (no lead-in); the criterion's samples",
+                match (p.shape.ends(), leads) {
+                    (Ends::Periodic, _) => "segment 1 only: period 1 of the delivered trajectory, which starts after the lead-in (trajectory.csv's t = 0 is the start of the lead-in, not of a period); the criterion's samples",
+                    (Ends::RestToRest, true) => "segment 1 only: the first repetition of the rest-to-rest motion, which starts after the lead-in from the home pose (trajectory.csv's t = 0 is the start of the lead-in); the criterion's samples",
+                    (Ends::RestToRest, false) => "segment 1 only: the first repetition of the rest-to-rest motion, from t = 0 (no lead-in); the criterion's samples",
                 },
             );
             set.segment = Some(1);

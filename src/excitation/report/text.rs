@@ -241,7 +241,14 @@ fn outcome_section(s: &mut String, p: &Problem, r: &ExciteResult, delivered: Opt
                 }
                 _ => "trajectory.csv has no lead-in: segment 1 starts at t = 0".to_string(),
             },
-            crate::trajectory::Ends::RestToRest => "a rest-to-rest motion has no lead-in: segment 1 starts at t = 0".to_string(),
+            crate::trajectory::Ends::RestToRest => match src.t_range {
+                // free start pose: a lead-in from home comes first
+                Some([a, _]) if a > 0.0 => format!(
+                    "trajectory.csv starts with the lead-in from the home pose at t = 0: segment 1 starts at t = {} s",
+                    seconds_text(a)
+                ),
+                _ => "a rest-to-rest motion from the home pose has no lead-in: segment 1 starts at t = 0".to_string(),
+            },
         };
         let _ = writeln!(
             s,
