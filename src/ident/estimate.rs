@@ -69,25 +69,37 @@ pub fn base_design(robot: &Robot, base: &BaseParams, q: &[Vec<f64>], qd: &[Vec<f
     })
 }
 
-impl Dataset {
-    /// Builds the dataset of a processed run. Rows of joint j at samples where
-    /// |q̇_j| < max(`slow_ratio` · max_p |q̇_j(p)|, `min_speed`) are left out:
-    /// near zero velocity the sign of the estimated velocity is unreliable and
-    /// Coulomb friction is undefined at rest (a drive holding still chatters
-    /// between ±F_c), which biases the friction estimates; a joint that never
-    /// moves faster than `min_speed` contributes no rows (its friction columns
-    /// vanish and the rank check of the reduction removes them).
-    /// `slow_ratio = min_speed = 0` keeps every row.
-    pub fn new(robot: &Robot, base: &BaseParams, pr: &super::Processed, slow_ratio: f64, min_speed: f64) -> Dataset {
-        Dataset::every_row(robot, base, pr).moving_rows(pr, slow_ratio, min_speed)
-    }
+/// Default Coulomb dead band (rad/s or m/s, [`IdentOptions::dead_band`](super::IdentOptions::dead_band)):
+/// the speed below which the default speed rule (`min_speed`) already calls
+/// the sign of a measured velocity unreliable. A robot at rest logs noise
+/// around zero (a 4-decimal log flips sign every sample, ~1e-4 rad/s); a
+/// joint crawling slower than 0.01 rad/s carries no usable Coulomb equation.
+pub const DEAD_BAND: f64 = 0.01;
 
-    /// The dataset of every sample of a processed run (no row left out): the
-    /// rows paper 000's e_j, e*_j (eq. 11–12) are defined on.
-    pub fn every_row(robot: &Robot, base: &BaseParams, pr: &super::Processed) -> Dataset {
+/// The velocities the regressor sees: |q̇_j| < `dead_band` set to 0 (at rest)
+/// for the joints whose Coulomb term has the `sign` shape, so sign(q̇) of
+/// velocity noise does not switch ±F_c on; other joints unchanged.
+pub fn dead_banded<'a>(robot: &Robot, qd: &'a [Vec<f64>], dead_band: f64) -> std::borrow::Cow<'a, [Vec<f64>]> {
+    let sign: Vec<bool> = robot.drives.iter().map(|d| d.discontinuous_at_rest()).collect();
+    if dead_band <= 0.0 || !sign.iter().any(|&s| s) {
+        return std::borrow::Cow::Borrowed(qd);
+    }
+    std::borrow::Cow::Owned(
+        qd.iter()
+            .map(|v| v.iter().zip(&sign).map(|(&x, &s)| if s && x.abs() < dead_band { 0.0 } else { x }).collect())
+            .collect(),
+    )
+}
+
+impl Dataset {
+    /// [`Dataset::every_row`] with the Coulomb dead band ([`dead_banded`]):
+    /// the rows of the `sign`-shaped joints at |q̇_j| < `dead_band` have no
+    /// Coulomb (and viscous) term. Used alike for estimation and validation.
+    pub fn every_row_dead_band(robot: &Robot, base: &BaseParams, pr: &super::Processed, dead_band: f64) -> Dataset {
+        let qd = dead_banded(robot, &pr.qd, dead_band);
         let n = robot.dof();
         let m = pr.len();
-        let c = base_design(robot, base, &pr.q, &pr.qd, &pr.qdd);
+        let c = base_design(robot, base, &pr.q, &qd, &pr.qdd);
         let y = DVector::from_iterator(n * m, (0..n * m).map(|r| pr.tau[r % m][r / m]));
         let var = pr
             .tau_var
@@ -103,6 +115,24 @@ impl Dataset {
             joint: (0..n * m).map(|r| r / m).collect(),
             sample: (0..n * m).map(|r| r % m).collect(),
         }
+    }
+
+    /// Builds the dataset of a processed run. Rows of joint j at samples where
+    /// |q̇_j| < max(`slow_ratio` · max_p |q̇_j(p)|, `min_speed`) are left out:
+    /// near zero velocity the sign of the estimated velocity is unreliable and
+    /// Coulomb friction is undefined at rest (a drive holding still chatters
+    /// between ±F_c), which biases the friction estimates; a joint that never
+    /// moves faster than `min_speed` contributes no rows (its friction columns
+    /// vanish and the rank check of the reduction removes them).
+    /// `slow_ratio = min_speed = 0` keeps every row.
+    pub fn new(robot: &Robot, base: &BaseParams, pr: &super::Processed, slow_ratio: f64, min_speed: f64) -> Dataset {
+        Dataset::every_row(robot, base, pr).moving_rows(pr, slow_ratio, min_speed)
+    }
+
+    /// The dataset of every sample of a processed run (no row left out): the
+    /// rows paper 000's e_j, e*_j (eq. 11–12) are defined on.
+    pub fn every_row(robot: &Robot, base: &BaseParams, pr: &super::Processed) -> Dataset {
+        Dataset::every_row_dead_band(robot, base, pr, 0.0)
     }
 
     /// The rows of a complete dataset ([`Dataset::every_row`] of `pr`) that

@@ -142,6 +142,11 @@ pub struct IdentOptions {
     pub slow_ratio: f64,
     /// Rows of a joint slower than this speed are left out too (rad/s or m/s).
     pub min_speed: f64,
+    /// Coulomb dead band (rad/s or m/s): for the joints with a `sign` Coulomb
+    /// term, |q̇_j| below it is rest (no Coulomb or viscous term), in the
+    /// identification and the validation run alike (default
+    /// [`DEAD_BAND`](super::estimate::DEAD_BAND); 0: sign(q̇) everywhere).
+    pub dead_band: f64,
     /// Which joints the slow-row rule applies to ([`Standstill`]; default:
     /// those with a `sign` Coulomb term).
     pub standstill: Standstill,
@@ -171,6 +176,7 @@ impl Default for IdentOptions {
             decimate: 1,
             slow_ratio: 0.1,
             min_speed: 0.01,
+            dead_band: super::estimate::DEAD_BAND,
             standstill: Standstill::Auto,
             velocity_from: VelocityFrom::Auto,
             reduce: None,

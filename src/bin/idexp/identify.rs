@@ -122,6 +122,9 @@ pub struct IdentifyArgs {
     /// Speed below which rows are left out: of the identification (default 0.01) and of the friction experiment (default 0.05) (rad/s or m/s).
     #[arg(long)]
     pub min_speed: Option<f64>,
+    /// Coulomb dead band (rad/s or m/s): for joints with a `sign` Coulomb term, |q̇| below it is rest (no Coulomb term), in the run and the validation run alike; 0: sign(q̇) everywhere.
+    #[arg(long, default_value_t = idexp::ident::DEAD_BAND)]
+    pub dead_band: f64,
     /// Which slow rows to leave out: auto (those of joints with a `sign` Coulomb term; smooth tanh/stribeck joints keep their standstill rows), drop (every joint), keep (none).
     #[arg(long, default_value = "auto")]
     pub standstill: idexp::ident::Standstill,
@@ -364,6 +367,7 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         decimate: a.decimate,
         slow_ratio: a.slow_ratio,
         min_speed: a.min_speed.unwrap_or(0.01),
+        dead_band: a.dead_band,
         standstill: a.standstill,
         velocity_from: a.velocity_from,
         reduce: a.reduce.then(|| ReduceOptions {

@@ -11,11 +11,12 @@
 //! base_columns = []                  # fix the base columns by name (default: computed)
 //! truth = "sim/truth.json"           # optional: compare with the true base parameters
 //! export = ["urdf", "toml", "csv"]   # the identified model (urdf/toml need [consistent])
+//! dead_band = 0.01                   # rad/s: |q̇| below it is rest for `sign` Coulomb terms (every experiment and validation run)
 //!
 //! [[experiment]]                     # any number (≥ 1); their rows are stacked
 //! name = "fourier_a"                 # default: the first file's (folder's) name
 //! files = ["runs/a"]                 # folders of repetition CSVs or the files
-//! kind = "excitation"                # excitation | gravity | friction | static
+//! kind = "excitation"                # excitation | gravity | friction | static (poses at rest: no speed rule)
 //! filter = "auto"                    # auto | fourier | lowpass | none
 //! cutoff = 10.0                      # low-pass cut-off (Hz)
 //! trajectory = "runs/a/coefficients.json"   # Fourier reference (default: trajectory.json beside the run)
@@ -94,13 +95,18 @@ impl ExperimentKind {
     }
 
     /// The standstill rule used unless the entry gives one: the model's
-    /// (`auto`) for every kind. At rest a `sign` Coulomb term is undefined
-    /// (the drive holds anywhere within ±F_c), so the rows of such joints at
-    /// rest carry no usable equation even in a gravity or static experiment;
-    /// joints with smooth friction keep them. `standstill = "keep"` keeps
-    /// them anyway (friction negligible against gravity).
+    /// (`auto`) for every kind but `static`. At rest a `sign` Coulomb term is
+    /// undefined (the drive holds anywhere within ±F_c), so the slow rows of
+    /// such joints are left out of moving experiments; joints with smooth
+    /// friction keep them. A `static` run has no speed rule (`keep`): every
+    /// row is a pose held at rest, its logged velocity is noise, and the
+    /// study's Coulomb dead band (`dead_band`) sets the Coulomb term to 0
+    /// there, in estimation and validation alike.
     pub fn default_standstill(self) -> Standstill {
-        Standstill::Auto
+        match self {
+            ExperimentKind::Static => Standstill::Keep,
+            _ => Standstill::Auto,
+        }
     }
 }
 
@@ -297,6 +303,11 @@ pub struct StudyDesign {
     /// Model files to write.
     #[serde(default)]
     pub export: Vec<ExportFormat>,
+    /// Coulomb dead band (rad/s or m/s): for the joints with a `sign`
+    /// Coulomb term, |q̇_j| below it is rest (Coulomb term 0), in every
+    /// experiment and validation run ([`crate::ident::DEAD_BAND`] by default).
+    #[serde(default = "dead_band")]
+    pub dead_band: f64,
 }
 
 fn ten() -> f64 {
@@ -313,6 +324,9 @@ fn slow_ratio() -> f64 {
 }
 fn min_speed() -> f64 {
     0.01
+}
+fn dead_band() -> f64 {
+    crate::ident::DEAD_BAND
 }
 fn nominal() -> String {
     "nominal".into()
@@ -444,6 +458,13 @@ impl StudyDesign {
                 ctx,
                 "irls_tol",
                 format!("expected a positive tolerance, found {}", self.irls_tol),
+            ));
+        }
+        if !(self.dead_band.is_finite() && self.dead_band >= 0.0) {
+            return Err(Error::invalid(
+                ctx,
+                "dead_band",
+                format!("expected a speed ≥ 0 (rad/s; 0: sign(q̇) everywhere), found {}", self.dead_band),
             ));
         }
         if self.sample_limit < 3 {
