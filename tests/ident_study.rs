@@ -573,3 +573,107 @@ fn identify_reads_robot_logs_given_on_the_command_line() {
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--log-format"));
 }
+
+/// Poses held at rest for `secs` s at 100 Hz, logged as a robot logs them:
+/// positions with 2e-5 noise, velocities that are noise (σ 3e-4, 4 decimals:
+/// the sign flips from sample to sample), torques = the true gravity torques
+/// + 0.05 N·m noise.
+fn static_pose(truth: &idexp::robot::Robot, q0: &[f64], secs: f64, seed: u64) -> Repetition {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let (n, p) = (truth.dof(), truth.n_params());
+    let theta = truth.nominal_params();
+    let mut ws = idexp::robot::Workspace::new(truth);
+    let mut y = vec![0.0; n * p];
+    idexp::robot::regressor_rows(truth, &mut ws, q0, &vec![0.0; n], &vec![0.0; n], &mut y);
+    let g: Vec<f64> = (0..n).map(|j| (0..p).map(|c| y[j * p + c] * theta[c]).sum()).collect();
+    let (nq, nv, nt) = (Normal::new(0.0, 2e-5).unwrap(), Normal::new(0.0, 3e-4).unwrap(), Normal::new(0.0, 0.05).unwrap());
+    let m = (secs * 100.0) as usize;
+    let t: Vec<f64> = (0..m).map(|k| k as f64 * 0.01).collect();
+    let round4 = |x: f64| (x * 1e4).round() / 1e4;
+    Repetition {
+        t,
+        q: (0..m).map(|_| q0.iter().map(|&x| x + nq.sample(&mut rng)).collect()).collect(),
+        tau: (0..m).map(|_| g.iter().map(|&x| x + nt.sample(&mut rng)).collect()).collect(),
+        r: None,
+        qd: Some((0..m).map(|_| (0..n).map(|_| round4(nv.sample(&mut rng))).collect()).collect()),
+        qdd: None,
+    }
+}
+
+/// e_j = mean |τ_j − τ̂_j| per joint, read from a validation/<run>.csv with this test's own parser.
+fn e_from_csv(path: &Path, n: usize, column: &str) -> Vec<f64> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: String| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("{name} in {header:?}"));
+    let (it, ip): (Vec<usize>, Vec<usize>) = (1..=n).map(|j| (col(format!("tau{j}")), col(format!("{column}{j}")))).unzip();
+    let mut sum = vec![0.0; n];
+    let mut rows = 0;
+    for l in lines {
+        let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+        for j in 0..n {
+            sum[j] += (v[it[j]] - v[ip[j]]).abs();
+        }
+        rows += 1;
+    }
+    sum.iter().map(|s| s / rows as f64).collect()
+}
+
+#[test]
+fn static_validation_poses_at_rest_are_validated_without_options_and_their_errors_recomputed_from_the_csv() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let robot = "tests/data/ident/rpr_drives.toml";
+    let d = design(&sim_text(robot, "", &fourier(10, 11, 3, 0.1, 5, 0.05, 5)));
+    let res = simulate(&d);
+    res.write(&dir.join("a"), &d).unwrap();
+    let poses = [[0.0, 0.1, 0.5], [0.7, 0.3, -0.8], [-1.2, 0.45, 1.3], [2.0, 0.2, -1.5]];
+    let mut val = String::new();
+    for (i, q0) in poses.iter().enumerate() {
+        let f = dir.join(format!("pose_{}.csv", i + 1));
+        static_pose(&res.setup.truth, q0, 5.0, 100 + i as u64).write(&f).unwrap();
+        val.push_str(&format!("[[validation]]\nname = \"pose_{}\"\nfiles = [\"pose_{}.csv\"]\nkind = \"static\"\n", i + 1, i + 1));
+    }
+    let h = head(robot);
+    let text = format!("{h}[[experiment]]\nname = \"a\"\nfiles = [\"a\"]\nharmonics = 40\n{val}");
+    let r = study(dir, &text);
+    let out = dir.join("out");
+    r.write(&out, None).unwrap();
+    let fc = [1.5, 4.0, 0.3];
+    for (i, v) in r.estimate.validation.iter().enumerate() {
+        assert_eq!(v.kind, idexp::ident::study::ExperimentKind::Static);
+        // at rest the prediction is gravity: e_j near the noise's mean |ε| = 0.05·√(2/π) = 0.04
+        for j in 0..3 {
+            assert!(v.errors_all.e[j] < 0.1, "{}: e_{} = {} N·m", v.name, j + 1, v.errors_all.e[j]);
+        }
+        let csv = out.join("validation").join(format!("{}.csv", v.name));
+        let e = e_from_csv(&csv, 3, "tau_ls");
+        for j in 0..3 {
+            assert!((e[j] - v.errors_all.e[j]).abs() < 1e-9 * (1.0 + e[j]), "{} joint {}: {} vs {}", v.name, j + 1, e[j], v.errors_all.e[j]);
+        }
+        // validation.csv says the same
+        let vt = std::fs::read_to_string(out.join("validation.csv")).unwrap();
+        let row = vt.lines().find(|l| l.starts_with(&format!("pose_{},static,1,", i + 1))).unwrap();
+        let ev: f64 = row.split(',').nth(3).unwrap().parse().unwrap();
+        assert!((ev - e[0]).abs() < 1e-9 * (1.0 + ev), "{ev} vs {}", e[0]);
+    }
+    // without the dead band the Coulomb term takes the noise's sign: ±F_c flips every sample
+    let r0 = study(dir, &format!("dead_band = 0.0\n{text}"));
+    for v in &r0.estimate.validation {
+        for j in 0..3 {
+            assert!(v.errors_all.e[j] > 0.5 * fc[j], "{} joint {}: e = {} without the dead band", v.name, j + 1, v.errors_all.e[j]);
+        }
+    }
+    // the poses as an experiment: a static run has no speed rule (its rows are kept,
+    // Coulomb 0 within the dead band), and the estimate stays within its uncertainty
+    let exp: String = val.replace("[[validation]]", "[[experiment]]").replace("name = \"pose_", "name = \"rest_");
+    let rs = study(dir, &format!("{h}[[experiment]]\nname = \"a\"\nfiles = [\"a\"]\nharmonics = 40\n{exp}"));
+    for x in rs.estimate.experiments.iter().skip(1) {
+        assert!(x.rows_used.iter().all(|u| u.used == u.total), "{}: {:?}", x.name, x.rows_used);
+        assert!(x.rows_used[0].reason.contains("dead band"), "{}", x.rows_used[0].reason);
+    }
+    let zmax = rs.estimate.truth.as_ref().unwrap().iter().map(|t| t.z.abs()).fold(0.0, f64::max);
+    assert!(zmax < 4.0, "max |z| = {zmax}:\n{}", rs.estimate.text());
+}
