@@ -677,3 +677,69 @@ fn static_validation_poses_at_rest_are_validated_without_options_and_their_error
     let zmax = rs.estimate.truth.as_ref().unwrap().iter().map(|t| t.z.abs()).fold(0.0, f64::max);
     assert!(zmax < 4.0, "max |z| = {zmax}:\n{}", rs.estimate.text());
 }
+
+/// Link masses and traces of the inertia about the COM of standard parameters `th` (names `names`).
+fn masses_and_traces(names: &[String], th: &[f64], links: usize) -> Vec<(f64, f64)> {
+    let v = |k: String| th[names.iter().position(|n| *n == k).unwrap()];
+    (1..=links)
+        .map(|l| {
+            let m = v(format!("M{l}"));
+            let c2 = (v(format!("MX{l}")).powi(2) + v(format!("MY{l}")).powi(2) + v(format!("MZ{l}")).powi(2)) / (m * m);
+            (m, v(format!("XX{l}")) + v(format!("YY{l}")) + v(format!("ZZ{l}")) - 2.0 * m * c2)
+        })
+        .collect()
+}
+
+#[test]
+fn a_geared_arm_whose_robot_file_does_not_know_its_drives_gets_plausible_links() {
+    // designs/sim_geared3_fourier.toml: the truth has reflected rotor inertias of
+    // 1.5–4 kg·m² and friction; the study's robot file has ia = fc = fv = 0
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    for (name, file) in [("a", "designs/sim_geared3_fourier.toml"), ("v", "designs/sim_geared3_validate.toml")] {
+        let text = std::fs::read_to_string(root(file)).unwrap().replace("robots/geared3.toml", "designs/robots/geared3.toml");
+        let d = design(&text);
+        simulate(&d).write(&dir.join(name), &d).unwrap();
+    }
+    let truth = idexp::data::Truth::read(&dir.join("a/truth.json")).unwrap();
+    let text = format!(
+        "robot = \"{}\"\ntruth = \"a/truth.json\"\n[[experiment]]\nname = \"a\"\nfiles = [\"a\"]\nharmonics = 20\n[[validation]]\nname = \"v\"\nfiles = [\"v\"]\nharmonics = 20\n[consistent]\n",
+        root("designs/robots/geared3_unknown_drives.toml").display()
+    );
+    let true_links = masses_and_traces(&truth.names, &truth.theta, 3);
+    let r = study(dir, &text);
+    let c = r.estimate.consistent.as_ref().unwrap();
+    assert!(c.status.is_ok(), "{:?}", c.status);
+    let links = masses_and_traces(&c.standard_names, &c.standard, 3);
+    for (l, ((m, tr), (m0, tr0))) in links.iter().zip(&true_links).enumerate() {
+        assert!((0.5..=2.0).contains(&(m / m0)), "link {}: mass {m} vs {m0}\n{}", l + 1, r.estimate.text());
+        assert!((0.5..=2.0).contains(&(tr / tr0)), "link {}: tr I_c {tr} vs {tr0}\n{}", l + 1, r.estimate.text());
+    }
+    // every drive parameter is unknown, listed, and the data decide it: the
+    // rotor inertias within 10 % of the truth
+    let unknown: Vec<&str> = c.unknown.iter().map(|u| u.name.as_str()).collect();
+    assert_eq!(unknown, ["Ia1", "Fc1", "Fv1", "Ia2", "Fc2", "Fv2", "Ia3", "Fc3", "Fv3"]);
+    for u in &c.unknown {
+        let t = truth.theta[truth.names.iter().position(|n| *n == u.name).unwrap()];
+        assert!(u.std_data.is_finite(), "{}", u.name);
+        if u.name.starts_with("Ia") {
+            assert!((u.value - t).abs() < 0.1 * t, "{}: {} vs {t}", u.name, u.value);
+        }
+    }
+    let report = r.estimate.text();
+    assert!(report.contains("drive parameters without a known value") && report.contains("Ia2"), "{report}");
+    // the former default (every zero pulled to 0) pushes the rotor inertias into the links
+    let old = study(dir, &text.replace("[consistent]\n", "[consistent]\nunknown = \"none\"\n"));
+    let oc = old.estimate.consistent.as_ref().unwrap();
+    assert!(oc.unknown.is_empty());
+    let ol = masses_and_traces(&oc.standard_names, &oc.standard, 3);
+    assert!(ol.iter().zip(&true_links).any(|((_, tr), (_, tr0))| tr / tr0 > 2.0), "{ol:?} vs {true_links:?}");
+    // a link parameter cannot be unknown; a name that is not a parameter is refused
+    for (list, what) in [("[\"M2\"]", "link inertial"), ("[\"Ia9\"]", "not a parameter")] {
+        let p = dir.join("bad.toml");
+        std::fs::write(&p, text.replace("[consistent]\n", &format!("[consistent]\nunknown = {list}\n"))).unwrap();
+        let d = StudyDesign::read(&p).unwrap();
+        let e = run_study(&d, dir, &Control::new()).unwrap_err().to_string();
+        assert!(e.contains("unknown") && e.contains(what), "{e}");
+    }
+}

@@ -3,7 +3,7 @@
 //! link beside the prior, implausible values flagged, and the directions the
 //! prior decided.
 
-use super::{validation_sum, ConsistentReport, ConsistentSpec, Direction, Flag, LinkPrior, Loaded, Stacked, WeightRule, WeightSpec};
+use super::{validation_sum, ConsistentReport, ConsistentSpec, Direction, Flag, LinkPrior, Loaded, Stacked, UnknownParam, UnknownRule, UnknownSpec, WeightRule, WeightSpec};
 use crate::error::{Error, Result};
 use crate::ident::consistent::{kinds_of, ConsistentStatus, Kind};
 use crate::ident::estimate::{errors, Dataset};
@@ -38,9 +38,10 @@ pub(super) fn consistent_with_prior(
         prior: &theta0,
         scale: &scale,
     };
+    let unknown = unknown_of(robot, &kinds, &theta0, &cs.unknown)?;
     let every_val: Vec<&Dataset> = validations.iter().map(|v| &v.prep.every).collect();
     let (weight, curve, sol) = match cs.weight {
-        WeightSpec::Value(w) => (w, Vec::new(), crate::ident::prior::solve(&pb, cs.metric, w, cs.margin, ctl)?),
+        WeightSpec::Value(w) => (w, Vec::new(), crate::ident::prior::solve_with_unknown(&pb, &unknown, cs.metric, w, cs.margin, ctl)?),
         WeightSpec::Rule(WeightRule::Validation) => {
             let obs = ctl.observer();
             obs.phase("identify prior weight", Some(cs.weight_grid.len() as u64));
@@ -51,7 +52,7 @@ pub(super) fn consistent_with_prior(
                     obs.phase_done();
                     return Ok(None);
                 }
-                let sol = crate::ident::prior::solve(&pb, cs.metric, w, cs.margin, ctl)?;
+                let sol = crate::ident::prior::solve_with_unknown(&pb, &unknown, cs.metric, w, cs.margin, ctl)?;
                 let ok = ConsistentStatus::of(&sol.status).is_ok();
                 let score = if ok {
                     validation_sum(&every_val, sol.base.as_slice()).map_or(f64::INFINITY, |t| t.1)
@@ -111,6 +112,18 @@ pub(super) fn consistent_with_prior(
         }
     }
     let (unidentifiable, prior_decided, n_prior_decided) = directions(&st.r, &base.k, &scale, &sol.theta, &theta0, weight, &names);
+    let rk = &st.r * &base.k;
+    let unknown_rows = (0..names.len())
+        .filter(|&j| unknown[j])
+        .map(|j| {
+            let h = rk.column(j).norm();
+            UnknownParam {
+                name: names[j].clone(),
+                value: th[j],
+                std_data: if h > 1e-12 * rk.norm() { 1.0 / h } else { f64::INFINITY },
+            }
+        })
+        .collect();
     let consistent_experiments = experiments.iter().map(|e| errors(&e.prep.every, sol.base.as_slice())).collect();
     let total: usize = experiments.iter().map(|e| e.prep.full.y.len()).sum();
     let ssr_wls: f64 = st.blocks.iter().map(|b| b.chi2).sum();
@@ -136,6 +149,7 @@ pub(super) fn consistent_with_prior(
         unidentifiable,
         prior_decided,
         n_prior_decided,
+        unknown: unknown_rows,
         experiments: consistent_experiments,
         iterations: sol.iterations,
         solve_time: sol.solve_time,
@@ -178,4 +192,38 @@ fn directions(
         })
         .collect();
     (unseen, listed, weak.len())
+}
+
+/// Per standard parameter: a drive parameter without a known value (`unknown`).
+fn unknown_of(robot: &Robot, kinds: &[Kind], theta0: &DVector<f64>, spec: &UnknownSpec) -> Result<Vec<bool>> {
+    let drive = |j: usize| !matches!(kinds[j], Kind::Inertial(_));
+    let names = robot.param_names();
+    match spec {
+        UnknownSpec::Rule(UnknownRule::None) => Ok(vec![false; names.len()]),
+        UnknownSpec::Rule(UnknownRule::Zeros) => Ok((0..names.len()).map(|j| drive(j) && theta0[j] == 0.0).collect()),
+        UnknownSpec::Names(list) => {
+            let mut out = vec![false; names.len()];
+            for n in list {
+                match names.iter().position(|x| x == n) {
+                    Some(j) if drive(j) => out[j] = true,
+                    Some(_) => {
+                        return Err(Error::invalid(
+                            "study: [consistent]",
+                            "unknown",
+                            format!("`{n}` is a link inertial parameter: only drive parameters (Ia, Fc, Fv, …) can be unknown; a link's inertial values are its prior"),
+                        ))
+                    }
+                    None => {
+                        let drives: Vec<&String> = (0..names.len()).filter(|&j| drive(j)).map(|j| &names[j]).collect();
+                        return Err(Error::invalid(
+                            "study: [consistent]",
+                            "unknown",
+                            format!("`{n}` is not a parameter of robot {}: expected \"zeros\", \"none\" or drive parameter names among {drives:?}", robot.name),
+                        ));
+                    }
+                }
+            }
+            Ok(out)
+        }
+    }
 }

@@ -46,6 +46,7 @@
 //! scale = 0.5                        # prior std relative to the nominal value (floored per kind)
 //! margin = 0.0                       # pseudo-inertias ⪰ margin · I (kg·m²)
 //! plausible = [0.2, 5.0]             # flag masses, inertias and drive parameters outside these ratios to the prior
+//! unknown = "zeros"                  # drive parameters without a known value, not pulled: "zeros" (those the prior gives as 0) | "none" | ["Ia1", "Fc2"]
 //! ```
 
 use crate::data::{Coordinates, TorqueFrom};
@@ -204,6 +205,32 @@ pub enum WeightRule {
     Validation,
 }
 
+/// Which drive parameters of the prior have no known value (`[consistent] unknown`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum UnknownSpec {
+    /// A rule: `"zeros"` or `"none"`.
+    Rule(UnknownRule),
+    /// These drive parameters by name (`["Ia1", "Fc2"]`).
+    Names(Vec<String>),
+}
+
+/// Rules for [`UnknownSpec`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum UnknownRule {
+    /// Every drive parameter (Ia, Fc, Fv, …) that is 0 in the prior is unknown.
+    Zeros,
+    /// Every drive parameter's prior value is known (0 is pulled toward 0).
+    None,
+}
+
+impl Default for UnknownSpec {
+    fn default() -> Self {
+        UnknownSpec::Rule(UnknownRule::Zeros)
+    }
+}
+
 /// The consistent estimate's prior (`[consistent]`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -229,6 +256,10 @@ pub struct ConsistentSpec {
     /// Ratios to the prior outside which masses, inertias and drive parameters are flagged.
     #[serde(default = "plausible")]
     pub plausible: [f64; 2],
+    /// Drive parameters without a known value, not pulled toward the prior
+    /// (default `"zeros"`: those the prior gives as 0).
+    #[serde(default)]
+    pub unknown: UnknownSpec,
 }
 
 impl Default for ConsistentSpec {
@@ -241,6 +272,7 @@ impl Default for ConsistentSpec {
             scale: half(),
             margin: 0.0,
             plausible: plausible(),
+            unknown: UnknownSpec::default(),
         }
     }
 }

@@ -208,6 +208,23 @@ fn consistent_text(c: &ConsistentReport, e: &StudyEstimate) -> String {
         "  directions the prior decided: {} not seen by the data at all (null space of the fit), {} seen less than the prior (fit curvature below the weight {:e})",
         c.unidentifiable, c.n_prior_decided, c.weight
     );
+    if c.unknown.is_empty() {
+        let _ = writeln!(s, "  drive parameters without a known value: none (every drive parameter is pulled toward its prior value)");
+    } else {
+        let _ = writeln!(
+            s,
+            "  drive parameters without a known value (unknown; not pulled toward the prior, pull {:e} of the weight): the data decide them",
+            crate::ident::prior::UNKNOWN_PULL
+        );
+        for u in &c.unknown {
+            let seen = if u.std_data.is_finite() {
+                format!("σ from the data alone {:.3e}", u.std_data)
+            } else {
+                "not seen by the data: left at 0".to_string()
+            };
+            let _ = writeln!(s, "    {:<8} {:>13.6e}  ({seen})", u.name, u.value);
+        }
+    }
     for d in &c.prior_decided {
         let comp: Vec<String> = d.components.iter().map(|(n, v)| format!("{v:+.2}·{n}")).collect();
         let _ = writeln!(
