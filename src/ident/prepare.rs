@@ -113,7 +113,11 @@ pub fn prepare(
         })
         .collect();
     if !(opts.dead_band.is_finite() && opts.dead_band >= 0.0) {
-        return Err(Error::invalid("identify", "dead_band", format!("expected a speed ≥ 0 (rad/s), found {}", opts.dead_band)));
+        return Err(Error::invalid(
+            "identify",
+            "dead_band",
+            format!("expected a speed ≥ 0 (rad/s), found {}", opts.dead_band),
+        ));
     }
     let every = Dataset::every_row_dead_band(robot, base, &pr, opts.dead_band);
     let full = every.moving_rows_of(&pr, slow, vmin, &drop);

@@ -41,7 +41,7 @@
 //! [consistent]                       # physically consistent estimate with a prior
 //! prior = "nominal"                  # nominal (the robot file) | a robot file (same links and drives)
 //! metric = "entropic"                # entropic | euclidean
-//! weight = 1.0                       # or "validation": chosen on the validation runs from `weight_grid`
+//! weight = 1.0                       # or "validation": the strongest of `weight_grid` within one standard error of the best validation error
 //! weight_grid = [1e-3, 1e-2, 0.1, 1, 10, 100, 1e3]
 //! scale = 0.5                        # prior std relative to the nominal value (floored per kind)
 //! margin = 0.0                       # pseudo-inertias ⪰ margin · I (kg·m²)
@@ -201,7 +201,11 @@ pub enum WeightSpec {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum WeightRule {
-    /// The weight of `weight_grid` with the smallest validation error.
+    /// The largest weight of `weight_grid` (the strongest prior) whose
+    /// validation error is within one standard error of the smallest
+    /// (one-standard-error rule). The error: the mean over validation runs
+    /// and joints of RMS(τ − τ̂) divided by the joint's torque range over all
+    /// validation runs; its standard error: sd/√K over those K terms.
     Validation,
 }
 

@@ -30,9 +30,11 @@ pub mod report;
 mod result;
 pub mod stack;
 
-pub use design::{ConsistentSpec, ExperimentKind, ExperimentSpec, ExportFormat, FilterName, StudyDesign, StudyMethod, UnknownRule, UnknownSpec, WeightRule, WeightSpec};
+pub use design::{
+    ConsistentSpec, ExperimentKind, ExperimentSpec, ExportFormat, FilterName, StudyDesign, StudyMethod, UnknownRule, UnknownSpec, WeightRule, WeightSpec,
+};
 pub use load::{load_entry, load_entry_with, Loaded};
-pub use result::{ConsistentReport, Direction, UnknownParam, ExperimentReport, Flag, LinkPrior, StudyEstimate, StudyResult, ValidationReport, ValidationTotal};
+pub use result::{ConsistentReport, Direction, ExperimentReport, Flag, LinkPrior, StudyEstimate, StudyResult, UnknownParam, ValidationReport, ValidationTotal};
 pub use stack::{Block, BlockWeight, StackOptions, Stacked, WeightSource};
 
 use super::estimate::{errors, must_be_positive, Dataset};

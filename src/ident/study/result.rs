@@ -158,6 +158,10 @@ pub struct ConsistentReport {
     pub weight: f64,
     /// Per candidate weight (weight = "validation"): (weight, mean relative RMS on the validation runs, extra cost).
     pub weight_curve: Vec<(f64, f64, f64)>,
+    /// `weight = "validation"`: the tolerance of the one-standard-error rule
+    /// (the standard error of the best criterion); the strongest prior within
+    /// it of the best was chosen.
+    pub weight_tolerance: Option<f64>,
     /// Relative scale of the prior.
     pub scale: f64,
     /// Margin ε.
