@@ -787,3 +787,38 @@ fn a_geared_arm_whose_robot_file_does_not_know_its_drives_gets_plausible_links()
         assert!(e.contains("unknown") && e.contains(what), "{e}");
     }
 }
+
+#[test]
+fn exported_robot_toml_alone_carries_the_identified_inertials_through_a_urdf_written_beside_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let robot = "tests/data/rxz_chain.urdf";
+    sim(dir, "a", robot, &fourier(3, 11, 3, 0.1, 5, 0.05, 5));
+    let text = format!(
+        "robot = \"{}\"\nexport = [\"toml\"]\n[[experiment]]\nname = \"a\"\nfiles = [\"a\"]\nharmonics = 20\n[consistent]\nmetric = \"euclidean\"\n",
+        root(robot).display()
+    );
+    let r = study(dir, &text);
+    let c = r.estimate.consistent.as_ref().unwrap();
+    assert!(c.status.is_ok(), "{:?}", c.status);
+    let out = dir.join("out");
+    r.write(&out, None).unwrap();
+    // robot.toml points at the URDF written beside it, not at the input URDF
+    let toml_text = std::fs::read_to_string(out.join("robot.toml")).unwrap();
+    let table: toml::Table = toml_text.parse().unwrap();
+    assert_eq!(table["urdf"].as_str(), Some("robot.urdf"), "{toml_text}");
+    // loaded by idexp: the identified standard parameters (within print precision)
+    let back = idexp::robot::load(&out.join("robot.toml")).unwrap();
+    let th = back.nominal_params();
+    assert_eq!(back.param_names(), c.standard_names);
+    for (j, (a, b)) in th.iter().zip(&c.standard).enumerate() {
+        assert!((a - b).abs() < 1e-9 * (1.0 + b.abs()), "{}: {a} vs {b}", c.standard_names[j]);
+    }
+    // the URDF it points to, read by urdf-rs: every link's mass is the identified one
+    let u = urdf_rs::read_file(out.join("robot.urdf")).unwrap();
+    for (l, link) in c.links.iter().enumerate() {
+        let ul = u.links.iter().find(|x| x.name == link.link).unwrap_or_else(|| panic!("{} in robot.urdf", link.link));
+        assert!((ul.inertial.mass.value - link.mass[0]).abs() < 1e-9 * link.mass[0], "link {}: {} vs {}", l + 1, ul.inertial.mass.value, link.mass[0]);
+    }
+    assert!(c.links.iter().any(|l| (l.mass[0] - l.mass[1]).abs() > 1e-3 * l.mass[1]), "every mass at its nominal value");
+}

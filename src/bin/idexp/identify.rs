@@ -468,17 +468,13 @@ fn export(
     let wants = a.export.iter().any(|e| *e != ExportKind::Csv);
     match model {
         Some(m) => {
-            let mut urdf_name = None;
-            if a.export.contains(&ExportKind::Urdf) {
+            // robot.toml of a URDF robot points at a URDF: the identified one, written beside it
+            let from_urdf = matches!(src, idexp::robot::export::Source::Urdf { .. });
+            if a.export.contains(&ExportKind::Urdf) || (from_urdf && a.export.contains(&ExportKind::Toml)) {
                 files.push(idexp::robot::export::write_urdf(src, &m, out)?);
-                urdf_name = Some("robot.urdf");
             }
             if a.export.contains(&ExportKind::Toml) {
-                let urdf_ref = match (urdf_name, src) {
-                    (Some(n), _) => Some(n.to_string()),
-                    (None, idexp::robot::export::Source::Urdf { urdf, .. }) => Some(std::path::absolute(urdf)?.display().to_string()),
-                    _ => None,
-                };
+                let urdf_ref = from_urdf.then(|| "robot.urdf".to_string());
                 files.push(idexp::robot::export::write_robot_toml(src, &m, out, urdf_ref.as_deref())?);
             }
             if a.export.contains(&ExportKind::Mjcf) {
