@@ -817,8 +817,21 @@ fn exported_robot_toml_alone_carries_the_identified_inertials_through_a_urdf_wri
     // the URDF it points to, read by urdf-rs: every link's mass is the identified one
     let u = urdf_rs::read_file(out.join("robot.urdf")).unwrap();
     for (l, link) in c.links.iter().enumerate() {
-        let ul = u.links.iter().find(|x| x.name == link.link).unwrap_or_else(|| panic!("{} in robot.urdf", link.link));
-        assert!((ul.inertial.mass.value - link.mass[0]).abs() < 1e-9 * link.mass[0], "link {}: {} vs {}", l + 1, ul.inertial.mass.value, link.mass[0]);
+        let ul = u
+            .links
+            .iter()
+            .find(|x| x.name == link.link)
+            .unwrap_or_else(|| panic!("{} in robot.urdf", link.link));
+        assert!(
+            (ul.inertial.mass.value - link.mass[0]).abs() < 1e-9 * link.mass[0],
+            "link {}: {} vs {}",
+            l + 1,
+            ul.inertial.mass.value,
+            link.mass[0]
+        );
     }
-    assert!(c.links.iter().any(|l| (l.mass[0] - l.mass[1]).abs() > 1e-3 * l.mass[1]), "every mass at its nominal value");
+    assert!(
+        c.links.iter().any(|l| (l.mass[0] - l.mass[1]).abs() > 1e-3 * l.mass[1]),
+        "every mass at its nominal value"
+    );
 }

@@ -47,6 +47,26 @@ pub struct Dataset {
 /// and torques; rows joint-major (row j·N + p). Regressor rows are evaluated
 /// in parallel, one workspace per thread.
 pub fn base_design(robot: &Robot, base: &BaseParams, q: &[Vec<f64>], qd: &[Vec<f64>], qdd: &[Vec<f64>]) -> DMatrix<f64> {
+    base_design_dead_band(robot, base, q, qd, qdd, 0.0)
+}
+
+/// [`base_design`] with the Coulomb dead band: in the row of a joint whose
+/// Coulomb term has the `sign` shape, the Coulomb columns (Fc, Fc±) are 0
+/// where |q̇_j| < `dead_band` (at rest); every other term (rigid body,
+/// viscous) sees the velocities as they are.
+pub fn base_design_dead_band(robot: &Robot, base: &BaseParams, q: &[Vec<f64>], qd: &[Vec<f64>], qdd: &[Vec<f64>], dead_band: f64) -> DMatrix<f64> {
+    use crate::robot::ParamKind;
+    let coulomb: Vec<(usize, usize)> = if dead_band > 0.0 {
+        robot
+            .params()
+            .iter()
+            .enumerate()
+            .filter(|(_, i)| matches!(i.kind, ParamKind::Fc | ParamKind::FcPos | ParamKind::FcNeg) && robot.drives[i.joint].discontinuous_at_rest())
+            .map(|(c, i)| (c, i.joint))
+            .collect()
+    } else {
+        Vec::new()
+    };
     let n = robot.dof();
     let p = robot.n_params();
     let nb = base.n_base();
@@ -57,6 +77,11 @@ pub fn base_design(robot: &Robot, base: &BaseParams, q: &[Vec<f64>], qd: &[Vec<f
             || (Workspace::new(robot), vec![0.0; n * p]),
             |(ws, y), k| {
                 regressor_rows(robot, ws, &q[k], &qd[k], &qdd[k], y);
+                for &(c, j) in &coulomb {
+                    if qd[k][j].abs() < dead_band {
+                        y[j * p + c] = 0.0;
+                    }
+                }
                 let mut out = vec![0.0; n * nb];
                 base.select_rows(y, n, &mut out);
                 out
@@ -76,30 +101,15 @@ pub fn base_design(robot: &Robot, base: &BaseParams, q: &[Vec<f64>], qd: &[Vec<f
 /// joint crawling slower than 0.01 rad/s carries no usable Coulomb equation.
 pub const DEAD_BAND: f64 = 0.01;
 
-/// The velocities the regressor sees: |q̇_j| < `dead_band` set to 0 (at rest)
-/// for the joints whose Coulomb term has the `sign` shape, so sign(q̇) of
-/// velocity noise does not switch ±F_c on; other joints unchanged.
-pub fn dead_banded<'a>(robot: &Robot, qd: &'a [Vec<f64>], dead_band: f64) -> std::borrow::Cow<'a, [Vec<f64>]> {
-    let sign: Vec<bool> = robot.drives.iter().map(|d| d.discontinuous_at_rest()).collect();
-    if dead_band <= 0.0 || !sign.iter().any(|&s| s) {
-        return std::borrow::Cow::Borrowed(qd);
-    }
-    std::borrow::Cow::Owned(
-        qd.iter()
-            .map(|v| v.iter().zip(&sign).map(|(&x, &s)| if s && x.abs() < dead_band { 0.0 } else { x }).collect())
-            .collect(),
-    )
-}
-
 impl Dataset {
-    /// [`Dataset::every_row`] with the Coulomb dead band ([`dead_banded`]):
-    /// the rows of the `sign`-shaped joints at |q̇_j| < `dead_band` have no
-    /// Coulomb (and viscous) term. Used alike for estimation and validation.
+    /// [`Dataset::every_row`] with the Coulomb dead band
+    /// ([`base_design_dead_band`]): the rows of the `sign`-shaped joints at
+    /// |q̇_j| < `dead_band` have no Coulomb term. Used alike for estimation
+    /// and validation.
     pub fn every_row_dead_band(robot: &Robot, base: &BaseParams, pr: &super::Processed, dead_band: f64) -> Dataset {
-        let qd = dead_banded(robot, &pr.qd, dead_band);
         let n = robot.dof();
         let m = pr.len();
-        let c = base_design(robot, base, &pr.q, &qd, &pr.qdd);
+        let c = base_design_dead_band(robot, base, &pr.q, &pr.qd, &pr.qdd, dead_band);
         let y = DVector::from_iterator(n * m, (0..n * m).map(|r| pr.tau[r % m][r / m]));
         let var = pr
             .tau_var

@@ -143,7 +143,7 @@ pub struct IdentOptions {
     /// Rows of a joint slower than this speed are left out too (rad/s or m/s).
     pub min_speed: f64,
     /// Coulomb dead band (rad/s or m/s): for the joints with a `sign` Coulomb
-    /// term, |q̇_j| below it is rest (no Coulomb or viscous term), in the
+    /// term, |q̇_j| below it is rest (no Coulomb term), in the
     /// identification and the validation run alike (default
     /// [`DEAD_BAND`](super::estimate::DEAD_BAND); 0: sign(q̇) everywhere).
     pub dead_band: f64,

@@ -224,13 +224,15 @@ fn unknown_of(robot: &Robot, kinds: &[Kind], theta0: &DVector<f64>, spec: &Unkno
             for n in list {
                 match names.iter().position(|x| x == n) {
                     Some(j) if drive(j) => out[j] = true,
-                    Some(_) => return Err(Error::invalid(
-                        "study: [consistent]",
-                        "unknown",
-                        format!(
+                    Some(_) => {
+                        return Err(Error::invalid(
+                            "study: [consistent]",
+                            "unknown",
+                            format!(
                             "`{n}` is a link inertial parameter: only drive parameters (Ia, Fc, Fv, …) can be unknown; a link's inertial values are its prior"
                         ),
-                    )),
+                        ))
+                    }
                     None => {
                         let drives: Vec<&String> = (0..names.len()).filter(|&j| drive(j)).map(|j| &names[j]).collect();
                         return Err(Error::invalid(
