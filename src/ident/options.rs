@@ -146,6 +146,7 @@ pub struct IdentOptions {
     /// term, |q̇_j| below it is rest (no Coulomb term), in the
     /// identification and the validation run alike (default
     /// [`DEAD_BAND`](super::estimate::DEAD_BAND); 0: sign(q̇) everywhere).
+    /// Not applied by the projection method, which needs every sample as it is.
     pub dead_band: f64,
     /// Which joints the slow-row rule applies to ([`Standstill`]; default:
     /// those with a `sign` Coulomb term).

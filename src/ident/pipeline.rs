@@ -116,7 +116,7 @@ pub fn identify(
                 (_, None) => resolve_filter(&FilterChoice::Auto, None, None),
             };
             let vp = process_with(vrun, &vf, opts.velocity_from)?.decimated(opts.decimate);
-            let ve = Dataset::every_row_dead_band(robot, base, &vp, opts.dead_band).columns(&cols);
+            let ve = Dataset::every_row_dead_band(robot, base, &vp, super::prepare::dead_band(opts)).columns(&cols);
             let vd = ve.moving_rows_of(&vp, slow, vmin, &drop);
             val_every = Some(ve);
             Some(vd)

@@ -119,7 +119,7 @@ pub fn prepare(
             format!("expected a speed ≥ 0 (rad/s), found {}", opts.dead_band),
         ));
     }
-    let every = Dataset::every_row_dead_band(robot, base, &pr, opts.dead_band);
+    let every = Dataset::every_row_dead_band(robot, base, &pr, dead_band(opts));
     let full = every.moving_rows_of(&pr, slow, vmin, &drop);
     if full.c.nrows() <= full.c.ncols() && every.c.nrows() > every.c.ncols() {
         let vmax: Vec<String> = (0..robot.dof())
@@ -138,6 +138,16 @@ pub fn prepare(
         slow,
         vmin,
     })
+}
+
+/// The Coulomb dead band `opts` apply: none for the projection method,
+/// which models every sample with sign(q̇) as its simulation does.
+pub(crate) fn dead_band(opts: &IdentOptions) -> f64 {
+    if matches!(opts.method, Method::Projection) {
+        0.0
+    } else {
+        opts.dead_band
+    }
 }
 
 /// The rows of each joint in `full` and the standstill rule that chose them.
