@@ -266,6 +266,7 @@ def identify(
     torque_from: str = "auto",
     current_tolerance: float = 0.05,
     velocity_from: str = "auto",
+    dead_band: float = 0.01,
     time_limit: Optional[float] = None,
     progress: Progress = None,
 ) -> Identification:
@@ -277,7 +278,9 @@ def identify(
     tanh/stribeck joints), drop or keep. torque_from: auto, torque or current (a run folder
     or CSV logging cur1..curn: τ = current_sign·k_t·N·i from the robot file's drives);
     current_tolerance: relative RMS by which logged torques and currents may disagree.
-    velocity_from: auto (the logged qd1..qdn when the run has them), log or positions."""
+    velocity_from: auto (the logged qd1..qdn when the run has them), log or positions.
+    dead_band (rad/s): for joints with a sign Coulomb term, |q̇| below it is rest (no
+    Coulomb term), in the run and the validation run alike; 0: sign(q̇) everywhere."""
 
 class Study:
     """An identification study (idexp.study; `idexp identify study.toml`)."""

@@ -169,10 +169,12 @@ pub fn model_kinds(arg: &Bound<'_, PyAny>, allowed: &[&str]) -> PyResult<Vec<Str
 /// Writes `robot` (identified parameters) as `robot.urdf` and/or
 /// `robot.toml` into `dir`, the way `idexp identify --export urdf,toml`
 /// does: the URDF copies the kinematics of the source file `source`; the
-/// TOML points at the exported URDF, else at the source URDF (absolute).
+/// TOML of a URDF robot points at the exported URDF (written also when only
+/// "toml" is asked: robot.toml must carry this robot's inertials).
 pub fn write_model(source: &Path, robot: &idexp::robot::Robot, dir: &Path, kinds: &[String]) -> PyResult<Vec<PathBuf>> {
     let src = rx::source_of(source).py()?;
-    let urdf = kinds.iter().any(|k| k == "urdf");
+    // robot.toml of a URDF robot points at a URDF: this robot's, written beside it
+    let urdf = kinds.iter().any(|k| k == "urdf") || (kinds.iter().any(|k| k == "toml") && matches!(src, Source::Urdf { .. }));
     if urdf {
         if let Source::Dh { toml } = &src {
             return Err(value(format!(
@@ -187,16 +189,7 @@ pub fn write_model(source: &Path, robot: &idexp::robot::Robot, dir: &Path, kinds
         files.push(rx::write_urdf(&src, robot, dir).py()?);
     }
     if kinds.iter().any(|k| k == "toml") {
-        let urdf_ref = match (urdf, &src) {
-            (true, _) => Some("robot.urdf".to_string()),
-            (false, Source::Urdf { urdf, .. }) => Some(
-                std::path::absolute(urdf)
-                    .map_err(|e| crate::err::to_py(idexp::Error::io(urdf, e)))?
-                    .display()
-                    .to_string(),
-            ),
-            _ => None,
-        };
+        let urdf_ref = urdf.then(|| "robot.urdf".to_string());
         files.push(rx::write_robot_toml(&src, robot, dir, urdf_ref.as_deref()).py()?);
     }
     Ok(files)

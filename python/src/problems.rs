@@ -877,7 +877,7 @@ fn read_trajectory(obj: &Bound<'_, PyAny>) -> PyResult<FourierTrajectory> {
 #[pyo3(signature = (robot, run, method = "wls", weights = "sample", filter = "auto", cutoff = 10.0, trajectory = None,
                     harmonics = None, decimate = 1, validate = None, truth = None, consistent = false, margin = 0.0,
                     regularization = 1e-6, standstill = "auto", torque_from = "auto", current_tolerance = 0.05,
-                    velocity_from = "auto", time_limit = None, progress = None))]
+                    velocity_from = "auto", dead_band = ident::DEAD_BAND, time_limit = None, progress = None))]
 #[allow(clippy::too_many_arguments)] // the Python signature mirrors `idexp identify`'s options
 pub fn identify(
     py: Python<'_>,
@@ -899,6 +899,7 @@ pub fn identify(
     torque_from: &str,
     current_tolerance: f64,
     velocity_from: &str,
+    dead_band: f64,
     time_limit: Option<f64>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<Identification> {
@@ -951,6 +952,7 @@ pub fn identify(
         consistent: consistent.then_some(idexp::ident::consistent::ConsistentOptions { margin, regularization }),
         standstill,
         velocity_from,
+        dead_band,
         ..Default::default()
     };
     let val = validate.as_ref().map(|v| read_run(py, v, &drives, "validate")).transpose()?;

@@ -47,6 +47,26 @@ pub struct Dataset {
 /// and torques; rows joint-major (row j·N + p). Regressor rows are evaluated
 /// in parallel, one workspace per thread.
 pub fn base_design(robot: &Robot, base: &BaseParams, q: &[Vec<f64>], qd: &[Vec<f64>], qdd: &[Vec<f64>]) -> DMatrix<f64> {
+    base_design_dead_band(robot, base, q, qd, qdd, 0.0)
+}
+
+/// [`base_design`] with the Coulomb dead band: in the row of a joint whose
+/// Coulomb term has the `sign` shape, the Coulomb columns (Fc, Fc±) are 0
+/// where |q̇_j| < `dead_band` (at rest); every other term (rigid body,
+/// viscous) sees the velocities as they are.
+pub fn base_design_dead_band(robot: &Robot, base: &BaseParams, q: &[Vec<f64>], qd: &[Vec<f64>], qdd: &[Vec<f64>], dead_band: f64) -> DMatrix<f64> {
+    use crate::robot::ParamKind;
+    let coulomb: Vec<(usize, usize)> = if dead_band > 0.0 {
+        robot
+            .params()
+            .iter()
+            .enumerate()
+            .filter(|(_, i)| matches!(i.kind, ParamKind::Fc | ParamKind::FcPos | ParamKind::FcNeg) && robot.drives[i.joint].discontinuous_at_rest())
+            .map(|(c, i)| (c, i.joint))
+            .collect()
+    } else {
+        Vec::new()
+    };
     let n = robot.dof();
     let p = robot.n_params();
     let nb = base.n_base();
@@ -57,6 +77,11 @@ pub fn base_design(robot: &Robot, base: &BaseParams, q: &[Vec<f64>], qd: &[Vec<f
             || (Workspace::new(robot), vec![0.0; n * p]),
             |(ws, y), k| {
                 regressor_rows(robot, ws, &q[k], &qd[k], &qdd[k], y);
+                for &(c, j) in &coulomb {
+                    if qd[k][j].abs() < dead_band {
+                        y[j * p + c] = 0.0;
+                    }
+                }
                 let mut out = vec![0.0; n * nb];
                 base.select_rows(y, n, &mut out);
                 out
@@ -69,25 +94,22 @@ pub fn base_design(robot: &Robot, base: &BaseParams, q: &[Vec<f64>], qd: &[Vec<f
     })
 }
 
-impl Dataset {
-    /// Builds the dataset of a processed run. Rows of joint j at samples where
-    /// |q̇_j| < max(`slow_ratio` · max_p |q̇_j(p)|, `min_speed`) are left out:
-    /// near zero velocity the sign of the estimated velocity is unreliable and
-    /// Coulomb friction is undefined at rest (a drive holding still chatters
-    /// between ±F_c), which biases the friction estimates; a joint that never
-    /// moves faster than `min_speed` contributes no rows (its friction columns
-    /// vanish and the rank check of the reduction removes them).
-    /// `slow_ratio = min_speed = 0` keeps every row.
-    pub fn new(robot: &Robot, base: &BaseParams, pr: &super::Processed, slow_ratio: f64, min_speed: f64) -> Dataset {
-        Dataset::every_row(robot, base, pr).moving_rows(pr, slow_ratio, min_speed)
-    }
+/// Default Coulomb dead band (rad/s or m/s, [`IdentOptions::dead_band`](super::IdentOptions::dead_band)):
+/// the speed below which the default speed rule (`min_speed`) already calls
+/// the sign of a measured velocity unreliable. A robot at rest logs noise
+/// around zero (a 4-decimal log flips sign every sample, ~1e-4 rad/s); a
+/// joint crawling slower than 0.01 rad/s carries no usable Coulomb equation.
+pub const DEAD_BAND: f64 = 0.01;
 
-    /// The dataset of every sample of a processed run (no row left out): the
-    /// rows paper 000's e_j, e*_j (eq. 11–12) are defined on.
-    pub fn every_row(robot: &Robot, base: &BaseParams, pr: &super::Processed) -> Dataset {
+impl Dataset {
+    /// [`Dataset::every_row`] with the Coulomb dead band
+    /// ([`base_design_dead_band`]): the rows of the `sign`-shaped joints at
+    /// |q̇_j| < `dead_band` have no Coulomb term. Used alike for estimation
+    /// and validation.
+    pub fn every_row_dead_band(robot: &Robot, base: &BaseParams, pr: &super::Processed, dead_band: f64) -> Dataset {
         let n = robot.dof();
         let m = pr.len();
-        let c = base_design(robot, base, &pr.q, &pr.qd, &pr.qdd);
+        let c = base_design_dead_band(robot, base, &pr.q, &pr.qd, &pr.qdd, dead_band);
         let y = DVector::from_iterator(n * m, (0..n * m).map(|r| pr.tau[r % m][r / m]));
         let var = pr
             .tau_var
@@ -103,6 +125,24 @@ impl Dataset {
             joint: (0..n * m).map(|r| r / m).collect(),
             sample: (0..n * m).map(|r| r % m).collect(),
         }
+    }
+
+    /// Builds the dataset of a processed run. Rows of joint j at samples where
+    /// |q̇_j| < max(`slow_ratio` · max_p |q̇_j(p)|, `min_speed`) are left out:
+    /// near zero velocity the sign of the estimated velocity is unreliable and
+    /// Coulomb friction is undefined at rest (a drive holding still chatters
+    /// between ±F_c), which biases the friction estimates; a joint that never
+    /// moves faster than `min_speed` contributes no rows (its friction columns
+    /// vanish and the rank check of the reduction removes them).
+    /// `slow_ratio = min_speed = 0` keeps every row.
+    pub fn new(robot: &Robot, base: &BaseParams, pr: &super::Processed, slow_ratio: f64, min_speed: f64) -> Dataset {
+        Dataset::every_row(robot, base, pr).moving_rows(pr, slow_ratio, min_speed)
+    }
+
+    /// The dataset of every sample of a processed run (no row left out): the
+    /// rows paper 000's e_j, e*_j (eq. 11–12) are defined on.
+    pub fn every_row(robot: &Robot, base: &BaseParams, pr: &super::Processed) -> Dataset {
+        Dataset::every_row_dead_band(robot, base, pr, 0.0)
     }
 
     /// The rows of a complete dataset ([`Dataset::every_row`] of `pr`) that

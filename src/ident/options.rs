@@ -142,6 +142,12 @@ pub struct IdentOptions {
     pub slow_ratio: f64,
     /// Rows of a joint slower than this speed are left out too (rad/s or m/s).
     pub min_speed: f64,
+    /// Coulomb dead band (rad/s or m/s): for the joints with a `sign` Coulomb
+    /// term, |q̇_j| below it is rest (no Coulomb term), in the
+    /// identification and the validation run alike (default
+    /// [`DEAD_BAND`](super::estimate::DEAD_BAND); 0: sign(q̇) everywhere).
+    /// Not applied by the projection method, which needs every sample as it is.
+    pub dead_band: f64,
     /// Which joints the slow-row rule applies to ([`Standstill`]; default:
     /// those with a `sign` Coulomb term).
     pub standstill: Standstill,
@@ -171,6 +177,7 @@ impl Default for IdentOptions {
             decimate: 1,
             slow_ratio: 0.1,
             min_speed: 0.01,
+            dead_band: super::estimate::DEAD_BAND,
             standstill: Standstill::Auto,
             velocity_from: VelocityFrom::Auto,
             reduce: None,

@@ -116,7 +116,7 @@ pub fn identify(
                 (_, None) => resolve_filter(&FilterChoice::Auto, None, None),
             };
             let vp = process_with(vrun, &vf, opts.velocity_from)?.decimated(opts.decimate);
-            let ve = Dataset::every_row(robot, base, &vp).columns(&cols);
+            let ve = Dataset::every_row_dead_band(robot, base, &vp, super::prepare::dead_band(opts)).columns(&cols);
             let vd = ve.moving_rows_of(&vp, slow, vmin, &drop);
             val_every = Some(ve);
             Some(vd)
@@ -187,7 +187,7 @@ pub fn identify(
         implausible,
         n_reps: pr.n_reps,
         n_samples: pr.len(),
-        warnings: filter_warnings(&pr)
+        warnings: filter_warnings(&pr, false)
             .into_iter()
             .chain(
                 crate::robot::export::inertial_warnings(robot)

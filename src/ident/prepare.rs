@@ -112,7 +112,14 @@ pub fn prepare(
             Standstill::Keep => false,
         })
         .collect();
-    let every = Dataset::every_row(robot, base, &pr);
+    if !(opts.dead_band.is_finite() && opts.dead_band >= 0.0) {
+        return Err(Error::invalid(
+            "identify",
+            "dead_band",
+            format!("expected a speed ≥ 0 (rad/s), found {}", opts.dead_band),
+        ));
+    }
+    let every = Dataset::every_row_dead_band(robot, base, &pr, dead_band(opts));
     let full = every.moving_rows_of(&pr, slow, vmin, &drop);
     if full.c.nrows() <= full.c.ncols() && every.c.nrows() > every.c.ncols() {
         let vmax: Vec<String> = (0..robot.dof())
@@ -133,6 +140,16 @@ pub fn prepare(
     })
 }
 
+/// The Coulomb dead band `opts` apply: none for the projection method,
+/// which models every sample with sign(q̇) as its simulation does.
+pub(crate) fn dead_band(opts: &IdentOptions) -> f64 {
+    if matches!(opts.method, Method::Projection) {
+        0.0
+    } else {
+        opts.dead_band
+    }
+}
+
 /// The rows of each joint in `full` and the standstill rule that chose them.
 fn rows_used(robot: &Robot, full: &Dataset, total: usize, drop: &[bool], slow: f64, vmin: f64, opts: &IdentOptions) -> Vec<RowsUsed> {
     (0..robot.dof())
@@ -150,13 +167,17 @@ fn rows_used(robot: &Robot, full: &Dataset, total: usize, drop: &[bool], slow: f
                 "every row kept: --slow-ratio 0 and --min-speed 0".to_string()
             } else if drop[j] {
                 let why = match opts.standstill {
-                    Standstill::Drop => "--standstill drop".to_string(),
+                    Standstill::Drop => "standstill drop".to_string(),
                     _ => format!("{shape} is discontinuous at rest"),
                 };
                 format!("rows with |q̇| < max({slow}·max|q̇|, {vmin}) left out: {why}")
             } else {
                 let why = match opts.standstill {
-                    Standstill::Keep => "--standstill keep".to_string(),
+                    Standstill::Keep if d.discontinuous_at_rest() && opts.dead_band > 0.0 => format!(
+                        "standstill keep; the Coulomb term is 0 within the dead band |q̇| < {} (dead_band)",
+                        opts.dead_band
+                    ),
+                    Standstill::Keep => "standstill keep".to_string(),
                     _ => format!("{shape} is continuous at rest"),
                 };
                 format!("every row kept, standstill included: {why}")
@@ -172,18 +193,24 @@ fn rows_used(robot: &Robot, full: &Dataset, total: usize, drop: &[bool], slow: f
         .collect()
 }
 
-/// Joints whose filter residual exceeds 3× the noise of the averaged positions.
-pub(crate) fn filter_warnings(pr: &Processed) -> Vec<String> {
+/// Joints whose filter residual exceeds 3× the noise of the averaged positions;
+/// the advice in the study file's words (`harmonics = …`) when `study`, else
+/// as command-line flags.
+pub(crate) fn filter_warnings(pr: &Processed, study: bool) -> Vec<String> {
     let mut w = Vec::new();
     for (j, (res, noise)) in pr.filter_residual.iter().enumerate() {
         if let Some(nz) = noise {
             if *res > 3.0 * nz && *res > 0.0 {
                 let hint = match pr.filter {
                     Filter::Fourier { n_h, .. } => format!(
-                        "the closed-loop response has harmonics above the {n_h} kept (tracking errors of a nonlinear plant); dropping them biases q̈: consider --harmonics {}",
+                        "the closed-loop response has harmonics above the {n_h} kept (tracking errors of a nonlinear plant); dropping them biases q̈: consider {}{}",
+                        if study { "harmonics = " } else { "--harmonics " },
                         4 * n_h
                     ),
-                    Filter::LowPass { cutoff } => format!("the low-pass at {cutoff} Hz removes motion: consider a higher --cutoff"),
+                    Filter::LowPass { cutoff } => format!(
+                        "the low-pass at {cutoff} Hz removes motion: consider a higher {}",
+                        if study { "`cutoff = …`" } else { "--cutoff" }
+                    ),
                     Filter::None => String::new(),
                 };
                 w.push(format!(

@@ -93,6 +93,21 @@ fn coefficient(q: usize) -> Matrix4<f64> {
 /// documentation); ε = `margin`. `ctl` stops the solver (Ctrl-C, its
 /// deadline); the caller reports the progress (one solve of a weight scan).
 pub fn solve(pb: &PriorProblem, metric: PriorMetric, weight: f64, margin: f64, ctl: &Control) -> Result<Solution> {
+    solve_with_unknown(pb, &vec![false; pb.prior.len()], metric, weight, margin, ctl)
+}
+
+/// Relative pull of the prior on a parameter without a known value
+/// ([`solve_with_unknown`]): 10⁻⁶ of the known parameters' weight, so the data
+/// decide it wherever they see it and a direction no data see stays at the
+/// prior's value (0) instead of leaving the problem unbounded.
+pub const UNKNOWN_PULL: f64 = 1e-6;
+
+/// [`solve`] with the drive parameters `unknown[j]` not pulled toward the
+/// prior (their prior term is weighted by [`UNKNOWN_PULL`]): a robot file's
+/// 0 for a reflected rotor inertia or a friction coefficient is "unknown",
+/// and pulling it to 0 pushes a geared arm's large rotor inertias into the
+/// link inertias they are grouped with. Their sign constraints stay.
+pub fn solve_with_unknown(pb: &PriorProblem, unknown: &[bool], metric: PriorMetric, weight: f64, margin: f64, ctl: &Control) -> Result<Solution> {
     let PriorProblem {
         r,
         theta_b,
@@ -116,6 +131,13 @@ pub fn solve(pb: &PriorProblem, metric: PriorMetric, weight: f64, margin: f64, c
     }
     if !(margin.is_finite() && margin >= 0.0) {
         return Err(Error::invalid("consistent", "margin", format!("expected a margin ≥ 0 (kg·m²), found {margin}")));
+    }
+    if unknown.len() != p || unknown.iter().zip(kinds).any(|(&u, k)| u && matches!(k, Kind::Inertial(_))) {
+        return Err(Error::invalid(
+            "consistent",
+            "unknown",
+            "expected one flag per standard parameter, set only on drive parameters",
+        ));
     }
     let coef: Vec<Matrix4<f64>> = (0..10).map(coefficient).collect();
     let entropic = metric == PriorMetric::Entropic;
@@ -156,7 +178,7 @@ pub fn solve(pb: &PriorProblem, metric: PriorMetric, weight: f64, margin: f64, c
         for row in 0..=col {
             let mut v = 2.0 * ata[(row, col)];
             if row == col && !(entropic && inertial[col]) {
-                v += 2.0 * weight;
+                v += 2.0 * weight * if unknown[col] { UNKNOWN_PULL } else { 1.0 };
             }
             pm.push(pr0 + row, col, v / kappa);
         }

@@ -122,6 +122,9 @@ pub struct IdentifyArgs {
     /// Speed below which rows are left out: of the identification (default 0.01) and of the friction experiment (default 0.05) (rad/s or m/s).
     #[arg(long)]
     pub min_speed: Option<f64>,
+    /// Coulomb dead band (rad/s or m/s): for joints with a `sign` Coulomb term, |q̇| below it is rest (no Coulomb term), in the run and the validation run alike; 0: sign(q̇) everywhere.
+    #[arg(long, default_value_t = idexp::ident::DEAD_BAND)]
+    pub dead_band: f64,
     /// Which slow rows to leave out: auto (those of joints with a `sign` Coulomb term; smooth tanh/stribeck joints keep their standstill rows), drop (every joint), keep (none).
     #[arg(long, default_value = "auto")]
     pub standstill: idexp::ident::Standstill,
@@ -364,6 +367,7 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         decimate: a.decimate,
         slow_ratio: a.slow_ratio,
         min_speed: a.min_speed.unwrap_or(0.01),
+        dead_band: a.dead_band,
         standstill: a.standstill,
         velocity_from: a.velocity_from,
         reduce: a.reduce.then(|| ReduceOptions {
@@ -464,17 +468,13 @@ fn export(
     let wants = a.export.iter().any(|e| *e != ExportKind::Csv);
     match model {
         Some(m) => {
-            let mut urdf_name = None;
-            if a.export.contains(&ExportKind::Urdf) {
+            // robot.toml of a URDF robot points at a URDF: the identified one, written beside it
+            let from_urdf = matches!(src, idexp::robot::export::Source::Urdf { .. });
+            if a.export.contains(&ExportKind::Urdf) || (from_urdf && a.export.contains(&ExportKind::Toml)) {
                 files.push(idexp::robot::export::write_urdf(src, &m, out)?);
-                urdf_name = Some("robot.urdf");
             }
             if a.export.contains(&ExportKind::Toml) {
-                let urdf_ref = match (urdf_name, src) {
-                    (Some(n), _) => Some(n.to_string()),
-                    (None, idexp::robot::export::Source::Urdf { urdf, .. }) => Some(std::path::absolute(urdf)?.display().to_string()),
-                    _ => None,
-                };
+                let urdf_ref = from_urdf.then(|| "robot.urdf".to_string());
                 files.push(idexp::robot::export::write_robot_toml(src, &m, out, urdf_ref.as_deref())?);
             }
             if a.export.contains(&ExportKind::Mjcf) {

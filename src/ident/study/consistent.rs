@@ -3,7 +3,7 @@
 //! link beside the prior, implausible values flagged, and the directions the
 //! prior decided.
 
-use super::{validation_sum, ConsistentReport, ConsistentSpec, Direction, Flag, LinkPrior, Loaded, Stacked, WeightRule, WeightSpec};
+use super::{ConsistentReport, ConsistentSpec, Direction, Flag, LinkPrior, Loaded, Stacked, UnknownParam, UnknownRule, UnknownSpec, WeightRule, WeightSpec};
 use crate::error::{Error, Result};
 use crate::ident::consistent::{kinds_of, ConsistentStatus, Kind};
 use crate::ident::estimate::{errors, Dataset};
@@ -38,35 +38,53 @@ pub(super) fn consistent_with_prior(
         prior: &theta0,
         scale: &scale,
     };
+    let unknown = unknown_of(robot, &kinds, &theta0, &cs.unknown)?;
     let every_val: Vec<&Dataset> = validations.iter().map(|v| &v.prep.every).collect();
+    let mut tolerance = None;
     let (weight, curve, sol) = match cs.weight {
-        WeightSpec::Value(w) => (w, Vec::new(), crate::ident::prior::solve(&pb, cs.metric, w, cs.margin, ctl)?),
+        WeightSpec::Value(w) => (
+            w,
+            Vec::new(),
+            crate::ident::prior::solve_with_unknown(&pb, &unknown, cs.metric, w, cs.margin, ctl)?,
+        ),
         WeightSpec::Rule(WeightRule::Validation) => {
             let obs = ctl.observer();
             obs.phase("identify prior weight", Some(cs.weight_grid.len() as u64));
-            let mut best: Option<(f64, f64, crate::ident::consistent::Solution)> = None;
+            let range = torque_ranges(&every_val);
+            let mut scored: Vec<(f64, f64, f64, crate::ident::consistent::Solution)> = Vec::new();
             let mut curve = Vec::new();
             for (i, &w) in cs.weight_grid.iter().enumerate() {
                 if ctl.interrupted() {
                     obs.phase_done();
                     return Ok(None);
                 }
-                let sol = crate::ident::prior::solve(&pb, cs.metric, w, cs.margin, ctl)?;
+                let sol = crate::ident::prior::solve_with_unknown(&pb, &unknown, cs.metric, w, cs.margin, ctl)?;
                 let ok = ConsistentStatus::of(&sol.status).is_ok();
-                let score = if ok {
-                    validation_sum(&every_val, sol.base.as_slice()).map_or(f64::INFINITY, |t| t.1)
+                let (score, se) = if ok {
+                    range_scaled_error(&every_val, sol.base.as_slice(), &range)
                 } else {
-                    f64::INFINITY
+                    (f64::INFINITY, f64::INFINITY)
                 };
                 curve.push((w, score, sol.extra_cost));
-                obs.progress(i as u64 + 1, &format!("weight {w:e}: validation {score:.4}"));
-                if best.as_ref().is_none_or(|b| score < b.1) {
-                    best = Some((w, score, sol));
-                }
+                obs.progress(i as u64 + 1, &format!("weight {w:e}: validation {score:.4e}"));
+                scored.push((w, score, se, sol));
             }
             obs.phase_done();
-            let (w, _, sol) = best.ok_or_else(|| Error::invalid("consistent", "weight_grid", "no candidate weight"))?;
-            (w, curve, sol)
+            let best = scored
+                .iter()
+                .filter(|x| x.1.is_finite())
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|x| (x.1, x.2))
+                .ok_or_else(|| Error::invalid("consistent", "weight_grid", "no candidate weight gave a consistent estimate"))?;
+            // one-standard-error rule: the strongest prior within one standard error of the best
+            let tol = best.1;
+            let pick = scored
+                .into_iter()
+                .filter(|x| x.1 <= best.0 + tol)
+                .max_by(|a, b| a.0.total_cmp(&b.0))
+                .expect("the best is within its own tolerance");
+            tolerance = Some(tol);
+            (pick.0, curve, pick.3)
         }
     };
     let status = ConsistentStatus::of(&sol.status);
@@ -111,6 +129,18 @@ pub(super) fn consistent_with_prior(
         }
     }
     let (unidentifiable, prior_decided, n_prior_decided) = directions(&st.r, &base.k, &scale, &sol.theta, &theta0, weight, &names);
+    let rk = &st.r * &base.k;
+    let unknown_rows = (0..names.len())
+        .filter(|&j| unknown[j])
+        .map(|j| {
+            let h = rk.column(j).norm();
+            UnknownParam {
+                name: names[j].clone(),
+                value: th[j],
+                std_data: if h > 1e-12 * rk.norm() { 1.0 / h } else { f64::INFINITY },
+            }
+        })
+        .collect();
     let consistent_experiments = experiments.iter().map(|e| errors(&e.prep.every, sol.base.as_slice())).collect();
     let total: usize = experiments.iter().map(|e| e.prep.full.y.len()).sum();
     let ssr_wls: f64 = st.blocks.iter().map(|b| b.chi2).sum();
@@ -120,6 +150,7 @@ pub(super) fn consistent_with_prior(
         metric: cs.metric,
         weight,
         weight_curve: curve,
+        weight_tolerance: tolerance,
         scale: cs.scale,
         margin: cs.margin,
         standard_names: names,
@@ -136,6 +167,7 @@ pub(super) fn consistent_with_prior(
         unidentifiable,
         prior_decided,
         n_prior_decided,
+        unknown: unknown_rows,
         experiments: consistent_experiments,
         iterations: sol.iterations,
         solve_time: sol.solve_time,
@@ -178,4 +210,93 @@ fn directions(
         })
         .collect();
     (unseen, listed, weak.len())
+}
+
+/// Per standard parameter: a drive parameter without a known value (`unknown`).
+fn unknown_of(robot: &Robot, kinds: &[Kind], theta0: &DVector<f64>, spec: &UnknownSpec) -> Result<Vec<bool>> {
+    let drive = |j: usize| !matches!(kinds[j], Kind::Inertial(_));
+    let names = robot.param_names();
+    match spec {
+        UnknownSpec::Rule(UnknownRule::None) => Ok(vec![false; names.len()]),
+        UnknownSpec::Rule(UnknownRule::Zeros) => Ok((0..names.len()).map(|j| drive(j) && theta0[j] == 0.0).collect()),
+        UnknownSpec::Names(list) => {
+            let mut out = vec![false; names.len()];
+            for n in list {
+                match names.iter().position(|x| x == n) {
+                    Some(j) if drive(j) => out[j] = true,
+                    Some(_) => {
+                        return Err(Error::invalid(
+                            "study: [consistent]",
+                            "unknown",
+                            format!(
+                            "`{n}` is a link inertial parameter: only drive parameters (Ia, Fc, Fv, …) can be unknown; a link's inertial values are its prior"
+                        ),
+                        ))
+                    }
+                    None => {
+                        let drives: Vec<&String> = (0..names.len()).filter(|&j| drive(j)).map(|j| &names[j]).collect();
+                        return Err(Error::invalid(
+                            "study: [consistent]",
+                            "unknown",
+                            format!(
+                                "`{n}` is not a parameter of robot {}: expected \"zeros\", \"none\" or drive parameter names among {drives:?}",
+                                robot.name
+                            ),
+                        ));
+                    }
+                }
+            }
+            Ok(out)
+        }
+    }
+}
+
+/// Per joint, the range (max − min) of the measured torques over every row of every validation run.
+fn torque_ranges(sets: &[&Dataset]) -> Vec<f64> {
+    let n = sets.first().map_or(0, |d| d.n);
+    let (mut lo, mut hi) = (vec![f64::INFINITY; n], vec![f64::NEG_INFINITY; n]);
+    for d in sets {
+        for (i, &j) in d.joint.iter().enumerate() {
+            lo[j] = lo[j].min(d.y[i]);
+            hi[j] = hi[j].max(d.y[i]);
+        }
+    }
+    (0..n).map(|j| if hi[j] > lo[j] { hi[j] - lo[j] } else { 0.0 }).collect()
+}
+
+/// The criterion by which `weight = "validation"` chooses: the mean over the
+/// (run, joint) terms t_{r,j} = RMS_{r,j}(τ − Cθ) / range_j, with range_j the
+/// joint's torque range over every validation run (a joint carrying no
+/// torque anywhere is left out, so a static pose with a vertical first axis
+/// does not dominate as a relative error would), and its standard error
+/// sd(t)/√K over the K terms (K = 1: the term's own sampling error, t·√(1/(2N))).
+pub(super) fn range_scaled_error(sets: &[&Dataset], theta: &[f64], range: &[f64]) -> (f64, f64) {
+    let th = DVector::from_column_slice(theta);
+    let mut terms = Vec::new();
+    let mut rows = 0usize;
+    for d in sets {
+        let pred = &d.c * &th;
+        let (mut sq, mut cnt) = (vec![0.0; d.n], vec![0usize; d.n]);
+        for (i, &j) in d.joint.iter().enumerate() {
+            sq[j] += (d.y[i] - pred[i]).powi(2);
+            cnt[j] += 1;
+        }
+        for j in 0..d.n {
+            if cnt[j] > 0 && range.get(j).is_some_and(|&r| r > 0.0) {
+                terms.push((sq[j] / cnt[j] as f64).sqrt() / range[j]);
+                rows += cnt[j];
+            }
+        }
+    }
+    let k = terms.len();
+    if k == 0 {
+        return (f64::INFINITY, f64::INFINITY);
+    }
+    let mean = terms.iter().sum::<f64>() / k as f64;
+    let se = if k >= 2 {
+        (terms.iter().map(|t| (t - mean).powi(2)).sum::<f64>() / (k - 1) as f64 / k as f64).sqrt()
+    } else {
+        mean * (0.5 / rows.max(1) as f64).sqrt()
+    };
+    (mean, se)
 }

@@ -11,11 +11,12 @@
 //! base_columns = []                  # fix the base columns by name (default: computed)
 //! truth = "sim/truth.json"           # optional: compare with the true base parameters
 //! export = ["urdf", "toml", "csv"]   # the identified model (urdf/toml need [consistent])
+//! dead_band = 0.01                   # rad/s: |q̇| below it is rest for `sign` Coulomb terms (every experiment and validation run)
 //!
 //! [[experiment]]                     # any number (≥ 1); their rows are stacked
 //! name = "fourier_a"                 # default: the first file's (folder's) name
 //! files = ["runs/a"]                 # folders of repetition CSVs or the files
-//! kind = "excitation"                # excitation | gravity | friction | static
+//! kind = "excitation"                # excitation | gravity | friction | static (poses at rest: no speed rule)
 //! filter = "auto"                    # auto | fourier | lowpass | none
 //! cutoff = 10.0                      # low-pass cut-off (Hz)
 //! trajectory = "runs/a/coefficients.json"   # Fourier reference (default: trajectory.json beside the run)
@@ -40,11 +41,12 @@
 //! [consistent]                       # physically consistent estimate with a prior
 //! prior = "nominal"                  # nominal (the robot file) | a robot file (same links and drives)
 //! metric = "entropic"                # entropic | euclidean
-//! weight = 1.0                       # or "validation": chosen on the validation runs from `weight_grid`
+//! weight = 1.0                       # or "validation": the strongest of `weight_grid` within one standard error of the best validation error
 //! weight_grid = [1e-3, 1e-2, 0.1, 1, 10, 100, 1e3]
 //! scale = 0.5                        # prior std relative to the nominal value (floored per kind)
 //! margin = 0.0                       # pseudo-inertias ⪰ margin · I (kg·m²)
 //! plausible = [0.2, 5.0]             # flag masses, inertias and drive parameters outside these ratios to the prior
+//! unknown = "zeros"                  # drive parameters without a known value, not pulled: "zeros" (those the prior gives as 0) | "none" | ["Ia1", "Fc2"]
 //! ```
 
 use crate::data::{Coordinates, TorqueFrom};
@@ -94,13 +96,18 @@ impl ExperimentKind {
     }
 
     /// The standstill rule used unless the entry gives one: the model's
-    /// (`auto`) for every kind. At rest a `sign` Coulomb term is undefined
-    /// (the drive holds anywhere within ±F_c), so the rows of such joints at
-    /// rest carry no usable equation even in a gravity or static experiment;
-    /// joints with smooth friction keep them. `standstill = "keep"` keeps
-    /// them anyway (friction negligible against gravity).
+    /// (`auto`) for every kind but `static`. At rest a `sign` Coulomb term is
+    /// undefined (the drive holds anywhere within ±F_c), so the slow rows of
+    /// such joints are left out of moving experiments; joints with smooth
+    /// friction keep them. A `static` run has no speed rule (`keep`): every
+    /// row is a pose held at rest, its logged velocity is noise, and the
+    /// study's Coulomb dead band (`dead_band`) sets the Coulomb term to 0
+    /// there, in estimation and validation alike.
     pub fn default_standstill(self) -> Standstill {
-        Standstill::Auto
+        match self {
+            ExperimentKind::Static => Standstill::Keep,
+            _ => Standstill::Auto,
+        }
     }
 }
 
@@ -194,8 +201,38 @@ pub enum WeightSpec {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum WeightRule {
-    /// The weight of `weight_grid` with the smallest validation error.
+    /// The largest weight of `weight_grid` (the strongest prior) whose
+    /// validation error is within one standard error of the smallest
+    /// (one-standard-error rule). The error: the mean over validation runs
+    /// and joints of RMS(τ − τ̂) divided by the joint's torque range over all
+    /// validation runs; its standard error: sd/√K over those K terms.
     Validation,
+}
+
+/// Which drive parameters of the prior have no known value (`[consistent] unknown`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum UnknownSpec {
+    /// A rule: `"zeros"` or `"none"`.
+    Rule(UnknownRule),
+    /// These drive parameters by name (`["Ia1", "Fc2"]`).
+    Names(Vec<String>),
+}
+
+/// Rules for [`UnknownSpec`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum UnknownRule {
+    /// Every drive parameter (Ia, Fc, Fv, …) that is 0 in the prior is unknown.
+    Zeros,
+    /// Every drive parameter's prior value is known (0 is pulled toward 0).
+    None,
+}
+
+impl Default for UnknownSpec {
+    fn default() -> Self {
+        UnknownSpec::Rule(UnknownRule::Zeros)
+    }
 }
 
 /// The consistent estimate's prior (`[consistent]`).
@@ -223,6 +260,10 @@ pub struct ConsistentSpec {
     /// Ratios to the prior outside which masses, inertias and drive parameters are flagged.
     #[serde(default = "plausible")]
     pub plausible: [f64; 2],
+    /// Drive parameters without a known value, not pulled toward the prior
+    /// (default `"zeros"`: those the prior gives as 0).
+    #[serde(default)]
+    pub unknown: UnknownSpec,
 }
 
 impl Default for ConsistentSpec {
@@ -235,6 +276,7 @@ impl Default for ConsistentSpec {
             scale: half(),
             margin: 0.0,
             plausible: plausible(),
+            unknown: UnknownSpec::default(),
         }
     }
 }
@@ -297,6 +339,11 @@ pub struct StudyDesign {
     /// Model files to write.
     #[serde(default)]
     pub export: Vec<ExportFormat>,
+    /// Coulomb dead band (rad/s or m/s): for the joints with a `sign`
+    /// Coulomb term, |q̇_j| below it is rest (Coulomb term 0), in every
+    /// experiment and validation run ([`crate::ident::DEAD_BAND`] by default).
+    #[serde(default = "dead_band")]
+    pub dead_band: f64,
 }
 
 fn ten() -> f64 {
@@ -313,6 +360,9 @@ fn slow_ratio() -> f64 {
 }
 fn min_speed() -> f64 {
     0.01
+}
+fn dead_band() -> f64 {
+    crate::ident::DEAD_BAND
 }
 fn nominal() -> String {
     "nominal".into()
@@ -445,6 +495,13 @@ impl StudyDesign {
                 ctx,
                 "irls_tol",
                 format!("expected a positive tolerance, found {}", self.irls_tol),
+            ));
+        }
+        if !(self.dead_band.is_finite() && self.dead_band >= 0.0) {
+            return Err(Error::invalid(
+                ctx,
+                "dead_band",
+                format!("expected a speed ≥ 0 (rad/s; 0: sign(q̇) everywhere), found {}", self.dead_band),
             ));
         }
         if self.sample_limit < 3 {

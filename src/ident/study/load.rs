@@ -28,10 +28,34 @@ pub struct Loaded {
     pub sampling: Sampling,
     /// The processed run and its datasets.
     pub prep: Prepared,
+    /// What was chosen for the entry that it did not say (in the study file's words).
+    pub notes: Vec<String>,
 }
 
-/// Reads and processes one entry of a study (paths relative to `dir`).
+impl Loaded {
+    /// The entry's warnings: its notes, then the filter's ([`crate::ident::prepare`]).
+    pub fn warnings(&self) -> Vec<String> {
+        self.notes.iter().cloned().chain(crate::ident::filter_warnings(&self.prep.pr, true)).collect()
+    }
+}
+
+/// Reads and processes one entry of a study (paths relative to `dir`) with
+/// the default Coulomb dead band ([`crate::ident::DEAD_BAND`]).
 pub fn load_entry(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, dir: &Path, method: StudyMethod, sample_limit: usize) -> Result<Loaded> {
+    load_entry_with(robot, base, spec, dir, method, sample_limit, crate::ident::DEAD_BAND)
+}
+
+/// [`load_entry`] with the study's Coulomb dead band (`dead_band`, rad/s).
+#[allow(clippy::too_many_arguments)] // the study's settings an entry needs
+pub fn load_entry_with(
+    robot: &Robot,
+    base: &BaseParams,
+    spec: &ExperimentSpec,
+    dir: &Path,
+    method: StudyMethod,
+    sample_limit: usize,
+    dead_band: f64,
+) -> Result<Loaded> {
     let name = spec.resolved_name();
     let paths: Vec<PathBuf> = spec.files.iter().map(|f| dir.join(f)).collect();
     for p in &paths {
@@ -80,6 +104,13 @@ pub fn load_entry(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, dir: 
         None => run_trajectory(&run)?,
     };
     let lowpass = FilterChoice::Given(Filter::LowPass { cutoff: spec.cutoff });
+    let mut notes = Vec::new();
+    if spec.filter == FilterName::Auto && traj.is_none() && spec.kind == ExperimentKind::Excitation {
+        notes.push(format!(
+            "no Fourier trajectory (no `trajectory = …` and no trajectory.json beside the run): positions filtered by the zero-phase low-pass at `cutoff = {}` Hz instead of the Fourier filter; give `trajectory = \"…/coefficients.json\"` if the run follows a Fourier trajectory, or set `filter = \"lowpass\"` to say the low-pass is meant",
+            spec.cutoff
+        ));
+    }
     let filter = match spec.filter {
         FilterName::Auto if traj.is_some() && spec.kind == ExperimentKind::Excitation => FilterChoice::Auto,
         FilterName::Auto => lowpass,
@@ -106,6 +137,7 @@ pub fn load_entry(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, dir: 
         decimate: spec.decimate,
         slow_ratio: spec.slow_ratio,
         min_speed: spec.min_speed,
+        dead_band,
         standstill: spec.standstill.unwrap_or(spec.kind.default_standstill()),
         velocity_from: spec.velocity_from,
         ..Default::default()
@@ -114,7 +146,11 @@ pub fn load_entry(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, dir: 
         Error::Invalid { context, field, msg } => Error::Invalid {
             context: format!("experiment `{name}` ({context})"),
             field,
-            msg,
+            // the study file's words, not the one-run command line's
+            msg: msg.replace(
+                "(--slow-ratio, --min-speed)",
+                "(`slow_ratio`, `min_speed`; `kind = \"static\"` for poses held at rest has no speed rule)",
+            ),
         },
         e => e,
     })?;
@@ -126,6 +162,7 @@ pub fn load_entry(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, dir: 
         torque_source,
         sampling,
         prep,
+        notes,
     })
 }
 

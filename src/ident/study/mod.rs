@@ -30,9 +30,11 @@ pub mod report;
 mod result;
 pub mod stack;
 
-pub use design::{ConsistentSpec, ExperimentKind, ExperimentSpec, ExportFormat, FilterName, StudyDesign, StudyMethod, WeightRule, WeightSpec};
-pub use load::{load_entry, Loaded};
-pub use result::{ConsistentReport, Direction, ExperimentReport, Flag, LinkPrior, StudyEstimate, StudyResult, ValidationReport, ValidationTotal};
+pub use design::{
+    ConsistentSpec, ExperimentKind, ExperimentSpec, ExportFormat, FilterName, StudyDesign, StudyMethod, UnknownRule, UnknownSpec, WeightRule, WeightSpec,
+};
+pub use load::{load_entry, load_entry_with, Loaded};
+pub use result::{ConsistentReport, Direction, ExperimentReport, Flag, LinkPrior, StudyEstimate, StudyResult, UnknownParam, ValidationReport, ValidationTotal};
 pub use stack::{Block, BlockWeight, StackOptions, Stacked, WeightSource};
 
 use super::estimate::{errors, must_be_positive, Dataset};
@@ -110,7 +112,7 @@ pub fn run_study(design: &StudyDesign, dir: &Path, ctl: &Control) -> Result<Stud
         if ctl.interrupted() {
             return Err(Error::Interrupted);
         }
-        let l = load_entry(&robot, &base, spec, dir, design.method, design.sample_limit)?;
+        let l = load_entry_with(&robot, &base, spec, dir, design.method, design.sample_limit, design.dead_band)?;
         obs.progress(i as u64 + 1, &l.name);
         if i < design.experiment.len() {
             experiments.push(l);
@@ -167,7 +169,7 @@ pub fn run_study(design: &StudyDesign, dir: &Path, ctl: &Control) -> Result<Stud
     let mut warnings: Vec<String> = experiments
         .iter()
         .chain(&validations)
-        .flat_map(|e| super::filter_warnings(&e.prep.pr).into_iter().map(move |w| format!("{}: {w}", e.name)))
+        .flat_map(|e| e.warnings().into_iter().map(move |w| format!("{}: {w}", e.name)))
         .collect();
     if !st.converged {
         warnings.push(format!(
@@ -299,6 +301,6 @@ fn experiment_report(e: &Loaded, ei: usize, st: &Stacked, theta: &[f64]) -> Expe
         information_share_per_parameter: share.clone(),
         rank_alone: st.alone[ei].0,
         cond_alone: st.alone[ei].1,
-        warnings: super::filter_warnings(&e.prep.pr),
+        warnings: e.warnings(),
     }
 }

@@ -193,7 +193,10 @@ impl StudyResult {
         if let Some(m) = self.model()? {
             use super::design::ExportFormat;
             let src = crate::robot::export::source_of(&self.robot_path)?;
-            if self.design.export.contains(&ExportFormat::Urdf) {
+            // robot.toml must carry the identified inertials: from a URDF robot it
+            // points at a URDF, so that URDF is the identified one, written beside it
+            let urdf_too = self.design.export.contains(&ExportFormat::Toml) && matches!(src, crate::robot::export::Source::Urdf { .. });
+            if self.design.export.contains(&ExportFormat::Urdf) || urdf_too {
                 if let crate::robot::export::Source::Dh { toml } = &src {
                     return Err(Error::invalid(
                         toml.display().to_string(),
@@ -204,11 +207,8 @@ impl StudyResult {
                 files.push(crate::robot::export::write_urdf(&src, &m, dir)?);
             }
             if self.design.export.contains(&ExportFormat::Toml) {
-                let urdf_ref = match (&src, self.design.export.contains(&ExportFormat::Urdf)) {
-                    (_, true) => Some("robot.urdf".to_string()),
-                    (crate::robot::export::Source::Urdf { urdf, .. }, false) => {
-                        Some(std::path::absolute(urdf).map_err(|err| Error::io(urdf, err))?.display().to_string())
-                    }
+                let urdf_ref = match &src {
+                    crate::robot::export::Source::Urdf { .. } => Some("robot.urdf".to_string()),
                     _ => None,
                 };
                 files.push(crate::robot::export::write_robot_toml(&src, &m, dir, urdf_ref.as_deref())?);

@@ -153,10 +153,23 @@ fn consistent_text(c: &ConsistentReport, e: &StudyEstimate) -> String {
         c.scale,
         c.margin
     );
-    for (w, score, extra) in &c.weight_curve {
+    if let Some(tol) = c.weight_tolerance {
+        let best = c.weight_curve.iter().map(|x| x.1).fold(f64::INFINITY, f64::min);
         let _ = writeln!(
             s,
-            "  weight {w:>9.2e}: validation mean relative RMS {score:.5}, weighted SSR + {extra:.4e}{}",
+            "  validation criterion: mean over runs and joints of RMS(τ − τ̂)/(the joint's torque range over all validation runs); chosen: the strongest prior within one standard error ({tol:.3e}) of the best ({best:.5e}), i.e. ≤ {:.5e}",
+            best + tol
+        );
+    }
+    for (w, score, extra) in &c.weight_curve {
+        let within = c.weight_tolerance.is_some_and(|tol| {
+            let best = c.weight_curve.iter().map(|x| x.1).fold(f64::INFINITY, f64::min);
+            *score <= best + tol
+        });
+        let _ = writeln!(
+            s,
+            "  weight {w:>9.2e}: validation {score:.5e}{}, weighted SSR + {extra:.4e}{}",
+            if within { " (within tolerance)" } else { "" },
             if *w == c.weight { "   <- chosen" } else { "" }
         );
     }
@@ -208,6 +221,26 @@ fn consistent_text(c: &ConsistentReport, e: &StudyEstimate) -> String {
         "  directions the prior decided: {} not seen by the data at all (null space of the fit), {} seen less than the prior (fit curvature below the weight {:e})",
         c.unidentifiable, c.n_prior_decided, c.weight
     );
+    if c.unknown.is_empty() {
+        let _ = writeln!(
+            s,
+            "  drive parameters without a known value: none (every drive parameter is pulled toward its prior value)"
+        );
+    } else {
+        let _ = writeln!(
+            s,
+            "  drive parameters without a known value (unknown; not pulled toward the prior, pull {:e} of the weight): the data decide them",
+            crate::ident::prior::UNKNOWN_PULL
+        );
+        for u in &c.unknown {
+            let seen = if u.std_data.is_finite() {
+                format!("σ from the data alone {:.3e}", u.std_data)
+            } else {
+                "not seen by the data: left at 0".to_string()
+            };
+            let _ = writeln!(s, "    {:<8} {:>13.6e}  ({seen})", u.name, u.value);
+        }
+    }
     for d in &c.prior_decided {
         let comp: Vec<String> = d.components.iter().map(|(n, v)| format!("{v:+.2}·{n}")).collect();
         let _ = writeln!(

@@ -133,6 +133,18 @@ pub struct Direction {
     pub offset: f64,
 }
 
+/// A drive parameter without a known value in the consistent estimate.
+#[derive(Debug, Clone, Serialize)]
+pub struct UnknownParam {
+    /// Standard parameter name (`Ia2`).
+    pub name: String,
+    /// Its consistent estimate.
+    pub value: f64,
+    /// Its standard deviation seen by the data alone with the other
+    /// parameters held (s_j / √H_jj of the fit's curvature); ∞ when no data see it.
+    pub std_data: f64,
+}
+
 /// The consistent estimate with its prior.
 #[derive(Debug, Clone, Serialize)]
 pub struct ConsistentReport {
@@ -146,6 +158,10 @@ pub struct ConsistentReport {
     pub weight: f64,
     /// Per candidate weight (weight = "validation"): (weight, mean relative RMS on the validation runs, extra cost).
     pub weight_curve: Vec<(f64, f64, f64)>,
+    /// `weight = "validation"`: the tolerance of the one-standard-error rule
+    /// (the standard error of the best criterion); the strongest prior within
+    /// it of the best was chosen.
+    pub weight_tolerance: Option<f64>,
     /// Relative scale of the prior.
     pub scale: f64,
     /// Margin ε.
@@ -178,6 +194,8 @@ pub struct ConsistentReport {
     pub prior_decided: Vec<Direction>,
     /// Their number.
     pub n_prior_decided: usize,
+    /// The drive parameters without a known value (`unknown`), not pulled toward the prior.
+    pub unknown: Vec<UnknownParam>,
     /// Per experiment, the consistent estimate's errors on every sample.
     pub experiments: Vec<Errors>,
     /// Interior-point iterations.
