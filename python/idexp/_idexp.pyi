@@ -83,6 +83,8 @@ class Robot:
     @property
     def inertial_warnings(self) -> list[str]:
         """Physical-consistency warnings (pseudo-inertia not PSD, inertia without mass); [] if none."""
+    def provenance(self) -> dict[str, Any]:
+        """What of the URDF is left out of the model (`left_out`) and the file each collision shape was read from (`collision`)."""
 
 class BaseParameters:
     names: list[str]

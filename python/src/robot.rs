@@ -390,6 +390,19 @@ impl Robot {
         idexp::robot::export::inertial_warnings(&self.inner)
     }
 
+    /// Robot.provenance() -> dict
+    ///
+    /// Where the model came from, as `idexp robot info` prints it:
+    /// `left_out` (what of the URDF is not part of the model and why: joints
+    /// off the chain to `tip_link`, `<mimic>` groups such as a gripper's
+    /// fingers, locked and merged) and `collision` (every collision shape:
+    /// `body`, `link`, `written_in`, `shape`, and for a mesh its `uri` as
+    /// written and the `file` read).
+    fn provenance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let p = py.detach(|| idexp::robot::provenance::provenance(&self.path)).py()?;
+        crate::problems::to_dict(py, &p)
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "Robot({:?}, dof={}, params={}, path={:?})",

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from conftest import DESIGNS, IDEXP
-from test_payload_frames import derivatives, fourier, pin_loaded, write_run, write_urdf
+from test_payload_frames import write_twins, write_urdf
 
 pin = pytest.importorskip("pinocchio")
 mujoco = pytest.importorskip("mujoco")
@@ -65,7 +65,6 @@ def test_a_flat_payload_on_the_boundary_loads_in_mujoco_and_is_reported(tmp_path
     Pinocchio twins; the consistent fit lies on the boundary, MuJoCo loads the MJCF."""
     urdf = write_urdf(tmp_path)
     model = pin.buildModelFromUrdf(str(urdf))
-    data = model.createData()
     # four point masses in the plane z = 0.08 of tool0
     pts = np.array([[0.05, 0.02, 0.08], [-0.04, 0.03, 0.08], [0.01, -0.06, 0.08], [-0.02, -0.01, 0.08]])
     ms = np.array([0.4, 0.3, 0.5, 0.6])
@@ -78,16 +77,7 @@ def test_a_flat_payload_on_the_boundary_loads_in_mujoco_and_is_reported(tmp_path
     nh, w = 4, 2 * np.pi / 10.0
     q0 = np.array([0.0, -1.4, 1.6, -1.8, -1.57, 0.0])
     a, b = g.uniform(-0.3, 0.3, (6, nh)), g.uniform(-0.3, 0.3, (6, nh))
-    t = np.arange(0, 10.0, 0.01)
-    q = fourier(t, w, q0, a, b)
-    qd, qdd = derivatives(t, w, a, b)
-    mp = pin_loaded(model, "tool0", p)
-    dp = mp.createData()
-    tau_u = np.array([pin.rnea(model, data, q[i], qd[i], qdd[i]) for i in range(len(t))])
-    tau_l = np.array([pin.rnea(mp, dp, q[i], qd[i], qdd[i]) for i in range(len(t))])
-    traj = {"omega": w, "q0": list(q0), "a": a.tolist(), "b": b.tolist()}
-    write_run(tmp_path / "loaded", t, q, tau_l, traj)
-    write_run(tmp_path / "unloaded", t, q, tau_u, traj)
+    write_twins(tmp_path, model, "tool0", p, w, q0, a, b)
     design = tmp_path / "flat.toml"
     design.write_text(
         f'name = "flat"\nrobot = "{urdf}"\nframe = "tool0"\nmethod = "ols"\nkuka_tool = 7\n'

@@ -18,7 +18,6 @@ Pinocchio alone and compare it with idexp's side:
 
 import json
 import os
-import pathlib
 import re
 import subprocess
 
@@ -154,26 +153,33 @@ def write_run(folder, t, q, tau, traj):
     (folder / "trajectory.json").write_text(json.dumps({"trajectory": traj}))
 
 
-@pytest.mark.parametrize("frame", ["tool0", "frame_tool_2", "frame_wrist"])
-def test_identify_recovers_a_pinocchio_payload_in_its_frame(urdf, tmp_path, frame):
-    model = pin.buildModelFromUrdf(str(urdf))
+def write_twins(folder, model, frame, p, w, q0, a, b):
+    """Noiseless twins from Pinocchio: `loaded` (payload `p` merged into
+    `frame`'s link by SE3.act) and `unloaded`, 10 s of the Fourier motion
+    (w, q0, a, b) at 100 Hz, as run folders under `folder`."""
     data = model.createData()
-    g = np.random.default_rng(43 + len(frame))
-    nh, w = 4, 2 * np.pi / 10.0
-    q0 = np.array([0.0, -1.4, 1.6, -1.8, -1.57, 0.0])
-    a = g.uniform(-0.25, 0.25, (6, nh))
-    b = g.uniform(-0.25, 0.25, (6, nh))
     t = np.arange(0, 10.0, 0.01)
     q = fourier(t, w, q0, a, b)
     qd, qdd = derivatives(t, w, a, b)
-    p = ISSUE if frame == "tool0" else random_payload(g)
     mp = pin_loaded(model, frame, p)
     dp = mp.createData()
     tau_u = np.array([pin.rnea(model, data, q[i], qd[i], qdd[i]) for i in range(len(t))])
     tau_l = np.array([pin.rnea(mp, dp, q[i], qd[i], qdd[i]) for i in range(len(t))])
     traj = {"omega": w, "q0": list(q0), "a": a.tolist(), "b": b.tolist()}
-    write_run(tmp_path / "loaded", t, q, tau_l, traj)
-    write_run(tmp_path / "unloaded", t, q, tau_u, traj)
+    write_run(folder / "loaded", t, q, tau_l, traj)
+    write_run(folder / "unloaded", t, q, tau_u, traj)
+
+
+@pytest.mark.parametrize("frame", ["tool0", "frame_tool_2", "frame_wrist"])
+def test_identify_recovers_a_pinocchio_payload_in_its_frame(urdf, tmp_path, frame):
+    model = pin.buildModelFromUrdf(str(urdf))
+    g = np.random.default_rng(43 + len(frame))
+    nh, w = 4, 2 * np.pi / 10.0
+    q0 = np.array([0.0, -1.4, 1.6, -1.8, -1.57, 0.0])
+    a = g.uniform(-0.25, 0.25, (6, nh))
+    b = g.uniform(-0.25, 0.25, (6, nh))
+    p = ISSUE if frame == "tool0" else random_payload(g)
+    write_twins(tmp_path, model, frame, p, w, q0, a, b)
     design = tmp_path / "payload.toml"
     design.write_text(
         f'name = "pin_payload"\nrobot = "{urdf}"\nframe = "{frame}"\nmethod = "ols"\nexport = []\n'

@@ -157,6 +157,10 @@ def test_the_installed_panda_loads_as_an_arm_with_its_fingers_locked(cli):
             assert f.is_file() and share in f.parents, g
             assert g["uri"].startswith("package://example-robot-data/"), g
             assert g["uri"].split("/", 3)[3] == str(f.relative_to(share)), g
+    # the same from the library through Python
+    prov = robot.provenance()
+    assert prov["left_out"] == info["left_out"]
+    assert [(c["link"], c["file"]) for c in prov["collision"]] == [(g["link"], g["file"]) for g in geo]
     fingers = [g for g in geo if g["link"] in ("panda_leftfinger", "panda_rightfinger")]
     assert fingers and all(g["body"] == "panda_link7" for g in fingers), fingers
     assert any(str(pathlib.Path(g["file"])) in text for g in geo if g["file"]), text

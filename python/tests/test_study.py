@@ -86,3 +86,62 @@ def test_study_errors_name_the_field(runs):
     d["experiment"][0]["cutof"] = 3
     with pytest.raises(idexp.IdexpError, match="cutof"):
         idexp.study(d, base_dir=str(runs))
+
+
+def test_exported_robot_toml_points_at_an_identified_urdf_that_pinocchio_reads(tmp_path):
+    """`export = ["toml"]` alone: robot.toml points at the robot.urdf written
+    beside it (not at the input URDF), and Pinocchio, reading that URDF,
+    gives the identified model's rigid-body torques (idexp's consistent
+    model with its drive terms left out: Pinocchio has none)."""
+    pin = pytest.importorskip("pinocchio")
+    urdf = ROOT / "tests/data/rxz_chain.urdf"
+    sim = {
+        "robot": str(urdf), "rate": 1000.0, "decimate": 5, "repetitions": 3, "seed": 11,
+        "truth": {"perturbation": 0.1, "seed": 1},
+        "controller": {"bandwidth": 10.0},
+        "noise": {"torque": 0.05, "position": 2e-5},
+        "reference": {"kind": "random_fourier", "n_h": 5, "frequency": 0.1, "amplitude": 0.6, "seed": 3},
+    }
+    idexp.simulate(sim).write(str(tmp_path / "a"))
+    s = idexp.study({
+        "robot": str(urdf), "export": ["toml"],
+        "experiment": [{"name": "a", "files": ["a"], "harmonics": 20}],
+        "consistent": {"metric": "euclidean"},
+    }, base_dir=str(tmp_path))
+    assert s.consistent["status"] == "ok"
+    out = tmp_path / "out"
+    s.write(str(out))
+    assert 'urdf = "robot.urdf"' in (out / "robot.toml").read_text()
+    model = idexp.Robot.load(out / "robot.toml")
+    assert np.allclose(model.nominal_params, s.consistent_theta, rtol=1e-9, atol=1e-12)
+    # the rigid-body part: the identified standard parameters with every drive parameter at 0
+    rigid = model.with_params(np.where(model.inertial_mask, model.nominal_params, 0.0))
+    pm = pin.buildModelFromUrdf(str(out / "robot.urdf"))
+    pd = pm.createData()
+    g = np.random.default_rng(5)
+    worst = 0.0
+    for _ in range(20):
+        q, v, a = g.uniform(-2, 2, 5), g.uniform(-1, 1, 5), g.uniform(-3, 3, 5)
+        worst = max(worst, np.abs(pin.rnea(pm, pd, q, v, a) - rigid.rnea(q, v, a)).max())
+    assert worst < 1e-8, worst
+    # and the torques differ from the input URDF's nominal model (the export is not the input)
+    nominal = pin.buildModelFromUrdf(str(urdf))
+    nd = nominal.createData()
+    q, v, a = g.uniform(-2, 2, 5), g.uniform(-1, 1, 5), g.uniform(-3, 3, 5)
+    assert np.abs(pin.rnea(nominal, nd, q, v, a) - pin.rnea(pm, pd, q, v, a)).max() > 1e-3
+
+
+def test_dead_band_and_unknown_drives_are_study_keys(runs):
+    """`dead_band` and `[consistent] unknown` reach the study from a dict:
+    the report states both, and a name that is not a drive parameter is
+    refused naming the field."""
+    d = design(runs)
+    d["dead_band"] = 0.02
+    d["consistent"]["unknown"] = ["Ia1"]
+    s = idexp.study(d, base_dir=str(runs))
+    assert s.status == "ok"
+    text = s.text()
+    assert "0.02" in text and "Ia1" in text, text
+    d["consistent"]["unknown"] = ["M1"]
+    with pytest.raises(idexp.IdexpError, match="unknown"):
+        idexp.study(d, base_dir=str(runs))

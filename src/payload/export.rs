@@ -13,8 +13,8 @@
 //! flange frame (UR: `tool0` of UR's descriptions; Franka: the flange, `panda_link8`;
 //! KUKA: `$FLANGE`), so identify on that frame. Each file names its frame.
 
-use crate::robot::payload::Payload;
 use crate::robot::mjcf::{mujoco_inertia, TRIANGLE_MARGIN};
+use crate::robot::payload::Payload;
 use nalgebra::{Matrix3, Rotation3, SymmetricEigen};
 use serde::Serialize;
 use std::fmt::Write;
