@@ -310,13 +310,25 @@ fn pick_and_place_with_dwell_tanh_model_beats_sign_model_at_standstill() {
         assert_eq!(r.used, r.total, "{r:?}");
         assert!(r.reason.contains("continuous at rest"), "{r:?}");
     }
-    let (is, rs, _, zs) = ident_with(&sign, &res, &val, &IdentOptions::default());
+    // the sign model as sign(q̇) at every speed (no dead band): what the tanh
+    // model is compared with; the dead band's own effect is measured below
+    let no_band = IdentOptions {
+        dead_band: 0.0,
+        ..Default::default()
+    };
+    let (is, rs, _, zs) = ident_with(&sign, &res, &val, &no_band);
     assert!(is.estimate.rows_used.iter().all(|r| r.used < r.total && r.reason.contains("discontinuous")));
     let keep = IdentOptions {
         standstill: Standstill::Keep,
-        ..Default::default()
+        ..no_band.clone()
     };
     let (ik, rk, _, zk) = ident_with(&sign, &res, &val, &keep);
+    // the default: |q̇| below the dead band is rest for the sign model's Coulomb term
+    let keep_band = IdentOptions {
+        standstill: Standstill::Keep,
+        ..Default::default()
+    };
+    let (ib, rb, _, zb) = ident_with(&sign, &res, &val, &keep_band);
     let drop = IdentOptions {
         standstill: Standstill::Drop,
         ..Default::default()
@@ -329,6 +341,7 @@ fn pick_and_place_with_dwell_tanh_model_beats_sign_model_at_standstill() {
         ("tanh, every row", &it, &rt, zt),
         ("sign, slow rows dropped", &is, &rs, zs),
         ("sign, every row", &ik, &rk, zk),
+        ("sign+band, every row", &ib, &rb, zb),
         ("tanh, slow rows dropped", &id_, &rd, zd),
     ] {
         println!(
@@ -348,6 +361,11 @@ fn pick_and_place_with_dwell_tanh_model_beats_sign_model_at_standstill() {
     assert!(zt > 3.0, "max|z| {zt}: the acceptance is met now, update docs/robots.md \"Drives\"");
     assert!(rt[0] > 2.0 * ft[0] && rt[2] > 2.0 * ft[2] && rt[1] < 2.0 * ft[1], "{rt:?} vs {ft:?}");
     for j in 0..3 {
+        // the dead band (the default): the sign model's Coulomb term no longer
+        // takes the sign of the velocity noise near rest, and its prediction
+        // over the whole motion improves (measured: 6.9/31/11.5 % → 4.4/23/4.7 %);
+        // at standstill this tanh truth still favours the tanh model (below)
+        assert!(ib.estimate.errors_all.e_rel[j] < ik.estimate.errors_all.e_rel[j], "joint {j}: dead band");
         // over the whole motion and at standstill, the tanh model predicts better
         assert!(it.estimate.errors_all.e_rel[j] < is.estimate.errors_all.e_rel[j], "joint {j}");
         assert!(it.estimate.errors_all.e_rel[j] < ik.estimate.errors_all.e_rel[j], "joint {j}");

@@ -72,6 +72,19 @@ fn ur5_loads_with_36_base_inertial_parameters() {
 }
 
 #[test]
+fn ur10_loads_with_36_base_inertial_parameters() {
+    let r = load("ur10.toml");
+    assert_eq!(r.dof(), 6);
+    assert_eq!(n_base(&r, true), 36);
+    // tool0 at the zero pose from UR's published UR10 (CB) DH data:
+    // x = a2 + a3, y = d4 + d6, z = d1 - d5
+    let t = tool_position(&r, &[0.0; 6]);
+    let expected = nalgebra::Vector3::new(0.612 + 0.5723, 0.163941 + 0.0922, 0.1273 - 0.1157);
+    assert!((t - expected).norm() < 1e-9, "{t}");
+    check_regressor(&r);
+}
+
+#[test]
 fn panda_loads_with_43_base_inertial_parameters() {
     let r = load("panda.toml");
     assert_eq!(r.dof(), 7);

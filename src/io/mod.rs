@@ -185,6 +185,13 @@ pub fn read_to_string_bounded(path: &Path, max_bytes: u64) -> Result<String> {
 /// exist either, that too).
 pub fn design_path(file: &Path, field: &str, written: &Path) -> Result<std::path::PathBuf> {
     let dir = file.parent().unwrap_or(Path::new(""));
+    path_in(&file.display().to_string(), dir, field, written)
+}
+
+/// [`design_path`] for a design whose paths are relative to a folder given
+/// apart from the file (a design read from a dict, or placed elsewhere):
+/// `ctx` names the design in the error, `dir` is the folder.
+pub fn path_in(ctx: &str, dir: &Path, field: &str, written: &Path) -> Result<std::path::PathBuf> {
     let resolved = if written.is_absolute() { written.to_path_buf() } else { dir.join(written) };
     if resolved.exists() {
         return Ok(resolved);
@@ -205,7 +212,7 @@ pub fn design_path(file: &Path, field: &str, written: &Path) -> Result<std::path
         .filter(|p| !p.as_os_str().is_empty() && !p.exists())
         .map(|p| format!(" (no folder {})", p.display()))
         .unwrap_or_default();
-    Err(Error::invalid(file.display().to_string(), field, format!("{why}{missing_dir}")))
+    Err(Error::invalid(ctx, field, format!("{why}{missing_dir}")))
 }
 
 /// Reads a TOML file into `T`, reporting syntax and field errors with the file

@@ -452,7 +452,8 @@ mod tests {
         let e = SymmetricEigen::new(m).eigenvalues;
         let (a, b, c) = (e[0], e[1], e[2]);
         let slack = [a + b - c, a + c - b, b + c - a];
-        assert!(slack.iter().all(|s| *s >= 1e-9 * (a + b + c)), "{slack:?}");
+        // the margin is met to the rounding of the eigen-decomposition (δ solves it with equality)
+        assert!(slack.iter().all(|s| *s >= 0.999 * TRIANGLE_MARGIN * (a + b + c)), "{slack:?}");
     }
 
     #[test]

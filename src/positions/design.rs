@@ -210,10 +210,10 @@ impl PositionsDesign {
     /// Reads a design file.
     pub fn read(path: &Path) -> Result<PositionsDesign> {
         let d: PositionsDesign = crate::io::read_toml(path)?;
+        d.validate(&path.display().to_string())?;
         if let Some(r) = &d.robot {
             crate::io::design_path(path, "robot", r)?;
         }
-        d.validate(&path.display().to_string())?;
         Ok(d)
     }
 

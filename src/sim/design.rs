@@ -238,7 +238,6 @@ impl SimDesign {
     /// Reads and validates a design file.
     pub fn read(path: &Path) -> Result<SimDesign> {
         let d: SimDesign = crate::io::read_toml(path)?;
-        crate::io::design_path(path, "robot", &d.robot)?;
         d.validate(&path.display().to_string())?;
         Ok(d)
     }

@@ -211,7 +211,8 @@ impl SimSetup {
     /// Resolves a design: loads the robot, draws the true parameters, builds the
     /// reference and the gains. `base` is the design file's folder.
     pub fn from_design(d: &SimDesign, base: &Path, ctx: &str) -> Result<SimSetup> {
-        let nominal = crate::robot::load(&resolve(base, &d.robot))?;
+        // the robot path: relative to `base` (the design file's folder on the command line), checked
+        let nominal = crate::robot::load(&crate::io::path_in(ctx, base, "robot", &d.robot)?)?;
         let n = nominal.dof();
         if d.record != Record::Torque {
             if let Some(j) = nominal.drives.iter().position(|dr| dr.torque_constant.is_none()) {
