@@ -468,7 +468,7 @@ fn distance_violation(m: &Margin, clock: Clock) -> String {
 
 /// The collision lines of the report: geometry, checked and excluded pairs,
 /// the worst distance per class on the verification grid (its instant on
-/// the period's clock, [`Clock`]).
+/// the period's clock, `Clock`).
 pub fn collision_text(p: &Problem, margins: &[Margin], rate: f64) -> String {
     collision_text_on(
         p,

@@ -189,6 +189,7 @@ pub fn run_study(design: &StudyDesign, dir: &Path, ctl: &Control) -> Result<Stud
         status,
         method: design.method,
         weights: design.weights,
+        dead_band: design.dead_band,
         names: base.names.clone(),
         groupings: base.groupings.clone(),
         covariance: st.cov.row_iter().map(|r| r.iter().copied().collect()).collect(),

@@ -43,6 +43,11 @@ impl StudyEstimate {
             self.iterations,
             if self.converged { ", settled" } else { ", NOT settled" }
         );
+        let _ = writeln!(
+            s,
+            "Coulomb dead band: |q̇| < {} rad/s is rest for a sign(q̇) Coulomb term (no Coulomb torque), in every experiment and validation run (dead_band)",
+            self.dead_band
+        );
         for w in &self.warnings {
             let _ = writeln!(s, "WARNING: {w}");
         }

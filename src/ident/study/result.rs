@@ -217,6 +217,9 @@ pub struct StudyEstimate {
     pub method: StudyMethod,
     /// Weight source.
     pub weights: WeightSource,
+    /// The Coulomb dead band (rad/s or m/s) of every experiment and
+    /// validation run: |q̇_j| below it is rest for a `sign` Coulomb term.
+    pub dead_band: f64,
     /// Base parameter names.
     pub names: Vec<String>,
     /// Their groupings.
