@@ -42,6 +42,10 @@ pub const TIE: f64 = 2.0;
 /// Shifts below this many samples between runs of equal length are none.
 pub const NO_SHIFT: f64 = 1e-3;
 
+/// The coarse shift search's grid: about this many samples (a longer run is
+/// searched on every k-th sample and lag, then refined at full resolution).
+pub const COARSE_SAMPLES: usize = 2000;
+
 /// How a loaded run was paired with its unloaded twin.
 #[derive(Debug, Clone, Serialize)]
 pub struct Alignment {
@@ -146,24 +150,28 @@ pub fn align(l: &Processed, u: &Processed, ctx: &str, twin: &str) -> Result<Alig
     let shorter = ml.min(mu);
     let need = (MIN_OVERLAP * shorter as f64).ceil() as usize;
     let kmax = (shorter - need) as i64;
-    let lags: Vec<i64> = (-kmax..=kmax).collect();
-    let cost: Vec<f64> = lags
-        .iter()
-        .map(|&k| {
-            let (a, b) = overlap(ml, mu, k as f64);
-            if b - a < need {
-                return f64::INFINITY;
+    // the mean weighted squared difference at lag k, over every `every`-th sample of the overlap
+    let cost_at = |k: i64, every: usize| -> f64 {
+        let (a, b) = overlap(ml, mu, k as f64);
+        if b - a < need {
+            return f64::INFINITY;
+        }
+        let (mut e, mut count) = (0.0, 0usize);
+        for s in (a..b).step_by(every) {
+            let su = (s as i64 + k) as usize;
+            for j in 0..n {
+                e += w[j] * (u.q[su][j] - l.q[s][j]).powi(2);
             }
-            let mut e = 0.0;
-            for s in a..b {
-                let su = (s as i64 + k) as usize;
-                for j in 0..n {
-                    e += w[j] * (u.q[su][j] - l.q[s][j]).powi(2);
-                }
-            }
-            e / (b - a) as f64
-        })
-        .collect();
+            count += 1;
+        }
+        e / count as f64
+    };
+    // long runs: the lags and the samples on a grid of about COARSE_SAMPLES
+    // (the search costs O(grid² · n), not O(samples² · n)), then every lag
+    // around the coarse minimum at full resolution
+    let stride = (shorter / COARSE_SAMPLES).max(1);
+    let lags: Vec<i64> = (-kmax..=kmax).step_by(stride).collect();
+    let cost: Vec<f64> = lags.iter().map(|&k| cost_at(k, stride)).collect();
     // a trajectory played twice fits as well one period later: of the local
     // minima within TIE of the best, the smallest shift (the largest overlap)
     let best = cost.iter().copied().fold(f64::INFINITY, f64::min);
@@ -172,6 +180,15 @@ pub fn align(l: &Processed, u: &Processed, ctx: &str, twin: &str) -> Result<Alig
         .filter(|&i| (i == 0 || cost[i] <= cost[i - 1]) && (i + 1 == lags.len() || cost[i] <= cost[i + 1]))
         .min_by_key(|&i| lags[i].abs())
         .map_or(0, |i| lags[i]);
+    let k0 = if stride > 1 {
+        let r = stride as i64;
+        ((k0 - r).max(-kmax)..=(k0 + r).min(kmax))
+            .map(|k| (k, cost_at(k, 1)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map_or(k0, |(k, _)| k)
+    } else {
+        k0
+    };
     // a fraction of a sample: Gauss–Newton on the interpolated positions
     let mut d = k0 as f64;
     for _ in 0..50 {
@@ -356,6 +373,17 @@ mod tests {
         let u = run(0.0075, 1990, 0.005, w);
         let al = align(&l, &u, "loaded", "unloaded").unwrap();
         assert!((al.shift_samples + 1.5).abs() < 1e-6, "{}", al.shift_samples);
+    }
+
+    #[test]
+    fn a_long_run_is_searched_on_a_coarse_grid_then_at_full_resolution() {
+        // 60 s at 1 kHz, several periods: the lag search on about COARSE_SAMPLES
+        // samples, refined to the same sub-sample shift
+        let w = 0.9;
+        let l = run(0.0, 60_000, 0.001, w);
+        let u = run(0.0174, 59_950, 0.001, w); // 17.4 samples later, 50 shorter
+        let al = align(&l, &u, "loaded", "unloaded").unwrap();
+        assert!((al.shift_samples + 17.4).abs() < 1e-6, "{}", al.shift_samples);
     }
 
     #[test]

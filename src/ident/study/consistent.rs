@@ -77,7 +77,8 @@ pub(super) fn consistent_with_prior(
                 .map(|x| (x.1, x.2))
                 .ok_or_else(|| Error::invalid("consistent", "weight_grid", "no candidate weight gave a consistent estimate"))?;
             // one-standard-error rule: the strongest prior within one standard error of the best
-            let tol = best.1;
+            // (a tolerance that is not a number, from non-finite error terms: none, the best alone)
+            let tol = if best.1.is_finite() { best.1 } else { 0.0 };
             let pick = scored
                 .into_iter()
                 .filter(|x| x.1 <= best.0 + tol)
