@@ -173,9 +173,9 @@ fn rows_used(robot: &Robot, full: &Dataset, total: usize, drop: &[bool], slow: f
                 format!("rows with |q̇| < max({slow}·max|q̇|, {vmin}) left out: {why}")
             } else {
                 let why = match opts.standstill {
-                    Standstill::Keep if d.discontinuous_at_rest() && opts.dead_band > 0.0 => format!(
+                    Standstill::Keep if d.discontinuous_at_rest() && dead_band(opts) > 0.0 => format!(
                         "standstill keep; the Coulomb term is 0 within the dead band |q̇| < {} (dead_band)",
-                        opts.dead_band
+                        dead_band(opts)
                     ),
                     Standstill::Keep => "standstill keep".to_string(),
                     _ => format!("{shape} is continuous at rest"),
