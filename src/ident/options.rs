@@ -7,8 +7,8 @@ use super::{Coordinates, Filter, VelocityFrom, Weights};
 use crate::error::{Error, Result};
 use serde::Serialize;
 
-/// Estimator (`--method`: `ols`, `wls`, `projection`, `ml`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
+/// Estimator (`method`: `ols`, `wls`, `projection`, `ml`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Method {
     /// Ordinary least squares.
@@ -61,7 +61,7 @@ impl std::str::FromStr for Method {
         Method::ALL
             .into_iter()
             .find(|m| m.name() == s)
-            .ok_or_else(|| Error::invalid("--method", "method", format!("expected ols, wls, projection or ml, found `{s}`")))
+            .ok_or_else(|| Error::invalid("identify", "method", format!("expected ols, wls, projection or ml, found `{s}`")))
     }
 }
 

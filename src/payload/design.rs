@@ -24,7 +24,8 @@
 
 use crate::error::{Error, Result};
 use crate::ident::study::design::name_ok;
-use crate::ident::study::{ExperimentSpec, StudyMethod, WeightSource};
+use crate::ident::study::{ExperimentSpec, WeightSource};
+use crate::ident::Method;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -111,9 +112,9 @@ pub struct PayloadDesign {
     /// A simulated run (folder) whose design carries the true `[payload]`; the report then gives the errors.
     #[serde(default)]
     pub truth: Option<PathBuf>,
-    /// Estimator.
+    /// Estimator: `wls` or `ols` (the stacked least squares of the twins).
     #[serde(default)]
-    pub method: StudyMethod,
+    pub method: Method,
     /// Where the weights come from (repetitions, residuals per experiment and joint).
     #[serde(default)]
     pub weights: WeightSource,
@@ -169,6 +170,15 @@ impl PayloadDesign {
             return bad(
                 "name",
                 format!("`{}`: expected letters, digits, `_`, `-` or `.` (it names the output folder)", self.name),
+            );
+        }
+        if !matches!(self.method, Method::Wls | Method::Ols) {
+            return bad(
+                "method",
+                format!(
+                    "expected \"wls\" or \"ols\" (the payload is a least-squares fit over every twin), found \"{}\"",
+                    self.method
+                ),
             );
         }
         if self.loaded.is_empty() {

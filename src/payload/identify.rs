@@ -28,7 +28,7 @@ use crate::error::{Error, Result};
 use crate::ident::consistent::{self, ConsistentOptions, ConsistentStatus, Kind};
 use crate::ident::estimate::Dataset;
 use crate::ident::study::stack::Rows;
-use crate::ident::study::{load_entry, BlockWeight, Loaded, StackOptions, StudyMethod};
+use crate::ident::study::{load_entry, BlockWeight, Loaded, StackOptions};
 use crate::ident::EstimateStatus;
 use crate::optim::Control;
 use crate::params::{random_stack, BaseOptions, BaseParams};
@@ -447,7 +447,7 @@ pub fn identify(design: &PayloadDesign, dir: &Path, ctl: &Control) -> Result<Pay
     let sopts = StackOptions {
         weights: design.weights,
         repetition_weights: None,
-        ols: design.method == StudyMethod::Ols,
+        ols: design.method == crate::ident::Method::Ols,
         max_iterations: design.irls_iterations,
         tol: design.irls_tol,
     };

@@ -3,15 +3,29 @@
 //! ```toml
 //! name = "cobot"                     # output folder out/<name> (default: the file stem)
 //! robot = "robots/cobot.toml"        # relative to this file
-//! method = "wls"                     # wls | ols
+//! method = "wls"                     # wls | ols (every experiment stacked) | projection | ml (closed loop, one experiment)
 //! weights = "auto"                   # auto (repetitions where they exist, else residuals) | repetitions | residuals
 //! repetition_weights = "sample"      # sample (per sample, eq. 7) | joint (per-joint mean); default: sample from 10 repetitions on
 //! irls_iterations = 50               # reweighting iterations (residual weights)
 //! irls_tol = 1e-6                    # relative change of the block variances that ends them
 //! base_columns = []                  # fix the base columns by name (default: computed)
 //! truth = "sim/truth.json"           # optional: compare with the true base parameters
-//! export = ["urdf", "toml", "csv"]   # the identified model (urdf/toml need [consistent])
+//! export = ["urdf", "toml", "csv"]   # the identified model (urdf, toml, mjcf need [consistent])
 //! dead_band = 0.01                   # rad/s: |q̇| below it is rest for `sign` Coulomb terms (every experiment and validation run)
+//!
+//!
+//! [reduce]                           # model reduction (paper 000 Algorithm 1; method wls, one experiment)
+//! tol = 0.05                         # largest relative growth of any joint's e*_j
+//! essential = "auto"                 # auto | none | friction | ["fv1", "fc1"]: never removed
+//! moving_speed = 0.05                # a joint moves above this speed (for essential = "auto")
+//!
+//! [projection]                       # method = "projection" (paper 002 eq. 10–12)
+//! lags = [2, 4]                      # FIR lags [M1, M2]; default: chosen by cross-validation
+//!
+//! [ml]                               # method = "ml" (paper 002 eq. 13–16)
+//! max_eval = 400
+//! ftol_rel = 1e-12
+//! bound = 50.0                       # search box half-width in WLS standard deviations
 //!
 //! [[experiment]]                     # any number (≥ 1); their rows are stacked
 //! name = "fourier_a"                 # default: the first file's (folder's) name
@@ -53,20 +67,147 @@ use crate::data::{Coordinates, TorqueFrom};
 use crate::error::{Error, Result};
 use crate::ident::estimate::Weights;
 use crate::ident::prior::PriorMetric;
+use crate::ident::reduce::Essential;
 use crate::ident::study::stack::WeightSource;
-use crate::ident::{Standstill, VelocityFrom};
+use crate::ident::{Method, MlOptions, Standstill, VelocityFrom};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// The estimator of a study.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+/// Model reduction (`[reduce]`, paper 000 Algorithm 1): weighted least
+/// squares on one experiment, parameters removed while every joint's e*_j
+/// grows by less than `tol`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReduceSpec {
+    /// Tolerance e_tol on the relative growth of e*_j.
+    #[serde(default = "reduce_tol")]
+    pub tol: f64,
+    /// Parameters never removed: `"auto"` (friction when every joint moves),
+    /// `"none"`, `"friction"`, or a list of base-parameter names.
+    #[serde(default)]
+    pub essential: EssentialSpec,
+    /// Joint speed above which a joint counts as moving (rad/s or m/s).
+    #[serde(default = "moving_speed")]
+    pub moving_speed: f64,
+    /// Rank tolerance (relative residual of a unit-norm column).
+    #[serde(default = "rank_tol")]
+    pub rank_tol: f64,
+}
+
+impl Default for ReduceSpec {
+    fn default() -> Self {
+        ReduceSpec {
+            tol: reduce_tol(),
+            essential: EssentialSpec::default(),
+            moving_speed: moving_speed(),
+            rank_tol: rank_tol(),
+        }
+    }
+}
+
+/// The essential parameters of `[reduce]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum EssentialSpec {
+    /// A rule.
+    Rule(EssentialRule),
+    /// These base parameters by name.
+    Names(Vec<String>),
+}
+
+impl Default for EssentialSpec {
+    fn default() -> Self {
+        EssentialSpec::Rule(EssentialRule::Auto)
+    }
+}
+
+/// Rules of [`EssentialSpec`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
-pub enum StudyMethod {
-    /// Weighted least squares ([`super::stack`]).
-    #[default]
-    Wls,
-    /// Ordinary least squares (unit weights).
-    Ols,
+pub enum EssentialRule {
+    /// Friction parameters when every joint moves, else none (paper 000 §III-D).
+    Auto,
+    /// No essential parameters.
+    None,
+    /// Every friction parameter.
+    Friction,
+}
+
+impl EssentialSpec {
+    /// The reduction's essential set.
+    pub fn essential(&self) -> Essential {
+        match self {
+            EssentialSpec::Rule(EssentialRule::Auto) => Essential::Auto,
+            EssentialSpec::Rule(EssentialRule::None) => Essential::None,
+            EssentialSpec::Rule(EssentialRule::Friction) => Essential::Friction,
+            EssentialSpec::Names(n) => Essential::Names(n.clone()),
+        }
+    }
+}
+
+/// The projection method's options (`[projection]`, paper 002 eq. 10–12).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectionSpec {
+    /// FIR lags [M1, M2] (non-causal, causal); default: chosen by
+    /// cross-validation over the repetitions.
+    #[serde(default)]
+    pub lags: Option<[usize; 2]>,
+}
+
+/// The maximum-likelihood options (`[ml]`, paper 002 eq. 13–16).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MlSpec {
+    /// Largest number of cost evaluations.
+    #[serde(default = "ml_max_eval")]
+    pub max_eval: u32,
+    /// Relative tolerance on the cost.
+    #[serde(default = "ml_ftol_rel")]
+    pub ftol_rel: f64,
+    /// Half-width of the search box, in WLS standard deviations around the WLS estimate.
+    #[serde(default = "ml_bound")]
+    pub bound: f64,
+}
+
+impl Default for MlSpec {
+    fn default() -> Self {
+        MlSpec {
+            max_eval: ml_max_eval(),
+            ftol_rel: ml_ftol_rel(),
+            bound: ml_bound(),
+        }
+    }
+}
+
+impl MlSpec {
+    /// The estimator's options.
+    pub fn options(&self) -> MlOptions {
+        MlOptions {
+            max_eval: self.max_eval,
+            ftol_rel: self.ftol_rel,
+            bound: self.bound,
+        }
+    }
+}
+
+fn reduce_tol() -> f64 {
+    0.05
+}
+fn moving_speed() -> f64 {
+    0.05
+}
+fn rank_tol() -> f64 {
+    1e-3
+}
+fn ml_max_eval() -> u32 {
+    MlOptions::default().max_eval
+}
+fn ml_ftol_rel() -> f64 {
+    MlOptions::default().ftol_rel
+}
+fn ml_bound() -> f64 {
+    MlOptions::default().bound
 }
 
 /// What an experiment is; sets the defaults of its processing.
@@ -291,6 +432,8 @@ pub enum ExportFormat {
     Toml,
     /// `params.csv` (every base and standard parameter).
     Csv,
+    /// `robot.xml` (the consistent model as MJCF for MuJoCo).
+    Mjcf,
 }
 
 /// An identification study.
@@ -302,9 +445,10 @@ pub struct StudyDesign {
     pub name: String,
     /// Robot file, relative to the study file.
     pub robot: PathBuf,
-    /// Estimator.
+    /// Estimator: `wls`, `ols` (every experiment stacked), `projection` or
+    /// `ml` (closed-loop methods on one experiment).
     #[serde(default)]
-    pub method: StudyMethod,
+    pub method: Method,
     /// Where the weights come from.
     #[serde(default)]
     pub weights: WeightSource,
@@ -339,6 +483,15 @@ pub struct StudyDesign {
     /// Model files to write.
     #[serde(default)]
     pub export: Vec<ExportFormat>,
+    /// Model reduction (method `wls`, one experiment).
+    #[serde(default)]
+    pub reduce: Option<ReduceSpec>,
+    /// Projection-method options (method `projection`).
+    #[serde(default)]
+    pub projection: ProjectionSpec,
+    /// Maximum-likelihood options (method `ml`).
+    #[serde(default)]
+    pub ml: MlSpec,
     /// Coulomb dead band (rad/s or m/s): for the joints with a `sign`
     /// Coulomb term, |q̇_j| below it is rest (Coulomb term 0), in every
     /// experiment and validation run ([`crate::ident::DEAD_BAND`] by default).
@@ -466,6 +619,101 @@ pub(crate) fn name_ok(s: &str) -> bool {
 }
 
 impl StudyDesign {
+    /// The estimator's rules: the closed-loop methods and the model reduction
+    /// work on one experiment; the consistent fit needs every base parameter
+    /// of a least-squares fit.
+    fn validate_method(&self, ctx: &str) -> Result<()> {
+        let one = |field: &str, what: &str| -> Result<()> {
+            if self.experiment.len() != 1 {
+                return Err(Error::invalid(
+                    ctx,
+                    field,
+                    format!(
+                        "{what} works on one experiment (its repetitions and its reference), but the study has {} [[experiment]] entries: give one, or use method \"wls\"",
+                        self.experiment.len()
+                    ),
+                ));
+            }
+            Ok(())
+        };
+        match self.method {
+            Method::Projection => one("method", "the projection method (paper 002 eq. 10–12)")?,
+            Method::Ml => one("method", "maximum likelihood (paper 002 eq. 13–16)")?,
+            Method::Wls | Method::Ols => {}
+        }
+        if let Some(r) = &self.reduce {
+            let ctx = format!("{ctx}: [reduce]");
+            if self.method != Method::Wls {
+                return Err(Error::invalid(
+                    &ctx,
+                    "method",
+                    format!(
+                        "model reduction (paper 000 Algorithm 1) uses weighted least squares: set method = \"wls\", found \"{}\"",
+                        self.method
+                    ),
+                ));
+            }
+            one("reduce", "model reduction (paper 000 Algorithm 1)")?;
+            if !(r.tol.is_finite() && r.tol > 0.0) {
+                return Err(Error::invalid(&ctx, "tol", format!("expected a positive tolerance, found {}", r.tol)));
+            }
+            if !(r.moving_speed.is_finite() && r.moving_speed >= 0.0) {
+                return Err(Error::invalid(&ctx, "moving_speed", format!("expected a speed ≥ 0, found {}", r.moving_speed)));
+            }
+            if !(r.rank_tol.is_finite() && r.rank_tol > 0.0 && r.rank_tol < 1.0) {
+                return Err(Error::invalid(
+                    &ctx,
+                    "rank_tol",
+                    format!("expected a tolerance in (0, 1), found {}", r.rank_tol),
+                ));
+            }
+            if let EssentialSpec::Names(n) = &r.essential {
+                if n.is_empty() {
+                    return Err(Error::invalid(
+                        &ctx,
+                        "essential",
+                        "expected \"auto\", \"none\", \"friction\" or a non-empty list of base-parameter names",
+                    ));
+                }
+                if let Some((i, x)) = n.iter().enumerate().find(|(i, x)| n[..*i].contains(x)) {
+                    return Err(Error::invalid(
+                        &ctx,
+                        "essential",
+                        format!("`{x}` is listed twice (entry {}): expected each name once", i + 1),
+                    ));
+                }
+            }
+        }
+        if self.consistent.is_some() && (self.reduce.is_some() || !matches!(self.method, Method::Wls | Method::Ols)) {
+            return Err(Error::invalid(
+                ctx,
+                "consistent",
+                "the physically consistent fit uses the least-squares fit of every base parameter: use method \"wls\" or \"ols\" and no [reduce]",
+            ));
+        }
+        if let Some([m1, m2]) = self.projection.lags {
+            if m1 + m2 == 0 || m1 + m2 > 10_000 {
+                return Err(Error::invalid(
+                    format!("{ctx}: [projection]"),
+                    "lags",
+                    format!("expected [M1, M2] with 1 ≤ M1 + M2 ≤ 10000, found [{m1}, {m2}]"),
+                ));
+            }
+        }
+        let ml = &self.ml;
+        if ml.max_eval == 0 || !(ml.ftol_rel.is_finite() && ml.ftol_rel > 0.0) || !(ml.bound.is_finite() && ml.bound > 0.0) {
+            return Err(Error::invalid(
+                format!("{ctx}: [ml]"),
+                "max_eval/ftol_rel/bound",
+                format!(
+                    "expected max_eval ≥ 1, ftol_rel > 0 and bound > 0, found {}, {}, {}",
+                    ml.max_eval, ml.ftol_rel, ml.bound
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// Reads and validates a study file.
     pub fn read(path: &Path) -> Result<StudyDesign> {
         let text = crate::io::read_to_string(path)?;
@@ -507,6 +755,7 @@ impl StudyDesign {
         if self.sample_limit < 3 {
             return Err(Error::invalid(ctx, "sample_limit", format!("expected ≥ 3, found {}", self.sample_limit)));
         }
+        self.validate_method(ctx)?;
         let mut names: Vec<String> = Vec::new();
         for (what, list) in [("experiment", &self.experiment), ("validation", &self.validation)] {
             for (i, e) in list.iter().enumerate() {

@@ -2,7 +2,7 @@
 //! or run CSVs, resampled and converted by the drives), its coordinates, its
 //! trajectory and filter, and the rows its standstill rule keeps.
 
-use super::{ExperimentKind, ExperimentSpec, FilterName, StudyMethod};
+use super::{ExperimentKind, ExperimentSpec, FilterName};
 use crate::data::{Run, Sampling, SamplingOptions, TorqueSource};
 use crate::error::{Error, Result};
 use crate::ident::{in_joint_coordinates, prepare, resolve_filter, run_trajectory, Filter, FilterChoice, IdentOptions, Method, Prepared};
@@ -30,6 +30,9 @@ pub struct Loaded {
     pub prep: Prepared,
     /// What was chosen for the entry that it did not say (in the study file's words).
     pub notes: Vec<String>,
+    /// The run as read, in joint coordinates: kept for the projection
+    /// method, which needs its references (None otherwise).
+    pub run: Option<Run>,
 }
 
 impl Loaded {
@@ -41,7 +44,7 @@ impl Loaded {
 
 /// Reads and processes one entry of a study (paths relative to `dir`) with
 /// the default Coulomb dead band ([`crate::ident::DEAD_BAND`]).
-pub fn load_entry(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, dir: &Path, method: StudyMethod, sample_limit: usize) -> Result<Loaded> {
+pub fn load_entry(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, dir: &Path, method: Method, sample_limit: usize) -> Result<Loaded> {
     load_entry_with(robot, base, spec, dir, method, sample_limit, crate::ident::DEAD_BAND)
 }
 
@@ -52,7 +55,7 @@ pub fn load_entry_with(
     base: &BaseParams,
     spec: &ExperimentSpec,
     dir: &Path,
-    method: StudyMethod,
+    method: Method,
     sample_limit: usize,
     dead_band: f64,
 ) -> Result<Loaded> {
@@ -128,10 +131,7 @@ pub fn load_entry_with(
         FilterName::None => FilterChoice::Given(Filter::None),
     };
     let opts = IdentOptions {
-        method: match method {
-            StudyMethod::Wls => Method::Wls,
-            StudyMethod::Ols => Method::Ols,
-        },
+        method,
         filter,
         harmonics: spec.harmonics,
         decimate: spec.decimate,
@@ -163,6 +163,7 @@ pub fn load_entry_with(
         sampling,
         prep,
         notes,
+        run: (method == Method::Projection).then_some(run),
     })
 }
 

@@ -28,17 +28,19 @@ mod load;
 pub mod output;
 pub mod report;
 mod result;
+mod single;
 pub mod stack;
 
 pub use design::{
-    ConsistentSpec, ExperimentKind, ExperimentSpec, ExportFormat, FilterName, StudyDesign, StudyMethod, UnknownRule, UnknownSpec, WeightRule, WeightSpec,
+    ConsistentSpec, EssentialRule, EssentialSpec, ExperimentKind, ExperimentSpec, ExportFormat, FilterName, MlSpec, ProjectionSpec, ReduceSpec, StudyDesign,
+    UnknownRule, UnknownSpec, WeightRule, WeightSpec,
 };
 pub use load::{load_entry, load_entry_with, Loaded};
 pub use result::{ConsistentReport, Direction, ExperimentReport, Flag, LinkPrior, StudyEstimate, StudyResult, UnknownParam, ValidationReport, ValidationTotal};
 pub use stack::{Block, BlockWeight, StackOptions, Stacked, WeightSource};
 
 use super::estimate::{errors, must_be_positive, Dataset};
-use super::{EstimateStatus, Implausible, TruthRow};
+use super::{EstimateStatus, Implausible, Method, TruthRow};
 use crate::error::{Error, Result};
 use crate::optim::Control;
 use crate::params::{BaseOptions, BaseParams};
@@ -81,6 +83,18 @@ fn validation_sum(sets: &[&Dataset], theta: &[f64]) -> Option<(ValidationTotal, 
     ))
 }
 
+/// The estimate of either estimator: the stack or one experiment's.
+struct Fit {
+    theta: Vec<f64>,
+    cov: nalgebra::DMatrix<f64>,
+    rank: usize,
+    cond: f64,
+    cond_normalized: f64,
+    chi2_dof: f64,
+    iterations: usize,
+    converged: bool,
+}
+
 /// Reads the study's robot, base parameters and prior robot.
 fn setup(design: &StudyDesign, dir: &Path) -> Result<(Robot, PathBuf, BaseParams, Option<Robot>)> {
     let robot_path = dir.join(&design.robot);
@@ -121,26 +135,71 @@ pub fn run_study(design: &StudyDesign, dir: &Path, ctl: &Control) -> Result<Stud
         }
     }
     obs.phase_done();
-    let rows: Vec<stack::Rows> = experiments
-        .iter()
-        .map(|e| stack::Rows {
-            name: &e.name,
-            data: &e.prep.full,
-            n_reps: e.n_reps,
-        })
-        .collect();
-    let so = StackOptions {
-        weights: design.weights,
-        repetition_weights: design.repetition_weights,
-        ols: design.method == StudyMethod::Ols,
-        max_iterations: design.irls_iterations,
-        tol: design.irls_tol,
+    let single = match design.method {
+        Method::Wls if design.reduce.is_none() => None,
+        Method::Ols => None,
+        _ => single::estimate(design, &robot, &base, &experiments[0], ctl)?,
     };
-    let st = stack::estimate(&rows, &so)?;
-    let k = base.n_base();
-    let theta: Vec<f64> = st.theta.as_slice().to_vec();
-    let std: Vec<f64> = (0..k).map(|i| st.cov[(i, i)].max(0.0).sqrt()).collect();
-    let exp_reports: Vec<ExperimentReport> = experiments.iter().enumerate().map(|(ei, e)| experiment_report(e, ei, &st, &theta)).collect();
+    // a reduced model: every dataset keeps the estimated columns only
+    let cols: Vec<usize> = single.as_ref().map_or_else(|| (0..base.n_base()).collect(), |s| s.cols.clone());
+    if cols.len() != base.n_base() {
+        for l in experiments.iter_mut().chain(validations.iter_mut()) {
+            l.prep.every = l.prep.every.columns(&cols);
+            l.prep.full = l.prep.full.columns(&cols);
+        }
+    }
+    let st = match &single {
+        Some(_) => None,
+        None => {
+            let rows: Vec<stack::Rows> = experiments
+                .iter()
+                .map(|e| stack::Rows {
+                    name: &e.name,
+                    data: &e.prep.full,
+                    n_reps: e.n_reps,
+                })
+                .collect();
+            let so = StackOptions {
+                weights: design.weights,
+                repetition_weights: design.repetition_weights,
+                ols: design.method == Method::Ols,
+                max_iterations: design.irls_iterations,
+                tol: design.irls_tol,
+            };
+            Some(stack::estimate(&rows, &so)?)
+        }
+    };
+    let k = cols.len();
+    let fit = match (&single, &st) {
+        (Some(s), _) => Fit {
+            theta: s.fit.theta.clone(),
+            cov: s.fit.cov.clone(),
+            rank: s.fit.rank,
+            cond: s.fit.cond,
+            cond_normalized: s.fit.cond_normalized,
+            chi2_dof: s.fit.chi2_dof,
+            iterations: 0,
+            converged: true,
+        },
+        (None, Some(st)) => Fit {
+            theta: st.theta.as_slice().to_vec(),
+            cov: st.cov.clone(),
+            rank: st.rank,
+            cond: st.cond,
+            cond_normalized: st.cond_normalized,
+            chi2_dof: st.chi2_dof,
+            iterations: st.iterations,
+            converged: st.converged,
+        },
+        (None, None) => unreachable!("a study without a one-experiment estimator stacks its experiments"),
+    };
+    let theta = fit.theta.clone();
+    let std: Vec<f64> = (0..k).map(|i| fit.cov[(i, i)].max(0.0).sqrt()).collect();
+    let exp_reports: Vec<ExperimentReport> = match (&single, &st) {
+        (Some(s), _) => vec![single::experiment_report(&experiments[0], s)],
+        (None, Some(st)) => experiments.iter().enumerate().map(|(ei, e)| experiment_report(e, ei, st, &theta)).collect(),
+        (None, None) => Vec::new(),
+    };
     let val_reports: Vec<ValidationReport> = validations
         .iter()
         .map(|v| ValidationReport {
@@ -157,11 +216,13 @@ pub fn run_study(design: &StudyDesign, dir: &Path, ctl: &Control) -> Result<Stud
     let every_val: Vec<&Dataset> = validations.iter().map(|v| &v.prep.every).collect();
     let validation_total = validation_sum(&every_val, &theta).map(|t| t.0);
     let positive = must_be_positive(&robot, &base);
-    let implausible = (0..k)
-        .filter(|&i| positive[i] && theta[i] < 0.0)
-        .map(|i| Implausible {
-            name: base.names[i].clone(),
-            grouping: base.groupings[i].clone(),
+    let implausible = cols
+        .iter()
+        .enumerate()
+        .filter(|&(i, &c)| positive[c] && theta[i] < 0.0)
+        .map(|(i, &c)| Implausible {
+            name: base.names[c].clone(),
+            grouping: base.groupings[c].clone(),
             value: theta[i],
             std: std[i],
         })
@@ -171,10 +232,10 @@ pub fn run_study(design: &StudyDesign, dir: &Path, ctl: &Control) -> Result<Stud
         .chain(&validations)
         .flat_map(|e| e.warnings().into_iter().map(move |w| format!("{}: {w}", e.name)))
         .collect();
-    if !st.converged {
+    if !fit.converged {
         warnings.push(format!(
             "the residual weights did not settle within {} iterations (irls_iterations): the weights and the covariance are those of the last iteration",
-            st.iterations
+            fit.iterations
         ));
     }
     warnings.extend(
@@ -182,7 +243,15 @@ pub fn run_study(design: &StudyDesign, dir: &Path, ctl: &Control) -> Result<Stud
             .into_iter()
             .map(|w| format!("nominal model: {w}")),
     );
-    let status = if st.rank < k { EstimateStatus::RankDeficient } else { EstimateStatus::Ok };
+    let status = match single.as_ref().and_then(|s| s.ml.as_ref()) {
+        Some(m) => EstimateStatus::Ml(m.status),
+        None if fit.rank < k => EstimateStatus::RankDeficient,
+        None => EstimateStatus::Ok,
+    };
+    let (projection, ml, reduction) = match single {
+        Some(s) => (s.projection, s.ml, s.reduction),
+        None => (None, None, None),
+    };
     let mut estimate = StudyEstimate {
         name: design.name.clone(),
         robot: robot.name.clone(),
@@ -190,9 +259,9 @@ pub fn run_study(design: &StudyDesign, dir: &Path, ctl: &Control) -> Result<Stud
         method: design.method,
         weights: design.weights,
         dead_band: design.dead_band,
-        names: base.names.clone(),
-        groupings: base.groupings.clone(),
-        covariance: st.cov.row_iter().map(|r| r.iter().copied().collect()).collect(),
+        names: cols.iter().map(|&c| base.names[c].clone()).collect(),
+        groupings: cols.iter().map(|&c| base.groupings[c].clone()).collect(),
+        covariance: fit.cov.row_iter().map(|r| r.iter().copied().collect()).collect(),
         rel_std: std
             .iter()
             .zip(&theta)
@@ -200,25 +269,29 @@ pub fn run_study(design: &StudyDesign, dir: &Path, ctl: &Control) -> Result<Stud
             .collect(),
         std,
         theta,
-        rank: st.rank,
-        cond: st.cond,
-        cond_normalized: st.cond_normalized,
-        chi2_dof: st.chi2_dof,
-        iterations: st.iterations,
-        converged: st.converged,
+        rank: fit.rank,
+        cond: fit.cond,
+        cond_normalized: fit.cond_normalized,
+        chi2_dof: fit.chi2_dof,
+        iterations: fit.iterations,
+        converged: fit.converged,
         experiments: exp_reports,
         validation: val_reports,
         validation_total,
         consistent: None,
         implausible,
         standard_names: robot.param_names(),
-        base_k: base.k.row_iter().map(|r| r.iter().copied().collect()).collect(),
+        base_k: cols.iter().map(|&c| base.k.row(c).iter().copied().collect()).collect(),
         truth: None,
         warnings,
+        projection,
+        ml,
+        reduction,
     };
     let mut interrupted = false;
     if let Some(cs) = &design.consistent {
-        match consistent_with_prior(&robot, &base, prior_robot.as_ref(), cs, &st, &experiments, &validations, ctl)? {
+        let st = st.as_ref().expect("the design allows [consistent] with the stacked least squares only");
+        match consistent_with_prior(&robot, &base, prior_robot.as_ref(), cs, st, &experiments, &validations, ctl)? {
             Some(c) => {
                 for (v, ve) in estimate.validation.iter_mut().zip(&validations) {
                     v.consistent_all = Some(errors(&ve.prep.every, &c.base));

@@ -25,10 +25,7 @@ impl StudyEstimate {
             "identification study `{}` of {}: {} over {} experiment(s), status {}",
             self.name,
             self.robot,
-            match self.method {
-                super::StudyMethod::Wls => "weighted least squares",
-                super::StudyMethod::Ols => "ordinary least squares",
-            },
+            self.method.words(),
             self.experiments.len(),
             self.status
         );

@@ -1,7 +1,7 @@
 //! What a study gives ([`StudyResult`]): the estimate with its report per
 //! experiment and validation run, and the consistent estimate with a prior.
 
-use super::{BlockWeight, ExperimentKind, Loaded, StudyDesign, StudyMethod, WeightSource};
+use super::{BlockWeight, ExperimentKind, Loaded, StudyDesign, WeightSource};
 use crate::data::{Sampling, TorqueSource};
 use crate::ident::consistent::{Active, ConsistentStatus};
 use crate::ident::estimate::Errors;
@@ -214,7 +214,7 @@ pub struct StudyEstimate {
     /// How the estimate ended.
     pub status: EstimateStatus,
     /// Estimator.
-    pub method: StudyMethod,
+    pub method: crate::ident::Method,
     /// Weight source.
     pub weights: WeightSource,
     /// The Coulomb dead band (rad/s or m/s) of every experiment and
@@ -262,6 +262,12 @@ pub struct StudyEstimate {
     pub truth: Option<Vec<TruthRow>>,
     /// Warnings.
     pub warnings: Vec<String>,
+    /// Projection-method details (method `projection`).
+    pub projection: Option<crate::ident::closed_loop::ProjectionInfo>,
+    /// Maximum-likelihood details (method `ml`).
+    pub ml: Option<crate::ident::closed_loop::MlInfo>,
+    /// The model reduction (`[reduce]`): its steps and the full model's fit.
+    pub reduction: Option<crate::ident::Reduction>,
 }
 
 /// A study's result with the data behind it (for the plots and files).
