@@ -259,6 +259,17 @@ pub struct TorqueSource {
 }
 
 impl TorqueSource {
+    /// Joint torques given as torques (data in memory, no currents).
+    pub fn logged_torques() -> TorqueSource {
+        TorqueSource {
+            from: "torque".into(),
+            torque_per_ampere: None,
+            agreement: None,
+            tolerance: crate::data::CURRENT_TOLERANCE,
+            note: String::new(),
+        }
+    }
+
     /// One line for reports.
     pub fn text(&self) -> String {
         let mut s = format!(

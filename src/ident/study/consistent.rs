@@ -47,6 +47,11 @@ pub(super) fn consistent_with_prior(
             Vec::new(),
             crate::ident::prior::solve_with_unknown(&pb, &unknown, cs.metric, w, cs.margin, ctl)?,
         ),
+        WeightSpec::Relative { relative } => {
+            let smin = st.r.singular_values().iter().copied().fold(f64::INFINITY, f64::min);
+            let w = relative * if smin.is_finite() && smin > 0.0 { smin * smin } else { 1.0 };
+            (w, Vec::new(), crate::ident::prior::solve_with_unknown(&pb, &unknown, cs.metric, w, cs.margin, ctl)?)
+        }
         WeightSpec::Rule(WeightRule::Validation) => {
             let obs = ctl.observer();
             obs.phase("identify prior weight", Some(cs.weight_grid.len() as u64));

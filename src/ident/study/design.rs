@@ -336,6 +336,15 @@ pub enum WeightSpec {
     Value(f64),
     /// A rule (`"validation"`).
     Rule(WeightRule),
+    /// `{ relative = r }`: the weight r · σ²_min, σ_min the smallest singular
+    /// value of the weighted design's factor R — a pull that decides only
+    /// what the data leave open (the null space of K and nearly so); with
+    /// r = 10⁻⁶, the Euclidean metric, `scale = 1` and `unknown = "none"`,
+    /// the closest-to-nominal consistent fit of `idexp identify --consistent`.
+    Relative {
+        /// r.
+        relative: f64,
+    },
 }
 
 /// Rules for the prior's weight.
@@ -492,6 +501,10 @@ pub struct StudyDesign {
     /// Maximum-likelihood options (method `ml`).
     #[serde(default)]
     pub ml: MlSpec,
+    /// Accept run folders whose status.json is not `complete` (an interrupted
+    /// simulation); never one marked `running`.
+    #[serde(default)]
+    pub allow_incomplete: bool,
     /// Coulomb dead band (rad/s or m/s): for the joints with a `sign`
     /// Coulomb term, |q̇_j| below it is rest (Coulomb term 0), in every
     /// experiment and validation run ([`crate::ident::DEAD_BAND`] by default).
@@ -550,10 +563,15 @@ pub fn is_study_text(text: &str) -> bool {
 impl ExperimentSpec {
     /// Checks the entry (`ctx` names it: `experiment 2 (fourier_a)`).
     pub fn validate(&self, ctx: &str) -> Result<()> {
-        let bad = |field: &str, msg: String| Err(Error::invalid(ctx, field, msg));
         if self.files.is_empty() {
-            return bad("files", "expected at least one folder or CSV file".into());
+            return Err(Error::invalid(ctx, "files", "expected at least one folder or CSV file"));
         }
+        self.validate_given(ctx)
+    }
+
+    /// [`ExperimentSpec::validate`] but `files`: for an entry whose data are given in memory.
+    pub fn validate_given(&self, ctx: &str) -> Result<()> {
+        let bad = |field: &str, msg: String| Err(Error::invalid(ctx, field, msg));
         if !(self.cutoff.is_finite() && self.cutoff > 0.0) {
             return bad("cutoff", format!("expected a positive frequency in Hz, found {}", self.cutoff));
         }
@@ -618,7 +636,104 @@ pub(crate) fn name_ok(s: &str) -> bool {
     !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.')) && !s.starts_with('.')
 }
 
+impl ExperimentSpec {
+    /// An excitation experiment of these files with every default.
+    pub fn new(files: Vec<PathBuf>) -> ExperimentSpec {
+        ExperimentSpec {
+            name: String::new(),
+            files,
+            kind: ExperimentKind::default(),
+            filter: FilterName::default(),
+            cutoff: ten(),
+            trajectory: None,
+            harmonics: None,
+            decimate: one(),
+            resample: None,
+            repetitions: None,
+            coordinates: Coordinates::default(),
+            torque_from: TorqueFrom::default(),
+            current_tolerance: current_tolerance(),
+            velocity_from: VelocityFrom::default(),
+            standstill: None,
+            slow_ratio: slow_ratio(),
+            min_speed: min_speed(),
+            log: None,
+        }
+    }
+
+    /// A validation entry processed as this experiment is: the same filter
+    /// rule, harmonics, decimation, speed rule and readers, with its own
+    /// files and Fourier reference (default: trajectory.json beside it).
+    pub fn validation_like(&self, files: Vec<PathBuf>, trajectory: Option<PathBuf>) -> ExperimentSpec {
+        ExperimentSpec {
+            name: String::new(),
+            files,
+            trajectory,
+            filter: match self.filter {
+                FilterName::Fourier => FilterName::Auto,
+                f => f,
+            },
+            ..self.clone()
+        }
+    }
+}
+
+impl ConsistentSpec {
+    /// The closest-to-nominal consistent fit: a Euclidean pull toward the
+    /// robot file's parameters of weight `relative` × the fit's smallest
+    /// curvature ([`WeightSpec::Relative`]) on every standard parameter
+    /// (`scale = 1`, `unknown = "none"`), pseudo-inertias ⪰ `margin` · I.
+    pub fn closest_to_nominal(margin: f64, relative: f64) -> ConsistentSpec {
+        ConsistentSpec {
+            metric: PriorMetric::Euclidean,
+            weight: WeightSpec::Relative { relative },
+            scale: 1.0,
+            margin,
+            unknown: UnknownSpec::Rule(UnknownRule::None),
+            ..Default::default()
+        }
+    }
+}
+
 impl StudyDesign {
+    /// A study of `robot` with one experiment and every default: the form
+    /// `idexp identify ROBOT RUN…` and Python's `idexp.identify` build.
+    pub fn one_experiment(name: &str, robot: PathBuf, experiment: ExperimentSpec) -> StudyDesign {
+        StudyDesign {
+            name: name.into(),
+            robot,
+            method: Method::default(),
+            weights: WeightSource::default(),
+            repetition_weights: None,
+            irls_iterations: irls_iterations(),
+            irls_tol: irls_tol(),
+            base_columns: Vec::new(),
+            truth: None,
+            sample_limit: sample_limit(),
+            experiment: vec![experiment],
+            validation: Vec::new(),
+            consistent: None,
+            export: Vec::new(),
+            reduce: None,
+            projection: ProjectionSpec::default(),
+            ml: MlSpec::default(),
+            allow_incomplete: false,
+            dead_band: dead_band(),
+        }
+    }
+
+    /// The least-squares weights of one experiment's repetitions: per
+    /// sample (eq. 7–9; the experiment must have repetitions or variances),
+    /// or per joint (the repetitions' mean variance, else the residuals').
+    pub fn repetition_weighted(mut self, w: Weights) -> StudyDesign {
+        self.repetition_weights = Some(w);
+        self.weights = match w {
+            Weights::Sample => WeightSource::Repetitions,
+            Weights::Joint => WeightSource::Auto,
+        };
+        self
+    }
+
     /// The estimator's rules: the closed-loop methods and the model reduction
     /// work on one experiment; the consistent fit needs every base parameter
     /// of a least-squares fit.
@@ -728,6 +843,12 @@ impl StudyDesign {
 
     /// Checks every field; errors name `ctx` (the file), the entry and the field.
     pub fn validate(&self, ctx: &str) -> Result<()> {
+        self.validate_with(ctx, &Default::default())
+    }
+
+    /// [`StudyDesign::validate`] for a study whose entries named in `given`
+    /// have their data in memory (no `files` needed).
+    pub fn validate_with(&self, ctx: &str, given: &super::Inputs) -> Result<()> {
         if self.experiment.is_empty() {
             return Err(Error::invalid(
                 ctx,
@@ -761,7 +882,11 @@ impl StudyDesign {
             for (i, e) in list.iter().enumerate() {
                 let name = e.resolved_name();
                 let entry = format!("{ctx}: {what} {} ({name})", i + 1);
-                e.validate(&entry)?;
+                if given.contains_key(&name) {
+                    e.validate_given(&entry)?;
+                } else {
+                    e.validate(&entry)?;
+                }
                 if !name_ok(&name) {
                     return Err(Error::invalid(
                         &entry,
@@ -782,6 +907,13 @@ impl StudyDesign {
         if let Some(c) = &self.consistent {
             let ctx = format!("{ctx}: [consistent]");
             match c.weight {
+                WeightSpec::Relative { relative: r } if !(r.is_finite() && r > 0.0) => {
+                    return Err(Error::invalid(
+                        &ctx,
+                        "weight",
+                        format!("expected {{ relative = r }} with a positive r (the weight relative to the fit's smallest curvature), found {r}"),
+                    ));
+                }
                 WeightSpec::Value(w) if !(w.is_finite() && w > 0.0) => {
                     return Err(Error::invalid(
                         &ctx,

@@ -42,34 +42,59 @@ impl Loaded {
     }
 }
 
+/// An entry's data given in memory instead of its `files` (the Python
+/// keyword form's arrays and simulated runs).
+#[derive(Debug, Clone)]
+pub struct Given {
+    /// The run (its repetitions).
+    pub run: Run,
+    /// Its Fourier reference, if known.
+    pub trajectory: Option<FourierTrajectory>,
+}
+
+/// What a study's settings say to every entry ([`load_entry_with`]).
+#[derive(Debug, Clone, Copy)]
+pub struct EntryOptions<'a> {
+    /// The estimator (the projection method keeps every row and the run).
+    pub method: Method,
+    /// Largest number of samples per repetition.
+    pub sample_limit: usize,
+    /// Coulomb dead band (rad/s or m/s).
+    pub dead_band: f64,
+    /// Accept run folders whose status.json is not `complete`.
+    pub allow_incomplete: bool,
+    /// The entry's data, when given in memory.
+    pub given: Option<&'a Given>,
+}
+
 /// Reads and processes one entry of a study (paths relative to `dir`) with
 /// the default Coulomb dead band ([`crate::ident::DEAD_BAND`]).
 pub fn load_entry(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, dir: &Path, method: Method, sample_limit: usize) -> Result<Loaded> {
-    load_entry_with(robot, base, spec, dir, method, sample_limit, crate::ident::DEAD_BAND)
+    let o = EntryOptions {
+        method,
+        sample_limit,
+        dead_band: crate::ident::DEAD_BAND,
+        allow_incomplete: false,
+        given: None,
+    };
+    load_entry_with(robot, base, spec, dir, &o)
 }
 
-/// [`load_entry`] with the study's Coulomb dead band (`dead_band`, rad/s).
-#[allow(clippy::too_many_arguments)] // the study's settings an entry needs
-pub fn load_entry_with(
-    robot: &Robot,
-    base: &BaseParams,
-    spec: &ExperimentSpec,
-    dir: &Path,
-    method: Method,
-    sample_limit: usize,
-    dead_band: f64,
-) -> Result<Loaded> {
+/// [`load_entry`] with the study's settings `o`.
+pub fn load_entry_with(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, dir: &Path, o: &EntryOptions<'_>) -> Result<Loaded> {
+    let (method, sample_limit, dead_band) = (o.method, o.sample_limit, o.dead_band);
     let name = spec.resolved_name();
     let paths: Vec<PathBuf> = spec.files.iter().map(|f| dir.join(f)).collect();
     for p in &paths {
-        crate::io::status::require_complete(p, false)?;
+        crate::io::status::require_complete(p, o.allow_incomplete)?;
     }
-    let (run, torque_source, sampling) = match &spec.log {
-        Some(l) => {
+    let (run, torque_source, sampling) = match (o.given, &spec.log) {
+        (Some(g), _) => (g.run.clone(), TorqueSource::logged_torques(), uniform_sampling(&g.run)),
+        (None, Some(l)) => {
             let (run, src, sampling, _) = crate::data::logs::read_run(&paths, robot, l, spec.resample, sample_limit)?;
             (run, src, sampling)
         }
-        None => {
+        (None, None) => {
             let (run, src, sampling) = Run::read_drives_sampled(
                 &paths,
                 robot,
@@ -81,12 +106,14 @@ pub fn load_entry_with(
                     limit: sample_limit,
                 }),
             )?;
-            let sampling = sampling.unwrap_or_else(|| unreachable_sampling(&run));
+            let sampling = sampling.unwrap_or_else(|| uniform_sampling(&run));
             (run, src, sampling)
         }
     };
     let run = in_joint_coordinates(robot, &run, spec.coordinates)?.into_owned();
-    let traj: Option<FourierTrajectory> = match &spec.trajectory {
+    let traj: Option<FourierTrajectory> = match (&spec.trajectory, o.given) {
+        (None, Some(g)) => g.trajectory.clone(),
+        (t, _) => match t {
         Some(p) => {
             let p = dir.join(p);
             let t = FourierTrajectory::load(&p)?;
@@ -105,6 +132,7 @@ pub fn load_entry_with(
             Some(t)
         }
         None => run_trajectory(&run)?,
+        },
     };
     let lowpass = FilterChoice::Given(Filter::LowPass { cutoff: spec.cutoff });
     let mut notes = Vec::new();
@@ -167,9 +195,9 @@ pub fn load_entry_with(
     })
 }
 
-/// The sampling record of a run read without resampling (not reached: the
-/// study always reads with sampling options; kept total for safety).
-fn unreachable_sampling(run: &Run) -> Sampling {
+/// The sampling record of a run given on a uniform grid (in memory, or read
+/// without resampling).
+fn uniform_sampling(run: &Run) -> Sampling {
     let (a, m, b) = crate::data::resample::step_stats(&run.reps[0].t);
     Sampling {
         irregular: false,

@@ -35,7 +35,7 @@ pub use design::{
     ConsistentSpec, EssentialRule, EssentialSpec, ExperimentKind, ExperimentSpec, ExportFormat, FilterName, MlSpec, ProjectionSpec, ReduceSpec, StudyDesign,
     UnknownRule, UnknownSpec, WeightRule, WeightSpec,
 };
-pub use load::{load_entry, load_entry_with, Loaded};
+pub use load::{load_entry, load_entry_with, EntryOptions, Given, Loaded};
 pub use result::{ConsistentReport, Direction, ExperimentReport, Flag, LinkPrior, StudyEstimate, StudyResult, UnknownParam, ValidationReport, ValidationTotal};
 pub use stack::{Block, BlockWeight, StackOptions, Stacked, WeightSource};
 
@@ -115,7 +115,16 @@ fn setup(design: &StudyDesign, dir: &Path) -> Result<(Robot, PathBuf, BaseParams
 /// folder). `ctl` stops it between experiments and between the prior's
 /// candidate weights; what exists then is returned, marked interrupted.
 pub fn run_study(design: &StudyDesign, dir: &Path, ctl: &Control) -> Result<StudyResult> {
-    design.validate("study")?;
+    run_study_with(design, dir, &Inputs::new(), ctl)
+}
+
+/// Entries' data given in memory, by entry name ([`run_study_with`]).
+pub type Inputs = std::collections::BTreeMap<String, Given>;
+
+/// [`run_study`] with the data of the entries named in `given` taken from
+/// memory instead of their `files` (which may then be empty).
+pub fn run_study_with(design: &StudyDesign, dir: &Path, given: &Inputs, ctl: &Control) -> Result<StudyResult> {
+    design.validate_with("study", given)?;
     let (robot, robot_path, base, prior_robot) = setup(design, dir)?;
     let obs = ctl.observer();
     let total = design.experiment.len() + design.validation.len();
@@ -126,7 +135,14 @@ pub fn run_study(design: &StudyDesign, dir: &Path, ctl: &Control) -> Result<Stud
         if ctl.interrupted() {
             return Err(Error::Interrupted);
         }
-        let l = load_entry_with(&robot, &base, spec, dir, design.method, design.sample_limit, design.dead_band)?;
+        let o = load::EntryOptions {
+            method: design.method,
+            sample_limit: design.sample_limit,
+            dead_band: design.dead_band,
+            allow_incomplete: design.allow_incomplete,
+            given: given.get(&spec.resolved_name()),
+        };
+        let l = load_entry_with(&robot, &base, spec, dir, &o)?;
         obs.progress(i as u64 + 1, &l.name);
         if i < design.experiment.len() {
             experiments.push(l);

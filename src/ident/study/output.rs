@@ -190,6 +190,30 @@ impl StudyResult {
             put(&mut files, "prior.csv", csv.as_bytes())?;
         }
         self.write_plots(dir, &mut files)?;
+        if let Some(r) = &e.reduction {
+            let mut csv = format!(
+                "k,parameter,sensitivity,decision,growth,cond,n_params,{}\n",
+                (1..=n).map(|j| format!("e_rel{j}")).collect::<Vec<_>>().join(",")
+            );
+            for st in &r.steps {
+                let _ = writeln!(
+                    csv,
+                    "{},{},{},{},{},{},{},{}",
+                    st.k,
+                    st.parameter,
+                    st.sensitivity,
+                    st.decision,
+                    st.growth,
+                    st.cond,
+                    st.n_params,
+                    st.e_rel.iter().map(|v| v.to_string()).collect::<Vec<_>>().join(",")
+                );
+            }
+            put(&mut files, "reduction.csv", csv.as_bytes())?;
+            let p = dir.join("reduction.svg");
+            write_svg(&p, "model reduction (Algorithm 1)", &crate::ident::output::reduction_panels(r), 2)?;
+            files.push(p);
+        }
         if let Some(m) = self.model()? {
             use super::design::ExportFormat;
             let src = crate::robot::export::source_of(&self.robot_path)?;
@@ -205,6 +229,9 @@ impl StudyResult {
                     ));
                 }
                 files.push(crate::robot::export::write_urdf(&src, &m, dir)?);
+            }
+            if self.design.export.contains(&ExportFormat::Mjcf) {
+                files.push(crate::robot::export::write_mjcf(&m, dir)?);
             }
             if self.design.export.contains(&ExportFormat::Toml) {
                 let urdf_ref = match &src {

@@ -91,6 +91,10 @@ impl StudyEstimate {
                 })
                 .collect();
             let _ = writeln!(s, "    weights (source: σ N·m) [{}]", w.join(", "));
+            let _ = writeln!(s, "    velocities: {}", e.velocity.words(&e.filter));
+            for r in &e.rows_used {
+                let _ = writeln!(s, "    rows {:<12} {:>7} of {:>7}  {}", r.joint, r.used, r.total, r.reason);
+            }
             err_line(&mut s, "  every sample", &e.errors_all);
             err_line(&mut s, "  rows used", &e.errors);
             for wn in &e.warnings {
@@ -99,13 +103,33 @@ impl StudyEstimate {
         }
         let _ = writeln!(
             s,
-            "\nstacked design: {} parameters, rank {}, cond of √W·C {:.4e} (unit-norm columns {:.4}), χ²/dof {:.4}",
+            "\n{}: {} parameters, rank {}, cond {:.4e} (unit-norm columns {:.4}), χ²/dof {:.4}",
+            if self.is_stacked() { "stacked design √W·C" } else { "design C" },
             self.names.len(),
             self.rank,
             self.cond,
             self.cond_normalized,
             self.chi2_dof
         );
+        if let Some(p) = &self.projection {
+            let _ = writeln!(
+                s,
+                "projection method: FIR lags M1 = {}, M2 = {} ({}), instrument rank {}, corr(û, ũ) = [{}], explained = [{}]",
+                p.m1,
+                p.m2,
+                p.rule,
+                p.instrument_rank,
+                p.corr.iter().map(|x| format!("{x:.1e}")).collect::<Vec<_>>().join(", "),
+                p.explained.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", ")
+            );
+        }
+        if let Some(m) = &self.ml {
+            let _ = writeln!(
+                s,
+                "maximum likelihood: {} after {} evaluations, cost {:.6e} → {:.6e}",
+                m.status, m.evaluations, m.cost_start, m.cost_end
+            );
+        }
         s.push_str(&crate::ident::parameter_table(
             &self.names,
             &self.theta,
@@ -138,6 +162,10 @@ impl StudyEstimate {
             s.push_str(&consistent_text(c, self));
         }
         s.push_str(&crate::ident::plausibility_and_truth_text(&self.implausible, self.truth.as_deref()));
+        if let Some(r) = &self.reduction {
+            let _ = writeln!(s);
+            s.push_str(&r.text());
+        }
         s
     }
 }

@@ -270,6 +270,16 @@ pub struct StudyEstimate {
     pub reduction: Option<crate::ident::Reduction>,
 }
 
+impl StudyEstimate {
+    /// True when the estimate stacks the experiments by weighted (or
+    /// ordinary) least squares; false for the one-experiment estimators
+    /// (projection, maximum likelihood, model reduction), whose condition
+    /// numbers are those of the unweighted design C.
+    pub fn is_stacked(&self) -> bool {
+        matches!(self.method, crate::ident::Method::Wls | crate::ident::Method::Ols) && self.reduction.is_none()
+    }
+}
+
 /// A study's result with the data behind it (for the plots and files).
 #[derive(Debug, Clone)]
 pub struct StudyResult {
