@@ -3,8 +3,8 @@
 //! ([`idexp::data::logs`]), the samples returned as numpy arrays.
 
 use crate::arrays::{out1, out_rows};
+use crate::dicts::to_dict;
 use crate::err::{value, IntoPy};
-use crate::problems::to_dict;
 use crate::robot::Robot;
 use idexp::data::logs::{bag_info, LogFormat, LogSpec};
 use pyo3::prelude::*;

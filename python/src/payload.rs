@@ -2,9 +2,9 @@
 //! (and unloaded) runs, as `idexp payload identify payload.toml`.
 
 use crate::arrays::{out1, out_rows};
+use crate::dicts::{design_and_dir, to_dict};
 use crate::err::IntoPy;
 use crate::long::run_long;
-use crate::problems::{design_and_dir, to_dict};
 use idexp::payload::{export, PayloadDesign, PayloadResult};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;

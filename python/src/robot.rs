@@ -400,7 +400,7 @@ impl Robot {
     /// written and the `file` read).
     fn provenance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let p = py.detach(|| idexp::robot::provenance::provenance(&self.path)).py()?;
-        crate::problems::to_dict(py, &p)
+        crate::dicts::to_dict(py, &p)
     }
 
     fn __repr__(&self) -> String {
@@ -487,7 +487,7 @@ impl BaseParameters {
     /// The library's serialisation as a dict (everything but K).
     #[getter]
     fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        crate::problems::to_dict(py, &*self.inner)
+        crate::dicts::to_dict(py, &*self.inner)
     }
     fn __len__(&self) -> usize {
         self.inner.n_base()

@@ -2,9 +2,9 @@
 //! runs, a prior) from a study file or a dict, as `idexp identify study.toml`.
 
 use crate::arrays::{out1, out_rows};
+use crate::dicts::{design_and_dir, to_dict};
 use crate::err::IntoPy;
 use crate::long::run_long;
-use crate::problems::{design_and_dir, to_dict};
 use crate::robot::Robot;
 use idexp::ident::study::{run_study, StudyDesign, StudyResult};
 use numpy::{PyArray1, PyArray2};

@@ -1,0 +1,400 @@
+//! `idexp.identify`: the one-run identification of a robot from a run
+//! (folders or CSV files, a `SimRun`, or dicts of arrays).
+
+use crate::arrays::{self, out1, out2, out_rows, Arg};
+use crate::dicts::to_dict;
+use crate::err::{value, IdexpError, IntoPy};
+use crate::excite::ExciteResult;
+use crate::long::run_long;
+use crate::robot::Robot;
+use crate::simulate::SimRun;
+use idexp::data::{Repetition, Run, TorqueFrom};
+use idexp::ident::{self, FilterChoice, IdentOptions, Method, Weights};
+use idexp::trajectory::FourierTrajectory;
+use numpy::{PyArray1, PyArray2};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+/// An identification (`idexp.identify`): estimates, covariance, σ*, errors,
+/// and the measured and predicted torques behind them.
+#[pyclass(module = "idexp", frozen)]
+pub struct Identification {
+    inner: Arc<ident::Identification>,
+    options: serde_json::Value,
+    robot: Arc<idexp::robot::Robot>,
+    robot_path: PathBuf,
+}
+
+impl Identification {
+    fn identified_model(&self) -> PyResult<idexp::robot::Robot> {
+        match &self.inner.estimate.consistent {
+            Some(c) if c.status.is_ok() => self.robot.with_params(&c.standard).py(),
+            Some(c) => Err(IdexpError::new_err(format!(
+                "export: the consistent fit ended with status `{}`: no identified model to write",
+                c.status
+            ))),
+            None => Err(value(
+                "formats: \"urdf\" and \"toml\" write the physically consistent model: identify with consistent=True",
+            )),
+        }
+    }
+}
+
+#[pymethods]
+impl Identification {
+    /// `ok`, `rank_deficient`, or the solver's status (ML).
+    #[getter]
+    fn status(&self) -> String {
+        self.inner.estimate.status.to_string()
+    }
+    /// Base parameter names.
+    #[getter]
+    fn names(&self) -> Vec<String> {
+        self.inner.estimate.names.clone()
+    }
+    /// Their combinations of standard parameters.
+    #[getter]
+    fn groupings(&self) -> Vec<String> {
+        self.inner.estimate.groupings.clone()
+    }
+    /// Estimates θ̂ (n_base,).
+    #[getter]
+    fn theta<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        out1(py, self.inner.estimate.theta.clone())
+    }
+    /// Standard deviations σ_i.
+    #[getter]
+    fn std<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        out1(py, self.inner.estimate.std.clone())
+    }
+    /// Relative standard deviations σ*_i = σ_i/|θ̂_i| (paper 000 eq. 14).
+    #[getter]
+    fn rel_std<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        out1(py, self.inner.estimate.rel_std.clone())
+    }
+    /// Covariance of θ̂ (n_base, n_base).
+    #[getter]
+    fn covariance<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let c = &self.inner.estimate.covariance;
+        out_rows(py, c, c.len())
+    }
+    /// Errors on the identification run: dict with e, e_rel, rms (n,) and
+    /// noise_floor (eq. 11–12).
+    #[getter]
+    fn errors<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_dict(py, &self.inner.estimate.errors)
+    }
+    /// Errors on the validation run, or None.
+    #[getter]
+    fn validation_errors<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_dict(py, &self.inner.estimate.validation)
+    }
+    /// Comparison with the truth (list of dicts name, truth, estimate, z), or None.
+    #[getter]
+    fn truth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_dict(py, &self.inner.estimate.truth)
+    }
+    /// The estimate as estimate.json has it.
+    #[getter]
+    fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_dict(py, &self.inner.estimate)
+    }
+    /// Measured and predicted torques of the identification data, per joint:
+    /// dict with t (N,) (processed sample times), measured and predicted
+    /// (N, n) (N·m; NaN where a row was left out as too slow).
+    #[getter]
+    fn torques<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let ds = &self.inner.dataset;
+        let (n, ns) = (ds.n, ds.n_samples);
+        let theta = nalgebra::DVector::from_column_slice(&self.inner.estimate.theta);
+        let pred = &ds.c * theta;
+        let mut m = vec![f64::NAN; ns * n];
+        let mut p = vec![f64::NAN; ns * n];
+        for i in 0..ds.y.len() {
+            let k = ds.sample[i] * n + ds.joint[i];
+            m[k] = ds.y[i];
+            p[k] = pred[i];
+        }
+        let d = PyDict::new(py);
+        let t = &self.inner.processed.t;
+        d.set_item("t", out1(py, t.iter().take(ns).copied().collect()))?;
+        d.set_item("measured", out2(py, ns, n, m))?;
+        d.set_item("predicted", out2(py, ns, n, p))?;
+        Ok(d)
+    }
+    /// The physically consistent estimate (`consistent=True`), as the
+    /// `consistent` block of estimate.json: status, standard_names, standard
+    /// (θ, p), base (K θ), extra_cost, extra_cost_rel, chi2_dof,
+    /// min_eigenvalue per link, active constraints, errors, pinocchio
+    /// (per body, Pinocchio's order), lambda, iterations. None without
+    /// `consistent=True`.
+    #[getter]
+    fn consistent<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_dict(py, &self.inner.estimate.consistent)
+    }
+    /// The consistent standard parameters θ (p,) (`robot.param_names`
+    /// order), or None (no consistent fit, or it failed).
+    #[getter]
+    fn consistent_theta<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        self.inner
+            .estimate
+            .consistent
+            .as_ref()
+            .filter(|c| c.status.is_ok())
+            .map(|c| out1(py, c.standard.clone()))
+    }
+    /// The identified model: the robot with the consistent standard
+    /// parameters (`consistent=True`); IdexpError otherwise.
+    fn model(&self) -> PyResult<Robot> {
+        Ok(Robot::new(self.identified_model()?, self.robot_path.clone()))
+    }
+    /// export(folder, formats=("urdf", "toml", "csv")) -> list of paths
+    ///
+    /// The files of `idexp identify --export`: "csv" (`params.csv`: every
+    /// base and standard parameter with std and σ*), "urdf" (`robot.urdf`:
+    /// the robot's URDF with the consistent inertials; a DH robot has none:
+    /// ValueError) and "toml" (`robot.toml`: the robot file with the
+    /// consistent drive parameters and, for a DH table, inertials). urdf and
+    /// toml need `identify(..., consistent=True)`. `formats`: a list or a
+    /// comma-separated string.
+    #[pyo3(signature = (folder, formats = None))]
+    fn export(&self, py: Python<'_>, folder: PathBuf, formats: Option<Bound<'_, PyAny>>) -> PyResult<Vec<PathBuf>> {
+        let kinds = match &formats {
+            Some(f) => crate::exports::model_kinds(f, &["urdf", "toml", "csv"])?,
+            None => ["urdf", "toml", "csv"].map(String::from).to_vec(),
+        };
+        let model_kinds: Vec<String> = kinds.iter().filter(|k| *k != "csv").cloned().collect();
+        let model = if model_kinds.is_empty() { None } else { Some(self.identified_model()?) };
+        py.detach(|| -> PyResult<Vec<PathBuf>> {
+            std::fs::create_dir_all(&folder).map_err(|e| crate::err::to_py(idexp::Error::io(&folder, e)))?;
+            let mut files = Vec::new();
+            if kinds.iter().any(|k| k == "csv") {
+                let p = folder.join("params.csv");
+                idexp::io::write_atomic(&p, idexp::ident::output::params_csv(&self.inner.estimate).as_bytes()).py()?;
+                files.push(p);
+            }
+            if let Some(m) = &model {
+                files.extend(crate::exports::write_model(&self.robot_path, m, &folder, &model_kinds)?);
+            }
+            Ok(files)
+        })
+    }
+    /// The text report (`idexp identify` prints it).
+    fn text(&self) -> String {
+        self.inner.estimate.text()
+    }
+    /// write(folder): the command line's output folder (estimate.json,
+    /// report, plots, options.json, status.json).
+    fn write(&self, py: Python<'_>, folder: PathBuf) -> PyResult<PathBuf> {
+        py.detach(|| -> idexp::Result<()> {
+            self.inner.write(&folder)?;
+            idexp::io::write_json(&folder.join("options.json"), &self.options)?;
+            self.inner.write_status(&folder, None, &self.options, false).map(|_| ())
+        })
+        .py()?;
+        Ok(folder)
+    }
+    fn __repr__(&self) -> String {
+        let e = &self.inner.estimate;
+        format!(
+            "Identification({}, {}, {} base parameters, cond={:.4})",
+            e.method.name(),
+            e.status,
+            e.names.len(),
+            e.cond
+        )
+    }
+}
+
+/// A run argument: path(s), a SimRun, or dict(s) of arrays.
+/// How a run given by paths takes its joint torques (`torque_from`,
+/// `current_tolerance`: `idexp identify --torque-from --current-tolerance`).
+struct Drives<'a> {
+    robot: &'a idexp::robot::Robot,
+    from: TorqueFrom,
+    tolerance: f64,
+}
+
+fn read_run(py: Python<'_>, obj: &Bound<'_, PyAny>, drives: &Drives<'_>, what: &str) -> PyResult<(Run, Option<FourierTrajectory>)> {
+    let n = drives.robot.dof();
+    if let Ok(s) = obj.cast::<SimRun>() {
+        let s = s.get();
+        let run = Run::new(Vec::new(), s.result.reps.clone()).py()?;
+        return Ok((run, s.result.setup.reference.fourier().cloned()));
+    }
+    let dicts: Option<Vec<Bound<'_, PyDict>>> = if let Ok(d) = obj.cast::<PyDict>() {
+        Some(vec![d.clone()])
+    } else if let Ok(l) = obj.cast::<PyList>() {
+        if !l.is_empty() && l.iter().all(|x| x.is_instance_of::<PyDict>()) {
+            Some(l.iter().map(|x| x.cast_into::<PyDict>().expect("checked")).collect())
+        } else {
+            None
+        }
+    } else {
+        None
+    };
+    if let Some(ds) = dicts {
+        let mut reps = Vec::new();
+        for (i, d) in ds.iter().enumerate() {
+            let ctx = format!("{what}[{i}]");
+            let get = |k: &str| -> PyResult<Option<Arg>> { d.get_item(k)?.map(|v| v.extract::<Arg>()).transpose() };
+            let need = |k: &str| -> PyResult<Arg> { get(k)?.ok_or_else(|| value(format!("{ctx}: missing key `{k}` (t, q and tau are required)"))) };
+            let t = arrays::any_vector(&format!("{ctx}['t']"), &need("t")?)?;
+            let rows = t.len();
+            let m = |k: &str, a: &Arg| arrays::matrix_rows(&format!("{ctx}['{k}']"), a, Some(rows), n);
+            let q = m("q", &need("q")?)?;
+            let tau = m("tau", &need("tau")?)?;
+            let opt = |k: &str| -> PyResult<Option<Vec<Vec<f64>>>> { get(k)?.map(|a| m(k, &a)).transpose() };
+            reps.push(Repetition {
+                t,
+                q,
+                tau,
+                r: opt("r")?,
+                qd: opt("qd")?,
+                qdd: opt("qdd")?,
+            });
+        }
+        return Ok((Run::new(Vec::new(), reps).py()?, None));
+    }
+    let paths: Vec<PathBuf> = if let Ok(p) = obj.extract::<PathBuf>() {
+        vec![p]
+    } else if let Ok(v) = obj.extract::<Vec<PathBuf>>() {
+        v
+    } else {
+        return Err(value(format!(
+            "{what}: expected a run folder or CSV path, a list of paths, a SimRun, or a dict (list of dicts) with arrays t, q, tau"
+        )));
+    };
+    let run = py
+        .detach(|| Run::read_drives(&paths, drives.robot, None, drives.from, drives.tolerance))
+        .py()?
+        .0;
+    let traj = ident::run_trajectory(&run).py()?;
+    Ok((run, traj))
+}
+
+fn read_trajectory(obj: &Bound<'_, PyAny>) -> PyResult<FourierTrajectory> {
+    if let Ok(e) = obj.cast::<ExciteResult>() {
+        return match &e.get().result.trajectory {
+            idexp::trajectory::ShapeMotion::Fourier(t) => Ok(t.clone()),
+            _ => Err(value(
+                "trajectory: a B-spline excitation has no Fourier series to filter with; pass no trajectory (the measured samples are used as they are)",
+            )),
+        };
+    }
+    let p: PathBuf = obj
+        .extract()
+        .map_err(|_| value("trajectory: expected an ExciteResult or the path of a coefficients.json / trajectory.json"))?;
+    FourierTrajectory::load(&p).py()
+}
+
+/// identify(robot, run, method="wls", ...) -> Identification
+#[pyfunction]
+#[pyo3(signature = (robot, run, method = "wls", weights = "sample", filter = "auto", cutoff = 10.0, trajectory = None,
+                    harmonics = None, decimate = 1, validate = None, truth = None, consistent = false, margin = 0.0,
+                    regularization = 1e-6, standstill = "auto", torque_from = "auto", current_tolerance = 0.05,
+                    velocity_from = "auto", dead_band = ident::DEAD_BAND, time_limit = None, progress = None))]
+#[allow(clippy::too_many_arguments)] // the Python signature mirrors `idexp identify`'s options
+pub fn identify(
+    py: Python<'_>,
+    robot: &Robot,
+    run: &Bound<'_, PyAny>,
+    method: &str,
+    weights: &str,
+    filter: &str,
+    cutoff: f64,
+    trajectory: Option<Bound<'_, PyAny>>,
+    harmonics: Option<usize>,
+    decimate: usize,
+    validate: Option<Bound<'_, PyAny>>,
+    truth: Option<Bound<'_, PyAny>>,
+    consistent: bool,
+    margin: f64,
+    regularization: f64,
+    standstill: &str,
+    torque_from: &str,
+    current_tolerance: f64,
+    velocity_from: &str,
+    dead_band: f64,
+    time_limit: Option<f64>,
+    progress: Option<Bound<'_, PyAny>>,
+) -> PyResult<Identification> {
+    let r = &robot.inner;
+    let method: Method = method.parse().py()?;
+    let weights: Weights = weights.parse().py()?;
+    if !(cutoff.is_finite() && cutoff > 0.0) {
+        return Err(value(format!("cutoff: expected a positive frequency in Hz, got {cutoff}")));
+    }
+    let standstill: ident::Standstill = standstill.parse().py()?;
+    let velocity_from: ident::VelocityFrom = velocity_from.parse().py()?;
+    let drives = Drives {
+        robot: r,
+        from: torque_from.parse().py()?,
+        tolerance: current_tolerance,
+    };
+    let (run, run_traj) = read_run(py, run, &drives, "run")?;
+    let traj = match &trajectory {
+        Some(t) => Some(read_trajectory(t)?),
+        None => run_traj,
+    };
+    let filter = match filter {
+        "auto" if traj.is_none() => FilterChoice::Given(ident::Filter::LowPass { cutoff }),
+        "auto" => FilterChoice::Auto,
+        "fourier" => match &traj {
+            Some(t) => FilterChoice::Given(ident::Filter::Fourier {
+                omega: t.omega,
+                n_h: t.n_harmonics(),
+            }),
+            None => return Err(value("filter: \"fourier\" needs the run's Fourier trajectory: pass trajectory=")),
+        },
+        "lowpass" => FilterChoice::Given(ident::Filter::LowPass { cutoff }),
+        "none" => FilterChoice::Given(ident::Filter::None),
+        f => return Err(value(format!("filter: expected \"auto\", \"fourier\", \"lowpass\" or \"none\", got {f:?}"))),
+    };
+    if !(margin.is_finite() && margin >= 0.0) {
+        return Err(value(format!("margin: expected ε ≥ 0 (kg·m²; every pseudo-inertia ⪰ ε I), got {margin}")));
+    }
+    if !(regularization.is_finite() && regularization >= 0.0) {
+        return Err(value(format!(
+            "regularization: expected a weight ≥ 0 of the closest-to-nominal term, got {regularization}"
+        )));
+    }
+    let opts = IdentOptions {
+        method,
+        weights,
+        filter,
+        harmonics,
+        decimate,
+        consistent: consistent.then_some(idexp::ident::consistent::ConsistentOptions { margin, regularization }),
+        standstill,
+        velocity_from,
+        dead_band,
+        ..Default::default()
+    };
+    let val = validate.as_ref().map(|v| read_run(py, v, &drives, "validate")).transpose()?;
+    let truth = match &truth {
+        None => None,
+        Some(t) => Some(if let Ok(s) = t.cast::<SimRun>() {
+            s.get().truth.clone()
+        } else {
+            let p: PathBuf = t.extract().map_err(|_| value("truth: expected a SimRun or the path of a truth.json"))?;
+            idexp::data::Truth::read(&p).py()?
+        }),
+    };
+    let base = robot.default_base()?;
+    let mut id = run_long(py, time_limit, progress.as_ref(), |ctl| {
+        ident::identify(r, &base, &run, traj.as_ref(), val.as_ref().map(|(v, t)| (v, t.as_ref())), &opts, ctl)
+    })?;
+    if let Some(t) = &truth {
+        id.estimate.compare_truth(&t.base_names, &t.base).py()?;
+    }
+    let options = serde_json::json!({ "robot": robot.path.display().to_string(), "options": opts, "source": "python" });
+    Ok(Identification {
+        inner: Arc::new(id),
+        options,
+        robot: robot.inner.clone(),
+        robot_path: robot.path.clone(),
+    })
+}
