@@ -107,7 +107,7 @@ fn a_stopped_control_ends_a_clarabel_sdp_at_once() {
     let ctl = Control::new();
     ctl.stop_flag().request();
     let r = solve_d_sdp(&pb, &SolverOptions::default(), &ctl);
-    assert_eq!(r.status, ConicStatus::Solver(clarabel::solver::SolverStatus::CallbackTerminated));
+    assert_eq!(r.status, ConicStatus::Solver(idexp::optim::conic::SolverStatus::CallbackTerminated));
     assert_eq!(r.status.termination(), idexp::optim::Termination::Interrupted);
     assert_eq!(r.status.to_string(), "CallbackTerminated");
     assert!(r.iterations < free.iterations);
@@ -216,9 +216,8 @@ fn an_excitation_reports_its_checks_as_a_phase() {
 /// and a free control solves the same program.
 #[test]
 fn the_consistent_fit_stops_on_its_control() {
-    use clarabel::solver::SolverStatus;
     use idexp::ident::consistent::{solve, ConsistentOptions, ConsistentStatus, Kind, Problem};
-    use idexp::optim::conic::ConicStatus;
+    use idexp::optim::conic::{ConicStatus, SolverStatus};
     use nalgebra::DVector;
     // one link (a box of 2 kg) and one rotor inertia, seen through a random R
     let theta = DVector::from_vec(vec![0.05, 0.0, 0.0, 0.06, 0.0, 0.07, 0.02, -0.01, 0.03, 2.0, 0.1]);

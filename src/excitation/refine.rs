@@ -40,7 +40,7 @@ const TOL: f64 = 1e-9;
 
 /// What one nlopt stage ended with (serialised as nlopt's own word, e.g.
 /// `FtolReached`, `MaxEvalReached`, `Failure`).
-pub use crate::optim::nlopt::NloptStatus as NloptWord;
+pub use crate::optim::GradientStatus as NloptWord;
 
 /// How a refinement ended: the nlopt result of the smooth stage (if any) and
 /// of the main stage, and whether the run-control asked to stop. Serialised

@@ -35,8 +35,8 @@
 use super::estimate::{cond, cond_normalized, Dataset, LsFit, Weights};
 use super::{Processed, Run};
 use crate::error::{Error, Result};
-use crate::optim::nlopt::{Algorithm, NloptStatus, Problem};
-use crate::optim::Control;
+use crate::optim::nlopt::{Algorithm, Problem};
+use crate::optim::{Control, GradientStatus};
 use crate::params::BaseParams;
 use crate::robot::{regressor_derivatives, Robot, Workspace};
 use nalgebra::{DMatrix, DVector};
@@ -308,7 +308,7 @@ impl Default for MlOptions {
 #[derive(Debug, Clone, Serialize)]
 pub struct MlInfo {
     /// Solver status (nlopt's word).
-    pub status: NloptStatus,
+    pub status: GradientStatus,
     /// Cost at the WLS start.
     pub cost_start: f64,
     /// Cost at the end.

@@ -31,11 +31,10 @@
 //! constraints of the drive parameters in the non-negative cone.
 
 use crate::error::{Error, Result};
-use crate::optim::conic::{self as bridge, ConicStatus, Entries as Triplets, Program, Settings};
+use crate::optim::conic::{self as bridge, Cone, ConicStatus, Entries as Triplets, Program, Settings};
 use crate::optim::Control;
 use crate::params::BaseParams;
 use crate::robot::{ParamKind, ParamSign, Robot};
-use clarabel::solver::SupportedConeT;
 use nalgebra::{DMatrix, DVector, Matrix4, SymmetricEigen};
 use serde::Serialize;
 
@@ -272,7 +271,7 @@ pub fn solve(pb: &Problem, o: &ConsistentOptions, ctl: &Control) -> Result<Solut
         a.push(r0 + 1 + nb + j, j, -d);
         b.push(-d * nominal[j]);
     }
-    cones.push(SupportedConeT::SecondOrderConeT(1 + nb + p));
+    cones.push(Cone::SecondOrder(1 + nb + p));
     // PSD cones: svec, upper triangle column by column, off-diagonals × √2
     let s2 = std::f64::consts::SQRT_2;
     for &l in links {
@@ -287,7 +286,7 @@ pub fn solve(pb: &Problem, o: &ConsistentOptions, ctl: &Control) -> Result<Solut
                 b.push(if row == col { -o.margin } else { 0.0 });
             }
         }
-        cones.push(SupportedConeT::PSDTriangleConeT(4));
+        cones.push(Cone::PsdTriangle(4));
     }
     let signed: Vec<(usize, f64)> = (0..p)
         .filter_map(|j| match kinds[j] {
@@ -302,7 +301,7 @@ pub fn solve(pb: &Problem, o: &ConsistentOptions, ctl: &Control) -> Result<Solut
             a.push(ri, j, -sg);
             b.push(0.0);
         }
-        cones.push(SupportedConeT::NonnegativeConeT(signed.len()));
+        cones.push(Cone::Nonnegative(signed.len()));
     }
     let mut q = vec![0.0; nx];
     q[it] = 1.0;
@@ -654,7 +653,7 @@ mod tests {
             scale: &ones,
         };
         let s = solve(&pb, &o, &Control::new()).unwrap();
-        assert_eq!(s.status, ConicStatus::Solver(clarabel::solver::SolverStatus::Solved));
+        assert_eq!(s.status, ConicStatus::Solver(bridge::SolverStatus::Solved));
         assert!((&s.theta - &t).norm() < 1e-5 * t.norm(), "|θ−θ̂| = {:e}", (&s.theta - &t).norm());
         // inconsistent: negative mass on link 2 and a negative Ia; nominal far from it
         let mut bad = t.clone();

@@ -33,8 +33,8 @@ pub enum EstimateStatus {
     Ok,
     /// The design matrix is rank deficient: the minimum-norm solution is not an estimate.
     RankDeficient,
-    /// The maximum-likelihood stage ended with this nlopt status.
-    Ml(crate::optim::nlopt::NloptStatus),
+    /// The maximum-likelihood stage ended with this status (nlopt's word).
+    Ml(crate::optim::GradientStatus),
 }
 
 impl EstimateStatus {
@@ -50,7 +50,7 @@ impl EstimateStatus {
     /// What status.json says of a run that ended so: a rank-deficient design
     /// or an ML failure is not usable, a forced stop is an interruption.
     pub fn state(self) -> RunState {
-        use crate::optim::nlopt::NloptStatus as N;
+        use crate::optim::GradientStatus as N;
         match self {
             EstimateStatus::RankDeficient => RunState::Failed,
             EstimateStatus::Ml(N::Failure | N::InvalidArgs | N::OutOfMemory | N::RoundoffLimited) => RunState::Failed,

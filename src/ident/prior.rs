@@ -33,10 +33,9 @@
 
 use super::consistent::{kinds_of, min_pseudo_eigenvalue, pseudo_inertia, regularization_scale, Kind, Solution};
 use crate::error::{Error, Result};
-use crate::optim::conic::{Entries as Triplets, Program};
+use crate::optim::conic::{Cone, Entries as Triplets, Program};
 use crate::optim::Control;
 use crate::robot::Robot;
-use clarabel::solver::SupportedConeT;
 use nalgebra::{DMatrix, DVector, Matrix4, SymmetricEigen};
 use serde::{Deserialize, Serialize};
 
@@ -222,7 +221,7 @@ pub fn solve_with_unknown(pb: &PriorProblem, unknown: &[bool], metric: PriorMetr
                 push_j(&mut am, &mut b, l, row, col, if row == col { 1.0 } else { s2 }, margin);
             }
         }
-        cones.push(SupportedConeT::PSDTriangleConeT(4));
+        cones.push(Cone::PsdTriangle(4));
     }
     if entropic {
         for (i, &l) in links.iter().enumerate() {
@@ -247,14 +246,14 @@ pub fn solve_with_unknown(pb: &PriorProblem, unknown: &[bool], metric: PriorMetr
                     b.push(0.0);
                 }
             }
-            cones.push(SupportedConeT::PSDTriangleConeT(8));
+            cones.push(Cone::PsdTriangle(8));
             for kk in 0..4 {
                 // (v, 1, L_kk) ∈ K_exp: v ≤ log L_kk
                 let ri = am.rows(3);
                 am.push(ri, vvar(i, kk), -1.0);
                 am.push(ri + 2, lvar(i, kk, kk), -1.0);
                 b.extend_from_slice(&[0.0, 1.0, 0.0]);
-                cones.push(SupportedConeT::ExponentialConeT());
+                cones.push(Cone::Exponential);
             }
         }
     }
@@ -271,7 +270,7 @@ pub fn solve_with_unknown(pb: &PriorProblem, unknown: &[bool], metric: PriorMetr
             am.push(ri, j, -sg * scale[j]);
             b.push(sg * prior[j]);
         }
-        cones.push(SupportedConeT::NonnegativeConeT(signed.len()));
+        cones.push(Cone::Nonnegative(signed.len()));
     }
     let sol = super::consistent::run_clarabel(
         Program {

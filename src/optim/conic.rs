@@ -12,14 +12,122 @@
 //! even a long SDP at once; with [`Settings::progress`] it also reports the
 //! iteration to the control's observer), and returns the solution with its
 //! [`ConicStatus`].
+//!
+//! The vocabulary is idexp's own: the cones K are [`Cone`]s and a run ends
+//! with a [`SolverStatus`]; both are mapped to and from Clarabel's types here
+//! and nowhere else (`tests/module_graph.rs` holds that no file outside
+//! `src/optim/` names the `clarabel` crate).
 
 use super::{Control, Termination};
 use clarabel::algebra::CscMatrix;
-use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
+use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SupportedConeT};
 
-/// How a conic solve ended: Clarabel's status, or why the solver could not
-/// be set up. Serialised as Clarabel's word (`Solved`, `CallbackTerminated`,
-/// ...), `SettingsError: ...`, `SetupError: ...`.
+/// One cone of K, over the next rows of b − Ax (in the order of
+/// [`Program::cones`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Cone {
+    /// `n` rows equal to zero (equality constraints).
+    Zero(usize),
+    /// `n` rows ≥ 0.
+    Nonnegative(usize),
+    /// `n` rows (t, x) with ‖x‖ ≤ t (the second-order cone of dimension n).
+    SecondOrder(usize),
+    /// 3 rows (x, y, z) with y·exp(x/y) ≤ z, y > 0 (the closure of it).
+    Exponential,
+    /// n(n+1)/2 rows: an n × n symmetric matrix ⪰ 0, its upper triangle
+    /// column by column, off-diagonal entries scaled by √2.
+    PsdTriangle(usize),
+}
+
+impl Cone {
+    fn clarabel(self) -> SupportedConeT<f64> {
+        match self {
+            Cone::Zero(n) => SupportedConeT::ZeroConeT(n),
+            Cone::Nonnegative(n) => SupportedConeT::NonnegativeConeT(n),
+            Cone::SecondOrder(n) => SupportedConeT::SecondOrderConeT(n),
+            Cone::Exponential => SupportedConeT::ExponentialConeT(),
+            Cone::PsdTriangle(n) => SupportedConeT::PSDTriangleConeT(n),
+        }
+    }
+}
+
+/// How an interior-point run ended (Clarabel's statuses, written with
+/// Clarabel's words: `Solved`, `CallbackTerminated`, ...).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SolverStatus {
+    /// The solver did not run.
+    Unsolved,
+    /// Solved to the tolerances.
+    Solved,
+    /// Primal infeasible (the solution is a certificate).
+    PrimalInfeasible,
+    /// Dual infeasible (the solution is a certificate).
+    DualInfeasible,
+    /// Solved to reduced accuracy.
+    AlmostSolved,
+    /// Primal infeasible to reduced accuracy.
+    AlmostPrimalInfeasible,
+    /// Dual infeasible to reduced accuracy.
+    AlmostDualInfeasible,
+    /// The iteration budget ran out.
+    MaxIterations,
+    /// The time limit ran out.
+    MaxTime,
+    /// A numerical error ended the run.
+    NumericalError,
+    /// The run made too little progress.
+    InsufficientProgress,
+    /// The termination callback stopped it (the control's stop flag).
+    CallbackTerminated,
+}
+
+impl SolverStatus {
+    fn of(s: clarabel::solver::SolverStatus) -> SolverStatus {
+        use clarabel::solver::SolverStatus as C;
+        match s {
+            C::Unsolved => SolverStatus::Unsolved,
+            C::Solved => SolverStatus::Solved,
+            C::PrimalInfeasible => SolverStatus::PrimalInfeasible,
+            C::DualInfeasible => SolverStatus::DualInfeasible,
+            C::AlmostSolved => SolverStatus::AlmostSolved,
+            C::AlmostPrimalInfeasible => SolverStatus::AlmostPrimalInfeasible,
+            C::AlmostDualInfeasible => SolverStatus::AlmostDualInfeasible,
+            C::MaxIterations => SolverStatus::MaxIterations,
+            C::MaxTime => SolverStatus::MaxTime,
+            C::NumericalError => SolverStatus::NumericalError,
+            C::InsufficientProgress => SolverStatus::InsufficientProgress,
+            C::CallbackTerminated => SolverStatus::CallbackTerminated,
+        }
+    }
+
+    /// The word written in reports (Clarabel's name of the status).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            SolverStatus::Unsolved => "Unsolved",
+            SolverStatus::Solved => "Solved",
+            SolverStatus::PrimalInfeasible => "PrimalInfeasible",
+            SolverStatus::DualInfeasible => "DualInfeasible",
+            SolverStatus::AlmostSolved => "AlmostSolved",
+            SolverStatus::AlmostPrimalInfeasible => "AlmostPrimalInfeasible",
+            SolverStatus::AlmostDualInfeasible => "AlmostDualInfeasible",
+            SolverStatus::MaxIterations => "MaxIterations",
+            SolverStatus::MaxTime => "MaxTime",
+            SolverStatus::NumericalError => "NumericalError",
+            SolverStatus::InsufficientProgress => "InsufficientProgress",
+            SolverStatus::CallbackTerminated => "CallbackTerminated",
+        }
+    }
+}
+
+impl std::fmt::Display for SolverStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// How a conic solve ended: the solver's status, or why the solver could
+/// not be set up. Serialised as the status word (`Solved`,
+/// `CallbackTerminated`, ...), `SettingsError: ...`, `SetupError: ...`.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ConicStatus {
     /// Clarabel ran; its status (`CallbackTerminated` when the run control stopped it).
@@ -52,7 +160,7 @@ impl ConicStatus {
 impl std::fmt::Display for ConicStatus {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            ConicStatus::Solver(s) => write!(f, "{s:?}"),
+            ConicStatus::Solver(s) => f.write_str(s.as_str()),
             ConicStatus::Settings(e) => write!(f, "SettingsError: {e}"),
             ConicStatus::Setup(e) => write!(f, "SetupError: {e}"),
         }
@@ -115,7 +223,7 @@ pub struct Program {
     /// b.
     pub b: Vec<f64>,
     /// The cones, in row order.
-    pub cones: Vec<SupportedConeT<f64>>,
+    pub cones: Vec<Cone>,
 }
 
 /// Clarabel's settings that idexp chooses (the rest are Clarabel's defaults).
@@ -183,6 +291,7 @@ pub fn solve(prog: Program, set: &Settings, ctl: &Control) -> Solved {
         Ok(s) => s,
         Err(e) => return failed(ConicStatus::Settings(e.to_string())),
     };
+    let cones: Vec<SupportedConeT<f64>> = cones.into_iter().map(Cone::clarabel).collect();
     let mut solver = match DefaultSolver::new(&p, &q, &a, &b, &cones, settings) {
         Ok(s) => s,
         Err(e) => return failed(ConicStatus::Setup(e.to_string())),
@@ -198,7 +307,7 @@ pub fn solve(prog: Program, set: &Settings, ctl: &Control) -> Solved {
     solver.solve();
     let sol = &solver.solution;
     Solved {
-        status: ConicStatus::Solver(sol.status),
+        status: ConicStatus::Solver(SolverStatus::of(sol.status)),
         x: sol.x.clone(),
         z: sol.z.clone(),
         iterations: sol.iterations,
@@ -236,7 +345,7 @@ mod tests {
             q: vec![1.0],
             a,
             b: vec![-1.0],
-            cones: vec![SupportedConeT::NonnegativeConeT(1)],
+            cones: vec![Cone::Nonnegative(1)],
         }
     }
 
@@ -250,5 +359,70 @@ mod tests {
         let s = solve(tiny(), &Settings::default(), &ctl);
         assert_eq!(s.status, ConicStatus::Solver(SolverStatus::CallbackTerminated));
         assert_eq!(s.status.termination(), Termination::Interrupted);
+    }
+
+    /// Each status is written with Clarabel's own word for it.
+    #[test]
+    fn status_words_are_clarabels() {
+        use clarabel::solver::SolverStatus as C;
+        for c in [
+            C::Unsolved,
+            C::Solved,
+            C::PrimalInfeasible,
+            C::DualInfeasible,
+            C::AlmostSolved,
+            C::AlmostPrimalInfeasible,
+            C::AlmostDualInfeasible,
+            C::MaxIterations,
+            C::MaxTime,
+            C::NumericalError,
+            C::InsufficientProgress,
+            C::CallbackTerminated,
+        ] {
+            let ours = ConicStatus::Solver(SolverStatus::of(c));
+            assert_eq!(ours.to_string(), c.to_string());
+            assert_eq!(serde_json::to_string(&ours).unwrap(), format!("\"{c}\""));
+        }
+    }
+
+    /// min t over one cone whose rows are s = b + c·t (A = −c); the
+    /// optimum is known in closed form for each cone.
+    fn one_cone(cone: Cone, b: &[f64], c: &[(usize, f64)]) -> f64 {
+        let mut a = Entries::new();
+        a.rows(b.len());
+        for &(r, v) in c {
+            a.push(r, 0, -v);
+        }
+        let prog = Program {
+            n_var: 1,
+            p: None,
+            q: vec![1.0],
+            a,
+            b: b.to_vec(),
+            cones: vec![cone],
+        };
+        let s = solve(prog, &Settings::default(), &Control::new());
+        assert!(s.status.is_solved(), "{cone:?}: {}", s.status);
+        s.x[0]
+    }
+
+    #[test]
+    fn each_cone_is_the_one_it_names() {
+        use approx::assert_abs_diff_eq as close;
+        use std::f64::consts::{E, FRAC_1_SQRT_2, SQRT_2};
+        // zero: t − 2 = 0
+        close!(one_cone(Cone::Zero(1), &[-2.0], &[(0, 1.0)]), 2.0, epsilon = 1e-7);
+        // nonnegative: t − 1 ≥ 0 and t − 3 ≥ 0 → t = 3
+        close!(one_cone(Cone::Nonnegative(2), &[-1.0, -3.0], &[(0, 1.0), (1, 1.0)]), 3.0, epsilon = 1e-6);
+        // second order: ‖(3, 4)‖ ≤ t → t = 5
+        close!(one_cone(Cone::SecondOrder(3), &[0.0, 3.0, 4.0], &[(0, 1.0)]), 5.0, epsilon = 1e-6);
+        // exponential: (1, 1, t) with 1·exp(1/1) ≤ t → t = e
+        close!(one_cone(Cone::Exponential, &[1.0, 1.0, 0.0], &[(2, 1.0)]), E, epsilon = 1e-6);
+        // PSD triangle: [[t, 1], [1, 2t]] ⪰ 0 as (t, √2·1, 2t) → 2t² ≥ 1
+        close!(
+            one_cone(Cone::PsdTriangle(2), &[0.0, SQRT_2, 0.0], &[(0, 1.0), (2, 2.0)]),
+            FRAC_1_SQRT_2,
+            epsilon = 1e-6
+        );
     }
 }

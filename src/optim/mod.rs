@@ -9,6 +9,13 @@
 //! library itself never prints). The task answers with a [`Termination`]
 //! inside its result: why it ended, in words a user reads.
 //!
+//! This module owns the external solvers' vocabulary: nlopt and Clarabel are
+//! named only here (their bridges [`nlopt`] and [`conic`]); the rest of idexp
+//! builds [`conic::Cone`]s and reads [`conic::ConicStatus`] and
+//! [`GradientStatus`], idexp's own types, which the bridges map to and from
+//! the crates' (`tests/module_graph.rs` holds this for `src/`, the command
+//! line and the Python bindings).
+//!
 //! There is no process-wide state: two tasks with two controls run
 //! independently, in one process, on any threads.
 //!
@@ -44,7 +51,9 @@
 pub mod conic;
 mod control;
 pub mod ga;
+mod gradient;
 pub mod lm;
 pub mod nlopt;
 
 pub use control::{Control, Observer, Silent, StopFlag, Termination};
+pub use gradient::GradientStatus;

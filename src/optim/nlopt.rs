@@ -20,11 +20,12 @@
 //! - the control's deadline is handed to nlopt as `maxtime`, beside the
 //!   problem's own evaluation budget and relative tolerances.
 //!
-//! The nlopt result is kept as [`NloptStatus`] (serialised as nlopt's own
-//! word, e.g. `FtolReached`) and mapped to [`Termination`].
+//! The nlopt result is mapped here to idexp's [`GradientStatus`] (serialised
+//! as nlopt's own word, e.g. `FtolReached`; its `termination()` is the
+//! run-control word); no file outside `src/optim/` names the `nlopt` crate
+//! (`tests/module_graph.rs`).
 
-use super::{Control, Termination};
-use serde::{Serialize, Serializer};
+use super::{Control, GradientStatus};
 use std::cell::Cell;
 
 /// The nlopt algorithms idexp uses.
@@ -94,8 +95,8 @@ pub struct Problem<'c> {
 /// How one nlopt run ended.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Run {
-    /// nlopt's result.
-    pub status: NloptStatus,
+    /// How it ended.
+    pub status: GradientStatus,
     /// Evaluated calls of the counted callback (calls skipped on a stop are not counted).
     pub evaluations: u64,
 }
@@ -220,7 +221,7 @@ impl<'c> Problem<'c> {
             };
             let _ = opt.add_inequality_mconstraint(m, c_cb, cdata, &vec![tol; m]);
         }
-        let status = NloptStatus::of(&opt.optimize(x));
+        let status = status_of(&opt.optimize(x));
         drop(opt);
         Run {
             status,
@@ -238,89 +239,22 @@ fn zero(g: Option<&mut [f64]>) {
     }
 }
 
-/// The result of one nlopt run (nlopt's success and failure codes).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum NloptStatus {
-    /// Generic success.
-    Success,
-    /// The objective reached `stopval`.
-    StopValReached,
-    /// Relative or absolute objective tolerance reached.
-    FtolReached,
-    /// Relative or absolute x tolerance reached.
-    XtolReached,
-    /// Evaluation budget used up.
-    MaxEvalReached,
-    /// Time budget used up.
-    MaxTimeReached,
-    /// Generic failure.
-    Failure,
-    /// Invalid arguments.
-    InvalidArgs,
-    /// Out of memory.
-    OutOfMemory,
-    /// Round-off errors stopped progress.
-    RoundoffLimited,
-    /// A callback forced the stop.
-    ForcedStop,
-}
-
-impl NloptStatus {
-    /// From nlopt's `optimize` result.
-    pub fn of<T>(r: &Result<(nlopt::SuccessState, T), (nlopt::FailState, T)>) -> NloptStatus {
-        use nlopt::{FailState as F, SuccessState as S};
-        match r {
-            Ok((S::Success, _)) => NloptStatus::Success,
-            Ok((S::StopValReached, _)) => NloptStatus::StopValReached,
-            Ok((S::FtolReached, _)) => NloptStatus::FtolReached,
-            Ok((S::XtolReached, _)) => NloptStatus::XtolReached,
-            Ok((S::MaxEvalReached, _)) => NloptStatus::MaxEvalReached,
-            Ok((S::MaxTimeReached, _)) => NloptStatus::MaxTimeReached,
-            Err((F::Failure, _)) => NloptStatus::Failure,
-            Err((F::InvalidArgs, _)) => NloptStatus::InvalidArgs,
-            Err((F::OutOfMemory, _)) => NloptStatus::OutOfMemory,
-            Err((F::RoundoffLimited, _)) => NloptStatus::RoundoffLimited,
-            Err((F::ForcedStop, _)) => NloptStatus::ForcedStop,
-        }
-    }
-    /// nlopt's word (`FtolReached`, ...), as written in reports.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            NloptStatus::Success => "Success",
-            NloptStatus::StopValReached => "StopValReached",
-            NloptStatus::FtolReached => "FtolReached",
-            NloptStatus::XtolReached => "XtolReached",
-            NloptStatus::MaxEvalReached => "MaxEvalReached",
-            NloptStatus::MaxTimeReached => "MaxTimeReached",
-            NloptStatus::Failure => "Failure",
-            NloptStatus::InvalidArgs => "InvalidArgs",
-            NloptStatus::OutOfMemory => "OutOfMemory",
-            NloptStatus::RoundoffLimited => "RoundoffLimited",
-            NloptStatus::ForcedStop => "ForcedStop",
-        }
-    }
-    /// The run-control word (a stop through the control shows as an early
-    /// end of nlopt; the caller knows whether the control asked for it).
-    pub fn termination(self) -> Termination {
-        match self {
-            NloptStatus::Success | NloptStatus::StopValReached | NloptStatus::FtolReached | NloptStatus::XtolReached => Termination::Converged,
-            NloptStatus::MaxEvalReached => Termination::MaxEvaluations,
-            NloptStatus::MaxTimeReached => Termination::TimeLimit,
-            NloptStatus::ForcedStop => Termination::Interrupted,
-            s => Termination::Failed(s.as_str().to_string()),
-        }
-    }
-}
-
-impl std::fmt::Display for NloptStatus {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
-
-impl Serialize for NloptStatus {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(self.as_str())
+/// nlopt's `optimize` result as idexp's [`GradientStatus`] (the only place
+/// that reads nlopt's result codes).
+fn status_of<T>(r: &Result<(nlopt::SuccessState, T), (nlopt::FailState, T)>) -> GradientStatus {
+    use nlopt::{FailState as F, SuccessState as S};
+    match r {
+        Ok((S::Success, _)) => GradientStatus::Success,
+        Ok((S::StopValReached, _)) => GradientStatus::StopValReached,
+        Ok((S::FtolReached, _)) => GradientStatus::FtolReached,
+        Ok((S::XtolReached, _)) => GradientStatus::XtolReached,
+        Ok((S::MaxEvalReached, _)) => GradientStatus::MaxEvalReached,
+        Ok((S::MaxTimeReached, _)) => GradientStatus::MaxTimeReached,
+        Err((F::Failure, _)) => GradientStatus::Failure,
+        Err((F::InvalidArgs, _)) => GradientStatus::InvalidArgs,
+        Err((F::OutOfMemory, _)) => GradientStatus::OutOfMemory,
+        Err((F::RoundoffLimited, _)) => GradientStatus::RoundoffLimited,
+        Err((F::ForcedStop, _)) => GradientStatus::ForcedStop,
     }
 }
 
@@ -328,14 +262,30 @@ impl Serialize for NloptStatus {
 mod tests {
     use super::*;
 
+    use crate::optim::Termination;
+
+    /// Every nlopt result maps to the status written with nlopt's own name for it.
     #[test]
     fn words_match_nlopts_debug_names() {
-        let r: Result<(nlopt::SuccessState, f64), (nlopt::FailState, f64)> = Ok((nlopt::SuccessState::FtolReached, 0.0));
-        assert_eq!(NloptStatus::of(&r).as_str(), format!("{:?}", nlopt::SuccessState::FtolReached));
-        let r: Result<(nlopt::SuccessState, f64), (nlopt::FailState, f64)> = Err((nlopt::FailState::RoundoffLimited, 0.0));
-        assert_eq!(NloptStatus::of(&r).as_str(), format!("{:?}", nlopt::FailState::RoundoffLimited));
-        assert_eq!(serde_json::to_string(&NloptStatus::MaxEvalReached).unwrap(), "\"MaxEvalReached\"");
-        assert_eq!(NloptStatus::MaxTimeReached.termination(), Termination::TimeLimit);
+        use nlopt::{FailState as F, SuccessState as S};
+        for s in [
+            S::Success,
+            S::StopValReached,
+            S::FtolReached,
+            S::XtolReached,
+            S::MaxEvalReached,
+            S::MaxTimeReached,
+        ] {
+            let ours = status_of::<f64>(&Ok((s, 0.0)));
+            assert_eq!(ours.as_str(), format!("{s:?}"));
+            assert_eq!(serde_json::to_string(&ours).unwrap(), format!("\"{s:?}\""));
+        }
+        for f in [F::Failure, F::InvalidArgs, F::OutOfMemory, F::RoundoffLimited, F::ForcedStop] {
+            let ours = status_of::<f64>(&Err((f, 0.0)));
+            assert_eq!(ours.to_string(), format!("{f:?}"));
+            assert_eq!(serde_json::to_string(&ours).unwrap(), format!("\"{f:?}\""));
+        }
+        assert_eq!(GradientStatus::MaxTimeReached.termination(), Termination::TimeLimit);
     }
 
     fn bowl(x: &[f64], g: Option<&mut [f64]>, _: &mut ()) -> f64 {

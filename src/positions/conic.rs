@@ -39,9 +39,8 @@
 
 use super::problem::Problem;
 use super::relax::SolverOptions;
-use crate::optim::conic::{self as bridge, Entries as Triplets, Program, Settings};
+use crate::optim::conic::{self as bridge, Cone, Entries as Triplets, Program, Settings};
 use crate::optim::Control;
-use clarabel::solver::SupportedConeT;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
@@ -94,19 +93,19 @@ fn svec_scale(i: usize, j: usize) -> f64 {
 
 /// Appends the simplex on the weights w (columns `w0..w0 + k`): Σ w = 1 (zero
 /// cone), then w ≥ 0 (nonnegative cone).
-fn push_simplex(a: &mut Triplets, b: &mut Vec<f64>, cones: &mut Vec<SupportedConeT<f64>>, w0: usize, k: usize) {
+fn push_simplex(a: &mut Triplets, b: &mut Vec<f64>, cones: &mut Vec<Cone>, w0: usize, k: usize) {
     let r = a.rows(1);
     for i in 0..k {
         a.push(r, w0 + i, 1.0);
     }
     b.push(1.0);
-    cones.push(SupportedConeT::ZeroConeT(1));
+    cones.push(Cone::Zero(1));
     let r = a.rows(k);
     for i in 0..k {
         a.push(r + i, w0 + i, -1.0);
         b.push(0.0);
     }
-    cones.push(SupportedConeT::NonnegativeConeT(k));
+    cones.push(Cone::Nonnegative(k));
 }
 
 /// Fills the leading p×p block of a PSD slack s = b − A x whose svec rows start
@@ -133,18 +132,18 @@ fn push_weighted_information(a: &mut Triplets, bb: &mut [f64], r: usize, pb: &Pr
 
 /// Appends u_j ≤ ln x_j for j in 0..p (u_j in the columns `u0 + j`, x_j in
 /// the column `x(j)`): one exponential cone (u_j, 1, x_j) each.
-fn push_log_epigraphs(a: &mut Triplets, b: &mut Vec<f64>, cones: &mut Vec<SupportedConeT<f64>>, u0: usize, p: usize, x: impl Fn(usize) -> usize) {
+fn push_log_epigraphs(a: &mut Triplets, b: &mut Vec<f64>, cones: &mut Vec<Cone>, u0: usize, p: usize, x: impl Fn(usize) -> usize) {
     for j in 0..p {
         let r = a.rows(3);
         a.push(r, u0 + j, -1.0);
         a.push(r + 2, x(j), -1.0);
         b.extend_from_slice(&[0.0, 1.0, 0.0]);
-        cones.push(SupportedConeT::ExponentialConeT());
+        cones.push(Cone::Exponential);
     }
 }
 
 /// The program min qᵀx s.t. b − Ax ∈ cones (no quadratic term).
-fn linear(n_var: usize, q: Vec<f64>, a: Triplets, b: Vec<f64>, cones: Vec<SupportedConeT<f64>>) -> Program {
+fn linear(n_var: usize, q: Vec<f64>, a: Triplets, b: Vec<f64>, cones: Vec<Cone>) -> Program {
     Program {
         n_var,
         p: None,
@@ -250,7 +249,7 @@ pub fn solve_d_socp(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicRe
             b.push(0.0);
         }
     }
-    cones.push(SupportedConeT::ZeroConeT(1 + p * p));
+    cones.push(Cone::Zero(1 + p * p));
     // nonnegative: w ≥ 0, J_jj − Σ_b t_bj ≥ 0  (s = b − A x)
     let r = a.rows(k + p);
     for i in 0..k {
@@ -264,7 +263,7 @@ pub fn solve_d_socp(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicRe
         }
         b.push(0.0);
     }
-    cones.push(SupportedConeT::NonnegativeConeT(k + p));
+    cones.push(Cone::Nonnegative(k + p));
     // rotated cones (t + w, t − w, 2 Z_b e_j)
     for (bi, h) in factors.iter().enumerate() {
         let l = h.ncols();
@@ -286,7 +285,7 @@ pub fn solve_d_socp(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicRe
                 a.push(r + 2 + c, z_off[bi] + c * p + j, -2.0);
                 b.push(0.0);
             }
-            cones.push(SupportedConeT::SecondOrderConeT(l + 2));
+            cones.push(Cone::SecondOrder(l + 2));
         }
     }
     // exponential cones (u_j, 1, J_jj)
@@ -327,7 +326,7 @@ pub fn solve_d_sdp(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicRes
         }
     }
     b.extend_from_slice(&bb);
-    cones.push(SupportedConeT::PSDTriangleConeT(n2));
+    cones.push(Cone::PsdTriangle(n2));
     push_log_epigraphs(&mut a, &mut b, &mut cones, u0, p, |j| zidx(j, j));
     solve(linear(n_var, q, a, b, cones), set, set.clarabel_tol, k, ctl).1
 }
@@ -372,13 +371,13 @@ pub fn solve_a(pb: &Problem, kmat: &DMatrix<f64>, set: &SolverOptions, ctl: &Con
             b.push(kmat[(aa, j)]);
         }
     }
-    cones.push(SupportedConeT::ZeroConeT(1 + p * p));
+    cones.push(Cone::Zero(1 + p * p));
     let r = a.rows(k);
     for i in 0..k {
         a.push(r + i, w0 + i, -1.0);
         b.push(0.0);
     }
-    cones.push(SupportedConeT::NonnegativeConeT(k));
+    cones.push(Cone::Nonnegative(k));
     for (bi, h) in factors.iter().enumerate() {
         let l = h.ncols();
         let r = a.rows(l * p + 2);
@@ -399,7 +398,7 @@ pub fn solve_a(pb: &Problem, kmat: &DMatrix<f64>, set: &SolverOptions, ctl: &Con
                 b.push(0.0);
             }
         }
-        cones.push(SupportedConeT::SecondOrderConeT(l * p + 2));
+        cones.push(Cone::SecondOrder(l * p + 2));
     }
     solve(linear(n_var, q, a, b, cones), set, 1e-2 * set.clarabel_tol, k, ctl).1
 }
@@ -424,7 +423,7 @@ pub fn solve_e(pb: &Problem, set: &SolverOptions, ctl: &Control) -> ConicResult 
         a.push(r_psd + svec_index(j, j), t, 1.0);
     }
     b.extend_from_slice(&bb);
-    cones.push(SupportedConeT::PSDTriangleConeT(p));
+    cones.push(Cone::PsdTriangle(p));
     let (z, mut res) = solve(linear(n_var, q, a, b, cones), set, 1e-2 * set.clarabel_tol, k, ctl);
     {
         // the dual rows of the PSD block follow the 1 + k rows before it
