@@ -5,28 +5,13 @@ use crate::Outcome;
 use anyhow::{anyhow, bail, Context};
 use idexp::ident::experiments::{friction_experiment, gravity_experiment, FrictionFit, GravityFit, GravityTerm};
 use idexp::ident::output::{write_friction, write_gravity};
-use idexp::ident::{identify, run_trajectory, ConsistentOptions, Essential, Filter, FilterChoice, IdentOptions, Method, ReduceOptions, Run, Weights};
+use idexp::ident::study::{ConsistentSpec, EssentialRule, EssentialSpec, ExperimentSpec, ExportFormat, FilterName, ReduceSpec, StudyDesign};
+use idexp::ident::{Filter, Method, Run, Weights};
 use idexp::io::status::{fingerprint_of, write_status, RunState};
 use idexp::optim::Control;
-use idexp::params::{BaseOptions, BaseParams};
-use idexp::trajectory::FourierTrajectory;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::SystemTime;
-
-/// Position filter choice on the command line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum FilterKind {
-    /// Fourier filtering when the run's trajectory is known (`trajectory.json` next to the run or `--trajectory`), else low-pass.
-    Auto,
-    /// Fourier filtering (needs the trajectory).
-    Fourier,
-    /// Zero-phase low-pass (`--cutoff`) + central differences.
-    Lowpass,
-    /// Central differences only.
-    None,
-}
 
 /// Dedicated experiments of paper 002 §3.2.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
@@ -36,20 +21,6 @@ pub enum Experiment {
     Gravity,
     /// Bang-bang acceleration: fit inertia and asymmetric Coulomb + viscous friction (eq. 2).
     Friction,
-}
-
-/// What `--export` writes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum ExportKind {
-    /// `robot.urdf`: the input URDF with the identified (consistent) inertials.
-    Urdf,
-    /// `robot.toml`: a robot file with the identified drive parameters (and, for DH robots, inertials).
-    Toml,
-    /// `params.csv`: every base and standard parameter with std and σ*.
-    Csv,
-    /// `robot.xml`: the identified (consistent) model as MJCF for MuJoCo.
-    Mjcf,
 }
 
 /// `idexp identify <robot> <run>...` or `idexp identify <study.toml>`
@@ -68,9 +39,9 @@ pub struct IdentifyArgs {
     /// Weights of the least-squares residuals: sample (per sample, paper 000 eq. 7–9) or joint (per joint).
     #[arg(long, default_value_t = Weights::Sample)]
     pub weights: Weights,
-    /// Position filter.
-    #[arg(long, value_enum, default_value_t = FilterKind::Auto)]
-    pub filter: FilterKind,
+    /// Position filter: auto (Fourier filtering when the run's trajectory is known, else low-pass), fourier (needs the trajectory), lowpass (zero-phase, --cutoff), none (central differences only).
+    #[arg(long, default_value = "auto")]
+    pub filter: FilterName,
     /// Low-pass cut-off (Hz).
     #[arg(long, default_value_t = 10.0)]
     pub cutoff: f64,
@@ -152,9 +123,9 @@ pub struct IdentifyArgs {
     /// Weight of the closest-to-nominal (CAD) term of the consistent fit.
     #[arg(long, default_value_t = 1e-6)]
     pub regularization: f64,
-    /// Write the identified model: urdf, toml, csv (comma-separated; urdf and toml imply --consistent).
-    #[arg(long, value_enum, value_delimiter = ',')]
-    pub export: Vec<ExportKind>,
+    /// Write the identified model: urdf, toml, csv, mjcf (comma-separated; urdf, toml and mjcf imply --consistent).
+    #[arg(long, value_delimiter = ',')]
+    pub export: Vec<ExportFormat>,
     /// Output folder (default: out/identify_<run folder name>).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -194,31 +165,13 @@ fn default_out(run: &[PathBuf], suffix: &str) -> PathBuf {
     PathBuf::from("out").join(format!("identify_{stem}{suffix}"))
 }
 
-fn filter_choice(a: &IdentifyArgs, traj: Option<&FourierTrajectory>) -> anyhow::Result<FilterChoice> {
-    Ok(match a.filter {
-        FilterKind::Auto if traj.is_none() => FilterChoice::Given(Filter::LowPass { cutoff: a.cutoff }),
-        FilterKind::Auto => FilterChoice::Auto,
-        FilterKind::Fourier => match traj {
-            Some(t) => FilterChoice::Given(Filter::Fourier {
-                omega: t.omega,
-                n_h: t.n_harmonics(),
-            }),
-            None => bail!(
-                "identify: --filter fourier needs the run's Fourier trajectory: pass --trajectory coefficients.json or put trajectory.json in the run folder"
-            ),
-        },
-        FilterKind::Lowpass => FilterChoice::Given(Filter::LowPass { cutoff: a.cutoff }),
-        FilterKind::None => FilterChoice::Given(Filter::None),
-    })
-}
-
-fn parse_lags(s: &str) -> anyhow::Result<(usize, usize)> {
+fn parse_lags(s: &str) -> anyhow::Result<[usize; 2]> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     let bad = || anyhow!("identify: --fir-lags: expected two non-negative integers \"M1,M2\", got {s:?}");
     if parts.len() != 2 {
         return Err(bad());
     }
-    Ok((parts[0].parse().map_err(|_| bad())?, parts[1].parse().map_err(|_| bad())?))
+    Ok([parts[0].parse().map_err(|_| bad())?, parts[1].parse().map_err(|_| bad())?])
 }
 
 /// The arguments of the one-run form left at their defaults (a study file
@@ -286,6 +239,64 @@ fn log_spec(a: &IdentifyArgs) -> anyhow::Result<Option<idexp::data::logs::LogSpe
     Ok(Some(spec))
 }
 
+/// The one-run form as a one-experiment study: the run (and validation run)
+/// with their processing options, the estimator, the consistent fit and the
+/// exports, all as the study file would say them.
+fn one_run_design(a: &IdentifyArgs) -> anyhow::Result<StudyDesign> {
+    let log = log_spec(a)?;
+    let essential = match a.essential.as_str() {
+        "auto" => EssentialSpec::Rule(EssentialRule::Auto),
+        "none" => EssentialSpec::Rule(EssentialRule::None),
+        "friction" => EssentialSpec::Rule(EssentialRule::Friction),
+        s => EssentialSpec::Names(s.split(',').map(|x| x.trim().to_string()).filter(|x| !x.is_empty()).collect()),
+    };
+    let mut e = ExperimentSpec::new(a.run.clone());
+    e.filter = a.filter;
+    e.cutoff = a.cutoff;
+    e.trajectory = a.trajectory.clone();
+    e.harmonics = a.harmonics;
+    e.decimate = a.decimate;
+    e.resample = a.resample;
+    e.repetitions = a.repetitions;
+    e.coordinates = a.coordinates;
+    e.torque_from = a.torque_from;
+    e.current_tolerance = a.current_tolerance;
+    e.velocity_from = a.velocity_from;
+    e.standstill = Some(a.standstill);
+    e.slow_ratio = a.slow_ratio;
+    e.min_speed = a.min_speed.unwrap_or(0.01);
+    e.log = log;
+    let mut d = StudyDesign::one_experiment(&default_name(&a.run), a.robot.clone(), e.clone()).repetition_weighted(a.weights);
+    if !a.validate.is_empty() {
+        d.validation.push(e.validation_like(a.validate.clone(), a.validate_trajectory.clone()));
+    }
+    d.method = a.method;
+    d.reduce = a.reduce.then(|| ReduceSpec {
+        tol: a.reduce_tol,
+        essential,
+        ..Default::default()
+    });
+    if let Some(l) = &a.fir_lags {
+        d.projection.lags = Some(parse_lags(l)?);
+    }
+    d.truth = a.truth.clone();
+    d.base_columns = a.base_columns.clone();
+    d.dead_band = a.dead_band;
+    d.allow_incomplete = a.allow_incomplete;
+    d.export = a.export.clone();
+    if a.consistent || a.export.iter().any(|e| *e != ExportFormat::Csv) {
+        d.consistent = Some(ConsistentSpec::closest_to_nominal(a.margin, a.regularization));
+    }
+    Ok(d)
+}
+
+/// The name of the run folder (or of the first file's folder).
+fn default_name(run: &[PathBuf]) -> String {
+    let p = default_out(run, "");
+    let s = p.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    s.strip_prefix("identify_").unwrap_or(&s).to_string()
+}
+
 /// Runs `idexp identify`.
 pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let started = SystemTime::now();
@@ -299,192 +310,25 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
             a.robot.display()
         );
     }
-    let robot = idexp::robot::load(&a.robot)?;
-    a.run
-        .iter()
-        .chain(&a.validate)
-        .try_for_each(|r| idexp::io::status::require_complete(r, a.allow_incomplete))?;
-    let log_spec = log_spec(a)?;
-    let read = |paths: &[PathBuf], reps: Option<usize>| -> anyhow::Result<(Run, idexp::data::TorqueSource)> {
-        Ok(match &log_spec {
-            Some(spec) => {
-                let (run, src, sampling, _) = idexp::data::logs::read_run(paths, &robot, spec, a.resample, 50_000_000)?;
-                if sampling.resampled_to.is_some() {
-                    eprintln!("identify: {}", sampling.text());
-                }
-                (run, src)
-            }
-            None => Run::read_drives(paths, &robot, reps, a.torque_from, a.current_tolerance)?,
-        })
-    };
-    let (run, torque_source) = read(&a.run, a.repetitions)?;
-    let logged_currents = torque_source.from == "current" || torque_source.agreement.is_some() || !torque_source.note.is_empty();
-    let traj = match &a.trajectory {
-        Some(p) => {
-            let t = FourierTrajectory::load(p)?;
-            if t.n_joints() != robot.dof() {
-                bail!(
-                    "identify: --trajectory {}: the trajectory has {} joints, the robot {} and the run have {}: expected the run's own trajectory",
-                    p.display(),
-                    t.n_joints(),
-                    robot.name,
-                    robot.dof()
-                );
-            }
-            Some(t)
-        }
-        None => run_trajectory(&run)?,
-    };
     if let Some(exp) = a.experiment {
+        a.run.iter().try_for_each(|r| idexp::io::status::require_complete(r, a.allow_incomplete))?;
+        let robot = idexp::robot::load(&a.robot)?;
+        let (run, _) = Run::read_drives(&a.run, &robot, a.repetitions, a.torque_from, a.current_tolerance)?;
         return run_experiment(a, exp, &run, started);
     }
-    if !(a.reduce_tol > 0.0 && a.reduce_tol.is_finite()) {
-        bail!("identify: --reduce-tol: expected a positive tolerance, got {}", a.reduce_tol);
-    }
-    let essential = match a.essential.as_str() {
-        "auto" => Essential::Auto,
-        "none" => Essential::None,
-        "friction" => Essential::Friction,
-        s => {
-            let names: Vec<String> = s.split(',').map(|x| x.trim().to_string()).filter(|x| !x.is_empty()).collect();
-            if let Some((i, n)) = names.iter().enumerate().find(|(i, n)| names[..*i].contains(n)) {
-                bail!(
-                    "identify: --essential {s}: `{n}` is listed twice (entry {}); expected each parameter name once",
-                    i + 1
-                );
-            }
-            if names.is_empty() {
-                bail!("identify: --essential {s:?}: expected auto, none, friction or a comma-separated list of parameter names");
-            }
-            Essential::Names(names)
-        }
-    };
-    let mut opts = IdentOptions {
-        method: a.method,
-        weights: a.weights,
-        filter: filter_choice(a, traj.as_ref())?,
-        harmonics: a.harmonics,
-        decimate: a.decimate,
-        slow_ratio: a.slow_ratio,
-        min_speed: a.min_speed.unwrap_or(0.01),
-        dead_band: a.dead_band,
-        standstill: a.standstill,
-        velocity_from: a.velocity_from,
-        reduce: a.reduce.then(|| ReduceOptions {
-            tol: a.reduce_tol,
-            essential,
-            weights: a.weights,
-            ..Default::default()
-        }),
-        coordinates: a.coordinates,
-        consistent: (a.consistent || a.export.iter().any(|e| *e != ExportKind::Csv)).then_some(ConsistentOptions {
-            margin: a.margin,
-            regularization: a.regularization,
-        }),
-        ..Default::default()
-    };
-    let export_src = if a.export.is_empty() {
-        None
-    } else {
-        let src = idexp::robot::export::source_of(&a.robot)?;
-        if a.export.contains(&ExportKind::Urdf) {
-            if let idexp::robot::export::Source::Dh { toml } = &src {
-                bail!(
-                    "{}: --export urdf: this robot is a DH table, not a URDF: there is no URDF to copy the kinematics from; use --export toml,csv (robot.toml: the DH table with the identified inertials and drive parameters)",
-                    toml.display()
-                );
-            }
-        }
-        Some(src)
-    };
-    if let Some(l) = &a.fir_lags {
-        opts.projection.lags = Some(parse_lags(l)?);
-    }
-    let vrun = if a.validate.is_empty() {
-        None
-    } else {
-        Some(read(&a.validate, a.repetitions)?.0)
-    };
-    let vtraj = match (&a.validate_trajectory, &vrun) {
-        (Some(p), _) => Some(FourierTrajectory::load(p)?),
-        (None, Some(v)) => run_trajectory(v)?,
-        _ => None,
-    };
-    let base = if a.base_columns.is_empty() {
-        BaseParams::compute(&robot, &BaseOptions::default())?
-    } else {
-        BaseParams::with_columns(&robot, &a.base_columns, &BaseOptions::default())?
-    };
-    let mut id = identify(&robot, &base, &run, traj.as_ref(), vrun.as_ref().map(|v| (v, vtraj.as_ref())), &opts, ctl)?;
-    if logged_currents {
-        id.estimate.torque_source = Some(torque_source);
-    }
-    if let Some(t) = &a.truth {
-        let truth = idexp::sim::Truth::read(t)?;
-        id.estimate.compare_truth(&truth.base_names, &truth.base)?;
-    }
+    let design = one_run_design(a)?;
     let out = a.out.clone().unwrap_or_else(|| default_out(&a.run, ""));
-    idexp::io::folder::begin(&out, "identify", "")?;
-    id.write(&out)?;
-    let exported = export(a, export_src.as_ref(), &robot, &id.estimate, &out)?;
-    let options = serde_json::json!({ "arguments": a, "options": opts });
-    idexp::io::write_json(&out.join("options.json"), &options)?;
-    let state = id.write_status(&out, Some(started), &options, crate::interrupted(ctl))?;
-    if a.json {
-        crate::print_json(&id.estimate)?;
-    } else {
-        print!("{}", id.estimate.text());
-        for f in &exported {
-            println!("exported {}", f.display());
-        }
-        println!("\nwritten to {}", out.display());
-    }
-    Ok(match (state, id.unusable_reason()) {
-        (RunState::Interrupted, _) => Outcome::Interrupted,
-        (_, Some(why)) => Outcome::Unusable(why),
-        _ => Outcome::Done,
-    })
-}
-
-/// Writes what `--export` asks for into `out`; returns the files written.
-fn export(
-    a: &IdentifyArgs,
-    src: Option<&idexp::robot::export::Source>,
-    robot: &idexp::robot::Robot,
-    est: &idexp::ident::Estimate,
-    out: &Path,
-) -> anyhow::Result<Vec<PathBuf>> {
-    let Some(src) = src else { return Ok(vec![]) };
-    let mut files = Vec::new();
-    if a.export.contains(&ExportKind::Csv) {
-        let p = out.join("params.csv");
-        idexp::io::write_atomic(&p, idexp::ident::output::params_csv(est).as_bytes())?;
-        files.push(p);
-    }
-    let model = match &est.consistent {
-        Some(c) if c.status.is_ok() => Some(robot.with_params(&c.standard)?),
-        _ => None,
-    };
-    let wants = a.export.iter().any(|e| *e != ExportKind::Csv);
-    match model {
-        Some(m) => {
-            // robot.toml of a URDF robot points at a URDF: the identified one, written beside it
-            let from_urdf = matches!(src, idexp::robot::export::Source::Urdf { .. });
-            if a.export.contains(&ExportKind::Urdf) || (from_urdf && a.export.contains(&ExportKind::Toml)) {
-                files.push(idexp::robot::export::write_urdf(src, &m, out)?);
-            }
-            if a.export.contains(&ExportKind::Toml) {
-                let urdf_ref = from_urdf.then(|| "robot.urdf".to_string());
-                files.push(idexp::robot::export::write_robot_toml(src, &m, out, urdf_ref.as_deref())?);
-            }
-            if a.export.contains(&ExportKind::Mjcf) {
-                files.push(idexp::robot::export::write_mjcf(&m, out)?);
-            }
-        }
-        None if wants => eprintln!("identify: --export urdf/toml skipped: the consistent fit has no usable result"),
-        None => {}
-    }
-    Ok(files)
+    idexp::io::folder::check_out_dir(&out)?;
+    let res = idexp::ident::study::run_study(&design, Path::new(""), ctl)?;
+    crate::write_folder(
+        &out,
+        "identify",
+        &fingerprint_of(&design)?,
+        || res.write(&out, Some(started)),
+        a.json.then_some(&res.estimate),
+        &res.estimate.text(),
+        res.estimate.unusable_reason(),
+    )
 }
 
 fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run, started: SystemTime) -> anyhow::Result<Outcome> {

@@ -445,6 +445,33 @@ pub enum ExportFormat {
     Mjcf,
 }
 
+/// Parses a snake_case name of a unit enum (`"lowpass"`, `"mjcf"`): the
+/// names the study file uses, for the command line and Python; the error
+/// lists the allowed ones.
+fn parse_name<T: serde::de::DeserializeOwned>(field: &str, s: &str, allowed: &str) -> Result<T> {
+    T::deserialize(serde::de::value::StrDeserializer::<serde::de::value::Error>::new(s))
+        .map_err(|_| Error::invalid("identify", field, format!("expected {allowed}, found `{s}`")))
+}
+
+impl std::str::FromStr for FilterName {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<FilterName> {
+        parse_name("filter", s, "auto, fourier, lowpass or none")
+    }
+}
+
+impl std::str::FromStr for ExportFormat {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<ExportFormat> {
+        parse_name("export", s, "urdf, toml, csv or mjcf")
+    }
+}
+
+impl ExportFormat {
+    /// Every format, in the order of the documentation.
+    pub const ALL: [ExportFormat; 4] = [ExportFormat::Urdf, ExportFormat::Toml, ExportFormat::Csv, ExportFormat::Mjcf];
+}
+
 /// An identification study.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
