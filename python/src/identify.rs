@@ -8,8 +8,9 @@ use crate::excite::ExciteResult;
 use crate::long::run_long;
 use crate::robot::Robot;
 use crate::simulate::SimRun;
-use idexp::data::{Repetition, Run, TorqueFrom};
-use idexp::ident::{self, FilterChoice, IdentOptions, Method, Weights};
+use idexp::data::{Repetition, Run, TorqueFrom, TorqueSource};
+use idexp::ident::study::{run_study_with, ConsistentSpec, ExperimentSpec, FilterName, Given, Inputs, StudyDesign, StudyResult};
+use idexp::ident::{self, Method, Weights};
 use idexp::trajectory::FourierTrajectory;
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
@@ -21,8 +22,7 @@ use std::sync::Arc;
 /// and the measured and predicted torques behind them.
 #[pyclass(module = "idexp", frozen)]
 pub struct Identification {
-    inner: Arc<ident::Identification>,
-    options: serde_json::Value,
+    inner: Arc<StudyResult>,
     robot: Arc<idexp::robot::Robot>,
     robot_path: PathBuf,
 }
@@ -80,16 +80,16 @@ impl Identification {
         let c = &self.inner.estimate.covariance;
         out_rows(py, c, c.len())
     }
-    /// Errors on the identification run: dict with e, e_rel, rms (n,) and
-    /// noise_floor (eq. 11–12).
+    /// Errors on the rows of the identification run used for the estimate:
+    /// dict with e, e_rel, rms (n,) and noise_floor (eq. 11–12).
     #[getter]
     fn errors<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        to_dict(py, &self.inner.estimate.errors)
+        to_dict(py, &self.inner.estimate.experiments.first().map(|e| &e.errors))
     }
-    /// Errors on the validation run, or None.
+    /// Errors on the validation run's rows selected like the estimate's, or None.
     #[getter]
     fn validation_errors<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        to_dict(py, &self.inner.estimate.validation)
+        to_dict(py, &self.inner.estimate.validation.first().map(|v| &v.errors))
     }
     /// Comparison with the truth (list of dicts name, truth, estimate, z), or None.
     #[getter]
@@ -106,7 +106,8 @@ impl Identification {
     /// (N, n) (N·m; NaN where a row was left out as too slow).
     #[getter]
     fn torques<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let ds = &self.inner.dataset;
+        let e = &self.inner.experiments[0];
+        let ds = &e.prep.full;
         let (n, ns) = (ds.n, ds.n_samples);
         let theta = nalgebra::DVector::from_column_slice(&self.inner.estimate.theta);
         let pred = &ds.c * theta;
@@ -118,7 +119,7 @@ impl Identification {
             p[k] = pred[i];
         }
         let d = PyDict::new(py);
-        let t = &self.inner.processed.t;
+        let t = &e.prep.pr.t;
         d.set_item("t", out1(py, t.iter().take(ns).copied().collect()))?;
         d.set_item("measured", out2(py, ns, n, m))?;
         d.set_item("predicted", out2(py, ns, n, p))?;
@@ -126,10 +127,10 @@ impl Identification {
     }
     /// The physically consistent estimate (`consistent=True`), as the
     /// `consistent` block of estimate.json: status, standard_names, standard
-    /// (θ, p), base (K θ), extra_cost, extra_cost_rel, chi2_dof,
-    /// min_eigenvalue per link, active constraints, errors, pinocchio
-    /// (per body, Pinocchio's order), lambda, iterations. None without
-    /// `consistent=True`.
+    /// (θ, p), base (K θ), the prior (the nominal model) and its weight,
+    /// extra_cost, chi2_dof, min_eigenvalue per link, active constraints,
+    /// links beside the nominal, pinocchio (per body, Pinocchio's order),
+    /// iterations. None without `consistent=True`.
     #[getter]
     fn consistent<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         to_dict(py, &self.inner.estimate.consistent)
@@ -185,15 +186,10 @@ impl Identification {
     fn text(&self) -> String {
         self.inner.estimate.text()
     }
-    /// write(folder): the command line's output folder (estimate.json,
-    /// report, plots, options.json, status.json).
+    /// write(folder): the command line's output folder (study.json,
+    /// estimate.json, report, plots, status.json).
     fn write(&self, py: Python<'_>, folder: PathBuf) -> PyResult<PathBuf> {
-        py.detach(|| -> idexp::Result<()> {
-            self.inner.write(&folder)?;
-            idexp::io::write_json(&folder.join("options.json"), &self.options)?;
-            self.inner.write_status(&folder, None, &self.options, false).map(|_| ())
-        })
-        .py()?;
+        py.detach(|| self.inner.write(&folder, None).map(|_| ())).py()?;
         Ok(folder)
     }
     fn __repr__(&self) -> String {
@@ -217,12 +213,12 @@ struct Drives<'a> {
     tolerance: f64,
 }
 
-fn read_run(py: Python<'_>, obj: &Bound<'_, PyAny>, drives: &Drives<'_>, what: &str) -> PyResult<(Run, Option<FourierTrajectory>)> {
+fn read_run(py: Python<'_>, obj: &Bound<'_, PyAny>, drives: &Drives<'_>, what: &str) -> PyResult<(Run, Option<FourierTrajectory>, TorqueSource)> {
     let n = drives.robot.dof();
     if let Ok(s) = obj.cast::<SimRun>() {
         let s = s.get();
         let run = Run::new(Vec::new(), s.result.reps.clone()).py()?;
-        return Ok((run, s.result.setup.reference.fourier().cloned()));
+        return Ok((run, s.result.setup.reference.fourier().cloned(), TorqueSource::logged_torques()));
     }
     let dicts: Option<Vec<Bound<'_, PyDict>>> = if let Ok(d) = obj.cast::<PyDict>() {
         Some(vec![d.clone()])
@@ -256,7 +252,7 @@ fn read_run(py: Python<'_>, obj: &Bound<'_, PyAny>, drives: &Drives<'_>, what: &
                 qdd: opt("qdd")?,
             });
         }
-        return Ok((Run::new(Vec::new(), reps).py()?, None));
+        return Ok((Run::new(Vec::new(), reps).py()?, None, TorqueSource::logged_torques()));
     }
     let paths: Vec<PathBuf> = if let Ok(p) = obj.extract::<PathBuf>() {
         vec![p]
@@ -267,12 +263,9 @@ fn read_run(py: Python<'_>, obj: &Bound<'_, PyAny>, drives: &Drives<'_>, what: &
             "{what}: expected a run folder or CSV path, a list of paths, a SimRun, or a dict (list of dicts) with arrays t, q, tau"
         )));
     };
-    let run = py
-        .detach(|| Run::read_drives(&paths, drives.robot, None, drives.from, drives.tolerance))
-        .py()?
-        .0;
+    let (run, src) = py.detach(|| Run::read_drives(&paths, drives.robot, None, drives.from, drives.tolerance)).py()?;
     let traj = ident::run_trajectory(&run).py()?;
-    Ok((run, traj))
+    Ok((run, traj, src))
 }
 
 fn read_trajectory(obj: &Bound<'_, PyAny>) -> PyResult<FourierTrajectory> {
@@ -324,57 +317,58 @@ pub fn identify(
     let r = &robot.inner;
     let method: Method = method.parse().py()?;
     let weights: Weights = weights.parse().py()?;
-    if !(cutoff.is_finite() && cutoff > 0.0) {
-        return Err(value(format!("cutoff: expected a positive frequency in Hz, got {cutoff}")));
-    }
-    let standstill: ident::Standstill = standstill.parse().py()?;
-    let velocity_from: ident::VelocityFrom = velocity_from.parse().py()?;
+    let filter: FilterName = filter.parse().py()?;
     let drives = Drives {
         robot: r,
         from: torque_from.parse().py()?,
         tolerance: current_tolerance,
     };
-    let (run, run_traj) = read_run(py, run, &drives, "run")?;
-    let traj = match &trajectory {
+    let mut inputs = Inputs {
+        robot: Some((**r).clone()),
+        ..Default::default()
+    };
+    let (run, run_traj, src) = read_run(py, run, &drives, "run")?;
+    let trajectory = match &trajectory {
         Some(t) => Some(read_trajectory(t)?),
         None => run_traj,
     };
-    let filter = match filter {
-        "auto" if traj.is_none() => FilterChoice::Given(ident::Filter::LowPass { cutoff }),
-        "auto" => FilterChoice::Auto,
-        "fourier" => match &traj {
-            Some(t) => FilterChoice::Given(ident::Filter::Fourier {
-                omega: t.omega,
-                n_h: t.n_harmonics(),
-            }),
-            None => return Err(value("filter: \"fourier\" needs the run's Fourier trajectory: pass trajectory=")),
+    let mut e = ExperimentSpec::new(Vec::new());
+    e.name = "run".into();
+    e.filter = filter;
+    e.cutoff = cutoff;
+    e.harmonics = harmonics;
+    e.decimate = decimate;
+    e.standstill = Some(standstill.parse().py()?);
+    e.velocity_from = velocity_from.parse().py()?;
+    inputs.entries.insert(
+        e.name.clone(),
+        Given {
+            run,
+            trajectory,
+            torque_source: src,
         },
-        "lowpass" => FilterChoice::Given(ident::Filter::LowPass { cutoff }),
-        "none" => FilterChoice::Given(ident::Filter::None),
-        f => return Err(value(format!("filter: expected \"auto\", \"fourier\", \"lowpass\" or \"none\", got {f:?}"))),
-    };
-    if !(margin.is_finite() && margin >= 0.0) {
-        return Err(value(format!("margin: expected ε ≥ 0 (kg·m²; every pseudo-inertia ⪰ ε I), got {margin}")));
+    );
+    let mut design = StudyDesign::one_experiment("identify", robot.path.clone(), e.clone()).repetition_weighted(weights);
+    design.method = method;
+    design.dead_band = dead_band;
+    if consistent {
+        design.consistent = Some(ConsistentSpec::closest_to_nominal(margin, regularization));
     }
-    if !(regularization.is_finite() && regularization >= 0.0) {
-        return Err(value(format!(
-            "regularization: expected a weight ≥ 0 of the closest-to-nominal term, got {regularization}"
-        )));
+    if let Some(v) = &validate {
+        let (run, trajectory, src) = read_run(py, v, &drives, "validate")?;
+        let mut ve = e.validation_like(Vec::new(), None);
+        ve.name = "validate".into();
+        inputs.entries.insert(
+            ve.name.clone(),
+            Given {
+                run,
+                trajectory,
+                torque_source: src,
+            },
+        );
+        design.validation.push(ve);
     }
-    let opts = IdentOptions {
-        method,
-        weights,
-        filter,
-        harmonics,
-        decimate,
-        consistent: consistent.then_some(idexp::ident::consistent::ConsistentOptions { margin, regularization }),
-        standstill,
-        velocity_from,
-        dead_band,
-        ..Default::default()
-    };
-    let val = validate.as_ref().map(|v| read_run(py, v, &drives, "validate")).transpose()?;
-    let truth = match &truth {
+    inputs.truth = match &truth {
         None => None,
         Some(t) => Some(if let Ok(s) = t.cast::<SimRun>() {
             s.get().truth.clone()
@@ -383,17 +377,11 @@ pub fn identify(
             idexp::data::Truth::read(&p).py()?
         }),
     };
-    let base = robot.default_base()?;
-    let mut id = run_long(py, time_limit, progress.as_ref(), |ctl| {
-        ident::identify(r, &base, &run, traj.as_ref(), val.as_ref().map(|(v, t)| (v, t.as_ref())), &opts, ctl)
+    let res = run_long(py, time_limit, progress.as_ref(), |ctl| {
+        run_study_with(&design, std::path::Path::new(""), &inputs, ctl)
     })?;
-    if let Some(t) = &truth {
-        id.estimate.compare_truth(&t.base_names, &t.base).py()?;
-    }
-    let options = serde_json::json!({ "robot": robot.path.display().to_string(), "options": opts, "source": "python" });
     Ok(Identification {
-        inner: Arc::new(id),
-        options,
+        inner: Arc::new(res),
         robot: robot.inner.clone(),
         robot_path: robot.path.clone(),
     })

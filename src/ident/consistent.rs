@@ -33,7 +33,6 @@
 use crate::error::{Error, Result};
 use crate::optim::conic::{self as bridge, Cone, ConicStatus, Entries as Triplets, Program, Settings};
 use crate::optim::Control;
-use crate::params::BaseParams;
 use crate::robot::{ParamKind, ParamSign, Robot};
 use nalgebra::{DMatrix, DVector, Matrix4, SymmetricEigen};
 use serde::Serialize;
@@ -423,47 +422,6 @@ impl Serialize for ConsistentStatus {
     }
 }
 
-/// The consistent estimate (the `consistent` block of `estimate.json`).
-#[derive(Debug, Clone, Serialize)]
-pub struct Consistent {
-    /// How the fit ended.
-    pub status: ConsistentStatus,
-    /// Options used.
-    pub options: ConsistentOptions,
-    /// λ of the regularisation in the scaled problem (`regularization` · σ²_min).
-    pub lambda: f64,
-    /// Standard parameter names (the robot's layout).
-    pub standard_names: Vec<String>,
-    /// Consistent standard parameters θ.
-    pub standard: Vec<f64>,
-    /// The base parameters they imply, K θ (same order as the WLS estimate).
-    pub base: Vec<f64>,
-    /// Increase of the weighted residual sum of squares over WLS.
-    pub extra_cost: f64,
-    /// The same relative to the WLS residual sum of squares.
-    pub extra_cost_rel: f64,
-    /// Weighted residual sum of squares per degree of freedom of the consistent model.
-    pub chi2_dof: f64,
-    /// Per link, the smallest eigenvalue of its pseudo-inertia (kg·m²).
-    pub min_eigenvalue: Vec<f64>,
-    /// Constraints at their bound.
-    pub active: Vec<Active>,
-    /// Errors on the rows used for the estimate.
-    pub errors: super::Errors,
-    /// Errors on every sample of the identification run.
-    pub errors_all: super::Errors,
-    /// Errors on the rows of the validation run used like the estimate's.
-    pub validation: Option<super::Errors>,
-    /// Errors on every sample of the validation run.
-    pub validation_all: Option<super::Errors>,
-    /// Standard parameters per body in Pinocchio's order and convention.
-    pub pinocchio: Vec<PinocchioBody>,
-    /// Interior-point iterations.
-    pub iterations: u32,
-    /// Solver time (s).
-    pub solve_time: f64,
-}
-
 /// The constraints of a consistent solution at their bound: pseudo-inertias
 /// whose smallest eigenvalue is within 1e-5 of their largest of `margin`,
 /// drive parameters within 1e-6 of their scale of zero.
@@ -492,94 +450,6 @@ pub fn active_constraints(robot: &Robot, kinds: &[Kind], links: &[usize], sol: &
         }
     }
     active
-}
-
-/// The consistent fit of the base-parameter dataset `ds` (every base column)
-/// with row weights `sw` (1/σ of each row, as WLS), around the WLS estimate
-/// `theta_b`. Errors are filled in by the caller (they need the other
-/// datasets). `ctl` stops the solver and receives its progress (phase
-/// "consistent fit").
-pub fn fit(
-    robot: &Robot,
-    base: &BaseParams,
-    ds: &super::Dataset,
-    sw: &DVector<f64>,
-    theta_b: &[f64],
-    o: &ConsistentOptions,
-    ctl: &Control,
-) -> Result<(Consistent, Solution)> {
-    if ds.c.ncols() != base.n_base() || theta_b.len() != base.n_base() {
-        return Err(Error::invalid(
-            "--consistent",
-            "base parameters",
-            "the consistent fit needs every base parameter (it cannot be combined with --reduce)",
-        ));
-    }
-    let mut a = ds.c.clone();
-    for (i, mut row) in a.row_iter_mut().enumerate() {
-        row *= sw[i];
-    }
-    let r = super::estimate::r_factor(&a);
-    let (kinds, links) = kinds_of(robot);
-    let nominal = robot.nominal_params();
-    let scale = regularization_scale(&kinds, &nominal);
-    let tb = DVector::from_column_slice(theta_b);
-    ctl.observer().phase("consistent fit", None);
-    let sol = solve(
-        &Problem {
-            r: &r,
-            theta_b: &tb,
-            k: &base.k,
-            links: &links,
-            kinds: &kinds,
-            nominal: &nominal,
-            scale: &scale,
-        },
-        o,
-        ctl,
-    );
-    ctl.observer().phase_done();
-    let sol = sol?;
-    let resid_w = (&ds.y - &ds.c * &tb).component_mul(sw);
-    let ssr = resid_w.norm_squared();
-    let resid_c = (&ds.y - &ds.c * &sol.base).component_mul(sw);
-    let dof = ds.y.len().saturating_sub(base.n_base()).max(1) as f64;
-    let names = robot.param_names();
-    let active = active_constraints(robot, &kinds, &links, &sol, o.margin, &scale);
-    let zero = super::Errors {
-        e: vec![],
-        e_rel: vec![],
-        rms: vec![],
-        noise_floor: None,
-    };
-    let c = Consistent {
-        status: ConsistentStatus::of(&sol.status),
-        options: *o,
-        lambda: sol.lambda,
-        standard_names: names,
-        standard: sol.theta.as_slice().to_vec(),
-        base: sol.base.as_slice().to_vec(),
-        extra_cost: sol.extra_cost,
-        extra_cost_rel: if ssr > 0.0 { sol.extra_cost / ssr } else { 0.0 },
-        chi2_dof: resid_c.norm_squared() / dof,
-        min_eigenvalue: sol.min_eig.clone(),
-        active,
-        errors: zero.clone(),
-        errors_all: zero,
-        validation: None,
-        validation_all: None,
-        pinocchio: links
-            .iter()
-            .enumerate()
-            .map(|(i, &l)| PinocchioBody {
-                link: robot.links[i].name.clone(),
-                parameters: to_pinocchio(&sol.theta.as_slice()[l..l + 10]),
-            })
-            .collect(),
-        iterations: sol.iterations,
-        solve_time: sol.solve_time,
-    };
-    Ok((c, sol))
 }
 
 #[cfg(test)]

@@ -29,7 +29,6 @@ pub mod experiments;
 mod options;
 mod outcome;
 pub mod output;
-mod pipeline;
 mod prepare;
 pub mod prior;
 pub mod process;
@@ -39,14 +38,14 @@ mod text;
 
 pub use crate::data::{Coordinates, Repetition, Run, TorqueFrom, TorqueSource, CURRENT_TOLERANCE};
 pub use closed_loop::{MlOptions, ProjectionOptions};
-pub use consistent::{Consistent, ConsistentOptions, ConsistentStatus};
+pub use consistent::{ConsistentOptions, ConsistentStatus};
 pub use estimate::{Dataset, Errors, LsFit, Weights, DEAD_BAND};
 pub use process::{process, process_with, Filter, Processed, VelocityFrom, VelocitySource};
 pub use reduce::{Essential, ReduceOptions, Reduction};
 
 pub use options::{FilterChoice, IdentOptions, Method, Standstill};
-pub use outcome::{Estimate, EstimateStatus, Identification, Implausible, RowsUsed, TruthRow};
-pub use pipeline::identify;
+pub use outcome::{EstimateStatus, Implausible, RowsUsed, TruthRow};
 pub(crate) use prepare::filter_warnings;
 pub use prepare::{in_joint_coordinates, prepare, resolve_filter, run_trajectory, Prepared};
+pub use study::Estimate;
 pub(crate) use text::{parameter_table, plausibility_and_truth_text};

@@ -1,9 +1,8 @@
 //! What an identification is asked: the estimator ([`Method`]), the filter
-//! ([`FilterChoice`]), the standstill rule ([`Standstill`]) and the options
-//! of one run ([`IdentOptions`]), as the command line and a study design set them.
+//! ([`FilterChoice`]), the standstill rule ([`Standstill`]) and how one run
+//! is made ready for estimation ([`IdentOptions`], set from a study entry).
 
-use super::{ConsistentOptions, MlOptions, ProjectionOptions, ReduceOptions};
-use super::{Coordinates, Filter, VelocityFrom, Weights};
+use super::{Filter, VelocityFrom};
 use crate::error::{Error, Result};
 use serde::Serialize;
 
@@ -120,13 +119,12 @@ impl std::str::FromStr for Standstill {
     }
 }
 
-/// Options of [`identify`](super::identify).
+/// How one experiment or validation run is made ready for estimation
+/// ([`prepare`](super::prepare)): what a study entry and the estimator say.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct IdentOptions {
     /// Estimator.
     pub method: Method,
-    /// WLS weights.
-    pub weights: Weights,
     /// Filter of the identification run.
     pub filter: FilterChoice,
     /// Harmonics kept by Fourier filtering (default: the trajectory's n_h, the
@@ -155,23 +153,12 @@ pub struct IdentOptions {
     /// ([`VelocityFrom`]; default: logged when present), for the
     /// identification and the validation run alike.
     pub velocity_from: VelocityFrom,
-    /// Model reduction (WLS only).
-    pub reduce: Option<ReduceOptions>,
-    /// Projection-method options.
-    pub projection: ProjectionOptions,
-    /// ML options.
-    pub ml: MlOptions,
-    /// Coordinates of the runs' positions (motor-side runs are mapped through the coupling).
-    pub coordinates: Coordinates,
-    /// Physically consistent fit after WLS/OLS ([`consistent`](super::consistent)).
-    pub consistent: Option<ConsistentOptions>,
 }
 
 impl Default for IdentOptions {
     fn default() -> Self {
         IdentOptions {
             method: Method::Wls,
-            weights: Weights::Sample,
             filter: FilterChoice::Auto,
             harmonics: None,
             decimate: 1,
@@ -180,11 +167,6 @@ impl Default for IdentOptions {
             dead_band: super::estimate::DEAD_BAND,
             standstill: Standstill::Auto,
             velocity_from: VelocityFrom::Auto,
-            reduce: None,
-            projection: ProjectionOptions::default(),
-            ml: MlOptions::default(),
-            coordinates: Coordinates::Joint,
-            consistent: None,
         }
     }
 }

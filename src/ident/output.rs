@@ -6,7 +6,7 @@
 //! with the panels and tables the study's writer shares.
 
 use super::experiments::{FrictionFit, GravityFit};
-use super::{Dataset, Identification, Processed};
+use super::Processed;
 use crate::error::{Error, Result};
 use crate::io::plot::{write_svg, Panel, Series};
 use std::path::Path;
@@ -219,18 +219,7 @@ pub fn write_friction(out: &Path, joint: usize, pr: &Processed, f: &FrictionFit,
 /// when the data only determine it in combination with others).
 pub fn params_csv(est: &super::Estimate) -> String {
     let cons = est.consistent.as_ref().map(|c| (c.base.as_slice(), c.standard.as_slice()));
-    params_table(
-        &ParamsTable {
-            names: &est.names,
-            groupings: &est.groupings,
-            theta: &est.theta,
-            std: &est.std,
-            rel_std: &est.rel_std,
-            standard_names: &est.standard_names,
-            base_k: &est.base_k,
-        },
-        cons,
-    )
+    params_table(&est.params_table(), cons)
 }
 
 /// The columns of `params.csv` ([`params_table`]).
@@ -320,53 +309,4 @@ pub fn torque_panels(ds: &super::Dataset, t: &[f64], fits: &[(&str, &[f64])], re
             }
         })
         .collect()
-}
-
-impl Identification {
-    /// Writes `estimate.json`, `report.txt`, `torques.svg`, `residuals.svg`,
-    /// `params.svg` (and `validation.svg`, `reduction.csv` and `reduction.svg`
-    /// when present) into `dir`.
-    pub fn write(&self, dir: &std::path::Path) -> Result<()> {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-        crate::io::write_json(&dir.join("estimate.json"), &self.estimate)?;
-        crate::io::write_atomic(&dir.join("report.txt"), self.estimate.text().as_bytes())?;
-        let th: &[f64] = &self.estimate.theta;
-        let panels_of = |ds: &Dataset, t: &[f64], resid: bool| torque_panels(ds, t, &[("predicted", th)], resid);
-        let t = &self.processed.t;
-        write_svg(&dir.join("torques.svg"), "measured vs predicted torque", &panels_of(&self.dataset, t, false), 2)?;
-        write_svg(&dir.join("residuals.svg"), "torque residuals", &panels_of(&self.dataset, t, true), 2)?;
-        if let Some(v) = &self.validation {
-            let tv: Vec<f64> = (0..v.n_samples).map(|k| k as f64).collect();
-            let mut panels = panels_of(v, &tv, false);
-            for p in &mut panels {
-                p.x_label = "sample".into();
-            }
-            write_svg(&dir.join("validation.svg"), "validation run: measured vs predicted torque", &panels, 2)?;
-        }
-        let panels = params_panels(&self.estimate);
-        write_svg(&dir.join("params.svg"), "identified base parameters", &panels, 1)?;
-        if let Some(r) = &self.estimate.reduction {
-            let mut csv = format!(
-                "k,parameter,sensitivity,decision,growth,cond,n_params,{}\n",
-                (1..=self.dataset.n).map(|j| format!("e_rel{j}")).collect::<Vec<_>>().join(",")
-            );
-            for st in &r.steps {
-                csv.push_str(&format!(
-                    "{},{},{},{},{},{},{},{}\n",
-                    st.k,
-                    st.parameter,
-                    st.sensitivity,
-                    st.decision,
-                    st.growth,
-                    st.cond,
-                    st.n_params,
-                    st.e_rel.iter().map(|v| v.to_string()).collect::<Vec<_>>().join(",")
-                ));
-            }
-            crate::io::write_atomic(&dir.join("reduction.csv"), csv.as_bytes())?;
-            let panels = reduction_panels(r);
-            write_svg(&dir.join("reduction.svg"), "model reduction (Algorithm 1)", &panels, 2)?;
-        }
-        Ok(())
-    }
 }

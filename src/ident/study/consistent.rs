@@ -50,7 +50,11 @@ pub(super) fn consistent_with_prior(
         WeightSpec::Relative { relative } => {
             let smin = st.r.singular_values().iter().copied().fold(f64::INFINITY, f64::min);
             let w = relative * if smin.is_finite() && smin > 0.0 { smin * smin } else { 1.0 };
-            (w, Vec::new(), crate::ident::prior::solve_with_unknown(&pb, &unknown, cs.metric, w, cs.margin, ctl)?)
+            (
+                w,
+                Vec::new(),
+                crate::ident::prior::solve_with_unknown(&pb, &unknown, cs.metric, w, cs.margin, ctl)?,
+            )
         }
         WeightSpec::Rule(WeightRule::Validation) => {
             let obs = ctl.observer();
@@ -175,6 +179,14 @@ pub(super) fn consistent_with_prior(
         n_prior_decided,
         unknown: unknown_rows,
         experiments: consistent_experiments,
+        pinocchio: links
+            .iter()
+            .zip(&link_names)
+            .map(|(&l, name)| crate::ident::consistent::PinocchioBody {
+                link: name.clone(),
+                parameters: crate::ident::consistent::to_pinocchio(&th[l..l + 10]),
+            })
+            .collect(),
         iterations: sol.iterations,
         solve_time: sol.solve_time,
     }))

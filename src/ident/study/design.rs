@@ -875,7 +875,7 @@ impl StudyDesign {
 
     /// [`StudyDesign::validate`] for a study whose entries named in `given`
     /// have their data in memory (no `files` needed).
-    pub fn validate_with(&self, ctx: &str, given: &super::Inputs) -> Result<()> {
+    pub fn validate_with(&self, ctx: &str, given: &std::collections::BTreeMap<String, super::Given>) -> Result<()> {
         if self.experiment.is_empty() {
             return Err(Error::invalid(
                 ctx,

@@ -50,6 +50,8 @@ pub struct Given {
     pub run: Run,
     /// Its Fourier reference, if known.
     pub trajectory: Option<FourierTrajectory>,
+    /// How its torques were obtained.
+    pub torque_source: TorqueSource,
 }
 
 /// What a study's settings say to every entry ([`load_entry_with`]).
@@ -89,7 +91,7 @@ pub fn load_entry_with(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, 
         crate::io::status::require_complete(p, o.allow_incomplete)?;
     }
     let (run, torque_source, sampling) = match (o.given, &spec.log) {
-        (Some(g), _) => (g.run.clone(), TorqueSource::logged_torques(), uniform_sampling(&g.run)),
+        (Some(g), _) => (g.run.clone(), g.torque_source.clone(), uniform_sampling(&g.run)),
         (None, Some(l)) => {
             let (run, src, sampling, _) = crate::data::logs::read_run(&paths, robot, l, spec.resample, sample_limit)?;
             (run, src, sampling)
@@ -114,24 +116,24 @@ pub fn load_entry_with(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, 
     let traj: Option<FourierTrajectory> = match (&spec.trajectory, o.given) {
         (None, Some(g)) => g.trajectory.clone(),
         (t, _) => match t {
-        Some(p) => {
-            let p = dir.join(p);
-            let t = FourierTrajectory::load(&p)?;
-            if t.n_joints() != robot.dof() {
-                return Err(Error::invalid(
-                    p.display().to_string(),
-                    "trajectory",
-                    format!(
-                        "{} joints in the trajectory, {} in robot {}: expected the experiment's own trajectory",
-                        t.n_joints(),
-                        robot.dof(),
-                        robot.name
-                    ),
-                ));
+            Some(p) => {
+                let p = dir.join(p);
+                let t = FourierTrajectory::load(&p)?;
+                if t.n_joints() != robot.dof() {
+                    return Err(Error::invalid(
+                        p.display().to_string(),
+                        "trajectory",
+                        format!(
+                            "{} joints in the trajectory, {} in robot {}: expected the experiment's own trajectory",
+                            t.n_joints(),
+                            robot.dof(),
+                            robot.name
+                        ),
+                    ));
+                }
+                Some(t)
             }
-            Some(t)
-        }
-        None => run_trajectory(&run)?,
+            None => run_trajectory(&run)?,
         },
     };
     let lowpass = FilterChoice::Given(Filter::LowPass { cutoff: spec.cutoff });

@@ -36,7 +36,7 @@ pub use design::{
     UnknownRule, UnknownSpec, WeightRule, WeightSpec,
 };
 pub use load::{load_entry, load_entry_with, EntryOptions, Given, Loaded};
-pub use result::{ConsistentReport, Direction, ExperimentReport, Flag, LinkPrior, StudyEstimate, StudyResult, UnknownParam, ValidationReport, ValidationTotal};
+pub use result::{ConsistentReport, Direction, Estimate, ExperimentReport, Flag, LinkPrior, StudyResult, UnknownParam, ValidationReport, ValidationTotal};
 pub use stack::{Block, BlockWeight, StackOptions, Stacked, WeightSource};
 
 use super::estimate::{errors, must_be_positive, Dataset};
@@ -96,9 +96,21 @@ struct Fit {
 }
 
 /// Reads the study's robot, base parameters and prior robot.
-fn setup(design: &StudyDesign, dir: &Path) -> Result<(Robot, PathBuf, BaseParams, Option<Robot>)> {
+fn setup(design: &StudyDesign, dir: &Path, given: Option<&Robot>) -> Result<(Robot, PathBuf, BaseParams, Option<Robot>)> {
     let robot_path = dir.join(&design.robot);
-    let robot = crate::robot::load(&robot_path)?;
+    let robot = match given {
+        Some(r) => r.clone(),
+        None => crate::robot::load(&robot_path)?,
+    };
+    if design.export.contains(&ExportFormat::Urdf) && given.is_none() {
+        if let crate::robot::export::Source::Dh { toml } = crate::robot::export::source_of(&robot_path)? {
+            return Err(Error::invalid(
+                toml.display().to_string(),
+                "export",
+                "\"urdf\": this robot is a DH table, not a URDF: there is no URDF to copy the kinematics from; export \"toml\" (the DH table with the identified inertials and drive parameters) and \"csv\"",
+            ));
+        }
+    }
     let base = if design.base_columns.is_empty() {
         BaseParams::compute(&robot, &BaseOptions::default())?
     } else {
@@ -115,17 +127,25 @@ fn setup(design: &StudyDesign, dir: &Path) -> Result<(Robot, PathBuf, BaseParams
 /// folder). `ctl` stops it between experiments and between the prior's
 /// candidate weights; what exists then is returned, marked interrupted.
 pub fn run_study(design: &StudyDesign, dir: &Path, ctl: &Control) -> Result<StudyResult> {
-    run_study_with(design, dir, &Inputs::new(), ctl)
+    run_study_with(design, dir, &Inputs::default(), ctl)
 }
 
-/// Entries' data given in memory, by entry name ([`run_study_with`]).
-pub type Inputs = std::collections::BTreeMap<String, Given>;
+/// What a study takes from memory instead of its files ([`run_study_with`]).
+#[derive(Debug, Clone, Default)]
+pub struct Inputs {
+    /// The robot (its file `robot` is then only the source of exports).
+    pub robot: Option<Robot>,
+    /// Entries' data by entry name (their `files` may then be empty).
+    pub entries: std::collections::BTreeMap<String, Given>,
+    /// The true parameters of a simulated run (instead of `truth`).
+    pub truth: Option<crate::data::Truth>,
+}
 
-/// [`run_study`] with the data of the entries named in `given` taken from
-/// memory instead of their `files` (which may then be empty).
-pub fn run_study_with(design: &StudyDesign, dir: &Path, given: &Inputs, ctl: &Control) -> Result<StudyResult> {
+/// [`run_study`] with what `inputs` gives taken from memory.
+pub fn run_study_with(design: &StudyDesign, dir: &Path, inputs: &Inputs, ctl: &Control) -> Result<StudyResult> {
+    let given = &inputs.entries;
     design.validate_with("study", given)?;
-    let (robot, robot_path, base, prior_robot) = setup(design, dir)?;
+    let (robot, robot_path, base, prior_robot) = setup(design, dir, inputs.robot.as_ref())?;
     let obs = ctl.observer();
     let total = design.experiment.len() + design.validation.len();
     obs.phase("identify read", Some(total as u64));
@@ -268,7 +288,7 @@ pub fn run_study_with(design: &StudyDesign, dir: &Path, given: &Inputs, ctl: &Co
         Some(s) => (s.projection, s.ml, s.reduction),
         None => (None, None, None),
     };
-    let mut estimate = StudyEstimate {
+    let mut estimate = Estimate {
         name: design.name.clone(),
         robot: robot.name.clone(),
         status,
@@ -320,9 +340,13 @@ pub fn run_study_with(design: &StudyDesign, dir: &Path, given: &Inputs, ctl: &Co
             None => interrupted = true,
         }
     }
-    if let Some(t) = &design.truth {
-        let truth = crate::data::Truth::read(&dir.join(t))?;
-        estimate.truth = Some(truth_rows(&estimate, &truth)?);
+    let truth = match (&inputs.truth, &design.truth) {
+        (Some(t), _) => Some(t.clone()),
+        (None, Some(t)) => Some(crate::data::Truth::read(&dir.join(t))?),
+        (None, None) => None,
+    };
+    if let Some(truth) = &truth {
+        estimate.truth = Some(truth_rows(&estimate, truth)?);
     }
     Ok(StudyResult {
         design: design.clone(),
@@ -335,7 +359,7 @@ pub fn run_study_with(design: &StudyDesign, dir: &Path, given: &Inputs, ctl: &Co
     })
 }
 
-fn truth_rows(e: &StudyEstimate, truth: &crate::data::Truth) -> Result<Vec<TruthRow>> {
+fn truth_rows(e: &Estimate, truth: &crate::data::Truth) -> Result<Vec<TruthRow>> {
     e.names
         .iter()
         .enumerate()

@@ -3,7 +3,7 @@
 //! | file | content |
 //! |---|---|
 //! | `study.json` | the resolved study design |
-//! | `estimate.json` | [`super::StudyEstimate`]: estimate, covariance, experiments, validation, consistent fit |
+//! | `estimate.json` | [`super::Estimate`]: estimate, covariance, experiments, validation, consistent fit |
 //! | `report.txt` | the text report |
 //! | `params.csv` | every base and standard parameter (as `identify --export csv`) |
 //! | `experiments.csv` | per experiment and joint: weights, σ, rows, e_j, e*_j, RMS, information share |
@@ -19,7 +19,7 @@
 //! recomputes the predictions from the written standard parameters (inverse
 //! dynamics plus the drive terms) and e_j, e*_j from the columns.
 
-use super::{StudyEstimate, StudyResult};
+use super::{Estimate, StudyResult};
 use crate::error::{Error, Result};
 use crate::io::plot::{write_svg, Panel, Series};
 use crate::io::status::RunState;
@@ -27,7 +27,7 @@ use nalgebra::DVector;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
-impl StudyEstimate {
+impl Estimate {
     /// What status.json says: with a consistent fit, its outcome (a
     /// rank-deficient least-squares estimate is then usable: the prior
     /// decides the directions the data do not see); without, the estimate's;
@@ -93,17 +93,7 @@ impl StudyResult {
             serde_json::to_string_pretty(e).map_err(|x| Error::Numerical(x.to_string()))?.as_bytes(),
         )?;
         put(&mut files, "report.txt", e.text().as_bytes())?;
-        let cons = e.consistent.as_ref().map(|c| (c.base.as_slice(), c.standard.as_slice()));
-        let table = crate::ident::output::ParamsTable {
-            names: &e.names,
-            groupings: &e.groupings,
-            theta: &e.theta,
-            std: &e.std,
-            rel_std: &e.rel_std,
-            standard_names: &e.standard_names,
-            base_k: &e.base_k,
-        };
-        put(&mut files, "params.csv", crate::ident::output::params_table(&table, cons).as_bytes())?;
+        put(&mut files, "params.csv", crate::ident::output::params_csv(e).as_bytes())?;
         let mut csv = String::from("experiment,kind,joint,weights,sigma,rows,e,e_rel,rms,information_share\n");
         for x in &e.experiments {
             for j in 0..n {

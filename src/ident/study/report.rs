@@ -1,6 +1,6 @@
 //! The text report of a study (`report.txt`, what `idexp identify study.toml` prints).
 
-use super::{ConsistentReport, StudyEstimate};
+use super::{ConsistentReport, Estimate};
 use crate::ident::estimate::Errors;
 use std::fmt::Write;
 
@@ -16,7 +16,7 @@ fn err_line(s: &mut String, label: &str, e: &Errors) {
     let _ = writeln!(s, "  {label:<28} e*_j (%) [{}]   e_j (N·m) [{}]", pct(&e.e_rel), sci(&e.e));
 }
 
-impl StudyEstimate {
+impl Estimate {
     /// The text report.
     pub fn text(&self) -> String {
         let mut s = String::new();
@@ -170,7 +170,7 @@ impl StudyEstimate {
     }
 }
 
-fn consistent_text(c: &ConsistentReport, e: &StudyEstimate) -> String {
+fn consistent_text(c: &ConsistentReport, e: &Estimate) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,

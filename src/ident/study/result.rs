@@ -198,6 +198,8 @@ pub struct ConsistentReport {
     pub unknown: Vec<UnknownParam>,
     /// Per experiment, the consistent estimate's errors on every sample.
     pub experiments: Vec<Errors>,
+    /// Standard parameters per body in Pinocchio's order and convention.
+    pub pinocchio: Vec<crate::ident::consistent::PinocchioBody>,
     /// Interior-point iterations.
     pub iterations: u32,
     /// Solver time (s).
@@ -206,7 +208,7 @@ pub struct ConsistentReport {
 
 /// The result of a study (written as `estimate.json`).
 #[derive(Debug, Clone, Serialize)]
-pub struct StudyEstimate {
+pub struct Estimate {
     /// Study name.
     pub name: String,
     /// Robot.
@@ -270,7 +272,20 @@ pub struct StudyEstimate {
     pub reduction: Option<crate::ident::Reduction>,
 }
 
-impl StudyEstimate {
+impl Estimate {
+    /// The parameter table of `params.csv` ([`crate::ident::output::params_table`]).
+    pub fn params_table(&self) -> crate::ident::output::ParamsTable<'_> {
+        crate::ident::output::ParamsTable {
+            names: &self.names,
+            groupings: &self.groupings,
+            theta: &self.theta,
+            std: &self.std,
+            rel_std: &self.rel_std,
+            standard_names: &self.standard_names,
+            base_k: &self.base_k,
+        }
+    }
+
     /// True when the estimate stacks the experiments by weighted (or
     /// ordinary) least squares; false for the one-experiment estimators
     /// (projection, maximum likelihood, model reduction), whose condition
@@ -286,7 +301,7 @@ pub struct StudyResult {
     /// The resolved design.
     pub design: StudyDesign,
     /// The estimate.
-    pub estimate: StudyEstimate,
+    pub estimate: Estimate,
     /// The experiments.
     pub experiments: Vec<Loaded>,
     /// The validation runs.
