@@ -16,7 +16,7 @@
 
 mod ident_util;
 use ident_util::*;
-use idexp::ident::{IdentOptions, Method};
+use idexp::ident::Method;
 
 const METHODS: [Method; 4] = [Method::Ols, Method::Wls, Method::Projection, Method::Ml];
 
@@ -27,12 +27,10 @@ fn study(position_noise: f64, seeds: &[u64]) -> (Vec<Vec<Vec<f64>>>, Vec<f64>, V
     for &seed in seeds {
         let res = simulate(&rpr_fourier(1, seed, 11, 10, position_noise));
         for (mi, m) in METHODS.iter().enumerate() {
-            let o = IdentOptions {
-                method: *m,
-                harmonics: Some(20),
-                ..Default::default()
-            };
-            let (id, _) = ident(&res, None, &o);
+            let (id, _) = ident(&res, None, |d| {
+                d.method = *m;
+                d.experiment[0].harmonics = Some(20);
+            });
             let t = id.estimate.truth.unwrap();
             truth = t.iter().map(|r| r.truth).collect();
             names = t.iter().map(|r| r.name.clone()).collect();

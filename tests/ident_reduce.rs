@@ -5,7 +5,7 @@
 
 mod ident_util;
 use ident_util::*;
-use idexp::ident::{IdentOptions, ReduceOptions};
+use idexp::ident::study::ReduceSpec;
 
 fn pick_place(seed: u64, points_seed: u64) -> idexp::sim::SimDesign {
     design(&format!(
@@ -38,11 +38,7 @@ seed = {points_seed}
 fn pick_and_place_reduction_lowers_cond_5x_within_tolerance() {
     let res = simulate(&pick_place(2, 5));
     let val = simulate(&pick_place(3, 6));
-    let opts = IdentOptions {
-        reduce: Some(ReduceOptions::default()),
-        ..Default::default()
-    };
-    let (id, _) = ident(&res, Some(&val), &opts);
+    let (id, _) = ident(&res, Some(&val), |d| d.reduce = Some(ReduceSpec::default()));
     let r = id.estimate.reduction.as_ref().unwrap();
     println!("{}", r.text());
     assert!(!r.steps.is_empty());
@@ -66,7 +62,7 @@ fn pick_and_place_reduction_lowers_cond_5x_within_tolerance() {
     }
     // the reduced model is what the estimate reports, and it predicts the validation process
     assert_eq!(id.estimate.names, r.names);
-    let v = id.estimate.validation.as_ref().unwrap();
+    let v = &id.estimate.validation[0].errors;
     for j in 0..3 {
         assert!(v.e_rel[j] < 0.5, "validation e*_{} = {}", j + 1, v.e_rel[j]);
     }
@@ -98,11 +94,7 @@ q_home = [0.0, 0.25, 0.0]
 "#,
     );
     let res = simulate(&d);
-    let opts = IdentOptions {
-        reduce: Some(ReduceOptions::default()),
-        ..Default::default()
-    };
-    let (id, _) = ident(&res, None, &opts);
+    let (id, _) = ident(&res, None, |d| d.reduce = Some(ReduceSpec::default()));
     let r = id.estimate.reduction.as_ref().unwrap();
     println!("{}", r.text());
     // joint 3 holds still on a horizontal square: its friction cannot be identified

@@ -5,7 +5,6 @@
 
 mod ident_util;
 use ident_util::*;
-use idexp::ident::IdentOptions;
 
 fn puma(seed: u64, traj_seed: u64) -> idexp::sim::SimDesign {
     design(&format!(
@@ -37,11 +36,7 @@ seed = {traj_seed}
 fn puma560_wls_within_3_sigma_and_validation_at_noise_floor() {
     let res = simulate(&puma(1, 31));
     let val = simulate(&puma(2, 32));
-    let opts = IdentOptions {
-        harmonics: Some(20),
-        ..Default::default()
-    };
-    let (id, base) = ident(&res, Some(&val), &opts);
+    let (id, base) = ident(&res, Some(&val), |d| d.experiment[0].harmonics = Some(20));
     let e = &id.estimate;
     println!("{}", e.text());
     assert_eq!(base.n_base(), e.names.len());
@@ -49,7 +44,7 @@ fn puma560_wls_within_3_sigma_and_validation_at_noise_floor() {
     for r in e.truth.as_ref().unwrap() {
         assert!(r.z.abs() < 3.0, "{} = {} vs truth {} (z = {:.2})", r.name, r.estimate, r.truth, r.z);
     }
-    let v = e.validation.as_ref().unwrap();
+    let v = &e.validation[0].errors;
     for j in 0..6 {
         let floor = v.noise_floor.as_ref().unwrap()[j];
         assert!(v.e[j] < 1.2 * floor, "joint {}: validation e_j {} vs floor {floor}", j + 1, v.e[j]);

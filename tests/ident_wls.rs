@@ -4,7 +4,7 @@
 
 mod ident_util;
 use ident_util::*;
-use idexp::ident::{IdentOptions, Method};
+use idexp::ident::{Method, Weights};
 
 #[test]
 fn wls_recovers_true_base_parameters_within_3_sigma_several_seeds() {
@@ -16,11 +16,7 @@ fn wls_recovers_true_base_parameters_within_3_sigma_several_seeds() {
         // Fourier filtering keeps 4·n_h harmonics: the closed-loop response of the
         // nonlinear plant has tracking-error harmonics above the 5 excited ones,
         // and dropping them biases q̈ (seen as |z| up to 3.5–5.6 with n_h only).
-        let opts = IdentOptions {
-            harmonics: Some(20),
-            ..Default::default()
-        };
-        let (id, _) = ident(&res, Some(&val), &opts);
+        let (id, _) = ident(&res, Some(&val), |d| d.experiment[0].harmonics = Some(20));
         let e = &id.estimate;
         println!("seed {seed}\n{}", e.text());
         assert_eq!(e.status, idexp::ident::EstimateStatus::Ok);
@@ -34,7 +30,7 @@ fn wls_recovers_true_base_parameters_within_3_sigma_several_seeds() {
                 r.z
             );
         }
-        let v = e.validation.as_ref().unwrap();
+        let v = &e.validation[0].errors;
         let floor = v.noise_floor.as_ref().unwrap();
         for j in 0..3 {
             assert!(
@@ -44,7 +40,8 @@ fn wls_recovers_true_base_parameters_within_3_sigma_several_seeds() {
                 v.e[j],
                 floor[j]
             );
-            assert!(e.errors.e[j] < 1.1 * e.errors.noise_floor.as_ref().unwrap()[j]);
+            let own = &e.experiments[0].errors;
+            assert!(own.e[j] < 1.1 * own.noise_floor.as_ref().unwrap()[j]);
         }
         assert!(e.chi2_dof < 1.3 && e.chi2_dof > 0.8, "chi2/dof {}", e.chi2_dof);
     }
@@ -53,19 +50,11 @@ fn wls_recovers_true_base_parameters_within_3_sigma_several_seeds() {
 #[test]
 fn ols_and_wls_agree_and_ols_covariance_is_sandwich() {
     let res = simulate(&rpr_fourier(7, 7, 17, 10, 1e-5));
-    let base = IdentOptions {
-        harmonics: Some(20),
-        ..Default::default()
-    };
-    let (w, _) = ident(&res, None, &base);
-    let (o, _) = ident(
-        &res,
-        None,
-        &IdentOptions {
-            method: Method::Ols,
-            ..base.clone()
-        },
-    );
+    let (w, _) = ident(&res, None, |d| d.experiment[0].harmonics = Some(20));
+    let (o, _) = ident(&res, None, |d| {
+        d.experiment[0].harmonics = Some(20);
+        d.method = Method::Ols;
+    });
     for (a, b) in w.estimate.truth.unwrap().iter().zip(o.estimate.truth.unwrap().iter()) {
         assert!(b.z.abs() < 4.0, "OLS {}: z = {}", b.name, b.z);
         assert!(a.z.abs() < 4.0);
@@ -82,7 +71,7 @@ fn negative_masses_and_inertias_are_flagged() {
             row.iter_mut().for_each(|v| *v = -*v);
         }
     }
-    let (id, base) = ident(&res, None, &IdentOptions::default());
+    let (id, base) = ident(&res, None, |_| {});
     let flagged: Vec<&str> = id.estimate.implausible.iter().map(|p| p.name.as_str()).collect();
     println!("{flagged:?}");
     for must in ["M2R", "Fc1", "Fv2"] {
@@ -98,7 +87,7 @@ fn negative_masses_and_inertias_are_flagged() {
             row.iter_mut().for_each(|v| *v = -*v);
         }
     }
-    let (id2, _) = ident(&ok, None, &IdentOptions::default());
+    let (id2, _) = ident(&ok, None, |_| {});
     assert!(
         id2.estimate.implausible.iter().all(|p| p.value.abs() < 3.0 * p.std),
         "only parameters compatible with zero may come out negative: {:?}",
@@ -112,70 +101,27 @@ fn one_repetition_and_missing_inputs() {
     let mut res = simulate(&rpr_fourier(1, 5, 11, 2, 1e-5));
     res.reps.truncate(1);
     // one repetition: no sample variances, so sample weights are an error ...
-    let robot0 = &res.setup.nominal;
-    let base0 = idexp::params::BaseParams::compute(robot0, &Default::default()).unwrap();
-    let e = idexp::ident::identify(
-        robot0,
-        &base0,
-        &run_of(&res),
-        None,
-        None,
-        &IdentOptions::default(),
-        &idexp::optim::Control::new(),
-    )
-    .expect_err("sample weights without variances must be refused")
-    .to_string();
-    assert!(e.contains("--weights joint"), "{e}");
-    // ... and --weights joint takes the per-joint OLS residual variance
-    let (id, _) = ident(
-        &res,
-        None,
-        &IdentOptions {
-            weights: idexp::ident::Weights::Joint,
-            ..Default::default()
-        },
-    );
-    assert_eq!(id.estimate.n_reps, 1);
+    let e = try_ident(&res, None, |_| {}).expect_err("sample weights without variances must be refused").to_string();
+    assert!(e.contains("repetition"), "{e}");
+    // ... and per-joint weights take the residuals' variance per joint
+    let (id, _) = ident(&res, None, |d| *d = d.clone().repetition_weighted(Weights::Joint));
+    assert_eq!(id.estimate.experiments[0].n_reps, 1);
     assert!(id.estimate.theta.iter().all(|v| v.is_finite()));
-    assert!(id.estimate.errors.noise_floor.is_none());
+    assert!(id.estimate.experiments[0].errors.noise_floor.is_none());
     // ML needs the noise covariance from repetitions
-    let robot = &res.setup.nominal;
-    let base = idexp::params::BaseParams::compute(robot, &Default::default()).unwrap();
-    let e = identify_error(robot, &base, &res, &res, Method::Ml);
+    let e = try_ident(&res, None, |d| d.method = Method::Ml).unwrap_err().to_string();
     assert!(e.contains("repetitions"), "{e}");
     // the projection method needs the reference columns
     let mut nor = res.clone();
     nor.reps.iter_mut().for_each(|r| r.r = None);
-    let e = identify_error(robot, &base, &nor, &res, Method::Projection);
+    let e = try_ident(&nor, None, |d| d.method = Method::Projection).unwrap_err().to_string();
     assert!(e.contains("r1..rn"), "{e}");
     // reduction is defined with WLS only
-    let opts = IdentOptions {
-        method: Method::Ols,
-        reduce: Some(Default::default()),
-        ..Default::default()
-    };
-    assert!(idexp::ident::identify(robot, &base, &run_of(&res), None, None, &opts, &idexp::optim::Control::new()).is_err());
-}
-
-/// The error message of `identify` with `method` on the run of `data`, with the
-/// reference of `reference` (a call expected to fail).
-fn identify_error(
-    robot: &idexp::robot::Robot,
-    base: &idexp::params::BaseParams,
-    data: &idexp::sim::SimResult,
-    reference: &idexp::sim::SimResult,
-    method: Method,
-) -> String {
-    let run = run_of(data);
-    idexp::ident::identify(
-        robot,
-        base,
-        &run,
-        reference.setup.reference.fourier(),
-        None,
-        &IdentOptions { method, ..Default::default() },
-        &idexp::optim::Control::new(),
-    )
+    let e = try_ident(&res, None, |d| {
+        d.method = Method::Ols;
+        d.reduce = Some(Default::default());
+    })
     .unwrap_err()
-    .to_string()
+    .to_string();
+    assert!(e.contains("[reduce]") && e.contains("weighted least squares"), "{e}");
 }

@@ -1,26 +1,31 @@
 //! Identification from measured runs (paper 000 §II-B, §III-C, §III-D, §IV;
 //! paper 002 §2.2, §3.2–3.5).
 //!
-//! Pipeline ([`identify`]): read the repetitions ([`Run`]), average them and
-//! filter the positions ([`process()`]: Fourier filtering with analytic
-//! derivatives for Fourier references, else zero-phase low-pass and central
-//! differences), stack the base-parameter regressor ([`estimate::Dataset`]),
-//! estimate by OLS, WLS (paper 000 eq. 5, 8–9), the projection method or
-//! maximum likelihood ([`closed_loop`], paper 002 eq. 10–16), with covariances
-//! and relative standard deviations (eq. 13–14), prediction errors e_j, e*_j
-//! on the identification and a validation run (eq. 11–12), the condition
-//! number, physical-plausibility flags, and optionally the sensitivity-based
-//! model reduction ([`reduce`], Algorithm 1). The dedicated gravity and
-//! friction experiments of paper 002 §3.2 are in [`experiments`].
+//! One engine: the [`study`] ([`study::run_study`]). A study design names the
+//! experiments and validation runs (files, or data given in memory), how each
+//! is processed and the estimator; the one-run command line and Python's
+//! keyword `identify` build a design of one experiment. Each entry is read
+//! ([`Run`]), averaged and filtered ([`process()`]: Fourier filtering with
+//! analytic derivatives for Fourier references, else zero-phase low-pass and
+//! central differences) and stacked into the base-parameter regressor
+//! ([`estimate::Dataset`], `prepare.rs`); the estimate is the weighted (or
+//! ordinary) least squares of every experiment stacked ([`study::stack`],
+//! paper 000 eq. 5, 8–9), or on one experiment the projection method or
+//! maximum likelihood ([`closed_loop`], paper 002 eq. 10–16) or the
+//! sensitivity-based model reduction ([`reduce`], Algorithm 1); with
+//! covariances and relative standard deviations (eq. 13–14), prediction
+//! errors e_j, e*_j (eq. 11–12), condition numbers, plausibility flags and
+//! the physically consistent estimate with a prior ([`consistent`],
+//! [`prior`]). The dedicated gravity and friction experiments of paper 002
+//! §3.2 are in [`experiments`].
 //!
-//! Files: `options.rs` (what is asked: [`Method`], [`IdentOptions`]),
-//! `prepare.rs` (one run made ready for estimation, shared with the
-//! [`study`]), `pipeline.rs` (the one-run pipeline [`identify`]),
-//! `outcome.rs` (what it gives: [`Estimate`], [`EstimateStatus`],
-//! [`Identification`] and its run state), `text.rs` (`report.txt`),
-//! [`output`] (the writers); the estimators and their parts in [`estimate`],
-//! [`closed_loop`], [`reduce`], [`consistent`], [`prior`]. Their items are
-//! re-exported here: `idexp::ident::X` is the path to use.
+//! Files: `options.rs` ([`Method`], [`FilterChoice`], [`Standstill`], how one
+//! entry is prepared: [`IdentOptions`]), `prepare.rs` (one entry made ready
+//! for estimation), `outcome.rs` ([`EstimateStatus`], rows used, flags),
+//! `text.rs` (report blocks), [`output`] (plots and tables); the estimators
+//! in [`estimate`], [`closed_loop`], [`reduce`], [`consistent`], [`prior`],
+//! [`study`]. Their items are re-exported here: `idexp::ident::X` is the path
+//! to use.
 
 pub mod closed_loop;
 pub mod consistent;

@@ -2,7 +2,8 @@
 //! design text, identification with the default base parameters.
 #![allow(dead_code)]
 
-use idexp::ident::{identify, IdentOptions, Identification, Run};
+use idexp::ident::study::{run_study_with, ExperimentSpec, Given, Inputs, StudyDesign, StudyResult};
+use idexp::ident::Run;
 use idexp::params::{BaseOptions, BaseParams};
 use idexp::sim::{SimDesign, SimResult, SimSetup};
 use std::path::{Path, PathBuf};
@@ -30,26 +31,42 @@ pub fn run_of(res: &SimResult) -> Run {
     Run::new(vec![], res.reps.clone()).unwrap()
 }
 
-/// Identifies from a simulation, validated on another; compares with the truth.
-pub fn ident(res: &SimResult, val: Option<&SimResult>, opts: &IdentOptions) -> (Identification, BaseParams) {
+/// Identifies from a simulation, validated on another, by the study engine:
+/// a one-experiment design (sample weights from the repetitions, the run's
+/// Fourier reference) that `set` adjusts (method, reduction, the experiment's
+/// processing; the validation entry is processed like the experiment), the
+/// runs and the truth given in memory.
+pub fn ident(res: &SimResult, val: Option<&SimResult>, set: impl FnOnce(&mut StudyDesign)) -> (StudyResult, BaseParams) {
+    try_ident(res, val, set).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// [`ident`] that returns the engine's error.
+pub fn try_ident(res: &SimResult, val: Option<&SimResult>, set: impl FnOnce(&mut StudyDesign)) -> idexp::Result<(StudyResult, BaseParams)> {
     let robot = &res.setup.nominal;
     let base = BaseParams::compute(robot, &BaseOptions::default()).unwrap();
-    let run = run_of(res);
-    let vrun = val.map(run_of);
-    let vt = val.and_then(|v| v.setup.reference.fourier().cloned());
-    let mut id = identify(
-        robot,
-        &base,
-        &run,
-        res.setup.reference.fourier(),
-        vrun.as_ref().map(|v| (v, vt.as_ref())),
-        opts,
-        &idexp::optim::Control::new(),
-    )
-    .unwrap_or_else(|e| panic!("{e}"));
-    let truth = res.truth().unwrap();
-    id.estimate.compare_truth(&truth.base_names, &truth.base).unwrap();
-    (id, base)
+    let given = |r: &SimResult| Given {
+        run: run_of(r),
+        trajectory: r.setup.reference.fourier().cloned(),
+        torque_source: idexp::data::TorqueSource::logged_torques(),
+    };
+    let mut e = ExperimentSpec::new(vec![]);
+    e.name = "run".into();
+    let mut d = StudyDesign::one_experiment("test", PathBuf::from("robot.toml"), e).repetition_weighted(idexp::ident::Weights::Sample);
+    set(&mut d);
+    let mut inputs = Inputs {
+        robot: Some(robot.clone()),
+        truth: Some(res.truth().unwrap()),
+        ..Default::default()
+    };
+    inputs.entries.insert("run".into(), given(res));
+    if let Some(v) = val {
+        let mut ve = d.experiment[0].validation_like(vec![], None);
+        ve.name = "validate".into();
+        d.validation = vec![ve];
+        inputs.entries.insert("validate".into(), given(v));
+    }
+    let r = run_study_with(&d, Path::new(""), &inputs, &idexp::optim::Control::new())?;
+    Ok((r, base))
 }
 
 /// A Fourier-excitation design on the RPR arm with drives.

@@ -778,6 +778,13 @@ impl StudyDesign {
             }
             Ok(())
         };
+        if self.consistent.is_some() && (self.reduce.is_some() || !matches!(self.method, Method::Wls | Method::Ols)) {
+            return Err(Error::invalid(
+                ctx,
+                "consistent",
+                "the physically consistent fit uses the least-squares fit of every base parameter: use method \"wls\" or \"ols\" and no [reduce]",
+            ));
+        }
         match self.method {
             Method::Projection => one("method", "the projection method (paper 002 eq. 10–12)")?,
             Method::Ml => one("method", "maximum likelihood (paper 002 eq. 13–16)")?,
@@ -825,13 +832,6 @@ impl StudyDesign {
                     ));
                 }
             }
-        }
-        if self.consistent.is_some() && (self.reduce.is_some() || !matches!(self.method, Method::Wls | Method::Ols)) {
-            return Err(Error::invalid(
-                ctx,
-                "consistent",
-                "the physically consistent fit uses the least-squares fit of every base parameter: use method \"wls\" or \"ols\" and no [reduce]",
-            ));
         }
         if let Some([m1, m2]) = self.projection.lags {
             if m1 + m2 == 0 || m1 + m2 > 10_000 {
