@@ -5,6 +5,7 @@
 mod common;
 use common::{random_state, rng, root};
 use idexp::excitation::objective::{BaseColumns, Criterion, Objective, Scaling, Scoring};
+use idexp::ident::study::{run_study_with, ExperimentSpec, FilterName, Given, Inputs, StudyDesign, StudyResult};
 use idexp::params::{BaseOptions, BaseParams};
 use idexp::robot::{self, Coulomb, Friction, Robot, Workspace};
 use idexp::trajectory::{period_grid, FourierLayout};
@@ -255,24 +256,62 @@ fn simulate_shipped(name: &str) -> idexp::sim::SimResult {
     setup.run(&idexp::optim::Control::new()).unwrap()
 }
 
-/// Identifies `run` with `robot`; returns the identification, the per-joint
+/// Identifies `run` (validated on `val`, with the truth `truth` if given)
+/// with `robot` by the study engine: a one-experiment design with the runs
+/// in memory and no Fourier reference (the low-pass filter), least-squares
+/// weights of the repetitions `weights`; `set` adjusts the design (dead
+/// band, the experiment's filter, standstill rule, velocity source).
+fn study(
+    robot: &Robot,
+    run: idexp::ident::Run,
+    torque_source: idexp::data::TorqueSource,
+    val: Option<idexp::ident::Run>,
+    truth: Option<idexp::data::Truth>,
+    weights: idexp::ident::Weights,
+    set: impl FnOnce(&mut StudyDesign),
+) -> idexp::Result<StudyResult> {
+    let given = |run: idexp::ident::Run, torque_source| Given {
+        run,
+        trajectory: None,
+        torque_source,
+    };
+    let mut e = ExperimentSpec::new(vec![]);
+    e.name = "run".into();
+    let mut d = StudyDesign::one_experiment("test", "robot.toml".into(), e).repetition_weighted(weights);
+    set(&mut d);
+    let mut inputs = Inputs {
+        robot: Some(robot.clone()),
+        truth,
+        ..Default::default()
+    };
+    inputs.entries.insert("run".into(), given(run, torque_source));
+    if let Some(v) = val {
+        let mut ve = d.experiment[0].validation_like(vec![], None);
+        ve.name = "validate".into();
+        d.validation = vec![ve];
+        inputs.entries.insert("validate".into(), given(v, idexp::data::TorqueSource::logged_torques()));
+    }
+    run_study_with(&d, Path::new(""), &inputs, &idexp::optim::Control::new())
+}
+
+/// Identifies `run` with `robot` (validated on `val`, sample weights, the
+/// design as `set` leaves it); returns the identification, the per-joint
 /// RMS residual at standstill (reference at rest) over every sample, the
 /// per-joint noise floor there, and max |z| against the truth.
 fn ident_with(
     robot: &Robot,
     res: &idexp::sim::SimResult,
     val: &idexp::sim::SimResult,
-    opts: &idexp::ident::IdentOptions,
-) -> (idexp::ident::Identification, Vec<f64>, Vec<f64>, f64) {
-    use idexp::ident::{identify, Dataset, Run};
+    set: impl FnOnce(&mut StudyDesign),
+) -> (StudyResult, Vec<f64>, Vec<f64>, f64) {
+    use idexp::ident::{Dataset, Run, Weights};
     let base = BaseParams::compute(robot, &BaseOptions::default()).unwrap();
     let run = Run::new(vec![], res.reps.clone()).unwrap();
     let vrun = Run::new(vec![], val.reps.clone()).unwrap();
-    let mut id = identify(robot, &base, &run, None, Some((&vrun, None)), opts, &idexp::optim::Control::new()).unwrap();
-    let truth = res.truth().unwrap();
-    id.estimate.compare_truth(&truth.base_names, &truth.base).unwrap();
+    let torques = idexp::data::TorqueSource::logged_torques();
+    let id = study(robot, run, torques, Some(vrun), Some(res.truth().unwrap()), Weights::Sample, set).unwrap_or_else(|e| panic!("{e}"));
     let zmax = id.estimate.truth.as_ref().unwrap().iter().map(|r| r.z.abs()).fold(0.0, f64::max);
-    let pr = &id.processed;
+    let pr = &id.experiments[0].prep.pr;
     let n = robot.dof();
     let every = Dataset::every_row(robot, &base, pr);
     let pred = &every.c * DVector::from_column_slice(&id.estimate.theta);
@@ -298,42 +337,32 @@ fn ident_with(
 /// row forced in). Measured, not tuned: the numbers are printed.
 #[test]
 fn pick_and_place_with_dwell_tanh_model_beats_sign_model_at_standstill() {
-    use idexp::ident::{IdentOptions, Standstill};
+    use idexp::ident::Standstill;
     let res = simulate_shipped("sim_rpr_pick_place");
     let val = simulate_shipped("sim_rpr_pick_place_validate");
     let tanh = res.setup.nominal.clone();
     assert!(matches!(tanh.drives[0].coulomb, Coulomb::Tanh { velocity_scale } if velocity_scale == 1e-3));
     let sign = robot::load(&root("tests/data/ident/rpr_drives.toml")).unwrap();
-    let (it, rt, ft, zt) = ident_with(&tanh, &res, &val, &IdentOptions::default());
+    let (it, rt, ft, zt) = ident_with(&tanh, &res, &val, |_| {});
     // the tanh model keeps every row, and says so
-    for r in &it.estimate.rows_used {
+    for r in &it.estimate.experiments[0].rows_used {
         assert_eq!(r.used, r.total, "{r:?}");
         assert!(r.reason.contains("continuous at rest"), "{r:?}");
     }
     // the sign model as sign(q̇) at every speed (no dead band): what the tanh
     // model is compared with; the dead band's own effect is measured below
-    let no_band = IdentOptions {
-        dead_band: 0.0,
-        ..Default::default()
-    };
-    let (is, rs, _, zs) = ident_with(&sign, &res, &val, &no_band);
-    assert!(is.estimate.rows_used.iter().all(|r| r.used < r.total && r.reason.contains("discontinuous")));
-    let keep = IdentOptions {
-        standstill: Standstill::Keep,
-        ..no_band.clone()
-    };
-    let (ik, rk, _, zk) = ident_with(&sign, &res, &val, &keep);
+    let (is, rs, _, zs) = ident_with(&sign, &res, &val, |d| d.dead_band = 0.0);
+    assert!(is.estimate.experiments[0]
+        .rows_used
+        .iter()
+        .all(|r| r.used < r.total && r.reason.contains("discontinuous")));
+    let (ik, rk, _, zk) = ident_with(&sign, &res, &val, |d| {
+        d.dead_band = 0.0;
+        d.experiment[0].standstill = Some(Standstill::Keep);
+    });
     // the default: |q̇| below the dead band is rest for the sign model's Coulomb term
-    let keep_band = IdentOptions {
-        standstill: Standstill::Keep,
-        ..Default::default()
-    };
-    let (ib, rb, _, zb) = ident_with(&sign, &res, &val, &keep_band);
-    let drop = IdentOptions {
-        standstill: Standstill::Drop,
-        ..Default::default()
-    };
-    let (id_, rd, _, zd) = ident_with(&tanh, &res, &val, &drop);
+    let (ib, rb, _, zb) = ident_with(&sign, &res, &val, |d| d.experiment[0].standstill = Some(Standstill::Keep));
+    let (id_, rd, _, zd) = ident_with(&tanh, &res, &val, |d| d.experiment[0].standstill = Some(Standstill::Drop));
     let pct = |v: &[f64]| v.iter().map(|x| format!("{:.2}", 100.0 * x)).collect::<Vec<_>>().join(", ");
     let num = |v: &[f64]| v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", ");
     println!("noise floor at standstill (σ of the averaged torque, N·m): [{}]", num(&ft));
@@ -346,8 +375,8 @@ fn pick_and_place_with_dwell_tanh_model_beats_sign_model_at_standstill() {
     ] {
         println!(
             "{name:<24} e*_j all rows [{}] %, validation all rows [{}] %, standstill RMS [{}] N·m, max|z| {z:.2}",
-            pct(&id.estimate.errors_all.e_rel),
-            pct(&id.estimate.validation_all.as_ref().unwrap().e_rel),
+            pct(&id.estimate.experiments[0].errors_all.e_rel),
+            pct(&id.estimate.validation[0].errors_all.e_rel),
             num(rms)
         );
     }
@@ -365,10 +394,19 @@ fn pick_and_place_with_dwell_tanh_model_beats_sign_model_at_standstill() {
         // takes the sign of the velocity noise near rest, and its prediction
         // over the whole motion improves (measured: 6.9/31/11.5 % → 4.4/23/4.7 %);
         // at standstill this tanh truth still favours the tanh model (below)
-        assert!(ib.estimate.errors_all.e_rel[j] < ik.estimate.errors_all.e_rel[j], "joint {j}: dead band");
+        assert!(
+            ib.estimate.experiments[0].errors_all.e_rel[j] < ik.estimate.experiments[0].errors_all.e_rel[j],
+            "joint {j}: dead band"
+        );
         // over the whole motion and at standstill, the tanh model predicts better
-        assert!(it.estimate.errors_all.e_rel[j] < is.estimate.errors_all.e_rel[j], "joint {j}");
-        assert!(it.estimate.errors_all.e_rel[j] < ik.estimate.errors_all.e_rel[j], "joint {j}");
+        assert!(
+            it.estimate.experiments[0].errors_all.e_rel[j] < is.estimate.experiments[0].errors_all.e_rel[j],
+            "joint {j}"
+        );
+        assert!(
+            it.estimate.experiments[0].errors_all.e_rel[j] < ik.estimate.experiments[0].errors_all.e_rel[j],
+            "joint {j}"
+        );
         assert!(
             rt[j] < rs[j] && rt[j] < rk[j],
             "joint {j}: standstill RMS tanh {} vs sign {} / {}",
@@ -414,7 +452,7 @@ seed = 2
 
 #[test]
 fn a_run_of_currents_gives_the_same_estimate_as_the_run_of_torques() {
-    use idexp::ident::{identify, IdentOptions, Run, TorqueFrom, CURRENT_TOLERANCE};
+    use idexp::ident::{Run, TorqueFrom, Weights, CURRENT_TOLERANCE};
     let tmp = tempfile::tempdir().unwrap();
     let (dt, dc, db) = (tmp.path().join("tau"), tmp.path().join("cur"), tmp.path().join("both"));
     write_sim(&dt, "torque");
@@ -437,12 +475,14 @@ fn a_run_of_currents_gives_the_same_estimate_as_the_run_of_torques() {
     for j in 0..3 {
         assert!((t0[j] - c0[j]).abs() <= 1e-12 * t0[j].abs().max(1.0), "{t0:?} vs {c0:?}");
     }
-    let base = BaseParams::compute(&r, &BaseOptions::default()).unwrap();
-    let ctl = idexp::optim::Control::new();
-    let opts = IdentOptions::default();
-    let et = identify(&r, &base, &rt, None, None, &opts, &ctl).unwrap().estimate;
-    let ec = identify(&r, &base, &rc, None, None, &opts, &ctl).unwrap().estimate;
-    let eb = identify(&r, &base, &rb, None, None, &opts, &ctl).unwrap().estimate;
+    let est = |run: Run, src| {
+        study(&r, run, src, None, None, Weights::Sample, |_| {})
+            .unwrap_or_else(|e| panic!("{e}"))
+            .estimate
+    };
+    let et = est(rt, st);
+    let ec = est(rc, sc);
+    let eb = est(rb, sb);
     for i in 0..et.theta.len() {
         for e in [&ec, &eb] {
             assert!(
@@ -710,8 +750,8 @@ fn standstill_torque_error_of_the_tanh_model_comes_from_the_velocity_estimate() 
         .collect();
     let val = simulate_shipped("sim_rpr_pick_place_validate");
     let res = SimResult { reps, ..noisy.clone() };
-    let (it, rt, ft, zt) = ident_with(&noisy.setup.nominal, &res, &val, &idexp::ident::IdentOptions::default());
-    let big = |id: &idexp::ident::Identification| -> String {
+    let (it, rt, ft, zt) = ident_with(&noisy.setup.nominal, &res, &val, |_| {});
+    let big = |id: &StudyResult| -> String {
         let t = id.estimate.truth.as_ref().unwrap();
         t.iter()
             .filter(|r| r.z.abs() > 2.5)
@@ -744,7 +784,7 @@ fn standstill_torque_error_of_the_tanh_model_comes_from_the_velocity_estimate() 
             })
             .collect();
         let res = SimResult { reps, ..noisy.clone() };
-        let (id, r, _, z) = ident_with(&noisy.setup.nominal, &res, &val, &idexp::ident::IdentOptions::default());
+        let (id, r, _, z) = ident_with(&noisy.setup.nominal, &res, &val, |_| {});
         println!(
             "  torque-noise seed {seed}: standstill RMS {r:.4?} N·m, max|z| {z:.2} (|z| > 2.5: {})",
             big(&id)
@@ -771,7 +811,7 @@ fn simulate_edited(name: &str, edit: impl Fn(&mut idexp::sim::SimDesign)) -> ide
 /// not. Measured, not tuned: the numbers are printed (docs/robots.md, "Drives").
 #[test]
 fn pick_and_place_with_logged_drive_velocities_meets_the_standstill_acceptance() {
-    use idexp::ident::{Filter, FilterChoice, IdentOptions, Standstill, VelocityFrom, VelocitySource};
+    use idexp::ident::{Standstill, VelocityFrom, VelocitySource};
     let logged = |d: &mut idexp::sim::SimDesign| d.record_velocity = true;
     let res = simulate_edited("sim_rpr_pick_place", logged);
     let val = simulate_edited("sim_rpr_pick_place_validate", logged);
@@ -780,36 +820,23 @@ fn pick_and_place_with_logged_drive_velocities_meets_the_standstill_acceptance()
     assert_eq!((&res.reps[3].q, &res.reps[3].tau), (&plain.reps[3].q, &plain.reps[3].tau));
     let tanh = res.setup.nominal.clone();
     let sign = robot::load(&root("tests/data/ident/rpr_drives.toml")).unwrap();
-    let lp = |cutoff: f64| FilterChoice::Given(Filter::LowPass { cutoff });
-    let o40 = IdentOptions {
-        filter: lp(40.0),
-        ..Default::default()
+    // the experiment (and so its validation run) low-pass filtered at 40 Hz
+    let lp40 = |d: &mut StudyDesign| {
+        d.experiment[0].filter = FilterName::Lowpass;
+        d.experiment[0].cutoff = 40.0;
     };
-    let (it, rt, ft, zt) = ident_with(&tanh, &res, &val, &o40);
-    assert_eq!(it.estimate.velocity, VelocitySource::Logged);
+    let (it, rt, ft, zt) = ident_with(&tanh, &res, &val, lp40);
+    assert_eq!(it.estimate.experiments[0].velocity, VelocitySource::Logged);
     assert!(it.estimate.text().contains("q̇ logged (qd* columns, unfiltered)"), "{}", it.estimate.text());
-    assert!(it.estimate.rows_used.iter().all(|r| r.used == r.total));
-    let (i10, r10, _, z10) = ident_with(&tanh, &res, &val, &IdentOptions::default());
-    let (ip, rp, _, zp) = ident_with(
-        &tanh,
-        &res,
-        &val,
-        &IdentOptions {
-            velocity_from: VelocityFrom::Positions,
-            ..Default::default()
-        },
-    );
-    assert_eq!(ip.estimate.velocity, VelocitySource::Positions);
-    let (is, rs, _, zs) = ident_with(&sign, &res, &val, &o40);
-    let (ik, rk, _, zk) = ident_with(
-        &sign,
-        &res,
-        &val,
-        &IdentOptions {
-            standstill: Standstill::Keep,
-            ..o40.clone()
-        },
-    );
+    assert!(it.estimate.experiments[0].rows_used.iter().all(|r| r.used == r.total));
+    let (i10, r10, _, z10) = ident_with(&tanh, &res, &val, |_| {});
+    let (ip, rp, _, zp) = ident_with(&tanh, &res, &val, |d| d.experiment[0].velocity_from = VelocityFrom::Positions);
+    assert_eq!(ip.estimate.experiments[0].velocity, VelocitySource::Positions);
+    let (is, rs, _, zs) = ident_with(&sign, &res, &val, lp40);
+    let (ik, rk, _, zk) = ident_with(&sign, &res, &val, |d| {
+        lp40(d);
+        d.experiment[0].standstill = Some(Standstill::Keep);
+    });
     let pct = |v: &[f64]| v.iter().map(|x| format!("{:.2}", 100.0 * x)).collect::<Vec<_>>().join(", ");
     let num = |v: &[f64]| v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", ");
     println!(
@@ -835,8 +862,8 @@ fn pick_and_place_with_logged_drive_velocities_meets_the_standstill_acceptance()
             .collect();
         println!(
             "{name:<24} e*_j all rows [{}] %, validation all rows [{}] %, standstill RMS [{}] N·m, max|z| {z:.2} (|z| > 2.5: {})",
-            pct(&id.estimate.errors_all.e_rel),
-            pct(&id.estimate.validation_all.as_ref().unwrap().e_rel),
+            pct(&id.estimate.experiments[0].errors_all.e_rel),
+            pct(&id.estimate.validation[0].errors_all.e_rel),
             num(rms),
             big.join(", ")
         );
@@ -847,8 +874,14 @@ fn pick_and_place_with_logged_drive_velocities_meets_the_standstill_acceptance()
         assert!(rt[j] < 1.2 * ft[j], "joint {j}: standstill RMS {} vs noise {}", rt[j], ft[j]);
         // the sign model on the same data: standstill error several times the noise
         assert!(rs[j] > 3.0 * ft[j] && rk[j] > 2.0 * ft[j], "joint {j}: {} / {} vs {}", rs[j], rk[j], ft[j]);
-        assert!(it.estimate.errors_all.e_rel[j] < is.estimate.errors_all.e_rel[j], "joint {j}");
-        assert!(it.estimate.errors_all.e_rel[j] < ik.estimate.errors_all.e_rel[j], "joint {j}");
+        assert!(
+            it.estimate.experiments[0].errors_all.e_rel[j] < is.estimate.experiments[0].errors_all.e_rel[j],
+            "joint {j}"
+        );
+        assert!(
+            it.estimate.experiments[0].errors_all.e_rel[j] < ik.estimate.experiments[0].errors_all.e_rel[j],
+            "joint {j}"
+        );
     }
     assert!(zk > 10.0, "sign model on every row: max|z| {zk}");
     // q̈ from the logged q̇ through the 10 Hz low-pass misses the captures at the
@@ -872,7 +905,7 @@ fn write_csv(path: &Path, header: &[&str], rows: usize, f: impl Fn(usize, usize)
 
 #[test]
 fn bad_logged_velocity_columns_are_errors_naming_file_row_and_column() {
-    use idexp::ident::{identify, IdentOptions, Run, VelocityFrom};
+    use idexp::ident::{Run, VelocityFrom, Weights};
     let tmp = tempfile::tempdir().unwrap();
     let base = ["t", "q1", "q2", "q3", "tau1", "tau2", "tau3"];
     let with = |extra: &[&'static str]| -> Vec<&'static str> { base.iter().copied().chain(extra.iter().copied()).collect() };
@@ -905,13 +938,11 @@ fn bad_logged_velocity_columns_are_errors_naming_file_row_and_column() {
     assert!(e.contains("b.csv") && e.contains("qd1") && e.contains("same columns"), "{e}");
     // --velocity-from log on a run without velocities
     let r = robot::load(&root("tests/data/ident/rpr_drives_tanh.toml")).unwrap();
-    let bp = BaseParams::compute(&r, &BaseOptions::default()).unwrap();
     let run = Run::read(std::slice::from_ref(&b), 3).unwrap();
-    let opts = IdentOptions {
-        velocity_from: VelocityFrom::Log,
-        ..Default::default()
-    };
-    let e = err_text(identify(&r, &bp, &run, None, None, &opts, &idexp::optim::Control::new()));
+    let torques = idexp::data::TorqueSource::logged_torques();
+    let e = err_text(study(&r, run, torques, None, None, Weights::Sample, |d| {
+        d.experiment[0].velocity_from = VelocityFrom::Log
+    }));
     assert!(e.contains("b.csv") && e.contains("--velocity-from") && e.contains("qd1..qd3"), "{e}");
     assert!("logged".parse::<VelocityFrom>().unwrap_err().to_string().contains("auto, log or positions"));
     // the design: velocity noise without logged velocities, negative noise

@@ -218,17 +218,28 @@ fn bag_info_lists_topics_joints_and_rates() {
     assert!(i.text().contains("/joint_commands"));
 }
 
-/// Identification of the UR5 base parameters (36 + 12 drive) from a run.
+/// Identification of the UR5 base parameters (36 + 12 drive) from a run, by
+/// the study engine: a one-experiment design with the run in memory,
+/// per-joint least-squares weights.
 fn identify(run: &Run) -> idexp::ident::Estimate {
-    use idexp::params::{BaseOptions, BaseParams};
-    let robot = ur5();
-    let base = BaseParams::compute(&robot, &BaseOptions::default()).unwrap();
-    let opts = idexp::ident::IdentOptions {
-        weights: idexp::ident::Weights::Joint,
+    use idexp::ident::study::{run_study_with, ExperimentSpec, Given, Inputs, StudyDesign};
+    let mut e = ExperimentSpec::new(vec![]);
+    e.name = "run".into();
+    let d = StudyDesign::one_experiment("ur5", "ur5_drives.toml".into(), e).repetition_weighted(idexp::ident::Weights::Joint);
+    let mut inputs = Inputs {
+        robot: Some(ur5()),
         ..Default::default()
     };
-    let id = idexp::ident::identify(&robot, &base, run, None, None, &opts, &idexp::optim::Control::new()).unwrap_or_else(|e| panic!("{e}"));
-    id.estimate
+    inputs.entries.insert(
+        "run".into(),
+        Given {
+            run: run.clone(),
+            trajectory: None,
+            torque_source: idexp::data::TorqueSource::logged_torques(),
+        },
+    );
+    let r = run_study_with(&d, Path::new(""), &inputs, &idexp::optim::Control::new()).unwrap_or_else(|e| panic!("{e}"));
+    r.estimate
 }
 
 fn assert_same_estimate(a: &idexp::ident::Estimate, b: &idexp::ident::Estimate, what: &str) {
