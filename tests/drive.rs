@@ -545,7 +545,7 @@ fn bad_drive_inputs_are_errors_naming_file_and_joint() {
     // --torque-from torque on a current-only run
     let r = robot::load(&root("tests/data/ident/rpr_drives_tanh.toml")).unwrap();
     let e = err_text(Run::read_drives(std::slice::from_ref(&dc), &r, None, TorqueFrom::Torque, CURRENT_TOLERANCE));
-    assert!(e.contains("tau1") && e.contains("--torque-from current"), "{e}");
+    assert!(e.contains("tau1") && e.contains("torque_from = \"current\""), "{e}");
     // torques and currents disagreeing: the slide's current scaled by 1.2
     let db = tmp.path().join("both");
     write_sim(&db, "both");
@@ -943,7 +943,7 @@ fn bad_logged_velocity_columns_are_errors_naming_file_row_and_column() {
     let e = err_text(study(&r, run, torques, None, None, Weights::Sample, |d| {
         d.experiment[0].velocity_from = VelocityFrom::Log
     }));
-    assert!(e.contains("b.csv") && e.contains("--velocity-from") && e.contains("qd1..qd3"), "{e}");
+    assert!(e.contains("b.csv") && e.contains("velocity_from") && e.contains("qd1..qd3"), "{e}");
     assert!("logged".parse::<VelocityFrom>().unwrap_err().to_string().contains("auto, log or positions"));
     // the design: velocity noise without logged velocities, negative noise
     let design = |extra: &str, noise: &str| {

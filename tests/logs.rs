@@ -135,7 +135,7 @@ fn irregular_stamps_are_kept_and_topics_are_chosen_by_name() {
     // two JointState topics: the default refuses to guess, listing them
     let e = err_text(read_log(&data("irregular_mcap"), &robot, &LogSpec::new(LogFormat::Bag)));
     assert!(
-        e.contains("/joint_commands (10 messages)") && e.contains("/joint_states (40 messages)") && e.contains("--topic"),
+        e.contains("/joint_commands (10 messages)") && e.contains("/joint_states (40 messages)") && e.contains("topic = "),
         "{e}"
     );
     let pick = |p: &str, topic: &str, stamps: BagStamps| {

@@ -19,5 +19,5 @@ pub mod truth;
 
 pub use motor::MotorRecord;
 pub use resample::Sampling;
-pub use run::{expand, Averaged, Coordinates, Repetition, Run, SamplingOptions, TorqueFrom, TorqueSource, CURRENT_TOLERANCE};
+pub use run::{expand, Averaged, Coordinates, Repetition, Run, SamplingOptions, TorqueColumns, TorqueFrom, TorqueSource, CURRENT_TOLERANCE};
 pub use truth::Truth;

@@ -184,8 +184,8 @@ pub fn projection(ds: &Dataset, pr: &Processed, run: &Run, decimate: usize, opts
     if instruments.is_none_or(|k| k >= m) {
         let max_sum = (m.saturating_sub(2) / n.max(1)).saturating_sub(1);
         return Err(Error::invalid(
-            "projection method",
-            "--fir-lags",
+            "[projection]",
+            "lags",
             format!("M1 = {m1}, M2 = {m2} give n·(M1 + M2 + 1) + 1 instruments for {n} joints, but the run has {m} samples: expected M1 + M2 ≤ {max_sum}"),
         ));
     }

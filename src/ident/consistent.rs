@@ -225,15 +225,15 @@ pub fn solve(pb: &Problem, o: &ConsistentOptions, ctl: &Control) -> Result<Solut
     }
     if !(o.margin.is_finite() && o.margin >= 0.0) {
         return Err(Error::invalid(
-            "--consistent",
-            "--margin",
+            "consistent",
+            "margin",
             format!("expected a margin ≥ 0 (kg·m²), found {}", o.margin),
         ));
     }
     if !(o.regularization.is_finite() && o.regularization > 0.0) {
         return Err(Error::invalid(
-            "--consistent",
-            "--regularization",
+            "consistent",
+            "regularization",
             format!(
                 "expected a positive weight (it fixes the standard parameters the data cannot tell apart), found {}",
                 o.regularization

@@ -230,7 +230,7 @@ impl std::str::FromStr for Weights {
         match s {
             "sample" => Ok(Weights::Sample),
             "joint" => Ok(Weights::Joint),
-            _ => Err(crate::Error::invalid("--weights", "weights", format!("expected sample or joint, found `{s}`"))),
+            _ => Err(crate::Error::invalid("identify", "weights", format!("expected sample or joint, found `{s}`"))),
         }
     }
 }
@@ -433,8 +433,8 @@ pub fn row_variances(ds: &Dataset, weights: Weights) -> Result<DVector<f64>> {
         (None, Weights::Sample) => {
             return Err(Error::invalid(
                 "identify",
-                "--weights",
-                "sample weights (paper 000 eq. 7–9) need the per-sample torque variances: a run of N_r ≥ 2 repetitions, or an averaged run with var_tau columns; use --weights joint (per-joint residual variance of OLS) or --method ols",
+                "repetition_weights",
+                "sample weights (paper 000 eq. 7–9) need the per-sample torque variances: a run of N_r ≥ 2 repetitions, or an averaged run with var_tau columns; use repetition_weights = \"joint\" (per-joint residual variance of OLS) or method = \"ols\"",
             ))
         }
         (None, Weights::Joint) => {

@@ -110,11 +110,7 @@ impl std::str::FromStr for Standstill {
             "auto" => Ok(Standstill::Auto),
             "drop" => Ok(Standstill::Drop),
             "keep" => Ok(Standstill::Keep),
-            _ => Err(Error::invalid(
-                "--standstill",
-                "standstill",
-                format!("expected auto, drop or keep, found `{s}`"),
-            )),
+            _ => Err(Error::invalid("identify", "standstill", format!("expected auto, drop or keep, found `{s}`"))),
         }
     }
 }

@@ -67,17 +67,8 @@ pub struct Prepared {
 }
 
 /// Processes a run (in joint coordinates) as `opts` says — filter, decimation,
-/// standstill rule — and stacks its base regressor. With
-/// `needs_sample_weights`, a run without repetitions or variances is an error
-/// that names the alternatives.
-pub fn prepare(
-    robot: &Robot,
-    base: &BaseParams,
-    run: &Run,
-    trajectory: Option<&FourierTrajectory>,
-    opts: &IdentOptions,
-    needs_sample_weights: bool,
-) -> Result<Prepared> {
+/// standstill rule — and stacks its base regressor.
+pub fn prepare(robot: &Robot, base: &BaseParams, run: &Run, trajectory: Option<&FourierTrajectory>, opts: &IdentOptions) -> Result<Prepared> {
     let filter = resolve_filter(&opts.filter, trajectory, opts.harmonics);
     let pr = process_with(run, &filter, opts.velocity_from)?.decimated(opts.decimate);
     if !(opts.slow_ratio.is_finite() && (0.0..1.0).contains(&opts.slow_ratio)) {
@@ -91,18 +82,6 @@ pub fn prepare(
     } else {
         (opts.slow_ratio, opts.min_speed)
     };
-    if needs_sample_weights && pr.tau_var.is_none() {
-        let file = run.files.first().map(|f| f.display().to_string()).unwrap_or_else(|| "run".into());
-        return Err(Error::invalid(
-            file,
-            "--weights",
-            format!(
-                "the run has {} repetition and no variance columns, so sample weights (paper 000 eq. 7–9) are not possible; use --weights joint (per-joint residual variance of an OLS fit), --method ols, more repetitions, or an averaged run with var_tau1..var_tau{} columns and --repetitions N",
-                run.reps.len(),
-                robot.dof()
-            ),
-        ));
-    }
     let drop: Vec<bool> = robot
         .drives
         .iter()
@@ -125,7 +104,7 @@ pub fn prepare(
         let vmax: Vec<String> = (0..robot.dof())
             .map(|j| format!("{:.3e}", pr.qd.iter().map(|v| v[j].abs()).fold(0.0, f64::max)))
             .collect();
-        return Err(Error::invalid(run.files.first().map_or_else(|| "identify".to_string(), |f| f.display().to_string()), "min_speed", format!("no row is fast enough: {} of {} rows left after the speed rule |q̇_j| ≥ max({slow} · max |q̇_j|, {vmin} rad/s) (--slow-ratio, --min-speed), more than {} needed; largest |q̇_j| of the run: [{}] rad/s", full.c.nrows(), every.c.nrows(), full.c.ncols(), vmax.join(", "))));
+        return Err(Error::invalid(run.files.first().map_or_else(|| "identify".to_string(), |f| f.display().to_string()), "min_speed", format!("no row is fast enough: {} of {} rows left after the speed rule |q̇_j| ≥ max({slow} · max |q̇_j|, {vmin} rad/s) (`slow_ratio`, `min_speed`; `kind = \"static\"` for poses held at rest has no speed rule), more than {} needed; largest |q̇_j| of the run: [{}] rad/s", full.c.nrows(), every.c.nrows(), full.c.ncols(), vmax.join(", "))));
     }
     let rows_used = rows_used(robot, &full, pr.len(), &drop, slow, vmin, opts);
     Ok(Prepared {
@@ -164,7 +143,7 @@ fn rows_used(robot: &Robot, full: &Dataset, total: usize, drop: &[bool], slow: f
             let reason = if matches!(opts.method, Method::Projection) {
                 "every row kept: the projection method needs every sample".to_string()
             } else if slow <= 0.0 && vmin <= 0.0 {
-                "every row kept: --slow-ratio 0 and --min-speed 0".to_string()
+                "every row kept: slow_ratio = 0 and min_speed = 0".to_string()
             } else if drop[j] {
                 let why = match opts.standstill {
                     Standstill::Drop => "standstill drop".to_string(),
@@ -193,10 +172,9 @@ fn rows_used(robot: &Robot, full: &Dataset, total: usize, drop: &[bool], slow: f
         .collect()
 }
 
-/// Joints whose filter residual exceeds 3× the noise of the averaged positions;
-/// the advice in the study file's words (`harmonics = …`) when `study`, else
-/// as command-line flags.
-pub(crate) fn filter_warnings(pr: &Processed, study: bool) -> Vec<String> {
+/// Joints whose filter residual exceeds 3× the noise of the averaged
+/// positions, with the advice in the study's words (`harmonics = …`).
+pub(crate) fn filter_warnings(pr: &Processed) -> Vec<String> {
     let mut w = Vec::new();
     for (j, (res, noise)) in pr.filter_residual.iter().enumerate() {
         if let Some(nz) = noise {
@@ -204,12 +182,12 @@ pub(crate) fn filter_warnings(pr: &Processed, study: bool) -> Vec<String> {
                 let hint = match pr.filter {
                     Filter::Fourier { n_h, .. } => format!(
                         "the closed-loop response has harmonics above the {n_h} kept (tracking errors of a nonlinear plant); dropping them biases q̈: consider {}{}",
-                        if study { "harmonics = " } else { "--harmonics " },
+                        "harmonics = ",
                         4 * n_h
                     ),
                     Filter::LowPass { cutoff } => format!(
                         "the low-pass at {cutoff} Hz removes motion: consider a higher {}",
-                        if study { "`cutoff = …`" } else { "--cutoff" }
+                        "`cutoff = …`"
                     ),
                     Filter::None => String::new(),
                 };

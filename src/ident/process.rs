@@ -45,7 +45,7 @@ impl std::str::FromStr for VelocityFrom {
             "log" => Ok(VelocityFrom::Log),
             "positions" => Ok(VelocityFrom::Positions),
             _ => Err(Error::invalid(
-                "--velocity-from",
+                "identify",
                 "velocity_from",
                 format!("expected auto, log or positions, found `{s}`"),
             )),
@@ -333,8 +333,8 @@ pub fn process_with(run: &Run, filter: &Filter, from: VelocityFrom) -> Result<Pr
                 let file = run.files.first().map_or_else(|| "run".to_string(), |f| f.display().to_string());
                 return Err(Error::invalid(
                     file,
-                    "--velocity-from",
-                    format!("`log`, but the run logs no velocities qd1..qd{n}: use --velocity-from positions (or auto)"),
+                    "velocity_from",
+                    format!("`log`, but the run logs no velocities qd1..qd{n}: use velocity_from = \"positions\" (or \"auto\")"),
                 ));
             }
             true
@@ -566,6 +566,6 @@ mod tests {
         let mut bare = rep(false);
         bare.qd = None;
         let e = process_with(&Run::new(vec![], vec![bare]).unwrap(), &lp, VelocityFrom::Log).unwrap_err();
-        assert!(e.to_string().contains("--velocity-from") && e.to_string().contains("qd1..qd1"), "{e}");
+        assert!(e.to_string().contains("velocity_from") && e.to_string().contains("qd1..qd1"), "{e}");
     }
 }

@@ -156,7 +156,7 @@ pub fn require_complete(dir: &Path, allow_incomplete: bool) -> Result<()> {
             path.display().to_string(),
             "status",
             format!(
-                "`{other}` ({}): the folder is not a complete result; pass --allow-incomplete to use it anyway",
+                "`{other}` ({}): the folder is not a complete result; accept it with allow_incomplete (the command line's flag of that name)",
                 s.detail
             ),
         )),

@@ -184,7 +184,7 @@ pub fn write_urdf(src: &Source, robot: &Robot, dir: &Path) -> Result<PathBuf> {
         Source::Dh { toml } => Err(Error::invalid(
             toml.display().to_string(),
             "dh",
-            "this robot is a DH table, not a URDF: there is no URDF to copy the kinematics from; use --export toml (writes robot.toml: the DH table with the identified inertials and drives)",
+            "this robot is a DH table, not a URDF: there is no URDF to copy the kinematics from; export \"toml\" (robot.toml: the DH table with the identified inertials and drives)",
         )),
         Source::Urdf { urdf, .. } => {
             let text = crate::io::read_to_string(urdf)?;

@@ -481,7 +481,7 @@ pub(super) fn read(path: &Path, robot: &Robot, spec: &LogSpec) -> Result<LogRead
                     path.display().to_string(),
                     "topic",
                     format!(
-                        "the bag has {} {JOINT_STATE} topics: {}; choose one with --topic (or topic = \"…\" in the log spec)",
+                        "the bag has {} {JOINT_STATE} topics: {}; choose one with topic = \"…\" in the log spec",
                         many.len(),
                         many.iter()
                             .map(|t| format!("{t} ({} messages)", topics[*t].messages))

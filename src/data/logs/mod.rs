@@ -95,11 +95,7 @@ impl std::str::FromStr for LogFormat {
             "rtde" => Ok(LogFormat::Rtde),
             "headerless" => Ok(LogFormat::Headerless),
             "bag" => Ok(LogFormat::Bag),
-            _ => Err(Error::invalid(
-                "--format",
-                "format",
-                format!("expected csv, rtde, headerless or bag, found `{s}`"),
-            )),
+            _ => Err(Error::invalid("log", "format", format!("expected csv, rtde, headerless or bag, found `{s}`"))),
         }
     }
 }
@@ -634,7 +630,11 @@ pub fn read_run(
     let run = crate::data::Run::new(paths.to_vec(), reps)?;
     let tpa = reports[0].torque_per_ampere.clone();
     let source = crate::data::TorqueSource {
-        from: if tpa.is_some() { "current" } else { "torque" }.into(),
+        from: if tpa.is_some() {
+            crate::data::TorqueColumns::Current
+        } else {
+            crate::data::TorqueColumns::Torque
+        },
         torque_per_ampere: tpa,
         agreement: None,
         tolerance: crate::data::CURRENT_TOLERANCE,

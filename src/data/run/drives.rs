@@ -37,7 +37,7 @@ impl Run {
         if !(tolerance.is_finite() && tolerance > 0.0) {
             return Err(Error::invalid(
                 "identify",
-                "--current-tolerance",
+                "current_tolerance",
                 format!("expected a positive relative tolerance, found {tolerance}"),
             ));
         }
@@ -72,7 +72,7 @@ impl Run {
                 path: tables[0].path.clone(),
                 row: 0,
                 column: "cur1".into(),
-                msg: format!("--torque-from current, but the run has no current columns cur1..cur{n}"),
+                msg: format!("torque_from = \"current\", but the run has no current columns cur1..cur{n}"),
             });
         }
         if !use_current && !has_tau {
@@ -80,7 +80,9 @@ impl Run {
                 path: tables[0].path.clone(),
                 row: 0,
                 column: "tau1".into(),
-                msg: format!("--torque-from torque, but the run has no torque columns tau1..tau{n} (it logs currents: use --torque-from current or auto)"),
+                msg: format!(
+                    "torque_from = \"torque\", but the run has no torque columns tau1..tau{n} (it logs currents: use torque_from = \"current\" or \"auto\")"
+                ),
             });
         }
         let scale: Vec<Option<f64>> = robot.drives.iter().map(|d| d.torque_per_ampere()).collect();
@@ -131,7 +133,7 @@ impl Run {
                                 row: 0,
                                 column: format!("cur{}", j + 1),
                                 msg: format!(
-                                    "joint `{}`: the torque from the currents (current_sign·k_t·N = {} N·m/A) differs from tau{} by RMS {drms:.4e} N·m, {:.2} % of the torque RMS {trms:.4e} N·m, above the tolerance {:.2} % (--current-tolerance {tolerance}): check torque_constant, gear_ratio and current_sign of the drive, or the logs",
+                                    "joint `{}`: the torque from the currents (current_sign·k_t·N = {} N·m/A) differs from tau{} by RMS {drms:.4e} N·m, {:.2} % of the torque RMS {trms:.4e} N·m, above the tolerance {:.2} % (current_tolerance = {tolerance}): check torque_constant, gear_ratio and current_sign of the drive, or the logs",
                                     robot.joints[j].name,
                                     scale[j],
                                     j + 1,
@@ -155,7 +157,7 @@ impl Run {
         Ok((
             run,
             TorqueSource {
-                from: if use_current { "current" } else { "torque" }.into(),
+                from: if use_current { TorqueColumns::Current } else { TorqueColumns::Torque },
                 torque_per_ampere: if use_current || all_kt { Some(scale) } else { None },
                 agreement,
                 tolerance,
@@ -220,7 +222,7 @@ impl std::str::FromStr for TorqueFrom {
             "torque" => Ok(TorqueFrom::Torque),
             "current" => Ok(TorqueFrom::Current),
             _ => Err(Error::invalid(
-                "--torque-from",
+                "identify",
                 "torque_from",
                 format!("expected auto, torque or current, found `{s}`"),
             )),
@@ -245,8 +247,8 @@ pub const CURRENT_TOLERANCE: f64 = 0.05;
 /// How [`Run::read_drives`] obtained the joint torques.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct TorqueSource {
-    /// `torque` or `current`.
-    pub from: String,
+    /// The columns the torques came from.
+    pub from: TorqueColumns,
     /// Per joint s·k_t·N (N·m/A joint side), when the drives give it.
     pub torque_per_ampere: Option<Vec<f64>>,
     /// Per joint, the largest relative RMS difference between logged torques
@@ -258,11 +260,21 @@ pub struct TorqueSource {
     pub note: String,
 }
 
+/// The columns joint torques were taken from (`torque` or `current` in files).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TorqueColumns {
+    /// The torque columns `tau*`.
+    Torque,
+    /// The motor currents `cur*`, through the drives' torque constants.
+    Current,
+}
+
 impl TorqueSource {
     /// Joint torques given as torques (data in memory, no currents).
     pub fn logged_torques() -> TorqueSource {
         TorqueSource {
-            from: "torque".into(),
+            from: TorqueColumns::Torque,
             torque_per_ampere: None,
             agreement: None,
             tolerance: crate::data::CURRENT_TOLERANCE,
@@ -274,9 +286,13 @@ impl TorqueSource {
     pub fn text(&self) -> String {
         let mut s = format!(
             "joint torques from the {} columns",
-            if self.from == "current" { "current (cur*)" } else { "torque (tau*)" }
+            if self.from == TorqueColumns::Current {
+                "current (cur*)"
+            } else {
+                "torque (tau*)"
+            }
         );
-        if let (Some(k), true) = (&self.torque_per_ampere, self.from == "current") {
+        if let (Some(k), true) = (&self.torque_per_ampere, self.from == TorqueColumns::Current) {
             s += &format!(
                 ", τ = s·k_t·N·i with s·k_t·N = [{}] N·m/A",
                 k.iter().map(|v| format!("{v}")).collect::<Vec<_>>().join(", ")

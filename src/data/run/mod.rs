@@ -36,7 +36,7 @@
 mod drives;
 mod repetition;
 
-pub use drives::{TorqueFrom, TorqueSource, CURRENT_TOLERANCE};
+pub use drives::{TorqueColumns, TorqueFrom, TorqueSource, CURRENT_TOLERANCE};
 pub use repetition::Repetition;
 
 use crate::error::{Error, Result};
@@ -87,7 +87,7 @@ impl std::str::FromStr for Coordinates {
         match s {
             "joint" => Ok(Coordinates::Joint),
             "motor" => Ok(Coordinates::Motor),
-            _ => Err(Error::invalid("--coordinates", "coordinates", format!("expected joint or motor, found `{s}`"))),
+            _ => Err(Error::invalid("identify", "coordinates", format!("expected joint or motor, found `{s}`"))),
         }
     }
 }
@@ -200,7 +200,7 @@ impl Run {
                 row: 0,
                 column: "var_tau1".into(),
                 msg: format!(
-                    "variance columns with {repetitions} repetition(s): the sample variance (eq. 7) needs N_r ≥ 2; give the number the means were taken over (--repetitions N or \"repetitions\" in run.json)"
+                    "variance columns with {repetitions} repetition(s): the sample variance (eq. 7) needs N_r ≥ 2; give the number the means were taken over (`repetitions = N`, or \"repetitions\" in run.json)"
                 ),
             });
         }
@@ -218,7 +218,7 @@ impl Run {
                             row: k + 1,
                             column: format!("{prefix}{}", j + 1),
                             msg: format!(
-                                "expected a positive finite variance, found {x} (a zero variance would give an infinite weight; use --weights joint if some are unknown)"
+                                "expected a positive finite variance, found {x} (a zero variance would give an infinite weight; use repetition_weights = \"joint\" if some are unknown)"
                             ),
                         });
                     }
@@ -239,12 +239,12 @@ impl Run {
     pub fn to_joint_coordinates(&mut self, c: &nalgebra::DMatrix<f64>) -> Result<()> {
         let n = self.n_joints();
         if c.nrows() != n || c.ncols() != n {
-            return Err(Error::dim("coupling matrix for --coordinates motor", n, c.nrows()));
+            return Err(Error::dim("coupling matrix for coordinates = \"motor\"", n, c.nrows()));
         }
         let ci = c
             .clone()
             .try_inverse()
-            .ok_or_else(|| Error::invalid("--coordinates motor", "coupling", "the robot's coupling matrix is singular"))?;
+            .ok_or_else(|| Error::invalid("coordinates = \"motor\"", "coupling", "the robot's coupling matrix is singular"))?;
         let map = |rows: &mut Vec<Vec<f64>>| {
             for row in rows.iter_mut() {
                 let x = nalgebra::DVector::from_column_slice(row);
@@ -353,7 +353,7 @@ impl Run {
                     path: t.path.clone(),
                     row: 0,
                     column: "var_tau1".into(),
-                    msg: "an averaged run needs N_r, the number of repetitions the means were taken over (paper 000 eq. 13): pass --repetitions N or write {\"repetitions\": N} into run.json next to the file".into(),
+                    msg: "an averaged run needs N_r, the number of repetitions the means were taken over (paper 000 eq. 13): give `repetitions = N` or write {\"repetitions\": N} into run.json next to the file".into(),
                 })?,
             };
             return Run::averaged(t.path.clone(), mean, var_tau, var_q, nr);
@@ -361,9 +361,9 @@ impl Run {
         if let Some(r) = repetitions {
             return Err(Error::invalid(
                 files[0].display().to_string(),
-                "--repetitions",
+                "repetitions",
                 format!(
-                    "--repetitions {r} is for an averaged run (one CSV with var_tau1..var_taun columns); this run has {} raw repetition file(s) and no variance columns",
+                    "repetitions = {r} is for an averaged run (one CSV with var_tau1..var_taun columns); this run has {} raw repetition file(s) and no variance columns",
                     files.len()
                 ),
             ));

@@ -116,7 +116,7 @@ impl Repetition {
                 row: 0,
                 column: "tau1".into(),
                 msg: format!(
-                    "the run logs motor currents cur1..cur{n} but no torques tau1..tau{n}: currents need the robot's torque constants (idexp identify --torque-from current|auto with torque_constant and gear_ratio in the robot file's [[drive]] entries; library: Run::read_drives)"
+                    "the run logs motor currents cur1..cur{n} but no torques tau1..tau{n}: currents need the robot's torque constants (torque_from = \"current\" or \"auto\", with torque_constant and gear_ratio in the robot file's [[drive]] entries; library: Run::read_drives)"
                 ),
             });
         }

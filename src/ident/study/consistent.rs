@@ -156,7 +156,7 @@ pub(super) fn consistent_with_prior(
     let ssr_wls: f64 = st.blocks.iter().map(|b| b.chi2).sum();
     Ok(Some(ConsistentReport {
         status,
-        prior: cs.prior.clone(),
+        prior: cs.prior.to_string(),
         metric: cs.metric,
         weight,
         weight_curve: curve,

@@ -105,6 +105,43 @@ impl Default for ReduceSpec {
     }
 }
 
+/// The consistent fit's prior (`[consistent] prior`): `"nominal"` or the
+/// path of a robot file (relative to the study file).
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(from = "String", into = "String")]
+pub enum Prior {
+    /// The identified robot file's own parameters.
+    #[default]
+    Nominal,
+    /// Another robot file with the same links and drives.
+    File(PathBuf),
+}
+
+impl From<String> for Prior {
+    fn from(s: String) -> Prior {
+        if s == "nominal" {
+            Prior::Nominal
+        } else {
+            Prior::File(PathBuf::from(s))
+        }
+    }
+}
+
+impl From<Prior> for String {
+    fn from(p: Prior) -> String {
+        p.to_string()
+    }
+}
+
+impl std::fmt::Display for Prior {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Prior::Nominal => f.write_str("nominal"),
+            Prior::File(p) => write!(f, "{}", p.display()),
+        }
+    }
+}
+
 /// The essential parameters of `[reduce]`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
@@ -390,8 +427,8 @@ impl Default for UnknownSpec {
 #[serde(deny_unknown_fields)]
 pub struct ConsistentSpec {
     /// `nominal` (the robot file's parameters) or a robot file with the same layout.
-    #[serde(default = "nominal")]
-    pub prior: String,
+    #[serde(default)]
+    pub prior: Prior,
     /// The prior's metric.
     #[serde(default)]
     pub metric: PriorMetric,
@@ -419,7 +456,7 @@ pub struct ConsistentSpec {
 impl Default for ConsistentSpec {
     fn default() -> Self {
         ConsistentSpec {
-            prior: nominal(),
+            prior: Prior::Nominal,
             metric: PriorMetric::default(),
             weight: weight_one(),
             weight_grid: weight_grid(),
@@ -556,9 +593,6 @@ fn min_speed() -> f64 {
 }
 fn dead_band() -> f64 {
     crate::ident::DEAD_BAND
-}
-fn nominal() -> String {
-    "nominal".into()
 }
 fn weight_one() -> WeightSpec {
     WeightSpec::Value(1.0)

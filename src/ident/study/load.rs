@@ -38,7 +38,7 @@ pub struct Loaded {
 impl Loaded {
     /// The entry's warnings: its notes, then the filter's ([`crate::ident::prepare`]).
     pub fn warnings(&self) -> Vec<String> {
-        self.notes.iter().cloned().chain(crate::ident::filter_warnings(&self.prep.pr, true)).collect()
+        self.notes.iter().cloned().chain(crate::ident::filter_warnings(&self.prep.pr)).collect()
     }
 }
 
@@ -172,15 +172,11 @@ pub fn load_entry_with(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, 
         velocity_from: spec.velocity_from,
         ..Default::default()
     };
-    let prep = prepare(robot, base, &run, traj.as_ref(), &opts, false).map_err(|e| match e {
+    let prep = prepare(robot, base, &run, traj.as_ref(), &opts).map_err(|e| match e {
         Error::Invalid { context, field, msg } => Error::Invalid {
             context: format!("experiment `{name}` ({context})"),
             field,
-            // the study file's words, not the one-run command line's
-            msg: msg.replace(
-                "(--slow-ratio, --min-speed)",
-                "(`slow_ratio`, `min_speed`; `kind = \"static\"` for poses held at rest has no speed rule)",
-            ),
+            msg,
         },
         e => e,
     })?;

@@ -32,8 +32,8 @@ mod single;
 pub mod stack;
 
 pub use design::{
-    ConsistentSpec, EssentialRule, EssentialSpec, ExperimentKind, ExperimentSpec, ExportFormat, FilterName, MlSpec, ProjectionSpec, ReduceSpec, StudyDesign,
-    UnknownRule, UnknownSpec, WeightRule, WeightSpec,
+    ConsistentSpec, EssentialRule, EssentialSpec, ExperimentKind, ExperimentSpec, ExportFormat, FilterName, MlSpec, Prior, ProjectionSpec, ReduceSpec,
+    StudyDesign, UnknownRule, UnknownSpec, WeightRule, WeightSpec,
 };
 pub use load::{load_entry, load_entry_with, EntryOptions, Given, Loaded};
 pub use result::{ConsistentReport, Direction, Estimate, ExperimentReport, Flag, LinkPrior, StudyResult, UnknownParam, ValidationReport, ValidationTotal};
@@ -117,7 +117,7 @@ fn setup(design: &StudyDesign, dir: &Path, given: Option<&Robot>) -> Result<(Rob
         BaseParams::with_columns(&robot, &design.base_columns, &BaseOptions::default())?
     };
     let prior = match &design.consistent {
-        Some(c) if c.prior != "nominal" => Some(crate::robot::load(&dir.join(&c.prior))?),
+        Some(ConsistentSpec { prior: Prior::File(p), .. }) => Some(crate::robot::load(&dir.join(p))?),
         _ => None,
     };
     Ok((robot, robot_path, base, prior))
