@@ -13,27 +13,18 @@ use std::path::PathBuf;
 
 /// The spec from `spec` (a map file path or a dict) and the keyword overrides.
 fn spec_of(spec: Option<&Bound<'_, PyAny>>, format: Option<&str>, topic: Option<String>) -> PyResult<LogSpec> {
-    let mut s = match spec {
+    let map = match spec {
         Some(obj) if obj.is_instance_of::<PyDict>() => {
             let v: serde_json::Value =
                 pythonize::depythonize(obj).map_err(|e| value(format!("spec: the dict is not plain data (str, numbers, lists, dicts): {e}")))?;
-            serde_json::from_value::<LogSpec>(v).map_err(|e| value(format!("spec: {e}")))?
+            Some(serde_json::from_value::<LogSpec>(v).map_err(|e| value(format!("spec: {e}")))?)
         }
-        Some(obj) if obj.is_instance_of::<PyString>() || obj.extract::<PathBuf>().is_ok() => LogSpec::read(&obj.extract::<PathBuf>()?).py()?,
+        Some(obj) if obj.is_instance_of::<PyString>() || obj.extract::<PathBuf>().is_ok() => Some(LogSpec::read(&obj.extract::<PathBuf>()?).py()?),
         Some(obj) => return Err(value(format!("spec: expected a map file path or a dict, got {}", obj.get_type().name()?))),
-        None => {
-            let f = format.ok_or_else(|| value("read_log: give format= (rtde, csv, headerless, bag) or spec= (a map file or dict)"))?;
-            LogSpec::new(f.parse::<LogFormat>().py()?)
-        }
+        None => None,
     };
-    if let Some(f) = format {
-        s.format = f.parse::<LogFormat>().py()?;
-    }
-    if topic.is_some() {
-        s.topic = topic;
-    }
-    s.validate("spec").py()?;
-    Ok(s)
+    let format = format.map(|f| f.parse::<LogFormat>()).transpose().py()?;
+    LogSpec::resolve(map, "spec", format, topic, None).py()
 }
 
 /// read_log(log, robot, format=None, spec=None, topic=None) -> dict

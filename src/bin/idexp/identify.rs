@@ -224,19 +224,16 @@ fn run_study(a: &IdentifyArgs, ctl: &Control, started: SystemTime) -> anyhow::Re
 
 /// The log spec of `--log-format` / `--log-map` (with `--topic`), if any.
 fn log_spec(a: &IdentifyArgs) -> anyhow::Result<Option<idexp::data::logs::LogSpec>> {
-    let mut spec = match (&a.log_format, &a.log_map) {
-        (Some(f), _) => idexp::data::logs::LogSpec::new(*f),
-        (None, Some(p)) => idexp::data::logs::LogSpec::read(p)?,
-        (None, None) if a.topic.is_some() || a.resample.is_some() => {
-            bail!("identify: --topic and --resample are for robot logs: give --log-format or --log-map")
+    use idexp::data::logs::LogSpec;
+    if a.log_format.is_none() && a.log_map.is_none() {
+        if a.topic.is_some() || a.resample.is_some() {
+            bail!("identify: --topic and --resample are for robot logs: give --log-format or --log-map");
         }
-        (None, None) => return Ok(None),
-    };
-    if let Some(t) = &a.topic {
-        spec.topic = Some(t.clone());
+        return Ok(None);
     }
-    spec.validate("identify --log-format/--log-map/--topic")?;
-    Ok(Some(spec))
+    let map = a.log_map.as_deref().map(LogSpec::read).transpose()?;
+    let name = a.log_map.as_ref().map_or_else(|| "identify".to_string(), |p| p.display().to_string());
+    Ok(Some(LogSpec::resolve(map, &name, a.log_format, a.topic.clone(), None)?))
 }
 
 /// The one-run form as a one-experiment study: the run (and validation run)

@@ -55,32 +55,10 @@ pub enum LogCmd {
 
 /// The spec from `--map`, `--format` and `--topic`.
 fn spec_of(log: &Path, format: Option<&str>, map: Option<&Path>, topic: Option<&str>) -> anyhow::Result<LogSpec> {
-    let mut spec = match map {
-        Some(m) => LogSpec::read(m)?,
-        None => {
-            let f = match format {
-                Some(f) => f.parse::<LogFormat>()?,
-                None if log.is_dir() || log.extension().is_some_and(|e| e == "mcap" || e == "db3") => LogFormat::Bag,
-                None => anyhow::bail!(
-                    "{}: give the log's form with --format rtde|csv|headerless|bag (csv and headerless also need --map FILE with the column map)",
-                    log.display()
-                ),
-            };
-            LogSpec::new(f)
-        }
-    };
-    if let Some(f) = format {
-        let f = f.parse::<LogFormat>()?;
-        if map.is_some() && f != spec.format {
-            anyhow::bail!("--format {f} but the map file says format = \"{}\"", spec.format);
-        }
-        spec.format = f;
-    }
-    if let Some(t) = topic {
-        spec.topic = Some(t.to_string());
-    }
-    spec.validate(&map.map_or_else(|| "command line".to_string(), |m| m.display().to_string()))?;
-    Ok(spec)
+    let m = map.map(LogSpec::read).transpose()?;
+    let name = map.map_or_else(|| "command line".to_string(), |m| m.display().to_string());
+    let f = format.map(str::parse::<LogFormat>).transpose()?;
+    Ok(LogSpec::resolve(m, &name, f, topic.map(String::from), Some(log))?)
 }
 
 /// Runs a log subcommand (nothing long-running: the control is unused).

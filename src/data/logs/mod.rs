@@ -244,6 +244,40 @@ impl LogSpec {
         }
     }
 
+    /// The spec a front end asks for: a map (`map`, read from a file or
+    /// given as data; `map_name` names it in messages), else the spec of
+    /// `format`, else — for a folder or an `.mcap`/`.db3` file `log` — a bag;
+    /// `format` and `topic` override the map's (a `format` that contradicts
+    /// the map is an error). Validated; errors name `map_name`.
+    pub fn resolve(map: Option<LogSpec>, map_name: &str, format: Option<LogFormat>, topic: Option<String>, log: Option<&Path>) -> Result<LogSpec> {
+        let mut spec = match (map, format) {
+            (Some(m), Some(f)) if m.format != f => {
+                return Err(Error::invalid(
+                    map_name,
+                    "format",
+                    format!("the map says format = \"{}\", but {f} was asked: give one of them", m.format),
+                ))
+            }
+            (Some(m), _) => m,
+            (None, Some(f)) => LogSpec::new(f),
+            (None, None) => match log {
+                Some(l) if l.is_dir() || l.extension().is_some_and(|e| e == "mcap" || e == "db3") => LogSpec::new(LogFormat::Bag),
+                _ => {
+                    return Err(Error::invalid(
+                        log.map_or_else(|| map_name.to_string(), |l| l.display().to_string()),
+                        "format",
+                        "give the log's form (rtde, csv, headerless, bag; csv and headerless also need the column map)",
+                    ))
+                }
+            },
+        };
+        if topic.is_some() {
+            spec.topic = topic;
+        }
+        spec.validate(map_name)?;
+        Ok(spec)
+    }
+
     /// Reads and validates a map file (TOML).
     pub fn read(path: &Path) -> Result<LogSpec> {
         let spec: LogSpec = crate::io::read_toml(path)?;
