@@ -26,10 +26,8 @@ fn load(name: &str) -> Robot {
     robot::load(&root(&format!("designs/robots/{name}.toml"))).unwrap()
 }
 
-/// Deterministic values in (−scale, scale).
-fn values(n: usize, scale: f64, seed: f64) -> Vec<f64> {
-    (0..n).map(|i| scale * ((i as f64 + 1.0) * 12.9898 + seed * 78.233).sin()).collect()
-}
+mod excite_fd;
+use excite_fd::values;
 
 #[test]
 fn bspline_objective_gradient_matches_finite_differences() {
@@ -56,25 +54,8 @@ fn bspline_objective_gradient_matches_finite_differences() {
             },
         )
         .unwrap();
-        let mut w = o.workspace();
-        let x = values(lay.n_vars(), 0.6, 1.0);
-        let mut g = vec![0.0; x.len()];
-        let f = o.value_grad(&x, &mut w, &mut g);
-        assert!(f.is_finite() && f > 1.0, "{crit:?}: {f}");
-        let gmax = g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        assert!(gmax > 0.0);
-        let h = 1e-6;
-        for i in 0..x.len() {
-            let (mut xp, mut xm) = (x.clone(), x.clone());
-            xp[i] += h;
-            xm[i] -= h;
-            let fd = (o.value(&xp, &mut w) - o.value(&xm, &mut w)) / (2.0 * h);
-            assert!(
-                (fd - g[i]).abs() <= 1e-4 * gmax + 1e-6 * g[i].abs(),
-                "{crit:?} var {i}: analytic {} vs fd {fd}",
-                g[i]
-            );
-        }
+        let f = excite_fd::check_objective_gradient(&o, &values(lay.n_vars(), 0.6, 1.0), &format!("{crit:?}"));
+        assert!(f > 1.0, "{crit:?}: {f}");
     }
 }
 
@@ -99,34 +80,7 @@ fn bspline_constraint_gradients_match_finite_differences() {
         },
     }];
     let c = Constraints::new(r.clone(), lay.clone(), &limits, &cart, 200.0, "test").unwrap();
-    let mut cw = c.workspace();
-    let nv = lay.n_vars();
-    let x = values(nv, 0.3, 2.0);
-    let mut val = vec![0.0; c.len()];
-    let mut jac = vec![0.0; c.len() * nv];
-    c.eval(&x, &mut cw, &mut val, Some(&mut jac));
-    let (mut vp, mut vm) = (vec![0.0; c.len()], vec![0.0; c.len()]);
-    let h = 1e-7;
-    let mut nonzero = 0;
-    for v in 0..nv {
-        let (mut xp, mut xm) = (x.clone(), x.clone());
-        xp[v] += h;
-        xm[v] -= h;
-        c.eval(&xp, &mut cw, &mut vp, None);
-        c.eval(&xm, &mut cw, &mut vm, None);
-        for i in 0..c.len() {
-            let fd = (vp[i] - vm[i]) / (2.0 * h);
-            let an = jac[i * nv + v];
-            nonzero += usize::from(an != 0.0);
-            let rowmax = (0..nv).map(|k| jac[i * nv + k].abs()).fold(0.0, f64::max);
-            assert!(
-                (fd - an).abs() <= 2e-4 * rowmax.max(1e-6),
-                "constraint `{}` var {v}: analytic {an} vs fd {fd}",
-                c.info[i].name
-            );
-        }
-    }
-    assert!(nonzero > c.len(), "the Jacobian is not trivially zero");
+    excite_fd::check_constraint_jacobian(&c, &values(lay.n_vars(), 0.3, 2.0), |_| 2e-4);
 }
 
 #[test]

@@ -12,13 +12,11 @@ use idexp::optim::Control;
 use idexp::trajectory::{Motion, TrajectoryShape};
 use std::path::{Path, PathBuf};
 
+mod excite_fd;
+use excite_fd::values;
+
 fn root(p: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
-}
-
-/// Deterministic values in (−scale, scale).
-fn values(n: usize, scale: f64, seed: f64) -> Vec<f64> {
-    (0..n).map(|i| scale * ((i as f64 + 1.0) * 12.9898 + seed * 78.233).sin()).collect()
 }
 
 fn problem() -> Problem {
@@ -31,68 +29,22 @@ fn free_ends_objective_gradient_matches_finite_differences() {
     let nv = p.shape.n_vars();
     // 12 interior control points + start + end per joint
     assert_eq!(nv, 6 * 12);
-    let o = &p.objective;
-    let mut w = o.workspace();
     for seed in [1.0, 2.0] {
-        let x = values(nv, 0.4, seed);
-        let mut g = vec![0.0; nv];
-        let f = o.value_grad(&x, &mut w, &mut g);
-        assert!(f.is_finite() && f > 1.0, "{f}");
-        let gmax = g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        assert!(gmax > 0.0);
-        let h = 1e-6;
-        for i in 0..nv {
-            let (mut xp, mut xm) = (x.clone(), x.clone());
-            xp[i] += h;
-            xm[i] -= h;
-            let fd = (o.value(&xp, &mut w) - o.value(&xm, &mut w)) / (2.0 * h);
-            assert!(
-                (fd - g[i]).abs() <= 1e-4 * gmax + 1e-6 * g[i].abs(),
-                "seed {seed} var {i}: analytic {} vs fd {fd}",
-                g[i]
-            );
-        }
+        let f = excite_fd::check_objective_gradient(&p.objective, &values(nv, 0.4, seed), &format!("seed {seed}"));
+        assert!(f > 1.0, "{f}");
     }
 }
 
 #[test]
 fn free_ends_constraint_gradients_match_finite_differences() {
     let p = problem();
-    let c = &p.constraints;
-    let mut cw = c.workspace();
-    let nv = p.shape.n_vars();
-    let x = values(nv, 0.3, 3.0);
-    let mut val = vec![0.0; c.len()];
-    let mut jac = vec![0.0; c.len() * nv];
-    c.eval(&x, &mut cw, &mut val, Some(&mut jac));
-    let (mut vp, mut vm) = (vec![0.0; c.len()], vec![0.0; c.len()]);
-    let h = 1e-7;
-    let mut nonzero = 0;
-    for v in 0..nv {
-        let (mut xp, mut xm) = (x.clone(), x.clone());
-        xp[v] += h;
-        xm[v] -= h;
-        c.eval(&xp, &mut cw, &mut vp, None);
-        c.eval(&xm, &mut cw, &mut vm, None);
-        for i in 0..c.len() {
-            let fd = (vp[i] - vm[i]) / (2.0 * h);
-            let an = jac[i * nv + v];
-            nonzero += usize::from(an != 0.0);
-            let rowmax = (0..nv).map(|k| jac[i * nv + k].abs()).fold(0.0, f64::max);
-            // the distances between convex hulls: the witness points' gradient
-            // holds while the closest features stay the same, which a step of
-            // 1e-7 over a 50 Hz grid refined by a parabola does not always keep
-            let tol = if c.info[i].name.starts_with("distance") { 0.1 } else { 1e-3 };
-            assert!(
-                (fd - an).abs() <= tol * rowmax.max(1e-6),
-                "constraint `{}` var {v}: analytic {an} vs fd {fd}",
-                c.info[i].name
-            );
-        }
-    }
+    let x = values(p.shape.n_vars(), 0.3, 3.0);
+    // the distances between convex hulls: the witness points' gradient
+    // holds while the closest features stay the same, which a step of
+    // 1e-7 over a 50 Hz grid refined by a parabola does not always keep;
     // 1e-3 of the row elsewhere: the torque constraints are maxima over a grid refined by a parabola,
     // whose envelope gradient differs from the difference quotient by the parabola's curvature term
-    assert!(nonzero > c.len(), "the Jacobian is not trivially zero");
+    excite_fd::check_constraint_jacobian(&p.constraints, &x, |name| if name.starts_with("distance") { 0.1 } else { 1e-3 });
 }
 
 #[test]

@@ -274,3 +274,128 @@ fn epigraph_refinement_with_collision_is_the_same_on_one_thread_and_on_two() {
         two.x.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
     );
 }
+
+/// The bench problem with a restart budget that outlasts any evaluation budget below.
+fn budget_problem(max_evaluations: Option<u64>, elites: usize) -> Problem {
+    bench_problem(|d| {
+        d.refine.starts = 2;
+        d.refine.max_evals = 40;
+        d.refine.restarts = 1000;
+        d.refine.parallel = 1;
+        d.refine.elites = elites;
+        d.max_evaluations = max_evaluations;
+    })
+}
+
+fn total_evaluations(r: &idexp::excitation::ExciteResult) -> u64 {
+    r.ga.evaluations + r.refinements.iter().map(|f| f.evaluations).sum::<u64>()
+}
+
+#[test]
+fn more_evaluations_never_give_a_worse_design_and_the_progress_says_when_it_improved() {
+    // an evaluation budget (max_evaluations) cuts one deterministic sequence
+    // of refinements: four times the budget runs the same refinements first,
+    // so its design is never worse; the progress is the running minimum of
+    // the GA's feasible best and the feasible refinements
+    let short = run(&budget_problem(Some(400), 1), &Control::new()).unwrap();
+    let long = run(&budget_problem(Some(1600), 1), &Control::new()).unwrap();
+    for (r, budget) in [(&short, 400), (&long, 1600)] {
+        let n = total_evaluations(r);
+        assert!((budget..=budget + 12).contains(&n), "{n} evaluations for a budget of {budget}");
+        let said = r.stopped_by.as_ref().map(|s| s.to_string()).unwrap_or_default();
+        assert!(said.contains("evaluation budget"), "stopped by: {said}");
+        // the running minimum, recomputed from the GA's history and the refinements
+        let mut best = f64::INFINITY;
+        let mut expected = Vec::new();
+        for g in &r.ga.history {
+            if g.best_feasible < best {
+                best = g.best_feasible;
+                expected.push((g.evaluations, best));
+            }
+        }
+        let mut e = r.ga.evaluations;
+        for f in &r.refinements {
+            e += f.evaluations;
+            if f.violation == 0.0 && f.end < best {
+                best = f.end;
+                expected.push((e, best));
+            }
+        }
+        let got: Vec<(u64, f64)> = r.progress.iter().map(|q| (q.evaluations, q.best)).collect();
+        assert_eq!(got, expected);
+        assert!(r
+            .progress
+            .windows(2)
+            .all(|w| w[1].seconds >= w[0].seconds && w[1].evaluations > w[0].evaluations));
+        assert!(r.progress.last().unwrap().seconds <= r.seconds);
+        assert!(r
+            .ga
+            .history
+            .windows(2)
+            .all(|w| w[1].evaluations > w[0].evaluations && w[1].seconds >= w[0].seconds));
+    }
+    // the same refinements up to the one the short budget cut (the last:
+    // none starts once the budget is spent)
+    assert!(short.refinements.last().unwrap().evaluations > 0);
+    let whole = short.refinements.len() - 1;
+    assert!(whole >= 3, "{} refinements", short.refinements.len());
+    for (a, b) in short.refinements[..whole].iter().zip(&long.refinements) {
+        assert_eq!(a.end.to_bits(), b.end.to_bits());
+        assert_eq!(a.evaluations, b.evaluations);
+    }
+    assert!(long.refinements.len() > short.refinements.len());
+    assert!(long.criterion <= short.criterion, "4x the budget: {} vs {}", long.criterion, short.criterion);
+}
+
+#[test]
+fn elite_restarts_perturb_the_best_points_in_turn() {
+    let budget = Some(900);
+    let default = run(&budget_problem(budget, 1), &Control::new()).unwrap();
+    let three = run(&budget_problem(budget, 3), &Control::new()).unwrap();
+    // the two GA starts and the first round (from the best point: the first
+    // elite) are the same; the second round perturbs the second-best point
+    for k in 0..4 {
+        assert_eq!(default.refinements[k].end.to_bits(), three.refinements[k].end.to_bits(), "refinement {}", k + 1);
+    }
+    assert!(three.refinements.len() > 6);
+    // the restarts of round 2 start near the second-best point, not at the best one
+    assert_ne!(default.refinements[4].start.to_bits(), three.refinements[4].start.to_bits());
+    // elites = 1 (the default) is the search as before the field
+    assert_eq!(idexp::excitation::RefineSpec::default().elites, 1);
+    let mut d = ExciteDesign::load(&root("designs/excite_ur5_bench_pi.toml")).unwrap();
+    for (field, edit) in [
+        (
+            "refine.elites",
+            Box::new(|d: &mut ExciteDesign| d.refine.elites = 0) as Box<dyn Fn(&mut ExciteDesign)>,
+        ),
+        ("max_evaluations", Box::new(|d: &mut ExciteDesign| d.max_evaluations = Some(0))),
+    ] {
+        edit(&mut d);
+        let e = d.validate("bench.toml").unwrap_err().to_string();
+        assert!(e.contains("bench.toml") && e.contains(field) && e.contains('0'), "{e}");
+        d = ExciteDesign::load(&root("designs/excite_ur5_bench_pi.toml")).unwrap();
+    }
+}
+
+#[test]
+fn the_report_records_the_progress_and_draws_it() {
+    let p = budget_problem(Some(300), 1);
+    let r = run(&p, &Control::new()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    idexp::excitation::report::write_outputs(&p, &r, dir.path()).unwrap();
+    let rep: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("report.json")).unwrap()).unwrap();
+    let prog = rep["result"]["progress"].as_array().unwrap();
+    assert_eq!(prog.len(), r.progress.len());
+    for (j, q) in prog.iter().zip(&r.progress) {
+        assert_eq!(j["best"].as_f64().unwrap(), q.best);
+        assert_eq!(j["evaluations"].as_u64().unwrap(), q.evaluations);
+        assert!(j["seconds"].as_f64().unwrap() >= 0.0 && j["from"].as_str().is_some());
+    }
+    let h = &rep["result"]["ga"]["history"][0];
+    assert!(h["seconds"].as_f64().is_some() && h["evaluations"].as_u64() == Some(12), "{h}");
+    assert_eq!(rep["design"]["max_evaluations"].as_u64(), Some(300));
+    let svg = std::fs::read_to_string(dir.path().join("search_progress.svg")).unwrap();
+    assert!(svg.contains("<svg") && svg.contains("evaluations"), "{}", &svg[..svg.len().min(300)]);
+    let txt = std::fs::read_to_string(dir.path().join("report.txt")).unwrap();
+    assert!(txt.contains("search progress"), "{txt}");
+}

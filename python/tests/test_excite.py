@@ -215,3 +215,40 @@ def test_bspline_design_from_the_file(tmp_path):
     s = r.sample(1000.0)
     assert s["t"].shape[0] == 10000
     assert np.allclose(s["qd"][0], 0.0, atol=1e-12) and np.allclose(s["qdd"][0], 0.0, atol=1e-12)
+
+
+def test_progress_and_an_evaluation_budget_from_a_dict(tmp_path):
+    """max_evaluations and refine.elites pass through a dict design; the
+    report's progress is the running minimum of the GA's feasible best and the
+    feasible refinements, and four times the budget runs the same refinements
+    first, so its design is never worse."""
+    spec = tomllib.loads(small_design(tmp_path).read_text())
+    spec["refine"].update(restarts=1000, perturb=0.2, elites=2)
+    runs = {}
+    for budget in (250, 1000):
+        spec["max_evaluations"] = budget
+        r = idexp.excite(spec, seed=3)
+        rep = r.report
+        n = rep["ga"]["evaluations"] + sum(f["evaluations"] for f in rep["refinements"])
+        assert budget <= n <= budget + 12
+        assert "evaluation budget" in str(r.stopped_by)
+        best, expected, e = float("inf"), [], 0
+        for g in rep["ga"]["history"]:
+            if g["best_feasible"] < best:
+                best = g["best_feasible"]
+                expected.append((g["evaluations"], best))
+        e = rep["ga"]["evaluations"]
+        for f in rep["refinements"]:
+            e += f["evaluations"]
+            if f["violation"] == 0.0 and f["end"] < best:
+                best = f["end"]
+                expected.append((e, best))
+        assert [(q["evaluations"], q["best"]) for q in rep["progress"]] == expected
+        runs[budget] = r
+    short, long = runs[250].report["refinements"], runs[1000].report["refinements"]
+    assert len(long) > len(short) >= 2
+    assert [f["end"] for f in short[:-1]] == [f["end"] for f in long[: len(short) - 1]]
+    assert runs[1000].criterion <= runs[250].criterion
+    spec["refine"]["elites"] = 0
+    with pytest.raises(idexp.IdexpError, match="elites"):
+        idexp.excite(spec)

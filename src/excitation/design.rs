@@ -6,6 +6,8 @@
 //! robot = "robots/ur5.toml"         # relative to this file
 //! seed = 1
 //! time_limit = 60.0                 # optional wall-clock budget (s); results then depend on the machine
+//! max_evaluations = 200000          # optional budget of criterion evaluations (GA + refinements): the same
+//!                                   # result on any machine and load (with a GA of fixed length)
 //!
 //! [trajectory]
 //! harmonics = 5                     # n_h
@@ -93,6 +95,8 @@
 //! perturb = 0.05                    # ... this fraction of each variable's half range (uniform)
 //! stall = 0                         # > 0: after this many rounds of restarts without a better point,
 //!                                   # the restarts move on to the next two GA individuals, refined (0: never)
+//! elites = 1                        # > 1: the rounds of restarts perturb the best `elites` distinct
+//!                                   # refined points in turn (1: always the best point so far)
 //! polish = 0                        # > 0: after each SLSQP stage, MMA for at most this many evaluations
 //!                                   # from SLSQP's last iterate (feasible iterates; the better point is kept)
 //! ```
@@ -118,6 +122,11 @@ pub struct ExciteDesign {
     /// Optional wall-clock budget in seconds for the whole search (GA + refinement).
     #[serde(default)]
     pub time_limit: Option<f64>,
+    /// Optional budget of criterion evaluations for the whole search (the
+    /// GA's individuals and every refinement's evaluations): the search stops
+    /// where it is when it is spent, whatever the machine's speed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_evaluations: Option<u64>,
     /// Trajectory parameterisation.
     #[serde(default)]
     pub trajectory: TrajectorySpec,
@@ -482,10 +491,19 @@ pub struct RefineSpec {
     /// feasible points near where SLSQP went.
     #[serde(skip_serializing_if = "is_zero")]
     pub polish: u32,
+    /// How many of the best distinct refined points the rounds of restarts
+    /// perturb, in turn (round r from the (r mod k)-th best so far; 1: the
+    /// best point so far, as before this field).
+    #[serde(skip_serializing_if = "is_one")]
+    pub elites: usize,
 }
 
 fn is_zero(v: &u32) -> bool {
     *v == 0
+}
+
+fn is_one(v: &usize) -> bool {
+    *v == 1
 }
 
 impl Default for RefineSpec {
@@ -504,6 +522,7 @@ impl Default for RefineSpec {
             perturb: 0.05,
             stall: 0,
             polish: 0,
+            elites: 1,
         }
     }
 }
@@ -556,6 +575,9 @@ impl ExciteDesign {
             if !(t.is_finite() && t > 0.0) {
                 return bad("time_limit", format!("expected a positive number of seconds, got {t}"));
             }
+        }
+        if self.max_evaluations == Some(0) {
+            return bad("max_evaluations", "expected a positive number of criterion evaluations, got 0".into());
         }
         let tr = &self.trajectory;
         if tr.harmonics == 0 || tr.harmonics > 50 || (tr.at_rest && tr.harmonics < 2) {
@@ -683,6 +705,15 @@ impl ExciteDesign {
             return bad(
                 "refine.stall",
                 format!("expected 0 (never) or a number of rounds up to 1000000, got {}", r.stall),
+            );
+        }
+        if r.elites == 0 || r.elites > 1000 {
+            return bad(
+                "refine.elites",
+                format!(
+                    "expected 1 (the best point) to 1000 distinct refined points perturbed in turn, got {}",
+                    r.elites
+                ),
             );
         }
         if r.parallel == 0 || r.parallel > 64 {

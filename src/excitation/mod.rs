@@ -30,7 +30,8 @@
 //!    nlopt SLSQP or MMA, analytic gradients (dσ_i = u_iᵀ dC v_i through the
 //!    regressor derivatives and the Fourier basis; envelope-theorem gradients
 //!    of the constraint extrema); optionally (`refine.restarts`) restarts
-//!    from perturbed copies of the best refined point (basin hopping), and
+//!    from perturbed copies of the best refined point (basin hopping; with
+//!    `refine.elites = k`, of the k best distinct refined points in turn), and
 //!    (`refine.bundle`) the epigraph form of the condition number over the
 //!    eigenvalues at both ends of the spectrum ([`refine`]).
 //! 3. The report ([`report`]): criterion, condition number, singular values,
@@ -40,7 +41,11 @@
 //!    rate, reloadable coefficients, SVG plots.
 //!
 //! Results depend only on the design (and its seed), not on the thread count,
-//! unless a wall-clock `time_limit` cuts the search short.
+//! unless a wall-clock `time_limit` cuts the search short (an evaluation
+//! budget, `max_evaluations`, does not make them depend on the machine). The
+//! refinements after the GA are one sequence that a budget only cuts, so with
+//! a GA of fixed length a longer budget never gives a worse design;
+//! [`ExciteResult::progress`] records when the best design improved.
 
 pub mod constraints;
 pub mod design;
@@ -203,6 +208,10 @@ pub struct ExciteResult {
     pub ga: GaSummary,
     /// One entry per refinement start.
     pub refinements: Vec<RefineSummary>,
+    /// The search's best feasible criterion (on the design grid) each time
+    /// it improved: the GA's generations, then the refinements in the order
+    /// they ran (search_progress.svg).
+    pub progress: Vec<ProgressPoint>,
     /// Where the final design came from (`ga` or `refine #k`).
     pub chosen: String,
     /// The trajectory as delivered to the robot (rest to rest, N periods;
@@ -212,6 +221,83 @@ pub struct ExciteResult {
     pub seconds: f64,
     /// Worker threads used.
     pub threads: usize,
+}
+
+/// One improvement of the search's best feasible criterion (report.json
+/// `result.progress`). The values are the search's, on the design grid
+/// (`objective.sample_rate`); the design finally chosen is verified on the
+/// check grid afterwards (result.criterion, result.chosen).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ProgressPoint {
+    /// Seconds from the start of the run when the point was known (the end
+    /// of its GA generation, of its batch of refinements).
+    pub seconds: f64,
+    /// Criterion evaluations up to then: the GA's individuals and every
+    /// refinement's objective evaluations.
+    pub evaluations: u64,
+    /// The best feasible criterion so far.
+    pub best: f64,
+    /// Where it came from: `GA generation g` or `refine #k` (as in `chosen`).
+    pub from: String,
+}
+
+/// The improvements of the best feasible criterion: the GA history's
+/// generations (at their own clock, `ga_offset` seconds after the run
+/// started), then the refinements in order, refinement k known `ended[k]`
+/// seconds after the start.
+fn progress_of(ga_offset: f64, history: &[ga::GaGeneration], ga_evaluations: u64, refinements: &[refine::RefineOutcome], ended: &[f64]) -> Vec<ProgressPoint> {
+    let mut out: Vec<ProgressPoint> = Vec::new();
+    let mut best = f64::INFINITY;
+    for g in history {
+        if g.best_feasible < best {
+            best = g.best_feasible;
+            out.push(ProgressPoint {
+                seconds: ga_offset + g.seconds,
+                evaluations: g.evaluations,
+                best,
+                from: format!("GA generation {}", g.generation),
+            });
+        }
+    }
+    let mut evaluations = ga_evaluations;
+    for (k, (r, &t)) in refinements.iter().zip(ended).enumerate() {
+        evaluations += r.evaluations;
+        if r.violation <= 0.0 && r.f < best {
+            best = r.f;
+            out.push(ProgressPoint {
+                seconds: t,
+                evaluations,
+                best,
+                from: format!("refine #{}", k + 1),
+            });
+        }
+    }
+    out
+}
+
+/// The best `k` distinct refined points, feasibility first then criterion
+/// (two points are the same when every variable agrees to 1e-9 of its box).
+fn elite_points(refinements: &[refine::RefineOutcome], k: usize, lower: &[f64], upper: &[f64]) -> Vec<ga::Individual> {
+    let mut all: Vec<ga::Individual> = refinements
+        .iter()
+        .map(|r| ga::Individual {
+            x: r.x.clone(),
+            f: r.f,
+            violation: r.violation,
+        })
+        .collect();
+    all.sort_by(|a, b| a.cmp_fitness(b));
+    let mut out: Vec<ga::Individual> = Vec::new();
+    for c in all {
+        if out.len() == k {
+            break;
+        }
+        let same = |o: &ga::Individual| (0..c.x.len()).all(|i| (c.x[i] - o.x[i]).abs() <= 1e-9 * (upper[i] - lower[i]).max(1e-300));
+        if !out.iter().any(same) {
+            out.push(c);
+        }
+    }
+    out
 }
 
 /// GA statistics in the report.
@@ -452,7 +538,12 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
     let t0 = Instant::now();
     let d = &p.design;
     // 3 % of the budget is left for the verification on the check grid
-    let ctl_all = ctl.sub(d.time_limit.map(|t| 0.97 * t));
+    let mut ctl_all = ctl.sub(d.time_limit.map(|t| 0.97 * t));
+    if let Some(n) = d.max_evaluations {
+        // the evaluations the caller's control already counted are not this run's
+        let n = ctl.evaluations().saturating_add(n);
+        ctl_all = ctl_all.with_max_evals(Some(ctl.max_evals().map_or(n, |m| m.min(n))));
+    }
     let ctl_ga = ctl_all.sub(d.time_limit.map(|t| t * d.ga.time_fraction));
     let obs = ctl.observer();
     // shrink centre: the motion at rest at q0 (harmonics, control-point offsets zero)
@@ -465,6 +556,7 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
             p.evaluate(x, ow, cw, c)
         },
     };
+    let gares_started = Instant::now();
     let gares = ga::run(
         &d.ga,
         d.seed,
@@ -497,6 +589,9 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
         }
     }
     let mut refinements: Vec<refine::RefineOutcome> = Vec::new();
+    // when each refinement was known (the end of its batch), seconds from t0
+    let mut ended: Vec<f64> = Vec::new();
+    let stamp = |ended: &mut Vec<f64>, n: usize| ended.resize(n, t0.elapsed().as_secs_f64());
     if d.refine.algorithm != RefineAlgorithm::None && gares.stop != ga::GaStop::Interrupted {
         let first = d.refine.starts.min(starts.len());
         obs.phase("excite refine", Some(first as u64));
@@ -523,6 +618,7 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
                 break;
             }
             refinements.extend(refine_batch(chunk));
+            stamp(&mut ended, refinements.len());
             obs.progress(refinements.len() as u64, "");
         }
         // `refine.restarts` perturbed copies of a centre, in rounds of
@@ -532,7 +628,9 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
         // with `refine.stall = s > 0`, after s rounds without a better point
         // the next RESTART_ROUND GA individuals not yet refined are refined and
         // the better becomes the centre (a new basin); the best point over all
-        // is kept
+        // is kept. With `refine.elites = e > 1`, round r perturbs the
+        // (r mod e)-th of the best e distinct refined points so far instead
+        // (the stall rule then only brings the next GA individuals in)
         let fitness = |r: &refine::RefineOutcome| ga::Individual {
             x: r.x.clone(),
             f: r.f,
@@ -546,9 +644,16 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
             let Some(c) = centre.as_ref() else {
                 break;
             };
+            let from_elite = if d.refine.elites > 1 {
+                let pool = elite_points(&refinements, d.refine.elites, &p.lower, &p.upper);
+                pool.get((k / RESTART_ROUND) % pool.len().max(1)).cloned()
+            } else {
+                None
+            };
+            let around = from_elite.as_ref().unwrap_or(c);
             let xs: Vec<Vec<f64>> = (k..(k + RESTART_ROUND).min(d.refine.restarts))
                 .map(|i| {
-                    let mut x = refine::perturb(&c.x, &p.lower, &p.upper, d.refine.perturb, crate::rng::mix(d.seed, i as u64, 7));
+                    let mut x = refine::perturb(&around.x, &p.lower, &p.upper, d.refine.perturb, crate::rng::mix(d.seed, i as u64, 7));
                     p.constraints.repair_joints(&mut x, &p.limits, 1e-6);
                     x
                 })
@@ -556,7 +661,11 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
             k += xs.len();
             let from = refinements.len();
             for chunk in xs.chunks(batch) {
+                if ctl_all.should_stop() {
+                    break;
+                }
                 refinements.extend(refine_batch(chunk));
+                stamp(&mut ended, refinements.len());
             }
             let round = refinements[from..].iter().map(fitness).min_by(|a, b| a.cmp_fitness(b));
             match round {
@@ -570,7 +679,11 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
                 let to = (next_ga + RESTART_ROUND).min(ga_x.len());
                 let from = refinements.len();
                 for chunk in ga_x[next_ga..to].chunks(batch) {
+                    if ctl_all.should_stop() {
+                        break;
+                    }
                     refinements.extend(refine_batch(chunk));
+                    stamp(&mut ended, refinements.len());
                 }
                 next_ga = to;
                 centre = refinements[from..].iter().map(fitness).min_by(|a, b| a.cmp_fitness(b));
@@ -578,12 +691,13 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
             }
             obs.progress(refinements.len() as u64, "");
         }
-        if ctl_all.deadline().is_some() {
+        if ctl_all.deadline().is_some() || ctl_all.max_evals().is_some() {
             for chunk in ga_x[next_ga..].chunks(batch) {
                 if ctl_all.should_stop() {
                     break;
                 }
                 refinements.extend(refine_batch(chunk));
+                stamp(&mut ended, refinements.len());
                 obs.progress(refinements.len() as u64, "");
             }
         }
@@ -659,7 +773,11 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
         Status::Infeasible
     };
     let last = gares.history.last();
+    // the GA started when the run did (its clock is its own: the offset is the setup before it, ~0)
+    let ga_offset = (gares_started - t0).as_secs_f64();
+    let progress = progress_of(ga_offset, &gares.history, gares.evaluations, &refinements, &ended);
     Ok(ExciteResult {
+        progress,
         status,
         stopped_by,
         x,

@@ -162,6 +162,10 @@ pub struct GaGeneration {
     pub least_violation: f64,
     /// Number of feasible individuals.
     pub feasible: usize,
+    /// Seconds from the start of the GA to the end of this generation.
+    pub seconds: f64,
+    /// Evaluations up to the end of this generation.
+    pub evaluations: u64,
 }
 
 /// Result of a GA run.
@@ -290,6 +294,8 @@ pub struct Ga<'a> {
     pub evaluations: u64,
     /// Generations completed.
     pub generations: usize,
+    /// When the GA started (the history's clock).
+    t0: Instant,
 }
 
 impl<'a> Ga<'a> {
@@ -309,6 +315,7 @@ impl<'a> Ga<'a> {
             history: Vec::new(),
             evaluations: 0,
             generations: 0,
+            t0: Instant::now(),
         }
     }
 
@@ -336,6 +343,8 @@ impl<'a> Ga<'a> {
             best_feasible: pop.iter().filter(|i| i.feasible()).map(|i| i.f).fold(f64::INFINITY, f64::min),
             least_violation: pop.iter().map(|i| i.violation).fold(f64::INFINITY, f64::min),
             feasible: pop.iter().filter(|i| i.feasible()).count(),
+            seconds: self.t0.elapsed().as_secs_f64(),
+            evaluations: self.evaluations,
         });
         let b = &pop[0];
         let state = state.param(b.x.clone()).cost(if b.feasible() { b.f } else { f64::INFINITY });

@@ -2,7 +2,7 @@
 //! writer of the output folder of `idexp excite`.
 
 use super::assess::{assess, assess_delivered, Identifiability, TimeStats};
-use super::plots::{ee_svg, joints_svg, spectrum_svg};
+use super::plots::{ee_svg, joints_svg, progress_svg, spectrum_svg};
 use super::text::{excite_report_text, fmt_num, ordinal};
 use crate::error::Result;
 use crate::excitation::{Criterion, ExciteResult, Problem, Scaling};
@@ -492,6 +492,15 @@ pub fn write_outputs_with(p: &Problem, r: &ExciteResult, dir: &Path, extra: impl
         &dir.join("singular_values.svg"),
         &r.spectrum.singular_values,
         &format!("{}: singular values", d.name),
+    )?;
+    progress_svg(
+        &dir.join("search_progress.svg"),
+        r,
+        &serde_json::to_value(d.objective.criterion)
+            .ok()
+            .and_then(|v| v.as_str().map(String::from))
+            .unwrap_or_default(),
+        &format!("{}: the search's best over time (seed {})", d.name, d.seed),
     )?;
     joints_svg(p, r, &dir.join("joints.svg"))?;
     ee_svg(p, r, &dir.join("ee_path.svg"))?;

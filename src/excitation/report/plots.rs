@@ -20,6 +20,50 @@ pub(super) fn spectrum_svg(path: &Path, s: &[f64], title: &str) -> Result<()> {
     write_svg(path, title, &[panel], 1)
 }
 
+/// The search's best feasible criterion over time and over evaluations
+/// (result.progress), as steps held until the end of the search.
+pub(super) fn progress_svg(path: &Path, r: &ExciteResult, criterion: &str, title: &str) -> Result<()> {
+    let pts = &r.progress;
+    let steps = |x: &dyn Fn(&crate::excitation::ProgressPoint) -> f64, end: f64| -> (Vec<f64>, Vec<f64>) {
+        let (mut xs, mut ys) = (Vec::new(), Vec::new());
+        for (k, q) in pts.iter().enumerate() {
+            if k > 0 {
+                xs.push(x(q));
+                ys.push(pts[k - 1].best);
+            }
+            xs.push(x(q));
+            ys.push(q.best);
+        }
+        if let Some(q) = pts.last() {
+            xs.push(end.max(x(q)));
+            ys.push(q.best);
+        }
+        (xs, ys)
+    };
+    let log_y = pts.iter().all(|q| q.best > 0.0);
+    let evaluations = r.ga.evaluations + r.refinements.iter().map(|f| f.evaluations).sum::<u64>();
+    let (t, yt) = steps(&|q| q.seconds, r.seconds);
+    let (e, ye) = steps(&|q| q.evaluations as f64, evaluations as f64);
+    let panel = |x_label: &str, x: Vec<f64>, y: Vec<f64>| Panel {
+        title: format!("best feasible {criterion} found (design grid)"),
+        x_label: x_label.into(),
+        y_label: criterion.into(),
+        series: vec![
+            Series::line("best so far", x, y),
+            Series::points(
+                "improvements",
+                pts.iter()
+                    .map(|q| if x_label.starts_with('s') { q.seconds } else { q.evaluations as f64 })
+                    .collect(),
+                pts.iter().map(|q| q.best).collect(),
+            ),
+        ],
+        log_y,
+        ..Default::default()
+    };
+    write_svg(path, title, &[panel("seconds from the start", t, yt), panel("evaluations", e, ye)], 2)
+}
+
 /// The trajectory the plots show: the delivered one (lead-in, periods,
 /// lead-out) when there is one, else one period. Samples at `rate` Hz with
 /// their phase names; each phase as its own run of samples, the first sample

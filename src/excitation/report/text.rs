@@ -426,6 +426,10 @@ fn solver_section(s: &mut String, r: &ExciteResult) {
             }
         );
     }
+    let _ = writeln!(s, "search progress (best feasible criterion on the design grid; search_progress.svg):");
+    for q in &r.progress {
+        let _ = writeln!(s, "  {:>9.2} s {:>10} evaluations  {}  ({})", q.seconds, q.evaluations, fmt_num(q.best), q.from);
+    }
     let _ = writeln!(s, "chosen: {}; total {:.2} s on {} threads", r.chosen, r.seconds, r.threads);
 }
 
