@@ -5,10 +5,10 @@
 //!
 //! `cargo run --release --example ident_rehearsal`
 
-use idexp::ident::{identify, IdentOptions, Run};
-use idexp::params::{BaseOptions, BaseParams};
+use idexp::ident::study::{run_study_with, ExperimentSpec, Given, Inputs, StudyDesign};
+use idexp::ident::Run;
 use idexp::sim::{SimDesign, SimSetup};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 fn main() -> idexp::Result<()> {
     let design: SimDesign = idexp::io::parse_toml(
@@ -33,16 +33,25 @@ seed = 3
     design.validate("rehearsal.toml")?;
     let setup = SimSetup::from_design(&design, Path::new("."), "rehearsal.toml")?;
     let sim = setup.run(&idexp::optim::Control::new())?;
-    let run = Run::new(vec![], sim.reps.clone())?;
-    let robot = &setup.nominal; // identification uses the model structure, not the truth
-    let base = BaseParams::compute(robot, &BaseOptions::default())?;
-    let opts = IdentOptions {
-        harmonics: Some(20),
+    // a study of one experiment, its data given in memory
+    let mut experiment = ExperimentSpec::new(vec![]);
+    experiment.name = "rehearsal".into();
+    experiment.harmonics = Some(20);
+    let design = StudyDesign::one_experiment("rehearsal", PathBuf::from("tests/data/ident/rpr_drives.toml"), experiment);
+    let mut inputs = Inputs {
+        robot: Some(setup.nominal.clone()), // identification uses the model structure, not the truth
+        truth: Some(sim.truth()?),
         ..Default::default()
     };
-    let mut id = identify(robot, &base, &run, setup.reference.fourier(), None, &opts, &idexp::optim::Control::new())?;
-    let truth = sim.truth()?;
-    id.estimate.compare_truth(&truth.base_names, &truth.base)?;
-    print!("{}", id.estimate.text());
+    inputs.entries.insert(
+        "rehearsal".into(),
+        Given {
+            run: Run::new(vec![], sim.reps.clone())?,
+            trajectory: setup.reference.fourier().cloned(),
+            torque_source: idexp::data::TorqueSource::logged_torques(),
+        },
+    );
+    let result = run_study_with(&design, Path::new("."), &inputs, &idexp::optim::Control::new())?;
+    print!("{}", result.estimate.text());
     Ok(())
 }

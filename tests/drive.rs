@@ -466,7 +466,8 @@ fn a_run_of_currents_gives_the_same_estimate_as_the_run_of_torques() {
     let (rt, st) = Run::read_drives(std::slice::from_ref(&dt), &r, None, TorqueFrom::Auto, CURRENT_TOLERANCE).unwrap();
     let (rc, sc) = Run::read_drives(std::slice::from_ref(&dc), &r, None, TorqueFrom::Auto, CURRENT_TOLERANCE).unwrap();
     let (rb, sb) = Run::read_drives(std::slice::from_ref(&db), &r, None, TorqueFrom::Current, CURRENT_TOLERANCE).unwrap();
-    assert_eq!((st.from.as_str(), sc.from.as_str(), sb.from.as_str()), ("torque", "current", "current"));
+    use idexp::data::TorqueColumns::{Current, Torque};
+    assert_eq!((st.from, sc.from, sb.from), (Torque, Current, Current));
     assert_eq!(sc.torque_per_ampere.as_deref(), Some(&[0.12 * 50.0, 0.2 * 1000.0, -0.05 * 30.0][..]));
     let ag = sb.agreement.as_ref().unwrap();
     assert!(ag.iter().all(|&a| a < 1e-12), "{ag:?}");

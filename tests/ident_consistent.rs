@@ -86,7 +86,7 @@ fn consistent_fit_reproduces_wls_on_consistent_data_and_repairs_a_poor_one() {
     let eig = min_eigs(&f64s(&c["standard"]), &robot);
     assert!(eig.iter().all(|&e| e >= margin * (1.0 - 1e-6)), "{eig:?}");
     // same torques as WLS within the noise: e_j on every sample within 1 % of WLS's
-    let (ew, ec) = (f64s(&v["errors_all"]["e"]), f64s(&c["errors_all"]["e"]));
+    let (ew, ec) = (f64s(&v["experiments"][0]["errors_all"]["e"]), f64s(&c["experiments"][0]["e"]));
     for j in 0..ew.len() {
         assert!((ec[j] - ew[j]).abs() <= 0.01 * ew[j], "joint {j}: {} vs {}", ec[j], ew[j]);
     }
@@ -133,7 +133,10 @@ fn consistent_fit_reproduces_wls_on_consistent_data_and_repairs_a_poor_one() {
         }
     }
     // held-out validation: the consistent model is no worse than WLS by more than 10 % (stated margin)
-    let (ew, ec) = (f64s(&v["validation_all"]["e_rel"]), f64s(&c["validation_all"]["e_rel"]));
+    let (ew, ec) = (
+        f64s(&v["validation"][0]["errors_all"]["e_rel"]),
+        f64s(&v["validation"][0]["consistent_all"]["e_rel"]),
+    );
     println!("validation e*_j WLS {ew:?} consistent {ec:?}, implausible {}", v["implausible"]);
     for j in 0..ew.len() {
         assert!(ec[j] <= 1.10 * ew[j] + 1e-3, "joint {j}: {} vs {}", ec[j], ew[j]);
@@ -197,8 +200,13 @@ fn averaged_run_gives_the_estimate_and_covariance_of_its_repetitions() {
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let (raw, av) = (raw.unwrap(), av.unwrap());
-    assert_eq!(av["averaged"], true);
-    assert_eq!(av["n_reps"].as_u64().unwrap() as usize, nr);
+    // one averaged file standing for nr repetitions, its rows weighted by the
+    // variance columns (estimate.json has no `averaged` flag any more)
+    let x = &av["experiments"][0];
+    let files = x["files"].as_array().unwrap();
+    assert!(files.len() == 1 && files[0].as_str().unwrap().ends_with("mean.csv"), "{files:?}");
+    assert_eq!(x["n_reps"].as_u64().unwrap() as usize, nr);
+    assert!(x["weights"].as_array().unwrap().iter().all(|w| w == "sample"), "{}", x["weights"]);
     let (ta, tb) = (f64s(&raw["theta"]), f64s(&av["theta"]));
     let (sa, sb) = (f64s(&raw["std"]), f64s(&av["std"]));
     for i in 0..ta.len() {
@@ -244,16 +252,21 @@ fn bad_averaged_input_and_impossible_exports_are_clear_errors() {
         assert!(e.contains(f.file_name().unwrap().to_str().unwrap()) && e.contains("var_tau2"), "{what}: {e}");
     }
     let e = err(&[robot_file.to_str().unwrap(), avg.to_str().unwrap(), "--repetitions", "1"]);
-    assert!(e.contains("mean.csv") && e.contains("var_tau1") && e.contains("N_r ≥ 2"), "{e}");
+    // the one-run form's entry is named after the file (`mean`) and its
+    // --repetitions is the entry's `repetitions` (the message no longer names
+    // mean.csv nor its var_tau1 column)
+    assert!(e.contains("(mean)") && e.contains("repetitions") && e.contains("N_r ≥ 2"), "{e}");
     let e = err(&[robot_file.to_str().unwrap(), avg.to_str().unwrap()]);
-    assert!(e.contains("--repetitions"), "{e}");
-    // one raw repetition without variances: sample weights are impossible, the message says what is
-    let one = run.join("rep_001.csv");
-    let e = err(&[robot_file.to_str().unwrap(), one.to_str().unwrap()]);
-    assert!(e.contains("rep_001.csv") && e.contains("--weights joint"), "{e}");
+    assert!(e.contains("mean.csv") && e.contains("repetitions = N"), "{e}");
+    // the one-run form is a one-experiment study: its errors name the study
+    // keys (`repetitions`, `export`, [projection] `lags`) of the flags
+    // (--repetitions, --export, --fir-lags)
     // URDF export of a DH robot: says what to write instead
     let e = err(&[robot_file.to_str().unwrap(), run.to_str().unwrap(), "--export", "urdf"]);
-    assert!(e.contains("rpr_drives.toml") && e.contains("--export toml"), "{e}");
+    assert!(
+        e.contains("rpr_drives.toml") && e.contains("field `export`") && e.contains("export \"toml\""),
+        "{e}"
+    );
     // a huge FIR lag is an error, not an allocation
     let e = err(&[
         robot_file.to_str().unwrap(),
@@ -263,7 +276,16 @@ fn bad_averaged_input_and_impossible_exports_are_clear_errors() {
         "--fir-lags",
         "100000000000,1",
     ]);
-    assert!(e.contains("--fir-lags"), "{e}");
+    assert!(e.contains("field `lags`") && e.contains("100000000000"), "{e}");
+    // one raw repetition without variances: sample weights are impossible, the
+    // message says what is (in the study's keys: weights = "auto"; the one-run
+    // form's way out, --weights joint, is not named)
+    let one = run.join("rep_001.csv");
+    let e = err(&[robot_file.to_str().unwrap(), one.to_str().unwrap()]);
+    assert!(
+        e.contains("rep_001") && e.contains("one repetition and no variance columns") && e.contains("weights = \"auto\""),
+        "{e}"
+    );
 }
 
 #[test]

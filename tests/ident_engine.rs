@@ -104,7 +104,14 @@ fn the_one_run_form_is_a_one_experiment_study_for_every_estimator() {
         run(&["identify", study.to_str().unwrap(), "--out", st.to_str().unwrap()]);
         let (a, b) = (estimate(&one), estimate(&st));
         assert_eq!(a, b, "{name}: the one-run form and its study differ");
-        assert_eq!(a["method"], if name == "reduce" || name == "consistent" || name == "wls" { "wls" } else { name });
+        assert_eq!(
+            a["method"],
+            if name == "reduce" || name == "consistent" || name == "wls" {
+                "wls"
+            } else {
+                name
+            }
+        );
         match name {
             "projection" => assert!(a["projection"]["m1"].is_u64(), "{name}: {}", a["projection"]),
             "ml" => assert!(a["ml"]["evaluations"].as_u64().unwrap() > 0),
@@ -112,11 +119,7 @@ fn the_one_run_form_is_a_one_experiment_study_for_every_estimator() {
             "consistent" => {
                 assert_eq!(a["consistent"]["status"], "ok");
                 for f in ["params.csv", "robot.toml"] {
-                    assert_eq!(
-                        std::fs::read(one.join(f)).unwrap(),
-                        std::fs::read(st.join(f)).unwrap(),
-                        "{name}: {f} differs"
-                    );
+                    assert_eq!(std::fs::read(one.join(f)).unwrap(), std::fs::read(st.join(f)).unwrap(), "{name}: {f} differs");
                 }
             }
             _ => {}

@@ -152,22 +152,34 @@ amplitude = 0.6
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // the one-run form writes a one-experiment study's folder: the measured
+    // vs predicted torques per experiment and validation run (the old
+    // torques.svg), the resolved design (the old options.json); the old
+    // residuals.svg and params.svg have no counterpart
+    let est: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(id_out.join("estimate.json")).unwrap()).unwrap();
+    let (name, vname) = (
+        est["experiments"][0]["name"].as_str().unwrap().to_string(),
+        est["validation"][0]["name"].as_str().unwrap().to_string(),
+    );
     for f in [
         "estimate.json",
         "report.txt",
-        "torques.svg",
-        "residuals.svg",
-        "params.svg",
+        "study.json",
+        "params.csv",
+        "experiments.csv",
+        &format!("experiments/{name}.svg"),
+        "validation.csv",
+        &format!("validation/{vname}.csv"),
+        &format!("validation/{vname}.svg"),
         "validation.svg",
+        "reduction.csv",
         "reduction.svg",
-        "options.json",
         "status.json",
     ] {
         assert!(id_out.join(f).exists(), "{f}");
     }
-    let est: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(id_out.join("estimate.json")).unwrap()).unwrap();
     assert!(est["reduction"]["steps"].as_array().is_some_and(|s| !s.is_empty()));
-    assert!(est["validation"]["e"].is_array());
+    assert!(est["validation"][0]["errors"]["e"].is_array());
     // a bad run folder gives a message naming the file
     let bad = d.path().join("bad");
     std::fs::create_dir_all(&bad).unwrap();

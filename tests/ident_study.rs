@@ -513,7 +513,8 @@ fn repetitions_reach_an_averaged_validation_run() {
         .unwrap();
     assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
     let est: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("o/estimate.json")).unwrap()).unwrap();
-    assert!(est["validation_all"]["noise_floor"].is_array(), "{}", est["validation_all"]);
+    let v = &est["validation"][0]["errors_all"];
+    assert!(v["noise_floor"].is_array(), "{v}");
 }
 
 #[test]

@@ -101,7 +101,9 @@ fn one_repetition_and_missing_inputs() {
     let mut res = simulate(&rpr_fourier(1, 5, 11, 2, 1e-5));
     res.reps.truncate(1);
     // one repetition: no sample variances, so sample weights are an error ...
-    let e = try_ident(&res, None, |_| {}).expect_err("sample weights without variances must be refused").to_string();
+    let e = try_ident(&res, None, |_| {})
+        .expect_err("sample weights without variances must be refused")
+        .to_string();
     assert!(e.contains("repetition"), "{e}");
     // ... and per-joint weights take the residuals' variance per joint
     let (id, _) = ident(&res, None, |d| *d = d.clone().repetition_weighted(Weights::Joint));

@@ -244,7 +244,8 @@ fn an_interrupted_run_folder_needs_allow_incomplete() {
     let o = idexp().args(["identify", robot, d, "--out", out.to_str().unwrap()]).output().unwrap();
     assert_eq!(o.status.code(), Some(1));
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("interrupted") && err.contains("--allow-incomplete"), "{err}");
+    // (library errors name the study key `allow_incomplete`, not the flag)
+    assert!(err.contains("interrupted") && err.contains("allow_incomplete"), "{err}");
     let o = idexp()
         .args(["identify", robot, d, "--allow-incomplete", "--out", out.to_str().unwrap()])
         .output()

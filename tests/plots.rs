@@ -182,8 +182,23 @@ fn identification_figures_name_parameters_e_tol_and_both_gravity_branches() {
     let est: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(tmp.path().join("ip/estimate.json")).unwrap()).unwrap();
     let names: Vec<String> = est["names"].as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_string()).collect();
     assert!(names.len() >= 5, "{names:?}");
+    // params.svg: the study folder of the one-run form has none any more; the
+    // figure's panels are still the library's (ident::output::params_panels),
+    // drawn here from the same design (the folder's study.json) as the old
+    // one-run writer drew them
+    let design: idexp::ident::study::StudyDesign = serde_json::from_str(&std::fs::read_to_string(tmp.path().join("ip/study.json")).unwrap()).unwrap();
+    let res = idexp::ident::study::run_study(&design, &root(""), &idexp::optim::Control::new()).unwrap();
+    assert_eq!(res.estimate.names, names);
+    let params_svg = tmp.path().join("ip_params.svg");
+    idexp::io::plot::write_svg(
+        &params_svg,
+        "identified base parameters",
+        &idexp::ident::output::params_panels(&res.estimate),
+        1,
+    )
+    .unwrap();
     // params.svg: every name under each of its two panels, σ error bars in the legend
-    let params = labels_of(&tmp.path().join("ip/params.svg"));
+    let params = labels_of(&params_svg);
     for n in &names {
         assert!(params.iter().filter(|l| *l == n).count() >= 2, "`{n}` not on the x axes: {params:?}");
     }
@@ -221,7 +236,7 @@ fn identification_figures_name_parameters_e_tol_and_both_gravity_branches() {
     }
     // params.svg: each parameter name starts under the bars of its panel,
     // never inside the plot (rotated labels used to be centred on the axis)
-    let svg = std::fs::read_to_string(tmp.path().join("ip/params.svg")).unwrap();
+    let svg = std::fs::read_to_string(&params_svg).unwrap();
     let bars: Vec<[f64; 4]> = elements(&svg, "rect")
         .into_iter()
         .filter(|t| t.contains("fill=\"#1F77B4\""))

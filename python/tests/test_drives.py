@@ -36,8 +36,8 @@ def test_currents_give_the_estimate_of_the_torques(tanh_robot, both_run):
 
 
 def test_standstill_rule_follows_the_friction_shape(tanh_robot, both_run):
-    auto = idexp.identify(tanh_robot, both_run).report["rows_used"]
-    drop = idexp.identify(tanh_robot, both_run, standstill="drop").report["rows_used"]
+    auto = idexp.identify(tanh_robot, both_run).report["experiments"][0]["rows_used"]
+    drop = idexp.identify(tanh_robot, both_run, standstill="drop").report["experiments"][0]["rows_used"]
     assert all(r["used"] == r["total"] for r in auto), auto
     assert all(r["used"] < r["total"] for r in drop), drop
 
@@ -67,8 +67,9 @@ def test_logged_velocities_are_used_unless_told_otherwise(tanh_robot, velocity_r
     auto = idexp.identify(tanh_robot, velocity_run)
     log = idexp.identify(tanh_robot, velocity_run, velocity_from="log")
     pos = idexp.identify(tanh_robot, velocity_run, velocity_from="positions")
-    assert auto.report["velocity"] == log.report["velocity"] == "logged"
-    assert pos.report["velocity"] == "positions"
+    velocity = lambda e: e.report["experiments"][0]["velocity"]
+    assert velocity(auto) == velocity(log) == "logged"
+    assert velocity(pos) == "positions"
     np.testing.assert_array_equal(auto.theta, log.theta)
     # the tanh friction at rest follows the logged velocity, not the
     # differentiated positions: the two estimates differ

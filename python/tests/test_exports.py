@@ -219,7 +219,9 @@ def test_consistent_identification_equals_cli(rpr_run, cli, tmp_path):
         a.export(tmp_path / "x", ["xml"])
     with pytest.raises(ValueError, match="margin"):
         idexp.identify(robot, rpr_run, consistent=True, margin=-1)
-    with pytest.raises(ValueError, match="regularization"):
+    # (regularization is the study's [consistent] weight = { relative = r }:
+    # the message names that key)
+    with pytest.raises(ValueError, match=r"\[consistent\].*`weight`.*relative.*inf"):
         idexp.identify(robot, rpr_run, consistent=True, regularization=float("inf"))
 
 

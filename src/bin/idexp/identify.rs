@@ -209,13 +209,18 @@ fn run_study(a: &IdentifyArgs, ctl: &Control, started: SystemTime) -> anyhow::Re
     let design = idexp::ident::study::StudyDesign::read(&a.robot)?;
     let dir = a.robot.parent().map(Path::to_path_buf).unwrap_or_default();
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&design.name));
-    idexp::io::folder::check_out_dir(&out)?;
-    let res = idexp::ident::study::run_study(&design, &dir, ctl)?;
+    run_design(a, &design, &dir, &out, ctl, started)
+}
+
+/// Runs the study engine on `design` (paths relative to `dir`) into `out`.
+fn run_design(a: &IdentifyArgs, design: &StudyDesign, dir: &Path, out: &Path, ctl: &Control, started: SystemTime) -> anyhow::Result<Outcome> {
+    idexp::io::folder::check_out_dir(out)?;
+    let res = idexp::ident::study::run_study(design, dir, ctl)?;
     crate::write_folder(
-        &out,
+        out,
         "identify",
-        &fingerprint_of(&design)?,
-        || res.write(&out, Some(started)),
+        &fingerprint_of(design)?,
+        || res.write(out, Some(started)),
         a.json.then_some(&res.estimate),
         &res.estimate.text(),
         res.estimate.unusable_reason(),
@@ -248,6 +253,8 @@ fn one_run_design(a: &IdentifyArgs) -> anyhow::Result<StudyDesign> {
         s => EssentialSpec::Names(s.split(',').map(|x| x.trim().to_string()).filter(|x| !x.is_empty()).collect()),
     };
     let mut e = ExperimentSpec::new(a.run.clone());
+    // named by the run's folder (the validation run's too): two CSVs of one name in different folders stay apart
+    e.name = default_name(&a.run);
     e.filter = a.filter;
     e.cutoff = a.cutoff;
     e.trajectory = a.trajectory.clone();
@@ -265,7 +272,12 @@ fn one_run_design(a: &IdentifyArgs) -> anyhow::Result<StudyDesign> {
     e.log = log;
     let mut d = StudyDesign::one_experiment(&default_name(&a.run), a.robot.clone(), e.clone()).repetition_weighted(a.weights);
     if !a.validate.is_empty() {
-        d.validation.push(e.validation_like(a.validate.clone(), a.validate_trajectory.clone()));
+        let mut v = e.validation_like(a.validate.clone(), a.validate_trajectory.clone());
+        v.name = default_name(&a.validate);
+        if v.name == e.name {
+            v.name = format!("{}_validation", e.name);
+        }
+        d.validation.push(v);
     }
     d.method = a.method;
     d.reduce = a.reduce.then(|| ReduceSpec {
@@ -287,11 +299,22 @@ fn one_run_design(a: &IdentifyArgs) -> anyhow::Result<StudyDesign> {
     Ok(d)
 }
 
-/// The name of the run folder (or of the first file's folder).
+/// The name of the run folder (or of the first file's folder), in the
+/// characters a study entry's name allows (letters, digits, `_`, `-`, `.`;
+/// no leading `.`).
 fn default_name(run: &[PathBuf]) -> String {
     let p = default_out(run, "");
     let s = p.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    s.strip_prefix("identify_").unwrap_or(&s).to_string()
+    let s: String = s
+        .strip_prefix("identify_")
+        .unwrap_or(&s)
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.') { c } else { '_' })
+        .collect();
+    match s.trim_start_matches('.') {
+        "" => "run".into(),
+        t => t.into(),
+    }
 }
 
 /// Runs `idexp identify`.
@@ -315,17 +338,7 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     }
     let design = one_run_design(a)?;
     let out = a.out.clone().unwrap_or_else(|| default_out(&a.run, ""));
-    idexp::io::folder::check_out_dir(&out)?;
-    let res = idexp::ident::study::run_study(&design, Path::new(""), ctl)?;
-    crate::write_folder(
-        &out,
-        "identify",
-        &fingerprint_of(&design)?,
-        || res.write(&out, Some(started)),
-        a.json.then_some(&res.estimate),
-        &res.estimate.text(),
-        res.estimate.unusable_reason(),
-    )
+    run_design(a, &design, Path::new(""), &out, ctl, started)
 }
 
 fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run, started: SystemTime) -> anyhow::Result<Outcome> {

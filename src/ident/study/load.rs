@@ -112,6 +112,14 @@ pub fn load_entry_with(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, 
             (run, src, sampling)
         }
     };
+    if run.n_joints() != robot.dof() {
+        return Err(Error::dim(format!("joints in `{name}`"), robot.dof(), run.n_joints()));
+    }
+    if let Some(t) = o.given.and_then(|g| g.trajectory.as_ref()) {
+        if t.n_joints() != robot.dof() {
+            return Err(Error::dim(format!("joints in the trajectory of `{name}`"), robot.dof(), t.n_joints()));
+        }
+    }
     let run = in_joint_coordinates(robot, &run, spec.coordinates)?.into_owned();
     let traj: Option<FourierTrajectory> = match (&spec.trajectory, o.given) {
         (None, Some(g)) => g.trajectory.clone(),

@@ -381,18 +381,22 @@ fn truth_rows(e: &Estimate, truth: &crate::data::Truth) -> Result<Vec<TruthRow>>
         .collect()
 }
 
-fn experiment_report(e: &Loaded, ei: usize, st: &Stacked, theta: &[f64]) -> ExperimentReport {
-    let blocks: Vec<&Block> = st.blocks.iter().filter(|b| b.experiment == ei).collect();
-    let n = e.prep.full.n;
-    let mut weights = vec![BlockWeight::NoRows; n];
-    let mut sigma = vec![0.0; n];
-    for b in &blocks {
-        weights[b.joint] = b.weight;
-        sigma[b.joint] = b.sigma;
-    }
-    let rows: usize = blocks.iter().map(|b| b.rows).sum();
-    let chi2: f64 = blocks.iter().map(|b| b.chi2).sum();
-    let share = &st.share[ei];
+/// What an estimator says of one experiment's rows ([`experiment_report_of`]).
+pub(super) struct RowStats {
+    /// Per joint: how its rows are weighted.
+    pub weights: Vec<BlockWeight>,
+    /// Per joint: the torque noise σ the weights stand for (N·m).
+    pub sigma: Vec<f64>,
+    /// Weighted residual sum of squares per row.
+    pub chi2_per_row: f64,
+    /// Per base parameter, the experiment's share of its information.
+    pub share: Vec<f64>,
+    /// Rank and condition number of the experiment's own design.
+    pub alone: (usize, f64),
+}
+
+/// The report of experiment `e` at the estimate `theta`.
+pub(super) fn experiment_report_of(e: &Loaded, theta: &[f64], r: RowStats) -> ExperimentReport {
     let t = &e.prep.pr.t;
     ExperimentReport {
         name: e.name.clone(),
@@ -406,15 +410,36 @@ fn experiment_report(e: &Loaded, ei: usize, st: &Stacked, theta: &[f64]) -> Expe
         velocity: e.prep.pr.velocity,
         torque_source: e.torque_source.clone(),
         rows_used: e.prep.rows_used.clone(),
+        weights: r.weights,
+        sigma: r.sigma,
+        chi2_per_row: r.chi2_per_row,
+        errors: errors(&e.prep.full, theta),
+        errors_all: errors(&e.prep.every, theta),
+        information_share: r.share.iter().sum::<f64>() / r.share.len().max(1) as f64,
+        information_share_per_parameter: r.share,
+        rank_alone: r.alone.0,
+        cond_alone: r.alone.1,
+        warnings: e.warnings(),
+    }
+}
+
+fn experiment_report(e: &Loaded, ei: usize, st: &Stacked, theta: &[f64]) -> ExperimentReport {
+    let blocks: Vec<&Block> = st.blocks.iter().filter(|b| b.experiment == ei).collect();
+    let n = e.prep.full.n;
+    let mut weights = vec![BlockWeight::NoRows; n];
+    let mut sigma = vec![0.0; n];
+    for b in &blocks {
+        weights[b.joint] = b.weight;
+        sigma[b.joint] = b.sigma;
+    }
+    let rows: usize = blocks.iter().map(|b| b.rows).sum();
+    let chi2: f64 = blocks.iter().map(|b| b.chi2).sum();
+    let stats = RowStats {
         weights,
         sigma,
         chi2_per_row: chi2 / rows.max(1) as f64,
-        errors: errors(&e.prep.full, theta),
-        errors_all: errors(&e.prep.every, theta),
-        information_share: share.iter().sum::<f64>() / share.len().max(1) as f64,
-        information_share_per_parameter: share.clone(),
-        rank_alone: st.alone[ei].0,
-        cond_alone: st.alone[ei].1,
-        warnings: e.warnings(),
-    }
+        share: st.share[ei].clone(),
+        alone: st.alone[ei],
+    };
+    experiment_report_of(e, theta, stats)
 }

@@ -12,7 +12,9 @@
 //! | `prior.csv` | per standard parameter: prior, scale, consistent estimate |
 //! | `experiments/<name>.svg`, `validation/<run>.svg` | measured vs predicted torques |
 //! | `validation.svg` | e*_j of every validation run |
-//! | `robot.urdf`, `robot.toml` | the consistent model (`export`) |
+//! | `params.svg` | the estimates with ±3σ, σ*, and z against the truth when known |
+//! | `reduction.csv`, `reduction.svg` | the model reduction's steps (`[reduce]`) |
+//! | `robot.urdf`, `robot.toml`, `robot.xml` | the consistent model (`export`: urdf, toml, mjcf) |
 //! | `status.json` | how the study ended |
 //!
 //! The validation CSVs carry the processed states, so an independent program
@@ -180,6 +182,9 @@ impl StudyResult {
             put(&mut files, "prior.csv", csv.as_bytes())?;
         }
         self.write_plots(dir, &mut files)?;
+        let p = dir.join("params.svg");
+        write_svg(&p, "identified base parameters", &crate::ident::output::params_panels(e), 1)?;
+        files.push(p);
         if let Some(r) = &e.reduction {
             let mut csv = format!(
                 "k,parameter,sensitivity,decision,growth,cond,n_params,{}\n",

@@ -136,32 +136,14 @@ fn block_weight(w: Weights) -> BlockWeight {
 /// information is its own; σ per joint is the RMS residual of its rows.
 pub(super) fn experiment_report(e: &Loaded, s: &Single) -> ExperimentReport {
     let n = e.prep.full.n;
-    let errs = errors(&e.prep.full, &s.fit.theta);
-    let t = &e.prep.pr.t;
-    let k = s.cols.len();
-    ExperimentReport {
-        name: e.name.clone(),
-        kind: e.spec.kind,
-        files: e.files.clone(),
-        n_reps: e.n_reps,
-        n_samples: e.prep.pr.len(),
-        duration: t.last().copied().unwrap_or(0.0) - t.first().copied().unwrap_or(0.0),
-        sampling: e.sampling.clone(),
-        filter: e.prep.filter.clone(),
-        velocity: e.prep.pr.velocity,
-        torque_source: e.torque_source.clone(),
-        rows_used: e.prep.rows_used.clone(),
+    let stats = super::RowStats {
         weights: (0..n)
             .map(|j| if e.prep.full.joint.contains(&j) { s.weight } else { BlockWeight::NoRows })
             .collect(),
-        sigma: errs.rms.clone(),
+        sigma: errors(&e.prep.full, &s.fit.theta).rms,
         chi2_per_row: s.fit.chi2_dof,
-        errors: errs,
-        errors_all: errors(&e.prep.every, &s.fit.theta),
-        information_share: 1.0,
-        information_share_per_parameter: vec![1.0; k],
-        rank_alone: s.fit.rank,
-        cond_alone: s.fit.cond,
-        warnings: e.warnings(),
-    }
+        share: vec![1.0; s.cols.len()],
+        alone: (s.fit.rank, s.fit.cond),
+    };
+    super::experiment_report_of(e, &s.fit.theta, stats)
 }
