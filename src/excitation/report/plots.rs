@@ -20,8 +20,11 @@ pub(super) fn spectrum_svg(path: &Path, s: &[f64], title: &str) -> Result<()> {
     write_svg(path, title, &[panel], 1)
 }
 
-/// The search's best feasible criterion over time and over evaluations
-/// (result.progress), as steps held until the end of the search.
+/// The search's best feasible criterion over the criterion evaluations
+/// (result.progress), as steps held until the end of the search. Over
+/// evaluations, not seconds: the figure is the same for any thread count
+/// and machine load (the seconds of each improvement are in report.json's
+/// `result.progress` and report.txt).
 pub(super) fn progress_svg(path: &Path, r: &ExciteResult, criterion: &str, title: &str) -> Result<()> {
     let pts = &r.progress;
     let steps = |x: &dyn Fn(&crate::excitation::ProgressPoint) -> f64, end: f64| -> (Vec<f64>, Vec<f64>) {
@@ -42,7 +45,6 @@ pub(super) fn progress_svg(path: &Path, r: &ExciteResult, criterion: &str, title
     };
     let log_y = pts.iter().all(|q| q.best > 0.0);
     let evaluations = r.ga.evaluations + r.refinements.iter().map(|f| f.evaluations).sum::<u64>();
-    let (t, yt) = steps(&|q| q.seconds, r.seconds);
     let (e, ye) = steps(&|q| q.evaluations as f64, evaluations as f64);
     let panel = |x_label: &str, x: Vec<f64>, y: Vec<f64>| Panel {
         title: format!("best feasible {criterion} found (design grid)"),
@@ -52,16 +54,14 @@ pub(super) fn progress_svg(path: &Path, r: &ExciteResult, criterion: &str, title
             Series::line("best so far", x, y),
             Series::points(
                 "improvements",
-                pts.iter()
-                    .map(|q| if x_label.starts_with('s') { q.seconds } else { q.evaluations as f64 })
-                    .collect(),
+                pts.iter().map(|q| q.evaluations as f64).collect(),
                 pts.iter().map(|q| q.best).collect(),
             ),
         ],
         log_y,
         ..Default::default()
     };
-    write_svg(path, title, &[panel("seconds from the start", t, yt), panel("evaluations", e, ye)], 2)
+    write_svg(path, title, &[panel("criterion evaluations", e, ye)], 1)
 }
 
 /// The trajectory the plots show: the delivered one (lead-in, periods,
