@@ -252,10 +252,9 @@ fn bad_averaged_input_and_impossible_exports_are_clear_errors() {
         assert!(e.contains(f.file_name().unwrap().to_str().unwrap()) && e.contains("var_tau2"), "{what}: {e}");
     }
     let e = err(&[robot_file.to_str().unwrap(), avg.to_str().unwrap(), "--repetitions", "1"]);
-    // the one-run form's entry is named after the file (`mean`) and its
-    // --repetitions is the entry's `repetitions` (the message no longer names
-    // mean.csv nor its var_tau1 column)
-    assert!(e.contains("(mean)") && e.contains("repetitions") && e.contains("N_r ≥ 2"), "{e}");
+    // the one-run form's entry is named after the run's folder (`avg`) and
+    // its --repetitions is the entry's `repetitions`
+    assert!(e.contains("experiment 1 (avg)") && e.contains("repetitions") && e.contains("N_r ≥ 2"), "{e}");
     let e = err(&[robot_file.to_str().unwrap(), avg.to_str().unwrap()]);
     assert!(e.contains("mean.csv") && e.contains("repetitions = N"), "{e}");
     // the one-run form is a one-experiment study: its errors name the study
@@ -278,12 +277,13 @@ fn bad_averaged_input_and_impossible_exports_are_clear_errors() {
     ]);
     assert!(e.contains("field `lags`") && e.contains("100000000000"), "{e}");
     // one raw repetition without variances: sample weights are impossible, the
-    // message says what is (in the study's keys: weights = "auto"; the one-run
-    // form's way out, --weights joint, is not named)
+    // message names the entry (named after the run's folder) and says what is
+    // (in the study's keys: weights = "auto"; the one-run form's way out,
+    // --weights joint, is not named)
     let one = run.join("rep_001.csv");
     let e = err(&[robot_file.to_str().unwrap(), one.to_str().unwrap()]);
     assert!(
-        e.contains("rep_001") && e.contains("one repetition and no variance columns") && e.contains("weights = \"auto\""),
+        e.contains("experiment `run`") && e.contains("one repetition and no variance columns") && e.contains("weights = \"auto\""),
         "{e}"
     );
 }

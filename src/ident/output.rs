@@ -1,5 +1,6 @@
-//! The output folders of identification: one run's ([`Identification::write`]:
-//! `estimate.json`, `report.txt` and the figures) and those of the dedicated
+//! The figures and tables of identification that the study's writer
+//! ([`super::study::StudyResult::write`]) draws (torques, parameters, the
+//! reduction, `params.csv`), and the output folders of the dedicated
 //! experiments of paper 002 §3.2 (`idexp identify --experiment
 //! gravity|friction`: the fit as JSON, a figure of the data with the fitted
 //! model, and `report.txt`; each writer returns the report text it wrote),

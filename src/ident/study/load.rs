@@ -178,7 +178,6 @@ pub fn load_entry_with(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, 
         dead_band,
         standstill: spec.standstill.unwrap_or(spec.kind.default_standstill()),
         velocity_from: spec.velocity_from,
-        ..Default::default()
     };
     let prep = prepare(robot, base, &run, traj.as_ref(), &opts).map_err(|e| match e {
         Error::Invalid { context, field, msg } => Error::Invalid {
