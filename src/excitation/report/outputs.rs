@@ -500,7 +500,7 @@ pub fn write_outputs_with(p: &Problem, r: &ExciteResult, dir: &Path, extra: impl
             .ok()
             .and_then(|v| v.as_str().map(String::from))
             .unwrap_or_default(),
-        &format!("{}: the search's best over its evaluations (seed {})", d.name, d.seed),
+        &format!("{} (seed {}): search progress", d.name, d.seed),
     )?;
     joints_svg(p, r, &dir.join("joints.svg"))?;
     ee_svg(p, r, &dir.join("ee_path.svg"))?;
