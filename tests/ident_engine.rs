@@ -155,3 +155,33 @@ fn design_rules_of_the_one_experiment_estimators_name_the_field() {
         assert!(err.contains(field) && err.contains(words), "{extra}: {err}");
     }
 }
+
+/// Requests the stop when the entries are read: Ctrl-C during the estimator.
+struct StopAfterReading(idexp::optim::StopFlag);
+
+impl idexp::optim::Observer for StopAfterReading {
+    fn phase_done(&self) {
+        self.0.request();
+    }
+}
+
+#[test]
+fn a_reduction_stopped_by_ctrl_c_is_written_as_interrupted() {
+    use idexp::io::status::RunState;
+    let res = ident_util::simulate(&ident_util::rpr_fourier(1, 1, 11, 10, 1e-5));
+    let run = |stop: bool| {
+        let flag = idexp::optim::StopFlag::new();
+        let mut ctl = idexp::optim::Control::new().with_stop(flag.clone());
+        if stop {
+            ctl = ctl.with_observer(std::sync::Arc::new(StopAfterReading(flag)));
+        }
+        ident_util::try_ident_with(&res, None, |d| d.reduce = Some(Default::default()), &ctl).unwrap().0
+    };
+    let (done, stopped) = (run(false), run(true));
+    assert!(!done.interrupted && done.estimate.state(done.interrupted) == RunState::Complete);
+    // the reduction returns what it has (fewer steps), and the folder says so
+    assert!(stopped.interrupted, "a stopped reduction must be marked interrupted");
+    assert_eq!(stopped.estimate.state(stopped.interrupted), RunState::Interrupted);
+    let steps = |r: &idexp::ident::study::StudyResult| r.estimate.reduction.as_ref().unwrap().steps.len();
+    assert!(steps(&stopped) < steps(&done), "{} vs {}", steps(&stopped), steps(&done));
+}

@@ -42,6 +42,16 @@ pub fn ident(res: &SimResult, val: Option<&SimResult>, set: impl FnOnce(&mut Stu
 
 /// [`ident`] that returns the engine's error.
 pub fn try_ident(res: &SimResult, val: Option<&SimResult>, set: impl FnOnce(&mut StudyDesign)) -> idexp::Result<(StudyResult, BaseParams)> {
+    try_ident_with(res, val, set, &idexp::optim::Control::new())
+}
+
+/// [`try_ident`] under the run control `ctl`.
+pub fn try_ident_with(
+    res: &SimResult,
+    val: Option<&SimResult>,
+    set: impl FnOnce(&mut StudyDesign),
+    ctl: &idexp::optim::Control,
+) -> idexp::Result<(StudyResult, BaseParams)> {
     let robot = &res.setup.nominal;
     let base = BaseParams::compute(robot, &BaseOptions::default()).unwrap();
     let given = |r: &SimResult| Given {
@@ -65,7 +75,7 @@ pub fn try_ident(res: &SimResult, val: Option<&SimResult>, set: impl FnOnce(&mut
         d.validation = vec![ve];
         inputs.entries.insert("validate".into(), given(v));
     }
-    let r = run_study_with(&d, Path::new(""), &inputs, &idexp::optim::Control::new())?;
+    let r = run_study_with(&d, Path::new(""), &inputs, ctl)?;
     Ok((r, base))
 }
 

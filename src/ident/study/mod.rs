@@ -176,6 +176,8 @@ pub fn run_study_with(design: &StudyDesign, dir: &Path, inputs: &Inputs, ctl: &C
         Method::Ols => None,
         _ => single::estimate(design, &robot, &base, &experiments[0], ctl)?,
     };
+    // the reduction and ML return what they have when stopped: marked interrupted
+    let stopped = single.is_some() && ctl.interrupted();
     // a reduced model: every dataset keeps the estimated columns only
     let cols: Vec<usize> = single.as_ref().map_or_else(|| (0..base.n_base()).collect(), |s| s.cols.clone());
     if cols.len() != base.n_base() {
@@ -324,7 +326,7 @@ pub fn run_study_with(design: &StudyDesign, dir: &Path, inputs: &Inputs, ctl: &C
         ml,
         reduction,
     };
-    let mut interrupted = false;
+    let mut interrupted = stopped;
     if let Some(cs) = &design.consistent {
         let st = st.as_ref().expect("the design allows [consistent] with the stacked least squares only");
         match consistent_with_prior(&robot, &base, prior_robot.as_ref(), cs, st, &experiments, &validations, ctl)? {

@@ -48,6 +48,9 @@ impl Estimate {
         match (&self.status, self.consistent.as_ref().map(|c| &c.status)) {
             (_, Some(s)) if !s.is_ok() => Some(format!("the consistent fit ended with status `{s}`")),
             (_, Some(_)) => None,
+            (st, None) if st.state() == RunState::Failed && !self.is_stacked() => {
+                Some(format!("the {} estimate ended with status `{st}`", self.method.words()))
+            }
             (st, None) if st.state() == RunState::Failed => Some(format!(
                 "the stacked estimate ended with status `{st}`: the experiments together do not excite every base parameter (see each experiment's rank alone in the report; a [consistent] table with a prior decides the directions they do not see)"
             )),
