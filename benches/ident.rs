@@ -70,7 +70,6 @@ fn bench_consistent(c: &mut Criterion) {
         let (theta0, scale) = idexp::ident::prior::prior_of(&robot, None, 1.0).unwrap();
         let names: Vec<String> = robot.links.iter().map(|l| l.name.clone()).collect();
         let tb = DVector::from_column_slice(&fit.theta);
-        let smin = r.singular_values().iter().copied().fold(f64::INFINITY, f64::min);
         let pb = idexp::ident::prior::PriorProblem {
             r: &r,
             theta_b: &tb,
@@ -84,7 +83,7 @@ fn bench_consistent(c: &mut Criterion) {
         idexp::ident::prior::solve(
             &pb,
             idexp::ident::prior::PriorMetric::Euclidean,
-            1e-6 * smin * smin,
+            idexp::ident::prior::relative_weight(&r, 1e-6),
             0.0,
             &idexp::optim::Control::new(),
         )

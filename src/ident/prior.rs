@@ -95,6 +95,15 @@ pub fn solve(pb: &PriorProblem, metric: PriorMetric, weight: f64, margin: f64, c
     solve_with_unknown(pb, &vec![false; pb.prior.len()], metric, weight, margin, ctl)
 }
 
+/// The prior weight `relative` · σ²_min, σ_min the smallest singular value
+/// of the fit's factor `r` (`[consistent] weight = { relative = r }`): a
+/// pull that decides only what the data leave open (`relative` alone when
+/// `r` has no positive singular value).
+pub fn relative_weight(r: &DMatrix<f64>, relative: f64) -> f64 {
+    let smin = r.singular_values().iter().copied().fold(f64::INFINITY, f64::min);
+    relative * if smin.is_finite() && smin > 0.0 { smin * smin } else { 1.0 }
+}
+
 /// Relative pull of the prior on a parameter without a known value
 /// ([`solve_with_unknown`]): 10⁻⁶ of the known parameters' weight, so the data
 /// decide it wherever they see it and a direction no data see stays at the

@@ -48,8 +48,7 @@ pub(super) fn consistent_with_prior(
             crate::ident::prior::solve_with_unknown(&pb, &unknown, cs.metric, w, cs.margin, ctl)?,
         ),
         WeightSpec::Relative { relative } => {
-            let smin = st.r.singular_values().iter().copied().fold(f64::INFINITY, f64::min);
-            let w = relative * if smin.is_finite() && smin > 0.0 { smin * smin } else { 1.0 };
+            let w = crate::ident::prior::relative_weight(&st.r, relative);
             (
                 w,
                 Vec::new(),
