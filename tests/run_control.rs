@@ -216,7 +216,8 @@ fn an_excitation_reports_its_checks_as_a_phase() {
 /// and a free control solves the same program.
 #[test]
 fn the_consistent_fit_stops_on_its_control() {
-    use idexp::ident::consistent::{solve, ConsistentOptions, ConsistentStatus, Kind, Problem};
+    use idexp::ident::consistent::{ConsistentStatus, Kind};
+    use idexp::ident::prior::{relative_weight, solve, PriorMetric, PriorProblem};
     use idexp::optim::conic::{ConicStatus, SolverStatus};
     use nalgebra::DVector;
     // one link (a box of 2 kg) and one rotor inertia, seen through a random R
@@ -235,27 +236,30 @@ fn the_consistent_fit_stops_on_its_control() {
     });
     let k = DMatrix::identity(p, p);
     let ones = DVector::from_element(p, 1.0);
-    let pb = Problem {
+    let names = ["box".to_string()];
+    let pb = PriorProblem {
         r: &r,
         theta_b: &theta,
         k: &k,
         links: &[0],
+        link_names: &names,
         kinds: &kinds,
-        nominal: &theta,
+        prior: &theta,
         scale: &ones,
     };
-    let o = ConsistentOptions::default();
-    let free = solve(&pb, &o, &Control::new()).unwrap();
+    let w = relative_weight(&r, 1e-6);
+    let solve = |pb: &PriorProblem, ctl: &Control| solve(pb, PriorMetric::Euclidean, w, 0.0, ctl);
+    let free = solve(&pb, &Control::new()).unwrap();
     assert!(free.status.is_solved() && free.iterations > 1, "{}", free.status);
     let ctl = Control::new();
     ctl.stop_flag().request();
-    let s = solve(&pb, &o, &ctl).unwrap();
+    let s = solve(&pb, &ctl).unwrap();
     assert_eq!(s.status, ConicStatus::Solver(SolverStatus::CallbackTerminated));
     assert_eq!(ConsistentStatus::of(&s.status).to_string(), "failed: CallbackTerminated");
     assert!(s.iterations < free.iterations);
     let late = Control::new().with_time_limit(Some(0.0));
     std::thread::sleep(std::time::Duration::from_millis(2));
-    let s = solve(&pb, &o, &late).unwrap();
+    let s = solve(&pb, &late).unwrap();
     assert_eq!(s.status, ConicStatus::Solver(SolverStatus::MaxTime), "{}", s.status);
     assert_eq!(s.status.termination(), idexp::optim::Termination::TimeLimit);
 }

@@ -43,7 +43,7 @@ mod text;
 
 pub use crate::data::{Coordinates, Repetition, Run, TorqueFrom, TorqueSource, CURRENT_TOLERANCE};
 pub use closed_loop::{MlOptions, ProjectionOptions};
-pub use consistent::{ConsistentOptions, ConsistentStatus};
+pub use consistent::ConsistentStatus;
 pub use estimate::{Dataset, Errors, LsFit, Weights, DEAD_BAND};
 pub use process::{process, process_with, Filter, Processed, VelocityFrom, VelocitySource};
 pub use reduce::{Essential, ReduceOptions, Reduction};

@@ -25,15 +25,25 @@
 //!   near J₀), plus ‖x_j‖² on the drive parameters. It needs a positive
 //!   definite prior pseudo-inertia for every link.
 //!
-//! Both are one conic program for Clarabel: a quadratic objective, the 4×4
-//! PSD cones of the pseudo-inertias, the non-negative cone of the signs, and
-//! for the entropic metric t ≤ log det J_i written as
-//! [[J_i, L_i], [L_iᵀ, diag(L_i)]] ⪰ 0 with L_i lower triangular and
-//! t_k ≤ log (L_i)_kk in exponential cones (MOSEK Modeling Cookbook §6.2.3).
+//! Both are one conic program for Clarabel, with the 4×4 PSD cones of the
+//! pseudo-inertias and the non-negative cone of the signs. The Euclidean
+//! metric minimises t ≥ ‖((A x − c)/ρ, √w x/ρ)‖ in a second-order cone (A =
+//! R K S, c = R(θ̂_b − K θ₀), ρ the rms row norm of A) at a gap tolerance of
+//! 10⁻¹²: with the weight of `{ relative = 10⁻⁶ }` the directions only the
+//! prior sees (the standard parameters K does not see, a payload's height on
+//! a planar arm) are resolved to the solver's tolerance on the norm, where a
+//! quadratic objective leaves them loose. The entropic metric has a quadratic
+//! objective and t ≤ log det J_i written as [[J_i, L_i], [L_iᵀ, diag(L_i)]] ⪰ 0
+//! with L_i lower triangular and t_k ≤ log (L_i)_kk in exponential cones
+//! (MOSEK Modeling Cookbook §6.2.3). A sign-constrained drive parameter is
+//! returned on its side of 0 (the solver's rounding clamped).
+//!
+//! The same program serves the payload's consistent fit (one link, the
+//! guess as prior, `src/payload/identify.rs`).
 
 use super::consistent::{kinds_of, min_pseudo_eigenvalue, pseudo_inertia, regularization_scale, Kind, Solution};
 use crate::error::{Error, Result};
-use crate::optim::conic::{Cone, Entries as Triplets, Program};
+use crate::optim::conic::{self as bridge, Cone, ConicStatus, Entries as Triplets, Program, Settings};
 use crate::optim::Control;
 use crate::robot::Robot;
 use nalgebra::{DMatrix, DVector, Matrix4, SymmetricEigen};
@@ -171,32 +181,36 @@ pub fn solve_with_unknown(pb: &PriorProblem, unknown: &[bool], metric: PriorMetr
     let s = DMatrix::from_diagonal(scale);
     let a = r * k * &s;
     let c = r * (theta_b - k * prior);
-    let ata = a.transpose() * &a;
-    let atc = a.transpose() * &c;
-    // scale the objective to O(1) (the argmin is unchanged)
-    let kappa = (ata.trace() / p as f64).max(weight).max(1e-300);
-    let inertial: Vec<bool> = kinds.iter().map(|k| matches!(k, Kind::Inertial(_))).collect();
-    let nl = if entropic { links.len() } else { 0 };
-    let nx = p + 14 * nl;
+    // Euclidean: minimise t with (t, (A x − c)/ρ, √w u ∘ x/ρ) in a second-order
+    // cone (ρ the rms row norm of A, u = 1 or √UNKNOWN_PULL): a direction only
+    // the prior sees is then resolved to the solver's tolerance on t, not on
+    // t² (a weight of 10⁻⁶ σ²_min leaves it loose in the quadratic form).
+    // Entropic: the quadratic form and the log-det terms below.
     let lvar = |i: usize, row: usize, col: usize| p + 14 * i + row * (row + 1) / 2 + col; // row ≥ col
     let vvar = |i: usize, kk: usize| p + 14 * i + 10 + kk;
-    let mut pm = Triplets::new();
-    let pr0 = pm.rows(p);
-    for col in 0..p {
-        for row in 0..=col {
-            let mut v = 2.0 * ata[(row, col)];
-            if row == col && !(entropic && inertial[col]) {
-                v += 2.0 * weight * if unknown[col] { UNKNOWN_PULL } else { 1.0 };
+    let (nx, pm, q) = if entropic {
+        let ata = a.transpose() * &a;
+        let atc = a.transpose() * &c;
+        // scale the objective to O(1) (the argmin is unchanged)
+        let kappa = (ata.trace() / p as f64).max(weight).max(1e-300);
+        let inertial: Vec<bool> = kinds.iter().map(|k| matches!(k, Kind::Inertial(_))).collect();
+        let nx = p + 14 * links.len();
+        let mut pm = Triplets::new();
+        let pr0 = pm.rows(p);
+        for col in 0..p {
+            for row in 0..=col {
+                let mut v = 2.0 * ata[(row, col)];
+                if row == col && !inertial[col] {
+                    v += 2.0 * weight * if unknown[col] { UNKNOWN_PULL } else { 1.0 };
+                }
+                pm.push(pr0 + row, col, v / kappa);
             }
-            pm.push(pr0 + row, col, v / kappa);
         }
-    }
-    let _ = pm.rows(nx - p);
-    let mut q = vec![0.0; nx];
-    for j in 0..p {
-        q[j] = -2.0 * atc[j] / kappa;
-    }
-    if entropic {
+        let _ = pm.rows(nx - p);
+        let mut q = vec![0.0; nx];
+        for j in 0..p {
+            q[j] = -2.0 * atc[j] / kappa;
+        }
         for (i, &l) in links.iter().enumerate() {
             for (qq, cm) in coef.iter().enumerate() {
                 // ∂ tr(J₀⁻¹ J)/∂x = tr(J₀⁻¹ E_q) s
@@ -206,10 +220,34 @@ pub fn solve_with_unknown(pb: &PriorProblem, unknown: &[bool], metric: PriorMetr
                 q[vvar(i, kk)] = -weight / kappa;
             }
         }
-    }
+        (nx, Some(pm), q)
+    } else {
+        let mut q = vec![0.0; p + 1];
+        q[p] = 1.0;
+        (p + 1, None, q)
+    };
     let mut am = Triplets::new();
     let mut b: Vec<f64> = Vec::new();
     let mut cones = Vec::new();
+    if !entropic {
+        let rows = a.nrows();
+        let rho = (a.norm_squared() / rows.max(1) as f64).sqrt().max(1e-300);
+        let r0 = am.rows(1 + rows + p);
+        am.push(r0, p, -1.0);
+        b.push(0.0);
+        for i in 0..rows {
+            for j in 0..p {
+                am.push(r0 + 1 + i, j, -a[(i, j)] / rho);
+            }
+            b.push(-c[i] / rho);
+        }
+        for j in 0..p {
+            let pull = if unknown[j] { UNKNOWN_PULL } else { 1.0 };
+            am.push(r0 + 1 + rows + j, j, -(weight * pull).sqrt() / rho);
+            b.push(0.0);
+        }
+        cones.push(Cone::SecondOrder(1 + rows + p));
+    }
     let s2 = std::f64::consts::SQRT_2;
     // J_i(θ₀ + S x) − ε I ⪰ 0 (svec: upper triangle column by column, off-diagonals × √2)
     let push_j = |am: &mut Triplets, b: &mut Vec<f64>, l: usize, row: usize, col: usize, w: f64, eps: f64| {
@@ -281,20 +319,31 @@ pub fn solve_with_unknown(pb: &PriorProblem, unknown: &[bool], metric: PriorMetr
         }
         cones.push(Cone::Nonnegative(signed.len()));
     }
-    let sol = super::consistent::run_clarabel(
+    let sol = run_clarabel(
         Program {
             n_var: nx,
-            p: Some(pm),
+            p: pm,
             q,
             a: am,
             b,
             cones,
         },
         ctl,
-        false,
+        // the cone form's t is a norm: a tighter gap resolves what only the prior sees
+        (!entropic).then_some(1e-12),
     )?;
     let x = &sol.x;
-    let theta = prior + &s * DVector::from_iterator(p, x[..p].iter().copied());
+    let mut theta = prior + &s * DVector::from_iterator(p, x[..p].iter().copied());
+    // a sign-constrained drive parameter the solver left a rounding error on
+    // the wrong side of 0 (within its feasibility tolerance) is at its bound:
+    // 0, so that a robot file written from it reads back
+    for (j, kind) in kinds.iter().enumerate() {
+        match kind {
+            Kind::NonNegative => theta[j] = theta[j].max(0.0),
+            Kind::NonPositive => theta[j] = theta[j].min(0.0),
+            _ => {}
+        }
+    }
     let base = k * &theta;
     let extra = (r * (&base - theta_b)).norm_squared();
     let min_eig = links.iter().map(|&l| min_pseudo_eigenvalue(&theta.as_slice()[l..l + 10])).collect();
@@ -308,6 +357,24 @@ pub fn solve_with_unknown(pb: &PriorProblem, unknown: &[bool], metric: PriorMetr
         solve_time: sol.solve_time,
         lambda: weight,
     })
+}
+
+/// Runs a consistent-fit program through the Clarabel bridge under `ctl`
+/// (500 iterations, the control's deadline as time limit, Ctrl-C through
+/// the termination callback; `tol` the gap tolerance, None for Clarabel's).
+/// A program Clarabel refuses to set up is an error; how a run ended is the
+/// returned status.
+fn run_clarabel(prog: Program, ctl: &Control, tol: Option<f64>) -> Result<bridge::Solved> {
+    let settings = Settings {
+        max_iter: Some(500),
+        tol,
+        ..Settings::default()
+    };
+    let sol = bridge::solve(prog, &settings, ctl);
+    match &sol.status {
+        ConicStatus::Settings(_) | ConicStatus::Setup(_) => Err(Error::Numerical(format!("Clarabel: {}", sol.status))),
+        ConicStatus::Solver(_) => Ok(sol),
+    }
 }
 
 /// The entropic divergence D(J, J₀) of a link block θ from its prior block θ₀
@@ -354,6 +421,92 @@ pub fn prior_of(robot: &Robot, prior: Option<&Robot>, scale: f64) -> Result<(DVe
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::{Matrix3, Vector3};
+    use rand::{RngExt, SeedableRng};
+
+    /// Three box-like links (consistent) with one Ia each.
+    fn problem(rng: &mut rand_chacha::ChaCha8Rng) -> (Vec<f64>, Vec<usize>, Vec<Kind>) {
+        let mut theta = vec![];
+        let mut links = vec![];
+        let mut kinds = vec![];
+        for i in 0..3 {
+            let m: f64 = rng.random_range(1.0..5.0);
+            let c: Vector3<f64> = Vector3::new(rng.random_range(-0.2..0.2), rng.random_range(-0.2..0.2), rng.random_range(-0.2..0.2));
+            let (a, b, cc): (f64, f64, f64) = (rng.random_range(0.05..0.3), rng.random_range(0.05..0.3), rng.random_range(0.05..0.3));
+            let ic = Matrix3::from_diagonal(&Vector3::new(
+                m * (b * b + cc * cc) / 12.0,
+                m * (a * a + cc * cc) / 12.0,
+                m * (a * a + b * b) / 12.0,
+            ));
+            let io: Matrix3<f64> = ic + m * (c.dot(&c) * Matrix3::identity() - c * c.transpose());
+            links.push(theta.len());
+            theta.extend_from_slice(&[
+                io[(0, 0)],
+                io[(0, 1)],
+                io[(0, 2)],
+                io[(1, 1)],
+                io[(1, 2)],
+                io[(2, 2)],
+                m * c.x,
+                m * c.y,
+                m * c.z,
+                m,
+            ]);
+            for q in 0..10 {
+                kinds.push(Kind::Inertial(q));
+            }
+            theta.push(0.1 * (i as f64 + 1.0));
+            kinds.push(Kind::NonNegative);
+        }
+        (theta, links, kinds)
+    }
+
+    #[test]
+    fn consistent_estimate_is_reproduced_and_inconsistent_one_is_projected() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let (theta, links, kinds) = problem(&mut rng);
+        let p = theta.len();
+        let t = DVector::from_vec(theta);
+        let r = DMatrix::from_fn(p, p, |i, j| {
+            if j > i {
+                rng.random_range(-1.0..1.0)
+            } else if i == j {
+                10.0
+            } else {
+                0.0
+            }
+        });
+        let k = DMatrix::identity(p, p);
+        let ones = DVector::from_element(p, 1.0);
+        let names: Vec<String> = (1..=3).map(|i| format!("l{i}")).collect();
+        // the closest-to-nominal weight of `{ relative = 1e-6 }`
+        let w = relative_weight(&r, 1e-6);
+        let pb = PriorProblem {
+            r: &r,
+            theta_b: &t,
+            k: &k,
+            links: &links,
+            link_names: &names,
+            kinds: &kinds,
+            prior: &t,
+            scale: &ones,
+        };
+        let s = solve(&pb, PriorMetric::Euclidean, w, 0.0, &Control::new()).unwrap();
+        assert!(s.status.is_solved(), "{}", s.status);
+        assert!((&s.theta - &t).norm() < 1e-5 * t.norm(), "|θ−θ̂| = {:e}", (&s.theta - &t).norm());
+        // inconsistent: negative mass on link 2 and a negative Ia; nominal far from it
+        let mut bad = t.clone();
+        bad[links[1] + 9] = -0.5;
+        bad[10] = -0.05;
+        let pb = PriorProblem { theta_b: &bad, ..pb };
+        let s = solve(&pb, PriorMetric::Euclidean, w, 1e-4, &Control::new()).unwrap();
+        let eig: Vec<f64> = links.iter().map(|&l| min_pseudo_eigenvalue(&s.theta.as_slice()[l..l + 10])).collect();
+        assert!(eig.iter().all(|&e| e >= 1e-4 * (1.0 - 1e-6)), "{eig:?}");
+        assert!(s.theta[10] >= -1e-9, "Ia = {}", s.theta[10]);
+        // the fit is worse than the (infeasible) WLS point but no worse than the truth
+        let cost = |x: &DVector<f64>| (&r * (x - &bad)).norm_squared();
+        assert!(s.extra_cost > 0.0 && s.extra_cost <= cost(&t) * (1.0 + 1e-6));
+    }
 
     fn block(m: f64, c: [f64; 3], d: [f64; 3]) -> Vec<f64> {
         // a box of principal moments d about its COM c, inertia about the origin

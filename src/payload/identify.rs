@@ -25,8 +25,9 @@
 use super::align::{self, Alignment};
 use super::design::PayloadDesign;
 use crate::error::{Error, Result};
-use crate::ident::consistent::{self, ConsistentOptions, ConsistentStatus, Kind};
+use crate::ident::consistent::{self, ConsistentStatus, Kind};
 use crate::ident::estimate::Dataset;
+use crate::ident::prior::{self, PriorMetric, PriorProblem};
 use crate::ident::study::stack::Rows;
 use crate::ident::study::{load_entry, BlockWeight, Loaded, StackOptions};
 use crate::ident::EstimateStatus;
@@ -513,20 +514,22 @@ pub fn identify(design: &PayloadDesign, dir: &Path, ctl: &Control) -> Result<Pay
     let (consistent, interrupted) = if ctl.interrupted() {
         (None, true)
     } else {
-        let sol = consistent::solve(
-            &consistent::Problem {
+        // closest to the prior in the scales s, with the weight relative to
+        // the fit's smallest curvature: it decides only what the data leave open
+        let sol = prior::solve(
+            &PriorProblem {
                 r: &stk.r,
                 theta_b: &stk.theta,
                 k: &st.k,
                 links: &[0],
+                link_names: &["payload".to_string()],
                 kinds: &kinds,
-                nominal: &nominal,
+                prior: &nominal,
                 scale: &scale,
             },
-            &ConsistentOptions {
-                margin: design.margin,
-                regularization: design.regularization,
-            },
+            PriorMetric::Euclidean,
+            prior::relative_weight(&stk.r, design.regularization),
+            design.margin,
             ctl,
         )?;
         let status = ConsistentStatus::of(&sol.status);
