@@ -94,7 +94,7 @@ pub fn base_design_dead_band(robot: &Robot, base: &BaseParams, q: &[Vec<f64>], q
     })
 }
 
-/// Default Coulomb dead band (rad/s or m/s, [`IdentOptions::dead_band`](super::IdentOptions::dead_band)):
+/// Default Coulomb dead band (rad/s or m/s, the study's `dead_band`):
 /// the speed below which the default speed rule (`min_speed`) already calls
 /// the sign of a measured velocity unreliable. A robot at rest logs noise
 /// around zero (a 4-decimal log flips sign every sample, ~1e-4 rad/s); a

@@ -19,9 +19,8 @@
 //! [`prior`]). The dedicated gravity and friction experiments of paper 002
 //! §3.2 are in [`experiments`].
 //!
-//! Files: `options.rs` ([`Method`], [`FilterChoice`], [`Standstill`], how one
-//! entry is prepared: [`IdentOptions`]), `prepare.rs` (one entry made ready
-//! for estimation), `outcome.rs` ([`EstimateStatus`], rows used, flags),
+//! Files: `options.rs` ([`Method`], [`Standstill`]), `prepare.rs` (one
+//! entry made ready for estimation as its study entry says), `outcome.rs` ([`EstimateStatus`], rows used, flags),
 //! `text.rs` (report blocks), [`output`] (plots and tables); the estimators
 //! in [`estimate`], [`closed_loop`], [`reduce`], [`consistent`], [`prior`],
 //! [`study`]. Their items are re-exported here: `idexp::ident::X` is the path
@@ -48,9 +47,9 @@ pub use estimate::{Dataset, Errors, LsFit, Weights, DEAD_BAND};
 pub use process::{process, process_with, Filter, Processed, VelocityFrom, VelocitySource};
 pub use reduce::{Essential, ReduceOptions, Reduction};
 
-pub use options::{FilterChoice, IdentOptions, Method, Standstill};
+pub use options::{Method, Standstill};
 pub use outcome::{EstimateStatus, Implausible, RowsUsed, TruthRow};
 pub(crate) use prepare::filter_warnings;
-pub use prepare::{in_joint_coordinates, prepare, resolve_filter, run_trajectory, Prepared};
+pub use prepare::{fourier_filter, in_joint_coordinates, prepare, run_trajectory, Prepared};
 pub use study::Estimate;
 pub(crate) use text::{parameter_table, plausibility_and_truth_text};

@@ -1,8 +1,6 @@
-//! What an identification is asked: the estimator ([`Method`]), the filter
-//! ([`FilterChoice`]), the standstill rule ([`Standstill`]) and how one run
-//! is made ready for estimation ([`IdentOptions`], set from a study entry).
+//! What an identification is asked: the estimator ([`Method`]) and the
+//! standstill rule ([`Standstill`]).
 
-use super::{Filter, VelocityFrom};
 use crate::error::{Error, Result};
 use serde::Serialize;
 
@@ -64,17 +62,6 @@ impl std::str::FromStr for Method {
     }
 }
 
-/// How positions are filtered.
-#[derive(Debug, Clone, PartialEq, Serialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum FilterChoice {
-    /// Fourier filtering when the run's Fourier trajectory is known, else a low-pass at 10 Hz.
-    #[default]
-    Auto,
-    /// This filter.
-    Given(Filter),
-}
-
 /// Which slow rows (standstill, |q̇_j| below `slow_ratio`·max|q̇_j| or
 /// `min_speed`) identification leaves out (`--standstill`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, Default)]
@@ -111,58 +98,6 @@ impl std::str::FromStr for Standstill {
             "drop" => Ok(Standstill::Drop),
             "keep" => Ok(Standstill::Keep),
             _ => Err(Error::invalid("identify", "standstill", format!("expected auto, drop or keep, found `{s}`"))),
-        }
-    }
-}
-
-/// How one experiment or validation run is made ready for estimation
-/// ([`prepare`](super::prepare)): what a study entry and the estimator say.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct IdentOptions {
-    /// Estimator.
-    pub method: Method,
-    /// Filter of the identification run.
-    pub filter: FilterChoice,
-    /// Harmonics kept by Fourier filtering (default: the trajectory's n_h, the
-    /// excited ones as in paper 000 §III-C). More harmonics keep the part of the
-    /// closed-loop response above the excitation band (tracking errors of a
-    /// nonlinear plant) that filtering at n_h would remove from q̈.
-    pub harmonics: Option<usize>,
-    /// Keep every k-th processed sample.
-    pub decimate: usize,
-    /// Rows of joint j where |q̇_j| is below this fraction of the joint's largest
-    /// speed in the run are left out (see [`Dataset::new`](super::Dataset::new)). Not applied by the
-    /// projection method, which needs every sample.
-    pub slow_ratio: f64,
-    /// Rows of a joint slower than this speed are left out too (rad/s or m/s).
-    pub min_speed: f64,
-    /// Coulomb dead band (rad/s or m/s): for the joints with a `sign` Coulomb
-    /// term, |q̇_j| below it is rest (no Coulomb term), in the
-    /// identification and the validation run alike (default
-    /// [`DEAD_BAND`](super::estimate::DEAD_BAND); 0: sign(q̇) everywhere).
-    /// Not applied by the projection method, which needs every sample as it is.
-    pub dead_band: f64,
-    /// Which joints the slow-row rule applies to ([`Standstill`]; default:
-    /// those with a `sign` Coulomb term).
-    pub standstill: Standstill,
-    /// Velocities from the logged `qd*` columns or from the positions
-    /// ([`VelocityFrom`]; default: logged when present), for the
-    /// identification and the validation run alike.
-    pub velocity_from: VelocityFrom,
-}
-
-impl Default for IdentOptions {
-    fn default() -> Self {
-        IdentOptions {
-            method: Method::Wls,
-            filter: FilterChoice::Auto,
-            harmonics: None,
-            decimate: 1,
-            slow_ratio: 0.1,
-            min_speed: 0.01,
-            dead_band: super::estimate::DEAD_BAND,
-            standstill: Standstill::Auto,
-            velocity_from: VelocityFrom::Auto,
         }
     }
 }

@@ -1,27 +1,20 @@
-//! One run made ready for estimation, shared by the one-run pipeline
-//! ([`super::identify`]) and the study: its filter, its coordinates, the
-//! processed samples and the rows the standstill rule keeps.
+//! One run made ready for estimation as its study entry says: its
+//! coordinates, the processed samples and the rows the standstill rule keeps.
 
-use super::{process_with, Coordinates, Dataset, Filter, FilterChoice, IdentOptions, Method, Processed, RowsUsed, Run, Standstill};
+use super::study::ExperimentSpec;
+use super::{process_with, Coordinates, Dataset, Filter, Method, Processed, RowsUsed, Run, Standstill};
 use crate::error::{Error, Result};
 use crate::params::BaseParams;
 use crate::robot::Robot;
 use crate::trajectory::FourierTrajectory;
 
-/// Chooses the filter: a given one, or Fourier filtering at the trajectory's
-/// ω and n_h when known, else a 10 Hz low-pass.
-pub fn resolve_filter(choice: &FilterChoice, trajectory: Option<&FourierTrajectory>, harmonics: Option<usize>) -> Filter {
-    match (choice, trajectory) {
-        (FilterChoice::Given(Filter::Fourier { omega, n_h }), _) => Filter::Fourier {
-            omega: *omega,
-            n_h: harmonics.unwrap_or(*n_h),
-        },
-        (FilterChoice::Given(f), _) => f.clone(),
-        (FilterChoice::Auto, Some(t)) => Filter::Fourier {
-            omega: t.omega,
-            n_h: harmonics.unwrap_or(t.n_harmonics()),
-        },
-        (FilterChoice::Auto, None) => Filter::LowPass { cutoff: 10.0 },
+/// Fourier filtering at the trajectory's ω, with `harmonics` (default: its
+/// n_h, the excited ones as in paper 000 §III-C; more keep the part of the
+/// closed-loop response above the excitation band that n_h would remove from q̈).
+pub fn fourier_filter(trajectory: &FourierTrajectory, harmonics: Option<usize>) -> Filter {
+    Filter::Fourier {
+        omega: trajectory.omega,
+        n_h: harmonics.unwrap_or(trajectory.n_harmonics()),
     }
 }
 
@@ -66,39 +59,26 @@ pub struct Prepared {
     pub vmin: f64,
 }
 
-/// Processes a run (in joint coordinates) as `opts` says — filter, decimation,
-/// standstill rule — and stacks its base regressor.
-pub fn prepare(robot: &Robot, base: &BaseParams, run: &Run, trajectory: Option<&FourierTrajectory>, opts: &IdentOptions) -> Result<Prepared> {
-    let filter = resolve_filter(&opts.filter, trajectory, opts.harmonics);
-    let pr = process_with(run, &filter, opts.velocity_from)?.decimated(opts.decimate);
-    if !(opts.slow_ratio.is_finite() && (0.0..1.0).contains(&opts.slow_ratio)) {
-        return Err(Error::invalid("identify", "slow_ratio", "expected a fraction in [0, 1)"));
-    }
-    if !(opts.min_speed.is_finite() && opts.min_speed >= 0.0) {
-        return Err(Error::invalid("identify", "min_speed", "expected a speed ≥ 0"));
-    }
-    let (slow, vmin) = if matches!(opts.method, Method::Projection) {
-        (0.0, 0.0)
-    } else {
-        (opts.slow_ratio, opts.min_speed)
-    };
+/// Processes a run (in joint coordinates) as its entry `spec` says —
+/// decimation, velocities, standstill rule — with `filter`, for `method`
+/// (the projection method keeps every row and uses no dead band), and
+/// stacks its base regressor. The entry's fields are validated by the design.
+pub fn prepare(robot: &Robot, base: &BaseParams, run: &Run, filter: Filter, spec: &ExperimentSpec, method: Method, dead_band: f64) -> Result<Prepared> {
+    let pr = process_with(run, &filter, spec.velocity_from)?.decimated(spec.decimate);
+    let projection = method == Method::Projection;
+    let (slow, vmin) = if projection { (0.0, 0.0) } else { (spec.slow_ratio, spec.min_speed) };
+    let dead_band = if projection { 0.0 } else { dead_band };
+    let standstill = spec.standstill.unwrap_or(spec.kind.default_standstill());
     let drop: Vec<bool> = robot
         .drives
         .iter()
-        .map(|d| match opts.standstill {
+        .map(|d| match standstill {
             Standstill::Auto => d.discontinuous_at_rest(),
             Standstill::Drop => true,
             Standstill::Keep => false,
         })
         .collect();
-    if !(opts.dead_band.is_finite() && opts.dead_band >= 0.0) {
-        return Err(Error::invalid(
-            "identify",
-            "dead_band",
-            format!("expected a speed ≥ 0 (rad/s), found {}", opts.dead_band),
-        ));
-    }
-    let every = Dataset::every_row_dead_band(robot, base, &pr, dead_band(opts));
+    let every = Dataset::every_row_dead_band(robot, base, &pr, dead_band);
     let full = every.moving_rows_of(&pr, slow, vmin, &drop);
     if full.c.nrows() <= full.c.ncols() && every.c.nrows() > every.c.ncols() {
         let vmax: Vec<String> = (0..robot.dof())
@@ -106,7 +86,7 @@ pub fn prepare(robot: &Robot, base: &BaseParams, run: &Run, trajectory: Option<&
             .collect();
         return Err(Error::invalid(run.files.first().map_or_else(|| "identify".to_string(), |f| f.display().to_string()), "min_speed", format!("no row is fast enough: {} of {} rows left after the speed rule |q̇_j| ≥ max({slow} · max |q̇_j|, {vmin} rad/s) (`slow_ratio`, `min_speed`; `kind = \"static\"` for poses held at rest has no speed rule), more than {} needed; largest |q̇_j| of the run: [{}] rad/s", full.c.nrows(), every.c.nrows(), full.c.ncols(), vmax.join(", "))));
     }
-    let rows_used = rows_used(robot, &full, pr.len(), &drop, slow, vmin, opts);
+    let rows_used = rows_used(robot, &full, pr.len(), &drop, (slow, vmin, dead_band), method, standstill);
     Ok(Prepared {
         pr,
         filter,
@@ -119,18 +99,16 @@ pub fn prepare(robot: &Robot, base: &BaseParams, run: &Run, trajectory: Option<&
     })
 }
 
-/// The Coulomb dead band `opts` apply: none for the projection method,
-/// which models every sample with sign(q̇) as its simulation does.
-pub(crate) fn dead_band(opts: &IdentOptions) -> f64 {
-    if matches!(opts.method, Method::Projection) {
-        0.0
-    } else {
-        opts.dead_band
-    }
-}
-
 /// The rows of each joint in `full` and the standstill rule that chose them.
-fn rows_used(robot: &Robot, full: &Dataset, total: usize, drop: &[bool], slow: f64, vmin: f64, opts: &IdentOptions) -> Vec<RowsUsed> {
+fn rows_used(
+    robot: &Robot,
+    full: &Dataset,
+    total: usize,
+    drop: &[bool],
+    (slow, vmin, dead_band): (f64, f64, f64),
+    method: Method,
+    standstill: Standstill,
+) -> Vec<RowsUsed> {
     (0..robot.dof())
         .map(|j| {
             let used = full.joint.iter().filter(|&&k| k == j).count();
@@ -140,22 +118,21 @@ fn rows_used(robot: &Robot, full: &Dataset, total: usize, drop: &[bool], slow: f
             } else {
                 format!("Coulomb {}", d.coulomb.describe())
             };
-            let reason = if matches!(opts.method, Method::Projection) {
+            let reason = if method == Method::Projection {
                 "every row kept: the projection method needs every sample".to_string()
             } else if slow <= 0.0 && vmin <= 0.0 {
                 "every row kept: slow_ratio = 0 and min_speed = 0".to_string()
             } else if drop[j] {
-                let why = match opts.standstill {
+                let why = match standstill {
                     Standstill::Drop => "standstill drop".to_string(),
                     _ => format!("{shape} is discontinuous at rest"),
                 };
                 format!("rows with |q̇| < max({slow}·max|q̇|, {vmin}) left out: {why}")
             } else {
-                let why = match opts.standstill {
-                    Standstill::Keep if d.discontinuous_at_rest() && dead_band(opts) > 0.0 => format!(
-                        "standstill keep; the Coulomb term is 0 within the dead band |q̇| < {} (dead_band)",
-                        dead_band(opts)
-                    ),
+                let why = match standstill {
+                    Standstill::Keep if d.discontinuous_at_rest() && dead_band > 0.0 => {
+                        format!("standstill keep; the Coulomb term is 0 within the dead band |q̇| < {dead_band} (dead_band)")
+                    }
                     Standstill::Keep => "standstill keep".to_string(),
                     _ => format!("{shape} is continuous at rest"),
                 };

@@ -5,7 +5,7 @@
 use super::{ExperimentKind, ExperimentSpec, FilterName};
 use crate::data::{Run, Sampling, SamplingOptions, TorqueSource};
 use crate::error::{Error, Result};
-use crate::ident::{in_joint_coordinates, prepare, resolve_filter, run_trajectory, Filter, FilterChoice, IdentOptions, Method, Prepared};
+use crate::ident::{fourier_filter, in_joint_coordinates, prepare, run_trajectory, Filter, Method, Prepared};
 use crate::params::BaseParams;
 use crate::robot::Robot;
 use crate::trajectory::FourierTrajectory;
@@ -144,7 +144,7 @@ pub fn load_entry_with(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, 
             None => run_trajectory(&run)?,
         },
     };
-    let lowpass = FilterChoice::Given(Filter::LowPass { cutoff: spec.cutoff });
+    let lowpass = Filter::LowPass { cutoff: spec.cutoff };
     let mut notes = Vec::new();
     if spec.filter == FilterName::Auto && traj.is_none() && spec.kind == ExperimentKind::Excitation {
         notes.push(format!(
@@ -152,34 +152,20 @@ pub fn load_entry_with(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, 
             spec.cutoff
         ));
     }
-    let filter = match spec.filter {
-        FilterName::Auto if traj.is_some() && spec.kind == ExperimentKind::Excitation => FilterChoice::Auto,
-        FilterName::Auto => lowpass,
-        FilterName::Fourier => match &traj {
-            Some(t) => FilterChoice::Given(resolve_filter(&FilterChoice::Auto, Some(t), None)),
-            None => {
-                return Err(Error::invalid(
-                    format!("experiment `{name}`"),
-                    "filter",
-                    "\"fourier\" needs the Fourier trajectory: give `trajectory` or put trajectory.json beside the run",
-                ))
-            }
-        },
-        FilterName::Lowpass => lowpass,
-        FilterName::None => FilterChoice::Given(Filter::None),
+    let filter = match (spec.filter, &traj) {
+        (FilterName::Auto, Some(t)) if spec.kind == ExperimentKind::Excitation => fourier_filter(t, spec.harmonics),
+        (FilterName::Auto | FilterName::Lowpass, _) => lowpass,
+        (FilterName::Fourier, Some(t)) => fourier_filter(t, spec.harmonics),
+        (FilterName::Fourier, None) => {
+            return Err(Error::invalid(
+                format!("experiment `{name}`"),
+                "filter",
+                "\"fourier\" needs the Fourier trajectory: give `trajectory` or put trajectory.json beside the run",
+            ))
+        }
+        (FilterName::None, _) => Filter::None,
     };
-    let opts = IdentOptions {
-        method,
-        filter,
-        harmonics: spec.harmonics,
-        decimate: spec.decimate,
-        slow_ratio: spec.slow_ratio,
-        min_speed: spec.min_speed,
-        dead_band,
-        standstill: spec.standstill.unwrap_or(spec.kind.default_standstill()),
-        velocity_from: spec.velocity_from,
-    };
-    let prep = prepare(robot, base, &run, traj.as_ref(), &opts).map_err(|e| match e {
+    let prep = prepare(robot, base, &run, filter, spec, method, dead_band).map_err(|e| match e {
         Error::Invalid { context, field, msg } => Error::Invalid {
             context: format!("experiment `{name}` ({context})"),
             field,
