@@ -224,30 +224,45 @@ def simulate(
 ) -> SimRun:
     """Closed-loop simulation of a design (the command line's `idexp simulate`)."""
 
-class Identification:
+class Study:
+    """An identification (idexp.study; `idexp identify study.toml`; idexp.identify's Identification)."""
     status: str
+    """`ok`, `rank_deficient` (the least-squares estimate), or the solver's status (ML)."""
+    state: str
+    """What status.json says: complete, failed or interrupted."""
     names: list[str]
     groupings: list[str]
     theta: F64
     std: F64
     rel_std: F64
     covariance: F64
-    errors: dict
-    validation_errors: Optional[dict]
+    experiments: list[dict]
+    """Per experiment: weights, σ per joint, errors, information share, rank and cond alone."""
+    validation: list[dict]
+    """Per validation run: e_j, e*_j, RMS of the least-squares and the consistent estimate."""
     truth: Optional[list[dict]]
-    report: dict
-    torques: dict[str, F64]
+    """Per base parameter: name, truth, estimate, z (when the truth is known), or None."""
     consistent: Optional[dict]
-    """The physically consistent estimate (consistent=True): estimate.json's `consistent` block."""
+    """The consistent estimate with its prior: per link beside the prior, flags, prior-decided directions."""
     consistent_theta: Optional[F64]
     """Consistent standard parameters θ (p,), or None."""
+    report: dict
     def model(self) -> Robot:
-        """The robot with the consistent standard parameters (needs consistent=True)."""
+        """The robot with the consistent standard parameters (needs consistent=True / a [consistent] table)."""
     def export(self, folder: PathLike, formats: Optional[Formats] = None) -> list[str]:
         """`idexp identify --export`: "csv" (params.csv), "urdf" (robot.urdf), "toml" (robot.toml);
-        urdf and toml need consistent=True; default all three."""
+        urdf and toml need the consistent fit; default all three."""
     def text(self) -> str: ...
     def write(self, folder: PathLike) -> str: ...
+
+class Identification(Study):
+    """A one-experiment identification (idexp.identify): a Study with the one-run views."""
+    errors: dict
+    """Errors on the identification run's rows used: e, e_rel, rms (n,), noise_floor."""
+    validation_errors: Optional[dict]
+    """Errors on the validation run, or None."""
+    torques: dict[str, F64]
+    """t (N,), measured and predicted (N, n) torques of the identification data (N·m)."""
 
 def identify(
     robot: Robot,
@@ -283,29 +298,6 @@ def identify(
     velocity_from: auto (the logged qd1..qdn when the run has them), log or positions.
     dead_band (rad/s): for joints with a sign Coulomb term, |q̇| below it is rest (no
     Coulomb term), in the run and the validation run alike; 0: sign(q̇) everywhere."""
-
-class Study:
-    """An identification study (idexp.study; `idexp identify study.toml`)."""
-    status: str
-    """`ok` or `rank_deficient` (the stacked least-squares estimate)."""
-    state: str
-    """What status.json says: complete, failed or interrupted."""
-    names: list[str]
-    theta: F64
-    std: F64
-    covariance: F64
-    experiments: list[dict]
-    """Per experiment: weights, σ per joint, errors, information share, rank and cond alone."""
-    validation: list[dict]
-    """Per validation run: e_j, e*_j, RMS of the least-squares and the consistent estimate."""
-    consistent: Optional[dict]
-    """The consistent estimate with its prior: per link beside the prior, flags, prior-decided directions."""
-    consistent_theta: Optional[F64]
-    report: dict
-    def model(self) -> Robot:
-        """The robot with the consistent standard parameters (needs a [consistent] table)."""
-    def text(self) -> str: ...
-    def write(self, folder: PathLike) -> str: ...
 
 def study(
     design: Union[PathLike, dict],

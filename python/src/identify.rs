@@ -1,115 +1,53 @@
 //! `idexp.identify`: the one-run identification of a robot from a run
 //! (folders or CSV files, a `SimRun`, or dicts of arrays).
 
-use crate::arrays::{self, out1, out2, out_rows, Arg};
+use crate::arrays::{self, out1, out2, Arg};
 use crate::dicts::to_dict;
-use crate::err::{value, IdexpError, IntoPy};
+use crate::err::{value, IntoPy};
 use crate::excite::ExciteResult;
 use crate::long::run_long;
 use crate::robot::Robot;
 use crate::simulate::SimRun;
+use crate::study::Study;
 use idexp::data::{Repetition, Run, TorqueFrom, TorqueSource};
-use idexp::ident::study::{run_study_with, ConsistentSpec, ExperimentSpec, FilterName, Given, Inputs, StudyDesign, StudyResult};
+use idexp::ident::study::{run_study_with, ConsistentSpec, ExperimentSpec, FilterName, Given, Inputs, StudyDesign};
 use idexp::ident::{self, Method, Weights};
 use idexp::trajectory::FourierTrajectory;
-use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use std::path::PathBuf;
 use std::sync::Arc;
 
-/// An identification (`idexp.identify`): estimates, covariance, σ*, errors,
-/// and the measured and predicted torques behind them.
-#[pyclass(module = "idexp", frozen)]
-pub struct Identification {
-    inner: Arc<StudyResult>,
-    robot: Arc<idexp::robot::Robot>,
-    robot_path: PathBuf,
-}
-
-impl Identification {
-    fn identified_model(&self) -> PyResult<idexp::robot::Robot> {
-        match &self.inner.estimate.consistent {
-            Some(c) if c.status.is_ok() => self.robot.with_params(&c.standard).py(),
-            Some(c) => Err(IdexpError::new_err(format!(
-                "export: the consistent fit ended with status `{}`: no identified model to write",
-                c.status
-            ))),
-            None => Err(value(
-                "formats: \"urdf\" and \"toml\" write the physically consistent model: identify with consistent=True",
-            )),
-        }
-    }
-}
+/// An identification (`idexp.identify`): a one-experiment [`Study`] with
+/// the one-run views: the errors of the run and of the validation run, and
+/// the measured and predicted torques behind them.
+#[pyclass(module = "idexp", frozen, extends = Study)]
+pub struct Identification;
 
 #[pymethods]
 impl Identification {
-    /// `ok`, `rank_deficient`, or the solver's status (ML).
-    #[getter]
-    fn status(&self) -> String {
-        self.inner.estimate.status.to_string()
-    }
-    /// Base parameter names.
-    #[getter]
-    fn names(&self) -> Vec<String> {
-        self.inner.estimate.names.clone()
-    }
-    /// Their combinations of standard parameters.
-    #[getter]
-    fn groupings(&self) -> Vec<String> {
-        self.inner.estimate.groupings.clone()
-    }
-    /// Estimates θ̂ (n_base,).
-    #[getter]
-    fn theta<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        out1(py, self.inner.estimate.theta.clone())
-    }
-    /// Standard deviations σ_i.
-    #[getter]
-    fn std<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        out1(py, self.inner.estimate.std.clone())
-    }
-    /// Relative standard deviations σ*_i = σ_i/|θ̂_i| (paper 000 eq. 14).
-    #[getter]
-    fn rel_std<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        out1(py, self.inner.estimate.rel_std.clone())
-    }
-    /// Covariance of θ̂ (n_base, n_base).
-    #[getter]
-    fn covariance<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
-        let c = &self.inner.estimate.covariance;
-        out_rows(py, c, c.len())
-    }
     /// Errors on the rows of the identification run used for the estimate:
     /// dict with e, e_rel, rms (n,) and noise_floor (eq. 11–12).
     #[getter]
-    fn errors<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        to_dict(py, &self.inner.estimate.experiments.first().map(|e| &e.errors))
+    fn errors<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        to_dict(slf.py(), &slf.as_super().get().inner.estimate.experiments.first().map(|e| &e.errors))
     }
     /// Errors on the validation run's rows selected like the estimate's, or None.
     #[getter]
-    fn validation_errors<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        to_dict(py, &self.inner.estimate.validation.first().map(|v| &v.errors))
-    }
-    /// Comparison with the truth (list of dicts name, truth, estimate, z), or None.
-    #[getter]
-    fn truth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        to_dict(py, &self.inner.estimate.truth)
-    }
-    /// The estimate as estimate.json has it.
-    #[getter]
-    fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        to_dict(py, &self.inner.estimate)
+    fn validation_errors<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        to_dict(slf.py(), &slf.as_super().get().inner.estimate.validation.first().map(|v| &v.errors))
     }
     /// Measured and predicted torques of the identification data, per joint:
     /// dict with t (N,) (processed sample times), measured and predicted
     /// (N, n) (N·m; NaN where a row was left out as too slow).
     #[getter]
-    fn torques<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let e = &self.inner.experiments[0];
+    fn torques<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
+        let py = slf.py();
+        let inner = &slf.as_super().get().inner;
+        let e = &inner.experiments[0];
         let ds = &e.prep.full;
         let (n, ns) = (ds.n, ds.n_samples);
-        let theta = nalgebra::DVector::from_column_slice(&self.inner.estimate.theta);
+        let theta = nalgebra::DVector::from_column_slice(&inner.estimate.theta);
         let pred = &ds.c * theta;
         let mut m = vec![f64::NAN; ns * n];
         let mut p = vec![f64::NAN; ns * n];
@@ -125,75 +63,8 @@ impl Identification {
         d.set_item("predicted", out2(py, ns, n, p))?;
         Ok(d)
     }
-    /// The physically consistent estimate (`consistent=True`), as the
-    /// `consistent` block of estimate.json: status, standard_names, standard
-    /// (θ, p), base (K θ), the prior (the nominal model) and its weight,
-    /// extra_cost, chi2_dof, min_eigenvalue per link, active constraints,
-    /// links beside the nominal, pinocchio (per body, Pinocchio's order),
-    /// iterations. None without `consistent=True`.
-    #[getter]
-    fn consistent<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        to_dict(py, &self.inner.estimate.consistent)
-    }
-    /// The consistent standard parameters θ (p,) (`robot.param_names`
-    /// order), or None (no consistent fit, or it failed).
-    #[getter]
-    fn consistent_theta<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
-        self.inner
-            .estimate
-            .consistent
-            .as_ref()
-            .filter(|c| c.status.is_ok())
-            .map(|c| out1(py, c.standard.clone()))
-    }
-    /// The identified model: the robot with the consistent standard
-    /// parameters (`consistent=True`); IdexpError otherwise.
-    fn model(&self) -> PyResult<Robot> {
-        Ok(Robot::new(self.identified_model()?, self.robot_path.clone()))
-    }
-    /// export(folder, formats=("urdf", "toml", "csv")) -> list of paths
-    ///
-    /// The files of `idexp identify --export`: "csv" (`params.csv`: every
-    /// base and standard parameter with std and σ*), "urdf" (`robot.urdf`:
-    /// the robot's URDF with the consistent inertials; a DH robot has none:
-    /// ValueError) and "toml" (`robot.toml`: the robot file with the
-    /// consistent drive parameters and, for a DH table, inertials). urdf and
-    /// toml need `identify(..., consistent=True)`. `formats`: a list or a
-    /// comma-separated string.
-    #[pyo3(signature = (folder, formats = None))]
-    fn export(&self, py: Python<'_>, folder: PathBuf, formats: Option<Bound<'_, PyAny>>) -> PyResult<Vec<PathBuf>> {
-        let kinds = match &formats {
-            Some(f) => crate::exports::model_kinds(f, &["urdf", "toml", "csv"])?,
-            None => ["urdf", "toml", "csv"].map(String::from).to_vec(),
-        };
-        let model_kinds: Vec<String> = kinds.iter().filter(|k| *k != "csv").cloned().collect();
-        let model = if model_kinds.is_empty() { None } else { Some(self.identified_model()?) };
-        py.detach(|| -> PyResult<Vec<PathBuf>> {
-            std::fs::create_dir_all(&folder).map_err(|e| crate::err::to_py(idexp::Error::io(&folder, e)))?;
-            let mut files = Vec::new();
-            if kinds.iter().any(|k| k == "csv") {
-                let p = folder.join("params.csv");
-                idexp::io::write_atomic(&p, idexp::ident::output::params_csv(&self.inner.estimate).as_bytes()).py()?;
-                files.push(p);
-            }
-            if let Some(m) = &model {
-                files.extend(crate::exports::write_model(&self.robot_path, m, &folder, &model_kinds)?);
-            }
-            Ok(files)
-        })
-    }
-    /// The text report (`idexp identify` prints it).
-    fn text(&self) -> String {
-        self.inner.estimate.text()
-    }
-    /// write(folder): the command line's output folder (study.json,
-    /// estimate.json, report, plots, status.json).
-    fn write(&self, py: Python<'_>, folder: PathBuf) -> PyResult<PathBuf> {
-        py.detach(|| self.inner.write(&folder, None).map(|_| ())).py()?;
-        Ok(folder)
-    }
-    fn __repr__(&self) -> String {
-        let e = &self.inner.estimate;
+    fn __repr__(slf: &Bound<'_, Self>) -> String {
+        let e = &slf.as_super().get().inner.estimate;
         format!(
             "Identification({}, {}, {} base parameters, cond={:.4})",
             e.method.name(),
@@ -313,7 +184,7 @@ pub fn identify(
     dead_band: f64,
     time_limit: Option<f64>,
     progress: Option<Bound<'_, PyAny>>,
-) -> PyResult<Identification> {
+) -> PyResult<Py<Identification>> {
     let r = &robot.inner;
     let method: Method = method.parse().py()?;
     let weights: Weights = weights.parse().py()?;
@@ -380,9 +251,5 @@ pub fn identify(
     let res = run_long(py, time_limit, progress.as_ref(), |ctl| {
         run_study_with(&design, std::path::Path::new(""), &inputs, ctl)
     })?;
-    Ok(Identification {
-        inner: Arc::new(res),
-        robot: robot.inner.clone(),
-        robot_path: robot.path.clone(),
-    })
+    Py::new(py, PyClassInitializer::from(Study { inner: Arc::new(res) }).add_subclass(Identification))
 }

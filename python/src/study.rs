@@ -3,7 +3,7 @@
 
 use crate::arrays::{out1, out_rows};
 use crate::dicts::{design_and_dir, to_dict};
-use crate::err::IntoPy;
+use crate::err::{value, IdexpError, IntoPy};
 use crate::long::run_long;
 use crate::robot::Robot;
 use idexp::ident::study::{run_study, StudyDesign, StudyResult};
@@ -12,15 +12,33 @@ use pyo3::prelude::*;
 use std::path::PathBuf;
 use std::sync::Arc;
 
-/// The result of an identification study (`idexp.study`).
-#[pyclass(module = "idexp", frozen)]
+/// The result of an identification (`idexp.study`, and `idexp.identify`'s
+/// [`crate::identify::Identification`], which extends it): estimates,
+/// covariance, experiments, validation, the consistent fit and its model.
+#[pyclass(module = "idexp", frozen, subclass)]
 pub struct Study {
-    inner: Arc<StudyResult>,
+    pub(crate) inner: Arc<StudyResult>,
+}
+
+impl Study {
+    /// The identified model (the robot with the consistent standard parameters).
+    fn identified_model(&self) -> PyResult<idexp::robot::Robot> {
+        match (&self.inner.estimate.consistent, self.inner.model().py()?) {
+            (_, Some(m)) => Ok(m),
+            (Some(c), None) => Err(IdexpError::new_err(format!(
+                "the consistent fit ended with status `{}`: no identified model",
+                c.status
+            ))),
+            (None, None) => Err(value(
+                "no consistent estimate, so no identified model: identify with consistent=True (a study: a [consistent] table, dict key \"consistent\")",
+            )),
+        }
+    }
 }
 
 #[pymethods]
 impl Study {
-    /// `ok` or `rank_deficient` (of the stacked least-squares estimate).
+    /// `ok`, `rank_deficient` (the least-squares estimate), or the solver's status (ML).
     #[getter]
     fn status(&self) -> String {
         self.inner.estimate.status.to_string()
@@ -35,7 +53,12 @@ impl Study {
     fn names(&self) -> Vec<String> {
         self.inner.estimate.names.clone()
     }
-    /// The stacked estimate θ̂ (n_base,).
+    /// Their combinations of standard parameters.
+    #[getter]
+    fn groupings(&self) -> Vec<String> {
+        self.inner.estimate.groupings.clone()
+    }
+    /// The estimate θ̂ (n_base,).
     #[getter]
     fn theta<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         out1(py, self.inner.estimate.theta.clone())
@@ -44,6 +67,11 @@ impl Study {
     #[getter]
     fn std<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         out1(py, self.inner.estimate.std.clone())
+    }
+    /// Relative standard deviations σ*_i = σ_i/|θ̂_i| (paper 000 eq. 14).
+    #[getter]
+    fn rel_std<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        out1(py, self.inner.estimate.rel_std.clone())
     }
     /// Covariance (n_base, n_base).
     #[getter]
@@ -61,12 +89,22 @@ impl Study {
     fn validation<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         to_dict(py, &self.inner.estimate.validation)
     }
-    /// The consistent estimate with its prior (estimate.json's `consistent`), or None.
+    /// Comparison with the truth (list of dicts name, truth, estimate, z), or None.
+    #[getter]
+    fn truth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_dict(py, &self.inner.estimate.truth)
+    }
+    /// The physically consistent estimate, as the `consistent` block of
+    /// estimate.json: status, standard_names, standard (θ, p), base (K θ),
+    /// the prior and its weight, extra_cost, chi2_dof, min_eigenvalue per
+    /// link, active constraints, links beside the prior, prior-decided
+    /// directions, pinocchio (per body, Pinocchio's order). None without one.
     #[getter]
     fn consistent<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         to_dict(py, &self.inner.estimate.consistent)
     }
-    /// The consistent standard parameters θ (p,), or None.
+    /// The consistent standard parameters θ (p,) (`robot.param_names`
+    /// order), or None (no consistent fit, or it failed).
     #[getter]
     fn consistent_theta<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
         self.inner
@@ -81,21 +119,48 @@ impl Study {
     fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         to_dict(py, &self.inner.estimate)
     }
-    /// The identified model (the robot with the consistent standard parameters); IdexpError without one.
+    /// The identified model: the robot with the consistent standard
+    /// parameters; ValueError without a consistent fit, IdexpError when it failed.
     fn model(&self) -> PyResult<Robot> {
-        match self.inner.model().py()? {
-            Some(m) => Ok(Robot::new(m, self.inner.robot_path.clone())),
-            None => Err(crate::err::IdexpError::new_err(
-                "the study has no usable consistent estimate: add a [consistent] table (dict key \"consistent\")",
-            )),
-        }
+        Ok(Robot::new(self.identified_model()?, self.inner.robot_path.clone()))
     }
-    /// The text report.
+    /// export(folder, formats=("urdf", "toml", "csv")) -> list of paths
+    ///
+    /// The model files of `idexp identify --export`: "csv" (`params.csv`:
+    /// every base and standard parameter with std and σ*), "urdf"
+    /// (`robot.urdf`: the robot's URDF with the consistent inertials; a DH
+    /// robot has none: ValueError) and "toml" (`robot.toml`: the robot file
+    /// with the consistent drive parameters and, for a DH table, inertials).
+    /// urdf and toml need the consistent fit. `formats`: a list or a
+    /// comma-separated string.
+    #[pyo3(signature = (folder, formats = None))]
+    fn export(&self, py: Python<'_>, folder: PathBuf, formats: Option<Bound<'_, PyAny>>) -> PyResult<Vec<PathBuf>> {
+        let kinds = match &formats {
+            Some(f) => crate::exports::model_kinds(f, &["urdf", "toml", "csv"])?,
+            None => ["urdf", "toml", "csv"].map(String::from).to_vec(),
+        };
+        let model_kinds: Vec<String> = kinds.iter().filter(|k| *k != "csv").cloned().collect();
+        let model = if model_kinds.is_empty() { None } else { Some(self.identified_model()?) };
+        py.detach(|| -> PyResult<Vec<PathBuf>> {
+            std::fs::create_dir_all(&folder).map_err(|e| crate::err::to_py(idexp::Error::io(&folder, e)))?;
+            let mut files = Vec::new();
+            if kinds.iter().any(|k| k == "csv") {
+                let p = folder.join("params.csv");
+                idexp::io::write_atomic(&p, idexp::ident::output::params_csv(&self.inner.estimate).as_bytes()).py()?;
+                files.push(p);
+            }
+            if let Some(m) = &model {
+                files.extend(crate::exports::write_model(&self.inner.robot_path, m, &folder, &model_kinds)?);
+            }
+            Ok(files)
+        })
+    }
+    /// The text report (`idexp identify` prints it).
     fn text(&self) -> String {
         self.inner.estimate.text()
     }
-    /// write(folder): the command line's output folder (estimate.json, report,
-    /// CSVs, plots, exports, status.json).
+    /// write(folder): the command line's output folder (study.json,
+    /// estimate.json, report, CSVs, plots, exports, status.json).
     fn write(&self, py: Python<'_>, folder: PathBuf) -> PyResult<PathBuf> {
         py.detach(|| self.inner.write(&folder, None)).py()?;
         Ok(folder)
