@@ -555,7 +555,7 @@ fn excite_into_an_existing_file_is_refused_before_the_search() {
     // the bench design searches for 10 s: a refusal within the 10 s bound is up front
     refused(
         &["excite", "designs/excite_ur5_bench.toml", "--out", f.to_str().unwrap()],
-        &["field `--out`", "exists and is not a folder"],
+        &["field `output folder`", "exists and is not a folder"],
     );
     assert_eq!(std::fs::read_to_string(&f).unwrap(), "keep");
 }

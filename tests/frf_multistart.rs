@@ -172,7 +172,7 @@ fn shard_parsing_and_start_points() {
     assert_eq!(Shard::parse("1/4").unwrap(), Shard { index: 1, count: 4 });
     assert_eq!(Shard::parse("1/4").unwrap().indices(10), vec![1, 5, 9]);
     for bad in ["4/4", "x/2", "1", "1/0", "-1/3"] {
-        assert!(Shard::parse(bad).unwrap_err().to_string().contains("--shard"), "{bad}");
+        assert!(Shard::parse(bad).unwrap_err().to_string().contains("shard"), "{bad}");
     }
     // start points: θ·10^φ with |φ| ≤ spread, reproducible per index
     let th = vec![1.0, 10.0, 1e5];

@@ -56,7 +56,7 @@ pub struct Shard {
 impl Shard {
     /// Parses `i/N` with 0 ≤ i < N.
     pub fn parse(s: &str) -> Result<Shard> {
-        let bad = || Error::invalid("--shard", "shard", format!("expected i/N with 0 ≤ i < N (0-based, e.g. 0/4), found `{s}`"));
+        let bad = || Error::invalid("multistart", "shard", format!("expected i/N with 0 ≤ i < N (0-based, e.g. 0/4), found `{s}`"));
         let (a, b) = s.split_once('/').ok_or_else(bad)?;
         let index: usize = a.trim().parse().map_err(|_| bad())?;
         let count: usize = b.trim().parse().map_err(|_| bad())?;
@@ -188,7 +188,7 @@ impl MultistartRun<'_> {
                 log.display().to_string(),
                 "hash",
                 format!(
-                    "start {} was written for another design or data ({} ≠ {}): remove the file or choose another --out",
+                    "start {} was written for another design or data ({} ≠ {}): remove the file or write the fit to another output folder",
                     r.index, r.hash, self.hash
                 ),
             ));

@@ -245,11 +245,7 @@ impl FromStr for Estimator {
             "lls" => Ok(Estimator::Lls),
             "lls_magnitude" => Ok(Estimator::LlsMagnitude),
             "nls" => Ok(Estimator::Nls),
-            _ => Err(Error::invalid(
-                "--method",
-                "estimator",
-                format!("expected lls, lls_magnitude or nls, found `{s}`"),
-            )),
+            _ => Err(Error::invalid("fit", "estimator", format!("expected lls, lls_magnitude or nls, found `{s}`"))),
         }
     }
 }
@@ -268,7 +264,7 @@ impl FromStr for WeightKind {
         match s {
             "user" => Ok(WeightKind::User),
             "optimal" => Ok(WeightKind::Optimal),
-            _ => Err(Error::invalid("--weights", "weights", format!("expected user or optimal, found `{s}`"))),
+            _ => Err(Error::invalid("fit", "weights", format!("expected user or optimal, found `{s}`"))),
         }
     }
 }
@@ -323,7 +319,7 @@ pub fn setup(design: &Path, o: &FitOptions) -> Result<FitSetup> {
     }
     if let Some(s) = o.starts {
         if s == 0 || s > super::design::MAX_STARTS {
-            return Err(Error::invalid("--starts", "starts", format!("{s}: expected 1..={}", super::design::MAX_STARTS)));
+            return Err(Error::invalid("fit", "starts", format!("{s}: expected 1..={}", super::design::MAX_STARTS)));
         }
         d.fit.starts = s;
     }
@@ -333,7 +329,7 @@ pub fn setup(design: &Path, o: &FitOptions) -> Result<FitSetup> {
             design.display().to_string(),
             "data",
             format!(
-                "no FRF data at {}: run `idexp frf {}` (with the same --out) first or pass --data",
+                "no FRF data at {}: estimate the FRF of {} first, into the same output folder, or give the path of its frf.json",
                 data_path.display(),
                 design.display()
             ),

@@ -71,7 +71,7 @@ pub fn check_out_dir(dir: &Path) -> Result<()> {
     match std::fs::metadata(dir) {
         Ok(m) if !m.is_dir() => Err(Error::invalid(
             dir.display().to_string(),
-            "--out",
+            "output folder",
             "exists and is not a folder; give a new or an existing output folder",
         )),
         _ => Ok(()),

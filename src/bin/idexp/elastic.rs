@@ -7,6 +7,7 @@
 //! manifest and `merge` write into `--out` itself.
 
 use crate::Outcome;
+use anyhow::Context;
 use idexp::elastic::Estimator;
 use idexp::frf::pipeline::{fit, frf, merge, multisine, FitOptions};
 use idexp::frf::{Shard, WeightKind};
@@ -145,10 +146,16 @@ pub fn run_fit(a: &FitArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         weights: a.weights,
         starts: a.starts,
         seed: a.seed,
-        shard: a.shard.as_deref().map(Shard::parse).transpose()?,
+        shard: a.shard.as_deref().map(Shard::parse).transpose().context("--shard")?,
         out: a.out.clone(),
     };
-    let r = fit(&a.design, &o, ctl)?;
+    let r = fit(&a.design, &o, ctl).map_err(|e| match e {
+        idexp::Error::Invalid { ref field, .. } if field == "data" && a.data.is_none() => anyhow::Error::new(e).context(format!(
+            "fit: run `idexp frf {}` (with the same --out) first, or pass --data",
+            a.design.display()
+        )),
+        e => e.into(),
+    })?;
     match &r.report {
         Some(rep) if a.json => crate::print_json(rep)?,
         Some(rep) => {
