@@ -13,6 +13,9 @@ use idexp::excitation::{self, Problem};
 use idexp::optim::Control;
 use std::path::{Path, PathBuf};
 
+mod excite_fd;
+use excite_fd::values;
+
 fn root(p: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
 }
@@ -205,4 +208,31 @@ fn waypoint_and_pose_fields_are_validated_with_the_field_named() {
     )
     .unwrap();
     Problem::from_file(&f).unwrap();
+}
+
+/// The criterion's gradient and the constraints' Jacobian (limits, torques,
+/// 1 cm self-collision) of a waypoint design with free ends against central
+/// differences (two segments per piece: one inner control point each).
+#[test]
+fn waypoints_objective_and_constraint_gradients_match_finite_differences() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("wp.toml");
+    std::fs::write(&f, design_text("segments = 12\n", "waypoints = 7\nstart = \"free\"\nend = \"free\"\n")).unwrap();
+    let p = Problem::from_file(&f).unwrap();
+    // 6 inner control points, 5 interior waypoints, start and end per joint
+    let nv = p.lower.len();
+    assert_eq!(nv, 6 * 13);
+    let f = excite_fd::check_objective_gradient(&p.objective, &values(nv, 0.4, 1.0), "waypoints");
+    assert!(f > 1.0, "{f}");
+    // tolerances as tests/excite_free_ends.rs (distances: witness points;
+    // torques: parabola), each row's scale at least 1e-4: the
+    // upper arm–floor distance hardly depends on x here (its largest entry
+    // is about 2e-6 m per unit of x), and its parabola-refined gradient
+    // differs from the difference quotient by about as much
+    excite_fd::check_constraint_jacobian_floor(
+        &p.constraints,
+        &values(nv, 0.3, 3.0),
+        |name| if name.starts_with("distance") { 0.1 } else { 1e-3 },
+        1e-4,
+    );
 }
