@@ -40,6 +40,7 @@ pub fn check_objective_gradient(o: &Objective, x: &[f64], label: &str) -> f64 {
 /// (step 1e-7): entry (i, v) within `tol(name of constraint i)` of row i's
 /// largest entry (at least 1e-6). Asserts that the Jacobian is not trivially
 /// zero (more nonzero entries than constraints).
+#[allow(dead_code)]
 pub fn check_constraint_jacobian(c: &Constraints, x: &[f64], tol: impl Fn(&str) -> f64) {
     check_constraint_jacobian_floor(c, x, tol, 1e-6)
 }
