@@ -235,33 +235,42 @@ fn bspline_free_ends_start_and_end_at_rest_where_the_variables_say() {
 #[test]
 fn bspline_free_ends_grid_gradient_is_the_pull_back() {
     for (s, e, l) in free_layouts(&[0.0, 0.5, -0.5], 5, 5, 6.0) {
-        let x = values(l.n_vars(), 3.5);
-        let m = l.motion(&x);
-        let times = vec![0.0, 1.1, 2.2, 5.9, 6.0];
-        let grid = l.grid(times.clone());
-        let n = 3;
-        for (i, &t) in times.iter().enumerate() {
-            let g: Vec<f64> = values(3 * n, 4.0 + i as f64);
-            let mut acc = vec![0.0; l.acc_len()];
-            l.grid_accumulate(&grid, &m, i, &g, &mut Default::default(), &mut acc);
-            let mut got = vec![0.0; l.n_vars()];
-            l.grid_finish(&acc, &mut got);
-            let sg = StateGradient {
-                factor: 1.0,
-                q: g[..n].to_vec(),
-                qd: g[n..2 * n].to_vec(),
-                qdd: g[2 * n..].to_vec(),
-            };
-            let mut want = vec![0.0; l.n_vars()];
-            l.pull_back(&m, t, &sg, &mut Default::default(), &mut want);
-            for v in 0..l.n_vars() {
-                assert!(
-                    (got[v] - want[v]).abs() < 1e-12,
-                    "start {s}, end {e}, t {t}, variable {v}: {} vs {}",
-                    got[v],
-                    want[v]
-                );
-            }
+        assert_grid_gradient_is_the_pull_back(&format!("start {s}, end {e}"), &l, &[0.0, 1.1, 2.2, 5.9, 6.0]);
+    }
+}
+
+/// The grid's accumulated gradient of a 3-joint layout equals the
+/// pull-back at each of `times`, and the grid's state the motion's.
+fn assert_grid_gradient_is_the_pull_back(what: &str, l: &BSplineLayout, times: &[f64]) {
+    let x = values(l.n_vars(), 3.5);
+    let m = l.motion(&x);
+    let grid = l.grid(times.to_vec());
+    let n = 3;
+    for (i, &t) in times.iter().enumerate() {
+        let g: Vec<f64> = values(3 * n, 4.0 + i as f64);
+        let mut acc = vec![0.0; l.acc_len()];
+        l.grid_accumulate(&grid, &m, i, &g, &mut Default::default(), &mut acc);
+        let mut got = vec![0.0; l.n_vars()];
+        l.grid_finish(&acc, &mut got);
+        let sg = StateGradient {
+            factor: 1.0,
+            q: g[..n].to_vec(),
+            qd: g[n..2 * n].to_vec(),
+            qdd: g[2 * n..].to_vec(),
+        };
+        let mut want = vec![0.0; l.n_vars()];
+        l.pull_back(&m, t, &sg, &mut Default::default(), &mut want);
+        for v in 0..l.n_vars() {
+            assert!((got[v] - want[v]).abs() < 1e-12, "{what}, t {t}, variable {v}: {} vs {}", got[v], want[v]);
+        }
+        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        l.grid_state(&grid, &m, i, &mut q, &mut qd, &mut qdd);
+        let [q2, qd2, qdd2] = state(&m, t);
+        for j in 0..n {
+            assert!(
+                (q[j] - q2[j]).abs() < 1e-12 && (qd[j] - qd2[j]).abs() < 1e-10 && (qdd[j] - qdd2[j]).abs() < 1e-9,
+                "{what}, t {t}"
+            );
         }
     }
 }
@@ -421,39 +430,7 @@ fn pose_at_start(l: &BSplineLayout, x: &[f64], q0: &[f64], j: usize) -> f64 {
 #[test]
 fn bspline_waypoints_grid_gradient_is_the_pull_back() {
     for (what, l) in waypoint_layouts(&[0.0, 0.5, -0.5], 6.0) {
-        let x = values(l.n_vars(), 3.5);
-        let m = l.motion(&x);
-        let times = vec![0.0, 1.0, 1.1, 2.0, 2.2, 5.9, 6.0];
-        let grid = l.grid(times.clone());
-        let n = 3;
-        for (i, &t) in times.iter().enumerate() {
-            let g: Vec<f64> = values(3 * n, 4.0 + i as f64);
-            let mut acc = vec![0.0; l.acc_len()];
-            l.grid_accumulate(&grid, &m, i, &g, &mut Default::default(), &mut acc);
-            let mut got = vec![0.0; l.n_vars()];
-            l.grid_finish(&acc, &mut got);
-            let sg = StateGradient {
-                factor: 1.0,
-                q: g[..n].to_vec(),
-                qd: g[n..2 * n].to_vec(),
-                qdd: g[2 * n..].to_vec(),
-            };
-            let mut want = vec![0.0; l.n_vars()];
-            l.pull_back(&m, t, &sg, &mut Default::default(), &mut want);
-            for v in 0..l.n_vars() {
-                assert!((got[v] - want[v]).abs() < 1e-12, "{what}, t {t}, variable {v}: {} vs {}", got[v], want[v]);
-            }
-            // and the grid's state is the motion's
-            let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-            l.grid_state(&grid, &m, i, &mut q, &mut qd, &mut qdd);
-            let [q2, qd2, qdd2] = state(&m, t);
-            for j in 0..n {
-                assert!(
-                    (q[j] - q2[j]).abs() < 1e-12 && (qd[j] - qd2[j]).abs() < 1e-10 && (qdd[j] - qdd2[j]).abs() < 1e-9,
-                    "{what}, t {t}"
-                );
-            }
-        }
+        assert_grid_gradient_is_the_pull_back(&what, &l, &[0.0, 1.0, 1.1, 2.0, 2.2, 5.9, 6.0]);
     }
 }
 
