@@ -235,33 +235,42 @@ fn bspline_free_ends_start_and_end_at_rest_where_the_variables_say() {
 #[test]
 fn bspline_free_ends_grid_gradient_is_the_pull_back() {
     for (s, e, l) in free_layouts(&[0.0, 0.5, -0.5], 5, 5, 6.0) {
-        let x = values(l.n_vars(), 3.5);
-        let m = l.motion(&x);
-        let times = vec![0.0, 1.1, 2.2, 5.9, 6.0];
-        let grid = l.grid(times.clone());
-        let n = 3;
-        for (i, &t) in times.iter().enumerate() {
-            let g: Vec<f64> = values(3 * n, 4.0 + i as f64);
-            let mut acc = vec![0.0; l.acc_len()];
-            l.grid_accumulate(&grid, &m, i, &g, &mut Default::default(), &mut acc);
-            let mut got = vec![0.0; l.n_vars()];
-            l.grid_finish(&acc, &mut got);
-            let sg = StateGradient {
-                factor: 1.0,
-                q: g[..n].to_vec(),
-                qd: g[n..2 * n].to_vec(),
-                qdd: g[2 * n..].to_vec(),
-            };
-            let mut want = vec![0.0; l.n_vars()];
-            l.pull_back(&m, t, &sg, &mut Default::default(), &mut want);
-            for v in 0..l.n_vars() {
-                assert!(
-                    (got[v] - want[v]).abs() < 1e-12,
-                    "start {s}, end {e}, t {t}, variable {v}: {} vs {}",
-                    got[v],
-                    want[v]
-                );
-            }
+        assert_grid_gradient_is_the_pull_back(&format!("start {s}, end {e}"), &l, &[0.0, 1.1, 2.2, 5.9, 6.0]);
+    }
+}
+
+/// The grid's accumulated gradient of a 3-joint layout equals the
+/// pull-back at each of `times`, and the grid's state the motion's.
+fn assert_grid_gradient_is_the_pull_back(what: &str, l: &BSplineLayout, times: &[f64]) {
+    let x = values(l.n_vars(), 3.5);
+    let m = l.motion(&x);
+    let grid = l.grid(times.to_vec());
+    let n = 3;
+    for (i, &t) in times.iter().enumerate() {
+        let g: Vec<f64> = values(3 * n, 4.0 + i as f64);
+        let mut acc = vec![0.0; l.acc_len()];
+        l.grid_accumulate(&grid, &m, i, &g, &mut Default::default(), &mut acc);
+        let mut got = vec![0.0; l.n_vars()];
+        l.grid_finish(&acc, &mut got);
+        let sg = StateGradient {
+            factor: 1.0,
+            q: g[..n].to_vec(),
+            qd: g[n..2 * n].to_vec(),
+            qdd: g[2 * n..].to_vec(),
+        };
+        let mut want = vec![0.0; l.n_vars()];
+        l.pull_back(&m, t, &sg, &mut Default::default(), &mut want);
+        for v in 0..l.n_vars() {
+            assert!((got[v] - want[v]).abs() < 1e-12, "{what}, t {t}, variable {v}: {} vs {}", got[v], want[v]);
+        }
+        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        l.grid_state(&grid, &m, i, &mut q, &mut qd, &mut qdd);
+        let [q2, qd2, qdd2] = state(&m, t);
+        for j in 0..n {
+            assert!(
+                (q[j] - q2[j]).abs() < 1e-12 && (qd[j] - qd2[j]).abs() < 1e-10 && (qdd[j] - qdd2[j]).abs() < 1e-9,
+                "{what}, t {t}"
+            );
         }
     }
 }
@@ -297,4 +306,172 @@ fn bspline_free_ends_box_keeps_the_start_and_end_within_the_limits() {
         let [q, _, _] = state(&m, if s { 0.0 } else { 10.0 });
         assert!((q[0] - position[0][0]).abs() < 1e-12, "start {s}, end {e}: {}", q[0]);
     }
+}
+
+/// B-splines through waypoints at rest (`[trajectory] waypoints`) with free,
+/// given or home ends: (description, layout).
+fn waypoint_layouts(q0: &[f64], duration: f64) -> Vec<(String, BSplineLayout)> {
+    let n = q0.len();
+    let given_start: Vec<f64> = (0..n).map(|j| q0[j] + 0.3 - 0.1 * j as f64).collect();
+    let given_end: Vec<f64> = (0..n).map(|j| q0[j] - 0.2 + 0.15 * j as f64).collect();
+    let mut out = Vec::new();
+    // (degree, segments, waypoints): one segment per piece (the waypoints
+    // are the only variables), two and three per piece
+    for (degree, segments, waypoints) in [(5, 6, 7), (3, 9, 4), (4, 6, 4), (5, 10, 6), (3, 6, 3)] {
+        for (ends, fs, fe, gs, ge) in [
+            ("home", false, false, None, None),
+            ("free", true, true, None, None),
+            ("given", false, false, Some(given_start.clone()), Some(given_end.clone())),
+            ("given start, free end", false, true, Some(given_start.clone()), None),
+            ("free start, given end", true, false, None, Some(given_end.clone())),
+        ] {
+            let l = BSplineLayout::new(q0.to_vec(), degree, segments, duration)
+                .unwrap()
+                .with_free_ends(fs, fe)
+                .with_given_ends(gs, ge)
+                .unwrap()
+                .with_waypoints(waypoints)
+                .unwrap();
+            out.push((format!("degree {degree}, {segments} segments, {waypoints} waypoints, {ends} ends"), l));
+        }
+    }
+    out
+}
+
+#[test]
+fn bspline_waypoints_jacobian_matches_finite_differences() {
+    for (what, l) in waypoint_layouts(&[0.2, -1.0], 6.0) {
+        let x: Vec<f64> = values(l.n_vars(), 2.5).iter().map(|v| 0.5 * v).collect();
+        // the waypoint times among them (each piece 6/(w − 1) s)
+        for t in [0.0, 0.3, 1.0, 1.7, 2.0, 3.0, 4.0, 5.33, 5.99, 6.0] {
+            let err = jacobian_error(&l, &x, t);
+            assert!(err < 1e-7, "{what}, t {t}: {err:e}");
+        }
+    }
+}
+
+/// Each waypoint is at rest where its variable (or the given pose) says:
+/// positions from `eval`, rest by central differences of the positions alone
+/// (h = 1 ms, as a 1 kHz controller sees it), and the motion moves between
+/// the waypoints.
+#[test]
+fn bspline_waypoints_rest_at_every_waypoint_by_finite_differences() {
+    let q0 = vec![0.3, -1.2, 2.0];
+    let duration = 6.0;
+    for (what, l) in waypoint_layouts(&q0, duration) {
+        let n = 3;
+        let vpj = l.vars_per_joint();
+        let x = values(l.n_vars(), 8.0);
+        let m = l.motion(&x);
+        assert_eq!(m.ends(), Ends::RestToRest);
+        let pieces = l.pieces;
+        let inner = l.segments / pieces + l.degree - 6;
+        let lead = usize::from(l.free_start);
+        // the documented block: [start?] (inner…, waypoint) per piece … [end?]
+        let pose_at = |k: usize, j: usize| -> f64 {
+            if k == 0 {
+                return match (&l.start_pose, l.free_start) {
+                    (Some(p), _) => p[j],
+                    (None, true) => q0[j] + x[j * vpj],
+                    (None, false) => q0[j],
+                };
+            }
+            if k == pieces {
+                return match (&l.end_pose, l.free_end) {
+                    (Some(p), _) => p[j],
+                    (None, true) => q0[j] + x[j * vpj + vpj - 1],
+                    (None, false) => pose_at_start(&l, &x, &q0, j),
+                };
+            }
+            q0[j] + x[j * vpj + lead + k * (inner + 1) - 1]
+        };
+        let pos = |t: f64| state(&m, t)[0].clone();
+        let h = 1e-3;
+        for k in 0..=pieces {
+            let t = duration * k as f64 / pieces as f64;
+            let (qm, q, qp) = (pos(t - h), pos(t), pos(t + h));
+            for j in 0..n {
+                assert!(
+                    (q[j] - pose_at(k, j)).abs() < 1e-12,
+                    "{what}: waypoint {k}, joint {j}: q {} not {}",
+                    q[j],
+                    pose_at(k, j)
+                );
+                let v = (qp[j] - qm[j]) / (2.0 * h);
+                let a = (qp[j] - 2.0 * q[j] + qm[j]) / (h * h);
+                assert!(
+                    v.abs() < 1e-4 && a.abs() < 2e-2,
+                    "{what}: waypoint {k} (t {t}), joint {j}: velocity {v:e}, acceleration {a:e} by differences"
+                );
+            }
+        }
+        // between the waypoints it moves (the rest is not the whole motion)
+        let mut fastest: f64 = 0.0;
+        for i in 0..600 {
+            let t = duration * (i as f64 + 0.5) / 600.0;
+            let (qm, qp) = (pos(t - h), pos(t + h));
+            fastest = fastest.max((0..n).map(|j| ((qp[j] - qm[j]) / (2.0 * h)).abs()).fold(0.0, f64::max));
+        }
+        assert!(fastest > 0.05, "{what}: {fastest}");
+        let back = l.vars(&m);
+        assert!(back.iter().zip(&x).all(|(a, b)| (a - b).abs() < 1e-12), "{what}: vars(motion(x)) != x");
+    }
+}
+
+/// The start pose as the layout places it (q0, given or free).
+fn pose_at_start(l: &BSplineLayout, x: &[f64], q0: &[f64], j: usize) -> f64 {
+    match (&l.start_pose, l.free_start) {
+        (Some(p), _) => p[j],
+        (None, true) => q0[j] + x[j * l.vars_per_joint()],
+        (None, false) => q0[j],
+    }
+}
+
+#[test]
+fn bspline_waypoints_grid_gradient_is_the_pull_back() {
+    for (what, l) in waypoint_layouts(&[0.0, 0.5, -0.5], 6.0) {
+        assert_grid_gradient_is_the_pull_back(&what, &l, &[0.0, 1.0, 1.1, 2.0, 2.2, 5.9, 6.0]);
+    }
+}
+
+#[test]
+fn bspline_waypoints_box_keeps_the_motion_within_the_limits() {
+    let q0 = vec![0.0, 1.0];
+    let position = [[-2.0, 2.0], [0.5, 3.0]];
+    let limits = JointBox {
+        position: &position,
+        velocity: &[1.0, 1.0],
+        acceleration: &[1.0, 1.0],
+    };
+    for (what, l) in waypoint_layouts(&q0, 6.0) {
+        let (lo, hi) = l.bounds(&limits);
+        let alt: Vec<f64> = (0..l.n_vars()).map(|i| if i % 2 == 0 { lo[i] } else { hi[i] }).collect();
+        for x in [lo.clone(), hi.clone(), alt] {
+            let m = l.motion(&x);
+            for k in 0..=1200 {
+                let [q, _, _] = state(&m, 6.0 * k as f64 / 1200.0);
+                for j in 0..2 {
+                    assert!(q[j] >= position[j][0] - 1e-12 && q[j] <= position[j][1] + 1e-12, "{what}: q{j} = {}", q[j]);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn bspline_waypoints_are_validated() {
+    let l = || BSplineLayout::new(vec![0.0, 0.0], 5, 6, 12.0).unwrap();
+    let e = l().with_waypoints(1).unwrap_err().to_string();
+    assert!(e.contains("waypoints") && e.contains("at least 2"), "{e}");
+    // 6 segments over 4 pieces
+    let e = l().with_waypoints(5).unwrap_err().to_string();
+    assert!(e.contains("segments") && e.contains("multiple of the 4 pieces"), "{e}");
+    // degree 3 needs 3 segments per piece (6 control points)
+    let e = BSplineLayout::new(vec![0.0], 3, 12, 12.0).unwrap().with_waypoints(7).unwrap_err().to_string();
+    assert!(e.contains("at least 3 segments per piece"), "{e}");
+    let e = l().with_given_ends(Some(vec![0.0]), None).unwrap_err().to_string();
+    assert!(e.contains("start") && e.contains("2 joint values"), "{e}");
+    // FIGAROH's form: the 5 interior waypoints per joint are the variables
+    assert_eq!(l().with_waypoints(7).unwrap().n_vars(), 2 * 5);
+    assert_eq!(l().with_free_ends(true, true).with_waypoints(7).unwrap().n_vars(), 2 * 7);
 }

@@ -21,8 +21,12 @@
 //! degree = 5                        # 3, 4 or 5
 //! segments = 11                     # equal knot intervals (≥ 7 − degree); (segments + degree − 6) free control points per joint
 //! duration = 10.0                   # length of the motion (s); default 1/frequency
-//! start = "q0"                      # q0 | free: the start pose a design variable (within the position limits)
-//! end = "start"                     # start | free: the end pose its own design variable (needs execution.periods = 1)
+//! start = "q0"                      # q0 | free | [q1, ..., qn]: at rest at q0, at a pose the search
+//!                                   # chooses (within the position limits), or at this given pose
+//! end = "start"                     # start | free | [q1, ..., qn]: at rest where it started, at a pose of
+//!                                   # its own (free or given; needs execution.periods = 1)
+//! waypoints = 7                     # optional: at rest at this many waypoints T/(waypoints − 1) apart,
+//!                                   # the interior ones free (segments: a multiple of waypoints − 1, default waypoints − 1)
 //!
 //! [objective]
 //! criterion = "cond"                # cond | log_det | inv_sigma_min
@@ -191,17 +195,28 @@ pub struct TrajectorySpec {
     /// B-spline duration (s; default one period 1/frequency).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub duration: Option<f64>,
-    /// B-spline start pose: q0 (default) or a design variable.
+    /// B-spline start pose: q0 (default), a design variable, or a given pose.
     #[serde(skip_serializing_if = "StartPose::is_q0")]
     pub start: StartPose,
-    /// B-spline end pose: the start pose (default) or a design variable of its own.
+    /// B-spline end pose: the start pose (default), a design variable of its own, or a given pose.
     #[serde(skip_serializing_if = "EndPose::is_start")]
     pub end: EndPose,
+    /// B-spline waypoints at rest, T/(waypoints − 1) apart (default: only the start and the end).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub waypoints: Option<usize>,
+}
+
+/// `start`/`end` in a file: a word or a pose.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(untagged)]
+enum PoseWord {
+    Word(String),
+    Pose(Vec<f64>),
 }
 
 /// `[trajectory] start`: where a B-spline starts (at rest).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(try_from = "PoseWord", into = "PoseWord")]
 pub enum StartPose {
     /// At q0, the home pose (default).
     #[default]
@@ -209,17 +224,50 @@ pub enum StartPose {
     /// Anywhere within the position limits: a design variable per joint,
     /// reached from home by a lead-in.
     Free,
+    /// At this pose (one value per joint, within the position limits),
+    /// reached from home by a lead-in.
+    Pose(Vec<f64>),
 }
 
 impl StartPose {
     fn is_q0(&self) -> bool {
         *self == StartPose::Q0
     }
+
+    /// The given pose, if any.
+    pub fn given(&self) -> Option<&Vec<f64>> {
+        match self {
+            StartPose::Pose(q) => Some(q),
+            _ => None,
+        }
+    }
+}
+
+impl TryFrom<PoseWord> for StartPose {
+    type Error = String;
+    fn try_from(w: PoseWord) -> std::result::Result<Self, String> {
+        match w {
+            PoseWord::Word(s) if s == "q0" => Ok(StartPose::Q0),
+            PoseWord::Word(s) if s == "free" => Ok(StartPose::Free),
+            PoseWord::Word(s) => Err(format!("unknown start `{s}`: expected `q0` or `free` or a pose [q1, ..., qn]")),
+            PoseWord::Pose(q) => Ok(StartPose::Pose(q)),
+        }
+    }
+}
+
+impl From<StartPose> for PoseWord {
+    fn from(p: StartPose) -> Self {
+        match p {
+            StartPose::Q0 => PoseWord::Word("q0".into()),
+            StartPose::Free => PoseWord::Word("free".into()),
+            StartPose::Pose(q) => PoseWord::Pose(q),
+        }
+    }
 }
 
 /// `[trajectory] end`: where a B-spline ends (at rest).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(try_from = "PoseWord", into = "PoseWord")]
 pub enum EndPose {
     /// Where it started (default).
     #[default]
@@ -227,11 +275,44 @@ pub enum EndPose {
     /// Anywhere within the position limits: a design variable per joint,
     /// left to home by a lead-out.
     Free,
+    /// At this pose (one value per joint, within the position limits),
+    /// left to home by a lead-out.
+    Pose(Vec<f64>),
 }
 
 impl EndPose {
     fn is_start(&self) -> bool {
         *self == EndPose::Start
+    }
+
+    /// The given pose, if any.
+    pub fn given(&self) -> Option<&Vec<f64>> {
+        match self {
+            EndPose::Pose(q) => Some(q),
+            _ => None,
+        }
+    }
+}
+
+impl TryFrom<PoseWord> for EndPose {
+    type Error = String;
+    fn try_from(w: PoseWord) -> std::result::Result<Self, String> {
+        match w {
+            PoseWord::Word(s) if s == "start" => Ok(EndPose::Start),
+            PoseWord::Word(s) if s == "free" => Ok(EndPose::Free),
+            PoseWord::Word(s) => Err(format!("unknown end `{s}`: expected `start` or `free` or a pose [q1, ..., qn]")),
+            PoseWord::Pose(q) => Ok(EndPose::Pose(q)),
+        }
+    }
+}
+
+impl From<EndPose> for PoseWord {
+    fn from(p: EndPose) -> Self {
+        match p {
+            EndPose::Start => PoseWord::Word("start".into()),
+            EndPose::Free => PoseWord::Word("free".into()),
+            EndPose::Pose(q) => PoseWord::Pose(q),
+        }
     }
 }
 
@@ -274,15 +355,63 @@ impl TrajectorySpec {
             ShapeKind::Fourier => {
                 crate::trajectory::FourierLayout::new(q0, self.harmonics, std::f64::consts::TAU * self.frequency, self.vary_q0, self.at_rest)?.into()
             }
-            ShapeKind::Bspline => crate::trajectory::bspline::BSplineLayout::new(
-                q0,
-                self.degree.unwrap_or(DEFAULT_DEGREE),
-                self.segments.unwrap_or(DEFAULT_SEGMENTS),
-                self.motion_duration(),
-            )?
-            .with_free_ends(self.start == StartPose::Free, self.end == EndPose::Free)
-            .into(),
+            ShapeKind::Bspline => {
+                crate::trajectory::bspline::BSplineLayout::new(q0, self.degree.unwrap_or(DEFAULT_DEGREE), self.bspline_segments(), self.motion_duration())?
+                    .with_free_ends(self.start == StartPose::Free, self.end == EndPose::Free)
+                    .with_given_ends(self.start.given().cloned(), self.end.given().cloned())?
+                    .with_waypoints(self.waypoints.unwrap_or(2))?
+                    .into()
+            }
         })
+    }
+
+    /// B-spline segments: `segments`, else [`DEFAULT_SEGMENTS`], or one per
+    /// piece between `waypoints`.
+    pub fn bspline_segments(&self) -> usize {
+        match (self.segments, self.waypoints) {
+            (Some(s), _) => s,
+            (None, Some(w)) if w > 2 => w - 1,
+            _ => DEFAULT_SEGMENTS,
+        }
+    }
+
+    /// Whether a B-spline's end can differ from its start (a free or given
+    /// end pose other than the start's): it cannot be repeated back to back.
+    pub fn ends_elsewhere(&self) -> bool {
+        match &self.end {
+            EndPose::Start => false,
+            EndPose::Free => true,
+            EndPose::Pose(e) => self.start.given() != Some(e),
+        }
+    }
+
+    /// Checks the given start and end poses against the joint count and the
+    /// position limits `position` (per joint, the design's ranges): the
+    /// convex hull of the control points then keeps the motion within them.
+    pub fn check_poses(&self, position: &[[f64; 2]], ctx: &str) -> Result<()> {
+        for (field, pose) in [("trajectory.start", self.start.given()), ("trajectory.end", self.end.given())] {
+            let Some(q) = pose else { continue };
+            if q.len() != position.len() {
+                return Err(Error::invalid(
+                    ctx,
+                    field,
+                    format!("expected a pose of {} joint values, got {}", position.len(), q.len()),
+                ));
+            }
+            for (j, (&v, &[lo, hi])) in q.iter().zip(position).enumerate() {
+                if !(v.is_finite() && v >= lo && v <= hi) {
+                    return Err(Error::invalid(
+                        ctx,
+                        format!("{field}[{j}]"),
+                        format!(
+                            "{v} is outside the design's position range [{lo}, {hi}] of joint {} (limits.position, limits.position_range)",
+                            j + 1
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The checks of the shape's fields (`ctx` names the file).
@@ -296,6 +425,7 @@ impl TrajectorySpec {
                     ("trajectory.duration", self.duration.is_some()),
                     ("trajectory.start", self.start != StartPose::Q0),
                     ("trajectory.end", self.end != EndPose::Start),
+                    ("trajectory.waypoints", self.waypoints.is_some()),
                 ] {
                     if given {
                         return bad(
@@ -310,7 +440,25 @@ impl TrajectorySpec {
                 if !(3..=crate::trajectory::bspline::MAX_DEGREE).contains(&p) {
                     return bad("trajectory.degree", format!("expected a B-spline degree of 3, 4 or 5, got {p}"));
                 }
-                let s = self.segments.unwrap_or(DEFAULT_SEGMENTS);
+                let s = self.bspline_segments();
+                if let Some(w) = self.waypoints {
+                    let pieces = w.max(2) - 1;
+                    if !(2..=1000).contains(&w) {
+                        return bad(
+                            "trajectory.waypoints",
+                            format!("expected 2..=1000 waypoints (the start and the end count), got {w}"),
+                        );
+                    }
+                    if s % pieces != 0 || (pieces > 1 && s / pieces + p < 6) || s > 1000 {
+                        return bad(
+                            "trajectory.segments",
+                            format!(
+                                "expected a multiple of the {pieces} pieces between {w} waypoints, at least {} per piece for degree {p} (three control points are fixed at each waypoint), at most 1000, got {s}",
+                                6usize.saturating_sub(p).max(1)
+                            ),
+                        );
+                    }
+                }
                 if s + p < 7 || s > 1000 {
                     return bad(
                         "trajectory.segments",
@@ -352,6 +500,7 @@ impl Default for TrajectorySpec {
             duration: None,
             start: StartPose::Q0,
             end: EndPose::Start,
+            waypoints: None,
         }
     }
 }
@@ -601,11 +750,11 @@ impl ExciteDesign {
             }
         }
         tr.validate_shape(ctx)?;
-        if tr.end == EndPose::Free && self.execution.periods != 1 {
+        if tr.ends_elsewhere() && self.execution.periods != 1 {
             return bad(
                 "execution.periods",
                 format!(
-                    "trajectory.end = \"free\" ends the motion elsewhere than it starts, so it cannot be repeated back to back: set execution.periods = 1 (got {}), or end = \"start\"",
+                    "trajectory.end (free, or a pose other than the start) ends the motion elsewhere than it starts, so it cannot be repeated back to back: set execution.periods = 1 (got {}), or end = \"start\"",
                     self.execution.periods
                 ),
             );
@@ -614,7 +763,7 @@ impl ExciteDesign {
         // two samples per period of the highest harmonic, or per B-spline segment
         let nyq = match tr.shape {
             ShapeKind::Fourier => 2.0 * tr.harmonics as f64 * tr.frequency,
-            ShapeKind::Bspline => 2.0 * tr.segments.unwrap_or(DEFAULT_SEGMENTS) as f64 / tr.motion_duration(),
+            ShapeKind::Bspline => 2.0 * tr.bspline_segments() as f64 / tr.motion_duration(),
         };
         if !(o.sample_rate.is_finite() && o.sample_rate > 0.0) {
             return bad("objective.sample_rate", format!("expected a positive rate in Hz, got {}", o.sample_rate));
@@ -750,6 +899,12 @@ impl ExciteDesign {
         }
         if let Some(h) = &self.execution.home {
             check("execution.home", h.len())?;
+        }
+        if let Some(q) = self.trajectory.start.given() {
+            check("trajectory.start", q.len())?;
+        }
+        if let Some(q) = self.trajectory.end.given() {
+            check("trajectory.end", q.len())?;
         }
         Ok(())
     }

@@ -7,7 +7,8 @@
 //! built only when `home` is set to another pose). A B-spline with a free
 //! start or end pose (`[trajectory] start = "free"`, `end = "free"`) has
 //! q0 as its home: a lead-in from q0 at rest to its start, a lead-out from
-//! its end (each only where that pose is not home).
+//! its end (each only where that pose is not home); likewise a given start
+//! or end pose (`start = [q1, ..., qn]`, `end = [..]`).
 //!
 //! By default (`rest_to_rest = true`) the robot starts at rest at the home
 //! pose (default: q0), follows a quintic lead-in to the periodic part's
@@ -464,8 +465,8 @@ pub fn home_of(p: &Problem, tr: &ShapeMotion) -> Vec<f64> {
         return h.clone();
     }
     match &p.shape {
-        // free ends: the start is the design's, home stays q0
-        crate::trajectory::Shape::BSpline(l) if l.free_start || l.free_end => l.q0.clone(),
+        // free or given ends: the start is the design's, home stays q0
+        crate::trajectory::Shape::BSpline(l) if l.leaves_home() => l.q0.clone(),
         _ => tr.rest_pose(),
     }
 }
@@ -503,9 +504,9 @@ pub fn deliver(p: &Problem, tr: &ShapeMotion) -> Result<Execution> {
     let at_home = |s: &State| s.q.iter().zip(&home).all(|(a, b)| (a - b).abs() <= 1e-12) && s.qd.iter().chain(&s.qdd).all(|v| v.abs() <= 1e-12);
     let (lead_in, lead_out) = if tr.ends() == crate::trajectory::Ends::RestToRest {
         // a rest-to-rest motion: a lead where its start (end) is not home
-        let free_end = matches!(&p.shape, crate::trajectory::Shape::BSpline(l) if l.free_end);
+        let own_end = matches!(&p.shape, crate::trajectory::Shape::BSpline(l) if !l.ends_at_start());
         // the end of a motion that ends where it starts is its start (as before free ends)
-        let end = if free_end { State::of(tr, tr.duration()) } else { start.clone() };
+        let end = if own_end { State::of(tr, tr.duration()) } else { start.clone() };
         let mut lead = |a: &State, b: &State, what: &str| -> std::result::Result<Option<lead::Quintic>, String> {
             if (what == "lead-in" && at_home(b)) || (what == "lead-out" && at_home(a)) {
                 return Ok(None);

@@ -377,6 +377,7 @@ impl Problem {
         let (limits, applied_limits) = limits::resolve(&design.limits, &robot, &design.robot, ctx)?;
         let position = limits.position.clone();
         let tr = &design.trajectory;
+        tr.check_poses(&position, ctx)?;
         let q0 = match &tr.q0 {
             Some(q) => q.clone(),
             None => position

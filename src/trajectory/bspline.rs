@@ -29,6 +29,24 @@
 //! the box still keeps it within the limits, and scaling a joint's block
 //! scales q_j − q0_j. A motion whose ends are not at home is played between
 //! a lead-in from and a lead-out to home (`excitation::execution`).
+//!
+//! **Given ends**: `start_pose` (`end_pose`) fixes the three start (end)
+//! control points at a pose of the design's instead of q0 (no variable);
+//! the offsets of the other control points stay measured from q0, the home.
+//! Scaling a joint's block then scales the free control points about q0
+//! while the given ends stay put (the GA's repair and the final shrink are
+//! heuristics there; the verification decides).
+//!
+//! **Waypoints** (`pieces` = w − 1 > 1 for w waypoints, FIGAROH's form): the
+//! motion is w − 1 rest-to-rest pieces of equal duration T/(w − 1), each a
+//! clamped B-spline of s/(w − 1) segments. The knot vector is the uniform one
+//! of s segments with each of the w − 2 interior waypoint times repeated p
+//! times (so the pieces share their boundary control point), and the five
+//! control points about each interior waypoint are one design variable per
+//! joint: q̇ = q̈ = 0 at every waypoint. A joint's block is then: the free
+//! start, then for each piece its s/(w − 1) + p − 6 inner control points
+//! followed by the waypoint that ends it (none after the last piece), then
+//! the free end.
 
 use super::shape::{Ends, JointBox, Motion, StateGradient, TimeGrid, TrajectoryShape};
 use crate::error::{Error, Result};
@@ -77,6 +95,32 @@ pub struct BSplineLayout {
     /// The end pose is a design variable of its own (else the end is the start).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub free_end: bool,
+    /// A given start pose (else q0, or free).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_pose: Option<Vec<f64>>,
+    /// A given end pose (else the start, or free).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub end_pose: Option<Vec<f64>>,
+    /// Rest-to-rest pieces between waypoints (1: one piece, no interior waypoint).
+    #[serde(default = "one_piece", skip_serializing_if = "is_one_piece")]
+    pub pieces: usize,
+}
+
+fn one_piece() -> usize {
+    1
+}
+
+fn is_one_piece(v: &usize) -> bool {
+    *v == 1
+}
+
+/// Where a control point of a joint goes: a design variable of its block,
+/// or one of the fixed ends.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Slot {
+    Var(usize),
+    Start,
+    End,
 }
 
 impl BSplineLayout {
@@ -118,7 +162,77 @@ impl BSplineLayout {
             q0,
             free_start: false,
             free_end: false,
+            start_pose: None,
+            end_pose: None,
+            pieces: 1,
         })
+    }
+
+    /// The same layout with `waypoints` waypoints at rest (w − 1 pieces of
+    /// segments/(w − 1) segments each; module documentation). Errors name
+    /// `trajectory.waypoints` and `trajectory.segments`.
+    pub fn with_waypoints(mut self, waypoints: usize) -> Result<Self> {
+        if waypoints < 2 {
+            return Err(Error::invalid(
+                "trajectory",
+                "waypoints",
+                format!("expected at least 2 waypoints (the start and the end), got {waypoints}"),
+            ));
+        }
+        let pieces = waypoints - 1;
+        let (s, p) = (self.segments, self.degree);
+        if s % pieces != 0 || (pieces > 1 && s / pieces + p < 2 * FIXED) {
+            return Err(Error::invalid(
+                "trajectory",
+                "segments",
+                format!(
+                    "expected a multiple of the {pieces} pieces between {waypoints} waypoints, with at least {} segments per piece for degree {p} (three control points are fixed at each waypoint), got {s}",
+                    (2 * FIXED).saturating_sub(p).max(1)
+                ),
+            ));
+        }
+        self.pieces = pieces;
+        Ok(self)
+    }
+
+    /// The same layout starting (ending) at rest at a given pose instead of
+    /// q0 (the start); `None` leaves that end as it is. Errors name
+    /// `trajectory.start` / `trajectory.end`.
+    pub fn with_given_ends(mut self, start: Option<Vec<f64>>, end: Option<Vec<f64>>) -> Result<Self> {
+        for (field, pose) in [("start", &start), ("end", &end)] {
+            if let Some(q) = pose {
+                if q.len() != self.n {
+                    return Err(Error::invalid(
+                        "trajectory",
+                        field,
+                        format!("expected a pose of {} joint values, got {}", self.n, q.len()),
+                    ));
+                }
+                if let Some(j) = q.iter().position(|v| !v.is_finite()) {
+                    return Err(Error::invalid("trajectory", format!("{field}[{j}]"), "expected a finite number"));
+                }
+            }
+        }
+        if start.is_some() {
+            self.free_start = false;
+        }
+        if end.is_some() {
+            self.free_end = false;
+        }
+        self.start_pose = start;
+        self.end_pose = end;
+        Ok(self)
+    }
+
+    /// Whether the motion starts or ends elsewhere than q0 (the home pose):
+    /// it is then played between a lead-in from and a lead-out to q0.
+    pub fn leaves_home(&self) -> bool {
+        self.free_start || self.free_end || self.start_pose.is_some() || self.end_pose.is_some()
+    }
+
+    /// Whether the motion ends where it starts (so it can be repeated back to back).
+    pub fn ends_at_start(&self) -> bool {
+        !self.free_end && self.end_pose.as_ref().is_none_or(|e| Some(e) == self.start_pose.as_ref())
     }
 
     /// The same layout with the start and/or end pose free (module documentation).
@@ -128,38 +242,89 @@ impl BSplineLayout {
         self
     }
 
-    /// The entry of a joint's block of x that moves control point i (None: fixed at q0).
-    fn var_of(&self, i: usize) -> Option<usize> {
+    /// Control points per piece (s/pieces + p; neighbouring pieces share one).
+    fn piece_len(&self) -> usize {
+        self.segments / self.pieces + self.degree
+    }
+
+    /// Free control points inside a piece (none fixed at its waypoints).
+    fn inner(&self) -> usize {
+        self.piece_len() - 2 * FIXED
+    }
+
+    /// Where control point i goes (module documentation).
+    fn slot(&self, i: usize) -> Slot {
         let m = self.n_control();
         let lead = usize::from(self.free_start);
+        let start = if self.free_start { Slot::Var(0) } else { Slot::Start };
         if i < FIXED {
-            self.free_start.then_some(0)
-        } else if i >= m - FIXED {
-            if self.free_end {
-                Some(self.vars_per_joint() - 1)
+            return start;
+        }
+        if i >= m - FIXED {
+            return if self.free_end {
+                Slot::Var(self.vars_per_joint() - 1)
+            } else if self.end_pose.is_some() {
+                Slot::End
             } else {
-                self.free_start.then_some(0)
-            }
+                start
+            };
+        }
+        // piece k holds control points k(l − 1) … k(l − 1) + l − 1
+        let (l, inner) = (self.piece_len(), self.inner());
+        let (k, r) = (i / (l - 1), i % (l - 1));
+        if r < FIXED {
+            // about interior waypoint k (k ≥ 1: i ≥ FIXED)
+            Slot::Var(lead + k * (inner + 1) - 1)
+        } else if r >= l - FIXED {
+            // about interior waypoint k + 1 (not the end: i < m − FIXED)
+            Slot::Var(lead + (k + 1) * (inner + 1) - 1)
         } else {
-            Some(i - FIXED + lead)
+            Slot::Var(lead + k * (inner + 1) + r - FIXED)
         }
     }
 
-    /// Control points per joint (s + p).
+    /// The entry of a joint's block of x that moves control point i (None: a fixed end).
+    fn var_of(&self, i: usize) -> Option<usize> {
+        match self.slot(i) {
+            Slot::Var(k) => Some(k),
+            _ => None,
+        }
+    }
+
+    /// Control point i of joint j for the joint's block `xj`.
+    fn control_point(&self, j: usize, i: usize, xj: &[f64]) -> f64 {
+        match self.slot(i) {
+            Slot::Var(k) => self.q0[j] + xj[k],
+            Slot::Start => self.start_pose.as_ref().map_or(self.q0[j], |q| q[j]),
+            Slot::End => self.end_pose.as_ref().map_or(self.q0[j], |q| q[j]),
+        }
+    }
+
+    /// Control points per joint (s + p, less one per interior waypoint:
+    /// the pieces share them).
     pub fn n_control(&self) -> usize {
-        self.segments + self.degree
+        self.pieces * (self.piece_len() - 1) + 1
     }
 
-    /// Design variables per joint (s + p − 6, plus one per free end).
+    /// Design variables per joint (s + p − 6 for one piece; per piece
+    /// s/pieces + p − 6 and one per interior waypoint; plus one per free end).
     pub fn vars_per_joint(&self) -> usize {
-        self.n_control() - 2 * FIXED + usize::from(self.free_start) + usize::from(self.free_end)
+        self.pieces * self.inner() + (self.pieces - 1) + usize::from(self.free_start) + usize::from(self.free_end)
     }
 
-    /// The clamped uniform knot vector.
+    /// The clamped knot vector: uniform over the s segments, each interior
+    /// waypoint's time repeated p times.
     pub fn knots(&self) -> Vec<f64> {
-        let (p, s, t) = (self.degree, self.segments, self.duration);
+        let (p, s, t, np) = (self.degree, self.segments, self.duration, self.pieces);
+        let sp = s / np;
+        let at = |i: usize| t * i as f64 / s as f64;
         let mut u = vec![0.0; p + 1];
-        u.extend((1..s).map(|i| t * i as f64 / s as f64));
+        for k in 0..np {
+            u.extend((1..sp).map(|i| at(k * sp + i)));
+            if k + 1 < np {
+                u.extend(std::iter::repeat_n(at((k + 1) * sp), p));
+            }
+        }
         u.extend(std::iter::repeat_n(t, p + 1));
         u
     }
@@ -512,7 +677,7 @@ impl TrajectoryShape for BSplineLayout {
     fn motion(&self, x: &[f64]) -> BSplineMotion {
         let (m, vpj) = (self.n_control(), self.vars_per_joint());
         let control = (0..self.n)
-            .map(|j| (0..m).map(|i| self.q0[j] + self.var_of(i).map_or(0.0, |k| x[j * vpj + k])).collect())
+            .map(|j| (0..m).map(|i| self.control_point(j, i, &x[j * vpj..(j + 1) * vpj])).collect())
             .collect();
         BSplineMotion {
             degree: self.degree,

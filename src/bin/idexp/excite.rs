@@ -4,7 +4,7 @@ use crate::Outcome;
 use anyhow::bail;
 use idexp::excitation::design::ExciteDesign;
 use idexp::excitation::report::{assess_file, ident_figure, violation_lines, write_outputs_with, CriterionRecord};
-use idexp::excitation::{run, Criterion, Problem, Status};
+use idexp::excitation::{run, Problem, Status};
 use idexp::optim::{Control, Termination};
 use idexp::params::{BaseOptions, BaseParams};
 use std::path::PathBuf;
@@ -63,15 +63,6 @@ pub struct AssessArgs {
     pub json: bool,
 }
 
-/// The criterion in words.
-fn criterion_words(c: Criterion) -> &'static str {
-    match c {
-        Criterion::Cond => "condition number",
-        Criterion::LogDet => "−log det (D-optimality)",
-        Criterion::InvSigmaMin => "1/σ_min (E-optimality)",
-    }
-}
-
 /// Runs `idexp excite`.
 pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let mut d = ExciteDesign::load(&a.design)?;
@@ -123,7 +114,7 @@ pub fn run_excite(a: &ExciteArgs, ctl: &Control) -> anyhow::Result<Outcome> {
             },
             r.spectrum.cond,
             r.criterion,
-            criterion_words(p.design.objective.criterion),
+            p.design.objective.criterion.words(),
             r.seconds,
             out.display()
         );

@@ -88,6 +88,17 @@ pub enum Criterion {
     InvSigmaMin,
 }
 
+impl Criterion {
+    /// The criterion in words, of W½·C·D (report.txt and the command line's summary).
+    pub fn words(self) -> &'static str {
+        match self {
+            Criterion::Cond => "condition number σ_max/σ_min",
+            Criterion::LogDet => "−log det((W½CD)ᵀ(W½CD)) (D-optimality)",
+            Criterion::InvSigmaMin => "1/σ_min (E-optimality)",
+        }
+    }
+}
+
 /// Column scaling of the stacked regressor before the criterion.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]

@@ -4,7 +4,7 @@
 use super::assess::{column_parameters, Identifiability};
 use super::outputs::criterion_sample_set;
 use crate::excitation::constraints::{ConstraintKind, Margin};
-use crate::excitation::{Criterion, ExciteResult, Problem, Scaling, Status};
+use crate::excitation::{ExciteResult, Problem, Scaling, Status};
 use crate::trajectory::{seconds_text, TrajectoryShape};
 use std::fmt::Write as _;
 
@@ -174,11 +174,7 @@ fn design_section(s: &mut String, p: &Problem) {
     let _ = writeln!(
         s,
         "criterion: {} of W½·C·D, C the stacked base regressor ({} columns × {} rows)",
-        match d.objective.criterion {
-            Criterion::Cond => "condition number σ_max/σ_min",
-            Criterion::LogDet => "−log det((W½CD)ᵀ(W½CD)) (D-optimality)",
-            Criterion::InvSigmaMin => "1/σ_min (E-optimality)",
-        },
+        d.objective.criterion.words(),
         p.objective.n_cols(),
         p.objective.n_rows(),
     );
