@@ -217,6 +217,30 @@ def test_bspline_design_from_the_file(tmp_path):
     assert np.allclose(s["qd"][0], 0.0, atol=1e-12) and np.allclose(s["qdd"][0], 0.0, atol=1e-12)
 
 
+def test_given_start_and_waypoints_from_a_dict():
+    """A B-spline through waypoints at rest from a given start pose (dict
+    keys `start`, `waypoints`): the motion starts at rest at the given pose
+    and is at rest at the interior waypoint (t = T/2); a pose outside the
+    position range is refused, naming the field."""
+    spec = tomllib.loads((DESIGNS / "excite_ur5_bspline.toml").read_text())
+    spec["robot"] = str(ROBOTS / "ur5.toml")
+    spec["ga"].update(population=12, generations=4)
+    spec["refine"].update(starts=1, max_evals=25)
+    start = [0.3, -1.4, 0.2, -1.7, 0.1, 0.2]
+    spec["trajectory"].update(start=start, waypoints=3, segments=4)
+    r = idexp.excite(spec, seed=3)
+    s = r.sample(1000.0)
+    assert np.allclose(s["q"][0], start, atol=1e-12)
+    assert np.allclose(s["qd"][0], 0.0, atol=1e-12) and np.allclose(s["qdd"][0], 0.0, atol=1e-9)
+    mid = np.argmin(np.abs(s["t"] - 5.0))
+    assert abs(s["t"][mid] - 5.0) < 1e-9
+    assert np.allclose(s["qd"][mid], 0.0, atol=1e-9), s["qd"][mid]
+    assert np.abs(s["qd"]).max() > 0.1  # it moves between the waypoints
+    spec["trajectory"]["start"] = [0.3, -1.4, 9.0, -1.7, 0.1, 0.2]
+    with pytest.raises(idexp.IdexpError, match=r"start\[2\]"):
+        idexp.excite(spec, seed=3)
+
+
 def test_progress_and_an_evaluation_budget_from_a_dict(tmp_path):
     """max_evaluations and refine.elites pass through a dict design; the
     report's progress is the running minimum of the GA's feasible best and the
