@@ -545,6 +545,12 @@ fn identify_argument_mismatches_are_refused() {
         ],
         &["field `essential`", "`Fc1` is listed twice"],
     );
+    // one repetition without variance columns: the one-run form names its own way out
+    let one = run.join("rep_001.csv");
+    refused(
+        &["identify", r, one.to_str().unwrap(), "--out", tmp.path().join("o1").to_str().unwrap()],
+        &["field `weights`", "one repetition", "--weights joint"],
+    );
 }
 
 #[test]

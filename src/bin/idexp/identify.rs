@@ -338,7 +338,15 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     }
     let design = one_run_design(a)?;
     let out = a.out.clone().unwrap_or_else(|| default_out(&a.run, ""));
-    run_design(a, &design, Path::new(""), &out, ctl, started)
+    run_design(a, &design, Path::new(""), &out, ctl, started).map_err(|e| {
+        // the engine speaks the study's keys: say the one-run form's way out
+        match e.downcast_ref::<idexp::Error>() {
+            Some(idexp::Error::Invalid { field, .. }) if field == "weights" => {
+                e.context("identify: --weights sample needs repetitions; --weights joint estimates each joint's weight from the residuals")
+            }
+            _ => e,
+        }
+    })
 }
 
 fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run, started: SystemTime) -> anyhow::Result<Outcome> {
