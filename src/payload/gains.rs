@@ -48,7 +48,7 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 fn max_std() -> f64 {
-    0.02
+    0.01
 }
 fn yes() -> bool {
     true
@@ -83,8 +83,10 @@ pub struct GainsSpec {
     /// Largest relative σ of a gain that counts as determined by the motion.
     #[serde(default = "max_std")]
     pub max_std: f64,
-    /// Estimate one delay of the currents behind the positions per run.
-    #[serde(default = "yes")]
+    /// Estimate one delay of the currents behind the positions per run
+    /// (default off: on the shipped rehearsal it is not determined well
+    /// enough, see docs/payload.md).
+    #[serde(default)]
     pub delay: bool,
     /// The delays searched: −max_delay … max_delay (s).
     #[serde(default = "max_delay")]
@@ -222,35 +224,72 @@ struct RunData {
 }
 
 impl RunData {
-    fn tau_at(&self, i: usize, delay: f64) -> f64 {
-        chain::sample_at(&self.tau, self.joint[i], self.sample[i] as f64 + delay / self.h)
+    /// Per joint, the torques read `delay` later (τ_file(t + δ), [`chain::shifted`]).
+    fn taus(&self, delay: f64) -> Vec<Vec<f64>> {
+        let n = self.tau.first().map_or(0, |r| r.len());
+        (0..n)
+            .map(|j| {
+                let col: Vec<f64> = self.tau.iter().map(|r| r[j]).collect();
+                chain::shifted(&col, delay / self.h)
+            })
+            .collect()
     }
 
-    /// The run's rows for the stacked fit: columns [fixed | ρ of the calibrated joints], y.
-    fn dataset(&self, delay: f64, cal: &[Option<usize>], names: &[String]) -> Dataset {
+    /// The run's rows of the Gauss–Newton step at `p` (see [`calibrate`]):
+    /// columns [γ_j F | F x − y0 on the free joints' rows], target
+    /// t = τ(δ) + γ_j F x (free joints) or τ(δ) + y0 (fixed, γ = 1); also t
+    /// without the delay-dependent part (c = t − τ(δ)).
+    fn linearised(&self, delay: f64, p: &Point, cal: &[Option<usize>], names: &[String]) -> (Dataset, DVector<f64>) {
         let (rows, pf) = (self.f.nrows(), self.f.ncols());
         let nc = cal.iter().flatten().count();
         let mut c = DMatrix::zeros(rows, pf + nc);
-        c.view_mut((0, 0), (rows, pf)).copy_from(&self.f);
-        let mut y = self.y0.clone();
+        let mut y = DVector::zeros(rows);
+        let mut off = DVector::zeros(rows);
+        let x = DVector::from_column_slice(&p.x);
+        let fx = &self.f * &x;
+        let taus = self.taus(delay);
         for i in 0..rows {
-            let t = self.tau_at(i, delay);
-            match cal[self.joint[i]] {
-                Some(k) => c[(i, pf + k)] = -t,
-                None => y[i] += t,
+            let j = self.joint[i];
+            let g = p.gamma[j];
+            for k in 0..pf {
+                c[(i, k)] = g * self.f[(i, k)];
             }
+            let t = taus[j][self.sample[i]];
+            match cal[j] {
+                Some(k) => {
+                    c[(i, pf + k)] = fx[i] - self.y0[i];
+                    off[i] = g * fx[i];
+                }
+                None => off[i] = self.y0[i],
+            }
+            y[i] = t + off[i];
         }
-        Dataset {
-            n: cal.len(),
-            n_samples: self.samples,
-            c,
-            y,
-            var: self.var.clone(),
-            names: names.to_vec(),
-            joint: self.joint.clone(),
-            sample: self.sample.clone(),
-        }
+        (
+            Dataset {
+                n: cal.len(),
+                n_samples: self.samples,
+                c,
+                y,
+                var: self.var.clone(),
+                names: names.to_vec(),
+                joint: self.joint.clone(),
+                sample: self.sample.clone(),
+            },
+            off,
+        )
     }
+}
+
+/// Gauss–Newton iterations at most, and the largest change of a γ that ends them.
+const GN_ITERATIONS: usize = 30;
+const GN_TOL: f64 = 1e-10;
+
+/// A point of the Gauss–Newton iteration: the linear unknowns x (base,
+/// the mass's other parameters, offsets) and γ_j = 1/ρ_j per joint.
+#[derive(Debug, Clone)]
+struct Point {
+    x: Vec<f64>,
+    gamma: Vec<f64>,
 }
 
 /// Profile σ of unknown `col` from the weighted triangular factor `r`: the
@@ -336,26 +375,42 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
             _ => unreachable!("validated"),
         };
         if v.len() != n {
-            return Err(Error::invalid("payload", format!("gains.compare[{i}]"), format!("`{}`: {} gains for {n} joints", c.name, v.len())));
+            return Err(Error::invalid(
+                "payload",
+                format!("gains.compare[{i}]"),
+                format!("`{}`: {} gains for {n} joints", c.name, v.len()),
+            ));
         }
         compare.push((c.name.clone(), v));
     }
     let mount = Mount::new(&robot, design.frame.as_deref(), "payload", "frame")?;
     let st = structural(&robot, &mount)?;
     let im = st.independent.iter().position(|&c| c == 9).ok_or_else(|| {
-        Error::invalid("payload", "frame", format!("the mass on frame `{}` has no effect on the joint torques: it cannot calibrate gains", mount.frame))
+        Error::invalid(
+            "payload",
+            "frame",
+            format!(
+                "the mass on frame `{}` has no effect on the joint torques: it cannot calibrate gains",
+                mount.frame
+            ),
+        )
     })?;
     if (0..10).any(|c| (st.k[(im, c)] - if c == 9 { 1.0 } else { 0.0 }).abs() > 1e-9) {
         return Err(Error::invalid(
             "payload",
             "frame",
-            format!("on frame `{}` the mass is sensed only together with other parameters ({}): it cannot calibrate gains", mount.frame, st.groupings[im]),
+            format!(
+                "on frame `{}` the mass is sensed only together with other parameters ({}): it cannot calibrate gains",
+                mount.frame, st.groupings[im]
+            ),
         ));
     }
     let base = BaseParams::compute(&robot, &BaseOptions::default())?;
     let pb = base.names.len();
     let kb = st.independent.len();
-    let has_f0: Vec<bool> = (0..n).map(|j| robot.params().iter().any(|p| p.joint == j && matches!(p.kind, ParamKind::F0))).collect();
+    let has_f0: Vec<bool> = (0..n)
+        .map(|j| robot.params().iter().any(|p| p.joint == j && matches!(p.kind, ParamKind::F0)))
+        .collect();
     let off_joints: Vec<usize> = (0..n).filter(|&j| spec.offsets && !has_f0[j]).collect();
     let pf = pb + kb - 1 + off_joints.len();
     let mut col_names: Vec<String> = base.names.clone();
@@ -447,7 +502,8 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
         if !selected[j] {
             reason[j] = Some("not in gains.joints: the file's value is kept".into());
         } else if mass_torque[j].1 == 0 {
-            reason[j] = Some("no rows in the loaded runs (the joint stands still: the standstill rule leaves its rows out): the known mass does not load it".into());
+            reason[j] =
+                Some("no rows in the loaded runs (the joint stands still: the standstill rule leaves its rows out): the known mass does not load it".into());
         } else if !runs.iter().any(|r| !r.loaded && r.joint.contains(&j)) {
             reason[j] = Some("no rows in the unloaded runs (the joint stands still there)".into());
         }
@@ -461,26 +517,26 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
     };
     let mut delays = vec![0.0; runs.len()];
     let mut delay_std = vec![f64::NAN; runs.len()];
-    let cal_of = |reason: &[Option<String>]| -> Vec<Option<usize>> {
+    // every selected joint with rows keeps its gain as an unknown — also one
+    // the motion does not determine, so that the file's (wrong) gain of its
+    // rows does not bias the shared parameters —; which are determined is
+    // decided on the final fit by their profile σ
+    let cal: Vec<Option<usize>> = {
         let mut k = 0;
-        reason
-            .iter()
-            .map(|r| {
-                r.is_none().then(|| {
+        (0..n)
+            .map(|j| {
+                (selected[j] && runs.iter().any(|r| r.joint.contains(&j))).then(|| {
                     k += 1;
                     k - 1
                 })
             })
             .collect()
     };
-    let fit = |delays: &[f64], cal: &[Option<usize>]| -> Result<stack::Stacked> {
-        let mut names_all = col_names.clone();
-        for (j, c) in cal.iter().enumerate() {
-            if c.is_some() {
-                names_all.push(format!("gain {}", names[j]));
-            }
-        }
-        let ds: Vec<Dataset> = runs.iter().zip(delays).map(|(r, &d)| r.dataset(d, cal, &names_all)).collect();
+    let nc = cal.iter().flatten().count();
+    let mut names_all = col_names.clone();
+    names_all.extend((0..n).filter(|&j| cal[j].is_some()).map(|j| format!("1/gain ratio {}", names[j])));
+    let fit = |delays: &[f64], p: &Point| -> Result<stack::Stacked> {
+        let ds: Vec<Dataset> = runs.iter().zip(delays).map(|(r, &d)| r.linearised(d, p, &cal, &names_all).0).collect();
         let rows: Vec<Rows> = ds
             .iter()
             .zip(&runs)
@@ -492,50 +548,58 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
             .collect();
         stack::estimate(&rows, &sopts)
     };
-    // undetermined gains: drop the worst until every calibrated one is determined
-    let determine = |delays: &[f64], reason: &mut Vec<Option<String>>| -> Result<stack::Stacked> {
-        loop {
+    // Gauss–Newton on the output-error form τ_file = γ_j (F x − y0), γ = 1/ρ,
+    // from γ = 1, x = 0; each step a stacked weighted least squares
+    let gauss_newton = |delays: &[f64], start: Point| -> Result<(Point, stack::Stacked)> {
+        let mut p = start;
+        let mut last = None;
+        for _ in 0..GN_ITERATIONS {
             if ctl.interrupted() {
                 return Err(Error::Interrupted);
             }
-            let cal = cal_of(reason);
-            let stk = fit(delays, &cal)?;
-            let worst = cal
-                .iter()
-                .enumerate()
-                .filter_map(|(j, c)| c.map(|k| (j, profile_std(&stk.r, pf + k) / stk.theta[pf + k].abs())))
-                .filter(|(_, rel)| !(*rel <= spec.max_std))
-                .max_by(|a, b| a.1.total_cmp(&b.1));
-            match worst {
-                Some((j, rel)) => {
-                    reason[j] = Some(if rel.is_finite() {
-                        format!("σ(g)/g = {:.1} % > max_std = {:.1} %: the motion does not determine it", 100.0 * rel, 100.0 * spec.max_std)
-                    } else {
-                        "its column is in the span of the others: the known mass's torques do not reach it".into()
-                    })
+            let stk = fit(delays, &p)?;
+            let x: Vec<f64> = stk.theta.iter().take(pf).copied().collect();
+            let mut gamma = p.gamma.clone();
+            let mut change = 0.0_f64;
+            for j in 0..n {
+                if let Some(k) = cal[j] {
+                    change = change.max((stk.theta[pf + k] - gamma[j]).abs());
+                    gamma[j] = stk.theta[pf + k];
                 }
-                None => return Ok(stk),
+            }
+            p = Point { x, gamma };
+            last = Some(stk);
+            if change < GN_TOL {
+                break;
             }
         }
+        Ok((p, last.expect("at least one iteration")))
     };
-    let mut stk = determine(&delays, &mut reason)?;
+    let start = Point {
+        x: vec![0.0; pf],
+        gamma: vec![1.0; n],
+    };
+    let (mut point, mut stk) = gauss_newton(&delays, start)?;
     if spec.delay {
-        obs.phase("gains delay", Some(runs.len() as u64));
+        obs.phase("gains delay", Some(2 * runs.len() as u64));
         for sweep in 0..2 {
-            let cal = cal_of(&reason);
             let w: Vec<Vec<f64>> = (0..runs.len())
                 .map(|e| {
                     (0..n)
-                        .map(|j| stk.blocks.iter().find(|b| b.experiment == e && b.joint == j).map_or(0.0, |b| 1.0 / (b.sigma * b.sigma).max(1e-300)))
+                        .map(|j| {
+                            stk.blocks
+                                .iter()
+                                .find(|b| b.experiment == e && b.joint == j)
+                                .map_or(0.0, |b| 1.0 / (b.sigma * b.sigma).max(1e-300))
+                        })
                         .collect()
                 })
                 .collect();
-            let mut ne = Normal::new(&runs, &w, &cal, pf);
+            let mut ne = Normal::new(&runs, &w, &delays, &point, &cal, &names_all);
             for e in 0..runs.len() {
                 if ctl.interrupted() {
                     return Err(Error::Interrupted);
                 }
-                ne.set(&runs, e, delays[e]);
                 let (d, _) = chain::minimise(
                     |x| {
                         ne.set(&runs, e, x);
@@ -543,7 +607,7 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
                     },
                     -spec.max_delay,
                     spec.max_delay,
-                    if sweep == 0 { 17 } else { 5 },
+                    if sweep == 0 { 17 } else { 7 },
                     1e-3 * runs[e].h,
                 );
                 let hh = 0.05 * runs[e].h;
@@ -555,26 +619,44 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
                 delay_std[e] = chain::sigma_from_curvature(a, b, c, hh);
                 delays[e] = d;
                 ne.set(&runs, e, d);
-                obs.progress((e + 1) as u64, &runs[e].name);
+                obs.progress((sweep * runs.len() + e + 1) as u64, &runs[e].name);
             }
+            (point, stk) = gauss_newton(&delays, point)?;
         }
         obs.phase_done();
-        stk = determine(&delays, &mut reason)?;
     }
-    let cal = cal_of(&reason);
+    let _ = nc;
     let mut notes = Vec::new();
     let pstd: Vec<f64> = (0..stk.theta.len()).map(|c| profile_std(&stk.r, c)).collect();
+    for j in 0..n {
+        if let (Some(k), None) = (cal[j], &reason[j]) {
+            let rel = pstd[pf + k] / stk.theta[pf + k].abs(); // σ(γ)/|γ| = σ(ρ)/|ρ| to first order
+            if !(rel <= spec.max_std) {
+                reason[j] = Some(if rel.is_finite() {
+                    format!(
+                        "σ(g)/g = {:.1} % > max_std = {:.1} %: the motion does not determine it (the known mass's torque on it: {:.3} N·m RMS)",
+                        100.0 * rel,
+                        100.0 * spec.max_std,
+                        mass_torque_rms[j]
+                    )
+                } else {
+                    "its column is in the span of the others: the known mass's torques do not reach it".into()
+                });
+            }
+        }
+    }
     let joints: Vec<JointGain> = (0..n)
         .map(|j| {
             let (ratio, ratio_std) = match cal[j] {
-                Some(k) => (stk.theta[pf + k], pstd[pf + k]),
+                Some(k) => (1.0 / stk.theta[pf + k], pstd[pf + k] / (stk.theta[pf + k] * stk.theta[pf + k])),
                 None => (1.0, f64::INFINITY),
             };
-            let determined = cal[j].is_some();
+            let determined = cal[j].is_some() && reason[j].is_none();
             let offset = off_joints.iter().position(|&x| x == j).map(|o| {
                 let c = pb + kb - 1 + o;
-                // u = ρ·τ_off, τ_off = g_file·i_off → i_off = u / (ρ g_file)
-                (stk.theta[c] / (ratio * file[j]), pstd[c] / (ratio * file[j]).abs())
+                // τ_file = g_file·i with i = i_true + i_off: γ·(… + u) = τ_file gives u = g·i_off
+                let r = if cal[j].is_some() { ratio } else { 1.0 };
+                (stk.theta[c] / (r * file[j]), pstd[c] / (r * file[j]).abs())
             });
             JointGain {
                 joint: names[j].clone(),
@@ -593,10 +675,17 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
         .collect();
     for g in &joints {
         if g.sign_flipped {
-            notes.push(format!("joint `{}`: the current's sign in the robot file is wrong (ρ = {:.4}): robot.toml has current_sign flipped", g.joint, g.ratio));
+            notes.push(format!(
+                "joint `{}`: the current's sign in the robot file is wrong (ρ = {:.4}): robot.toml has current_sign flipped",
+                g.joint, g.ratio
+            ));
         }
         if !g.determined && selected[names.iter().position(|x| *x == g.joint).unwrap_or(0)] {
-            notes.push(format!("joint `{}`: gain not determined ({}); the file's value is kept", g.joint, g.reason.clone().unwrap_or_default()));
+            notes.push(format!(
+                "joint `{}`: gain not determined ({}); the file's value is kept",
+                g.joint,
+                g.reason.clone().unwrap_or_default()
+            ));
         }
     }
     if off_joints.len() < n && spec.offsets {
@@ -612,7 +701,9 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
             samples: r.samples,
             rows: r.joint.len(),
             delay: spec.delay.then_some((delays[e], delay_std[e])),
-            sigma: (0..n).map(|j| stk.blocks.iter().find(|b| b.experiment == e && b.joint == j).map_or(f64::NAN, |b| b.sigma)).collect(),
+            sigma: (0..n)
+                .map(|j| stk.blocks.iter().find(|b| b.experiment == e && b.joint == j).map_or(f64::NAN, |b| b.sigma))
+                .collect(),
         })
         .collect();
     Ok(GainsEstimate {
@@ -623,7 +714,9 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
         compare,
         runs: runs_out,
         base: (0..pb).map(|c| (base.names[c].clone(), stk.theta[c], pstd[c])).collect(),
-        payload: (pb..pb + kb - 1).map(|c| (col_names[c].trim_start_matches("payload ").to_string(), stk.theta[c], pstd[c])).collect(),
+        payload: (pb..pb + kb - 1)
+            .map(|c| (col_names[c].trim_start_matches("payload ").to_string(), stk.theta[c], pstd[c]))
+            .collect(),
         rank: stk.rank,
         unknowns: stk.theta.len(),
         chi2_dof: stk.chi2_dof,
@@ -631,99 +724,65 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
     })
 }
 
-/// The weighted normal equations of the stacked problem, kept per run so
-/// that one run's delay changes only its own part (the delay search).
+/// The delay search's weighted least squares at a fixed linearisation: the
+/// design J (of [`RunData::linearised`]) does not depend on the delays, only
+/// the targets do, so G = JᵀWJ is factored once and each run keeps its part
+/// of h = JᵀWt and of tᵀWt.
 struct Normal {
-    pf: usize,
-    nc: usize,
-    /// Σ FᵀWF over every run (does not depend on the delays).
-    ff: DMatrix<f64>,
-    /// Per run: its delay-dependent part of G (k × k), of h (k) and zᵀWz.
-    parts: Vec<(DMatrix<f64>, DVector<f64>, f64)>,
-    w: Vec<Vec<f64>>,
-    cal: Vec<Option<usize>>,
+    /// (JᵀWJ)⁺.
+    ginv: DMatrix<f64>,
+    /// Per run: √W J, √W, t − τ(δ), h_e, (tᵀWt)_e.
+    runs: Vec<(DMatrix<f64>, DVector<f64>, DVector<f64>, DVector<f64>, f64)>,
 }
 
 impl Normal {
-    fn new(runs: &[RunData], w: &[Vec<f64>], cal: &[Option<usize>], pf: usize) -> Normal {
-        let nc = cal.iter().flatten().count();
-        let mut ff = DMatrix::zeros(pf, pf);
+    fn new(runs: &[RunData], w: &[Vec<f64>], delays: &[f64], p: &Point, cal: &[Option<usize>], names: &[String]) -> Normal {
+        let mut parts = Vec::new();
+        let mut g: Option<DMatrix<f64>> = None;
         for (e, r) in runs.iter().enumerate() {
-            let mut fw = r.f.clone();
-            for i in 0..fw.nrows() {
-                let s = w[e][r.joint[i]].sqrt();
-                fw.row_mut(i).scale_mut(s);
+            let (ds, off) = r.linearised(delays[e], p, cal, names);
+            let sw = DVector::from_iterator(r.joint.len(), r.joint.iter().map(|&j| w[e][j].sqrt()));
+            let mut jw = ds.c;
+            for i in 0..jw.nrows() {
+                jw.row_mut(i).scale_mut(sw[i]);
             }
-            ff += fw.tr_mul(&fw);
+            let gg = jw.tr_mul(&jw);
+            g = Some(match g {
+                Some(a) => a + gg,
+                None => gg,
+            });
+            let k = jw.ncols();
+            parts.push((jw, sw, off, DVector::zeros(k), 0.0));
         }
-        let k = pf + nc;
-        Normal {
-            pf,
-            nc,
-            ff,
-            parts: runs.iter().map(|_| (DMatrix::zeros(k, k), DVector::zeros(k), 0.0)).collect(),
-            w: w.to_vec(),
-            cal: cal.to_vec(),
+        let g = g.expect("at least one run");
+        let svd = g.svd(true, true);
+        let tol = 1e-12 * svd.singular_values.max();
+        let ginv = svd.pseudo_inverse(tol).unwrap_or_else(|_| DMatrix::zeros(0, 0));
+        let mut ne = Normal { ginv, runs: parts };
+        for (e, &d) in delays.iter().enumerate() {
+            ne.set(runs, e, d);
         }
+        ne
     }
 
     /// Run `e`'s part at delay `d`.
     fn set(&mut self, runs: &[RunData], e: usize, d: f64) {
-        let (pf, k) = (self.pf, self.pf + self.nc);
         let r = &runs[e];
-        let mut g = DMatrix::zeros(k, k);
-        let mut h = DVector::zeros(k);
-        let mut zz = 0.0;
-        for i in 0..r.f.nrows() {
-            let j = r.joint[i];
-            let w = self.w[e][j];
-            if w == 0.0 {
-                continue;
-            }
-            let t = r.tau_at(i, d);
-            let (z, col) = match self.cal[j] {
-                Some(c) => (r.y0[i], Some((pf + c, -t))),
-                None => (r.y0[i] + t, None),
-            };
-            for c in 0..pf {
-                let fc = r.f[(i, c)];
-                if fc != 0.0 {
-                    h[c] += w * fc * z;
-                    if let Some((gc, v)) = col {
-                        g[(c, gc)] += w * fc * v;
-                    }
-                }
-            }
-            if let Some((gc, v)) = col {
-                g[(gc, gc)] += w * v * v;
-                h[gc] += w * v * z;
-            }
-            zz += w * z * z;
-        }
-        self.parts[e] = (g, h, zz);
+        let (jw, sw, off, h, tt) = &mut self.runs[e];
+        let taus = r.taus(d);
+        let t = DVector::from_iterator(r.joint.len(), (0..r.joint.len()).map(|i| sw[i] * (taus[r.joint[i]][r.sample[i]] + off[i])));
+        *h = jw.tr_mul(&t);
+        *tt = t.dot(&t);
     }
 
     /// The weighted residual sum of squares at the least-squares solution.
     fn rss(&self) -> f64 {
-        let k = self.pf + self.nc;
-        let mut g = DMatrix::zeros(k, k);
-        g.view_mut((0, 0), (self.pf, self.pf)).copy_from(&self.ff);
-        let mut h = DVector::zeros(k);
-        let mut zz = 0.0;
-        for (gp, hp, z) in &self.parts {
-            g += gp;
+        let mut h = DVector::zeros(self.ginv.nrows());
+        let mut tt = 0.0;
+        for (_, _, _, hp, t) in &self.runs {
             h += hp;
-            zz += z;
+            tt += t;
         }
-        // symmetric: the parts fill the upper block F×ρ only
-        for a in 0..k {
-            for b in 0..a {
-                g[(a, b)] = g[(b, a)];
-            }
-        }
-        let svd = g.svd(true, true);
-        let tol = 1e-12 * svd.singular_values.max();
-        let x = svd.solve(&h, tol).unwrap_or_else(|_| DVector::zeros(k));
-        zz - h.dot(&x)
+        tt - h.dot(&(&self.ginv * &h))
     }
 }

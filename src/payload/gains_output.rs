@@ -30,15 +30,29 @@ impl GainsEstimate {
         );
         let _ = writeln!(s, "\nRuns:");
         for r in &self.runs {
-            let _ = write!(s, "  {} ({}): {} samples, {} rows", r.name, if r.loaded { "with the mass" } else { "without" }, r.samples, r.rows);
+            let _ = write!(
+                s,
+                "  {} ({}): {} samples, {} rows",
+                r.name,
+                if r.loaded { "with the mass" } else { "without" },
+                r.samples,
+                r.rows
+            );
             if let Some((d, sd)) = r.delay {
                 let _ = write!(s, ", currents' delay behind the positions {:.3} ± {:.3} ms", 1e3 * d, 1e3 * sd);
             }
             let _ = writeln!(s);
-            let _ = writeln!(s, "    weight σ (N·m): {}", r.sigma.iter().map(|x| format!("{x:.3}")).collect::<Vec<_>>().join(" "));
+            let _ = writeln!(
+                s,
+                "    weight σ (N·m): {}",
+                r.sigma.iter().map(|x| format!("{x:.3}")).collect::<Vec<_>>().join(" ")
+            );
         }
         let _ = writeln!(s, "\nGains (joint side, N·m/A = s·k_t·N; ratio = identified / file):");
-        let mut head = format!("  {:<22} {:>12} {:>12} {:>10} {:>9} {:>12}", "joint", "file", "identified", "σ", "ratio", "mass τ RMS");
+        let mut head = format!(
+            "  {:<22} {:>12} {:>12} {:>10} {:>9} {:>12}",
+            "joint", "file", "identified", "σ", "ratio", "mass τ RMS"
+        );
         for (name, _) in &self.compare {
             let _ = write!(head, " {:>12}", trunc(name, 12));
         }
@@ -49,7 +63,15 @@ impl GainsEstimate {
             } else {
                 ("kept".into(), "—".into(), "—".into())
             };
-            let mut line = format!("  {:<22} {:>12.5} {:>12} {:>10} {:>9} {:>12.3}", trunc(&g.joint, 22), g.file, id, sd, ratio, g.mass_torque_rms);
+            let mut line = format!(
+                "  {:<22} {:>12.5} {:>12} {:>10} {:>9} {:>12.3}",
+                trunc(&g.joint, 22),
+                g.file,
+                id,
+                sd,
+                ratio,
+                g.mass_torque_rms
+            );
             for (_, v) in &self.compare {
                 let _ = write!(line, " {:>12.5}", v[j]);
             }
@@ -74,13 +96,28 @@ impl GainsEstimate {
         }
         let _ = writeln!(s, "\nCurrent signs:");
         for g in self.joints.iter().filter(|g| g.determined) {
-            let _ = writeln!(s, "  {:<22} {}", g.joint, if g.sign_flipped { "WRONG in the file (flipped in robot.toml)" } else { "as in the file" });
+            let _ = writeln!(
+                s,
+                "  {:<22} {}",
+                g.joint,
+                if g.sign_flipped {
+                    "WRONG in the file (flipped in robot.toml)"
+                } else {
+                    "as in the file"
+                }
+            );
         }
         let _ = writeln!(s, "\nThe known mass's other parameters (about the frame's origin, in its axes):");
         for (name, v, sd) in &self.payload {
             let _ = writeln!(s, "  {name:<8} {v:+.6} ± {sd:.6}");
         }
-        if let Some(m) = self.payload.iter().find(|p| p.0 == "MX").zip(self.payload.iter().find(|p| p.0 == "MY")).zip(self.payload.iter().find(|p| p.0 == "MZ")) {
+        if let Some(m) = self
+            .payload
+            .iter()
+            .find(|p| p.0 == "MX")
+            .zip(self.payload.iter().find(|p| p.0 == "MY"))
+            .zip(self.payload.iter().find(|p| p.0 == "MZ"))
+        {
             let ((x, y), z) = m;
             let _ = writeln!(
                 s,
@@ -111,7 +148,15 @@ impl GainsEstimate {
         }
         s.push('\n');
         for (j, g) in self.joints.iter().enumerate() {
-            let _ = write!(s, "{},{},{},{},{}", g.joint, g.file, g.gain, if g.std.is_finite() { g.std.to_string() } else { "nan".into() }, g.determined);
+            let _ = write!(
+                s,
+                "{},{},{},{},{}",
+                g.joint,
+                g.file,
+                g.gain,
+                if g.std.is_finite() { g.std.to_string() } else { "nan".into() },
+                g.determined
+            );
             for (_, v) in &self.compare {
                 let _ = write!(s, ",{}", v[j]);
             }
@@ -127,12 +172,17 @@ impl GainsEstimate {
         let robot = crate::robot::load(&self.robot)?;
         let src = crate::robot::export::source_of(&self.robot)?;
         let urdf = match &src {
-            crate::robot::export::Source::Urdf { urdf, toml: Some(_) } => Some(std::path::absolute(urdf).unwrap_or_else(|_| urdf.clone()).display().to_string()),
+            crate::robot::export::Source::Urdf { urdf, toml: Some(_) } => {
+                Some(std::path::absolute(urdf).unwrap_or_else(|_| urdf.clone()).display().to_string())
+            }
             crate::robot::export::Source::Urdf { toml: None, .. } => {
                 return Err(Error::invalid(
                     "payload",
                     "robot",
-                    format!("{}: a URDF has no drive gains; give a robot TOML with [[drive]] torque_constant entries", self.robot.display()),
+                    format!(
+                        "{}: a URDF has no drive gains; give a robot TOML with [[drive]] torque_constant entries",
+                        self.robot.display()
+                    ),
                 ))
             }
             crate::robot::export::Source::Dh { .. } => None,
@@ -142,11 +192,18 @@ impl GainsEstimate {
         let mut t: toml::Table = body.parse().map_err(|e: toml::de::Error| Error::parse(&self.robot, e.to_string()))?;
         t.insert(
             "source".into(),
-            format!("drive gains calibrated by idexp payload identify ([gains], known mass {} kg) from {}", self.mass, robot.source.replace('\n', " ")).into(),
+            format!(
+                "drive gains calibrated by idexp payload identify ([gains], known mass {} kg) from {}",
+                self.mass,
+                robot.source.replace('\n', " ")
+            )
+            .into(),
         );
         if let Some(toml::Value::Array(drives)) = t.get_mut("drive") {
             for d in drives.iter_mut().filter_map(|v| v.as_table_mut()) {
-                let Some(jn) = d.get("joint").and_then(|v| v.as_str()).map(String::from) else { continue };
+                let Some(jn) = d.get("joint").and_then(|v| v.as_str()).map(String::from) else {
+                    continue;
+                };
                 let Some(j) = robot.joints.iter().position(|x| x.name == jn) else { continue };
                 let g = &self.joints[j];
                 if g.determined {
@@ -158,7 +215,9 @@ impl GainsEstimate {
             }
         }
         let body = toml::to_string(&t).map_err(|e| Error::invalid("payload", "robot.toml", e.to_string()))?;
-        Ok(format!("# robot file written by idexp payload identify [gains]: the drive gains calibrated with a known mass\n{body}"))
+        Ok(format!(
+            "# robot file written by idexp payload identify [gains]: the drive gains calibrated with a known mass\n{body}"
+        ))
     }
 
     /// Writes the output folder; returns the files written and the state.
@@ -185,7 +244,15 @@ impl GainsEstimate {
             "determined": self.joints.iter().map(|g| g.determined).collect::<Vec<_>>(),
             "delays": self.runs.iter().map(|r| r.delay.map(|d| d.0)).collect::<Vec<_>>(),
         }))?;
-        crate::io::status::write_status(dir, "payload identify", state, detail, started, crate::io::status::fingerprint_of(design)?, summary)?;
+        crate::io::status::write_status(
+            dir,
+            "payload identify",
+            state,
+            detail,
+            started,
+            crate::io::status::fingerprint_of(design)?,
+            summary,
+        )?;
         files.push(dir.join("status.json"));
         Ok((files, state))
     }

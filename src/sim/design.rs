@@ -303,7 +303,11 @@ impl SimDesign {
         }
         let k = self.drive_delay * self.rate;
         if !(k.is_finite() && k >= 0.0 && (k - k.round()).abs() < 1e-6 && k <= 1000.0) {
-            return Err(Error::invalid(ctx, "drive_delay", format!("{} s: expected 0 … 1000 whole controller periods of {} s", self.drive_delay, 1.0 / self.rate)));
+            return Err(Error::invalid(
+                ctx,
+                "drive_delay",
+                format!("{} s: expected 0 … 1000 whole controller periods of {} s", self.drive_delay, 1.0 / self.rate),
+            ));
         }
         if self.repetitions == 0 || self.repetitions > 10_000 {
             return Err(Error::invalid(ctx, "repetitions", "expected 1..=10000"));
