@@ -93,7 +93,7 @@ fn gains_off_by_15_percent_a_4ms_delay_and_a_wrong_sign_are_calibrated_and_weigh
     let sim_robot = ur5_with_gains(d, "true.toml", &true_kt, &[1.0; 6]);
     // the file also has wrist_1's current sign wrong
     let file_robot = ur5_with_gains(d, "file.toml", &file_kt, &[1.0, 1.0, 1.0, -1.0, 1.0, 1.0]);
-    let loaded = run(d, &sim_robot, "loaded", KNOWN, 5, 11, None);
+    run(d, &sim_robot, "loaded", KNOWN, 5, 11, None);
     run(d, &sim_robot, "unloaded", "", 6, 12, None);
     let design = gains_design(d, &file_robot, "loaded", "unloaded", "");
     let g: GainsEstimate = calibrate(&design, d, &Control::new()).unwrap_or_else(|e| panic!("{e}"));
@@ -121,19 +121,16 @@ fn gains_off_by_15_percent_a_4ms_delay_and_a_wrong_sign_are_calibrated_and_weigh
         }
         assert_eq!(jg.sign_flipped, j == 3, "joint {j}'s sign");
     }
-    // the unloaded robot's masses (base parameters named M…) against the simulated truth
-    let (tn, tv) = truth_base(&loaded);
-    let mut within = (0, 0);
+    // the unloaded robot's base parameters (on the UR5 no link mass is one: the
+    // masses enter as first moments m·c) against the simulated truth
+    let (tn, tv) = truth_base(&d.join("unloaded")); // the robot without the weight
+    let mut within = 0;
     for (name, v, sd) in &g.base {
-        // on the UR5 no link mass is a base parameter: the first moments (m·c) are what the masses enter as
-        if name.starts_with("MX") || name.starts_with("MY") || name.starts_with("MZ") {
-            let i = tn.iter().position(|x| x == name).unwrap_or_else(|| panic!("{name} not in the truth"));
-            eprintln!("{name}: {v:.4} ± {sd:.4}, true {:.4}", tv[i]);
-            within.0 += usize::from((v - tv[i]).abs() < *sd);
-            within.1 += 1;
-        }
+        let i = tn.iter().position(|x| x == name).unwrap_or_else(|| panic!("{name} not in the truth"));
+        assert!((v - tv[i]).abs() < 3.0 * sd, "{name}: {v} vs true {} (σ {sd})", tv[i]);
+        within += usize::from((v - tv[i]).abs() < *sd);
     }
-    eprintln!("first moments within 1σ: {} of {}", within.0, within.1);
+    eprintln!("base parameters within 1σ of the truth: {within} of {}", g.base.len());
     // robot.toml with the calibrated gains (and the sign corrected) loads and carries them
     let out = d.join("out_g");
     g.write(&design, &out, None).unwrap();

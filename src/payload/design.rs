@@ -156,6 +156,17 @@ pub struct PayloadDesign {
 }
 
 impl PayloadDesign {
+    /// The stacked least squares' options of this design (weights, method, reweighting).
+    pub fn stack_options(&self) -> crate::ident::study::StackOptions {
+        crate::ident::study::StackOptions {
+            weights: self.weights,
+            repetition_weights: None,
+            ols: self.method == Method::Ols,
+            max_iterations: self.irls_iterations,
+            tol: self.irls_tol,
+        }
+    }
+
     /// Reads and validates a design file.
     pub fn read(path: &Path) -> Result<PayloadDesign> {
         let text = crate::io::read_to_string(path)?;

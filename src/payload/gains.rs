@@ -36,7 +36,7 @@ use super::chain;
 use super::identify::structural;
 use crate::error::{Error, Result};
 use crate::ident::estimate::Dataset;
-use crate::ident::study::stack::{self, Rows, StackOptions};
+use crate::ident::study::stack::{self, Rows};
 use crate::ident::study::{load_entry, Loaded};
 use crate::optim::Control;
 use crate::params::{BaseOptions, BaseParams};
@@ -508,13 +508,7 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
             reason[j] = Some("no rows in the unloaded runs (the joint stands still there)".into());
         }
     }
-    let sopts = StackOptions {
-        weights: design.weights,
-        repetition_weights: None,
-        ols: design.method == crate::ident::Method::Ols,
-        max_iterations: design.irls_iterations,
-        tol: design.irls_tol,
-    };
+    let sopts = design.stack_options();
     let mut delays = vec![0.0; runs.len()];
     let mut delay_std = vec![f64::NAN; runs.len()];
     // every selected joint with rows keeps its gain as an unknown — also one
@@ -532,7 +526,6 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
             })
             .collect()
     };
-    let nc = cal.iter().flatten().count();
     let mut names_all = col_names.clone();
     names_all.extend((0..n).filter(|&j| cal[j].is_some()).map(|j| format!("1/gain ratio {}", names[j])));
     let fit = |delays: &[f64], p: &Point| -> Result<stack::Stacked> {
@@ -625,13 +618,12 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
         }
         obs.phase_done();
     }
-    let _ = nc;
     let mut notes = Vec::new();
     let pstd: Vec<f64> = (0..stk.theta.len()).map(|c| profile_std(&stk.r, c)).collect();
     for j in 0..n {
         if let (Some(k), None) = (cal[j], &reason[j]) {
             let rel = pstd[pf + k] / stk.theta[pf + k].abs(); // σ(γ)/|γ| = σ(ρ)/|ρ| to first order
-            if !(rel <= spec.max_std) {
+            if rel.is_nan() || rel > spec.max_std {
                 reason[j] = Some(if rel.is_finite() {
                     format!(
                         "σ(g)/g = {:.1} % > max_std = {:.1} %: the motion does not determine it (the known mass's torque on it: {:.3} N·m RMS)",
@@ -732,8 +724,11 @@ struct Normal {
     /// (JᵀWJ)⁺.
     ginv: DMatrix<f64>,
     /// Per run: √W J, √W, t − τ(δ), h_e, (tᵀWt)_e.
-    runs: Vec<(DMatrix<f64>, DVector<f64>, DVector<f64>, DVector<f64>, f64)>,
+    runs: Vec<RunPart>,
 }
+
+/// One run's part of [`Normal`]: √W J, √W, t − τ(δ), h_e, (tᵀWt)_e.
+type RunPart = (DMatrix<f64>, DVector<f64>, DVector<f64>, DVector<f64>, f64);
 
 impl Normal {
     fn new(runs: &[RunData], w: &[Vec<f64>], delays: &[f64], p: &Point, cal: &[Option<usize>], names: &[String]) -> Normal {
