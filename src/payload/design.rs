@@ -148,9 +148,25 @@ pub struct PayloadDesign {
     /// The KUKA tool number n of `LOAD_DATA[n]` in `kuka_load.txt` (1 … 16; default 1).
     #[serde(default = "kuka_tool")]
     pub kuka_tool: u32,
+    /// `[gains]`: calibrate the drive gains with a known mass instead
+    /// ([`super::gains`]); `[[loaded]]` runs carry that mass, `[[unloaded]]`
+    /// runs do not (any trajectories, not paired).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gains: Option<super::gains::GainsSpec>,
 }
 
 impl PayloadDesign {
+    /// The stacked least squares' options of this design (weights, method, reweighting).
+    pub fn stack_options(&self) -> crate::ident::study::StackOptions {
+        crate::ident::study::StackOptions {
+            weights: self.weights,
+            repetition_weights: None,
+            ols: self.method == Method::Ols,
+            max_iterations: self.irls_iterations,
+            tol: self.irls_tol,
+        }
+    }
+
     /// Reads and validates a design file.
     pub fn read(path: &Path) -> Result<PayloadDesign> {
         let text = crate::io::read_to_string(path)?;
@@ -187,7 +203,15 @@ impl PayloadDesign {
                 "expected at least one [[loaded]] entry (files = [...] of runs with the payload)".into(),
             );
         }
-        if !self.unloaded.is_empty() && self.unloaded.len() != self.loaded.len() {
+        if let Some(g) = &self.gains {
+            g.validate(ctx)?;
+            if self.unloaded.is_empty() {
+                return bad(
+                    "unloaded",
+                    "a gain calibration needs runs without the known mass too ([[unloaded]], any trajectories): with loaded runs alone the mass is indistinguishable from the robot's own link".into(),
+                );
+            }
+        } else if !self.unloaded.is_empty() && self.unloaded.len() != self.loaded.len() {
             return bad(
                 "unloaded",
                 format!(

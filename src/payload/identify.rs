@@ -29,7 +29,7 @@ use crate::ident::consistent::{self, ConsistentStatus, Kind};
 use crate::ident::estimate::Dataset;
 use crate::ident::prior::{self, PriorMetric, PriorProblem};
 use crate::ident::study::stack::Rows;
-use crate::ident::study::{load_entry, BlockWeight, Loaded, StackOptions};
+use crate::ident::study::{load_entry, BlockWeight, Loaded};
 use crate::ident::EstimateStatus;
 use crate::optim::Control;
 use crate::params::{random_stack, BaseOptions, BaseParams};
@@ -445,13 +445,7 @@ pub fn identify(design: &PayloadDesign, dir: &Path, ctl: &Control) -> Result<Pay
             n_reps: r.repetitions,
         })
         .collect();
-    let sopts = StackOptions {
-        weights: design.weights,
-        repetition_weights: None,
-        ols: design.method == crate::ident::Method::Ols,
-        max_iterations: design.irls_iterations,
-        tol: design.irls_tol,
-    };
+    let sopts = design.stack_options();
     let stk = crate::ident::study::stack::estimate(&rows, &sopts)?;
     let kb = st.independent.len();
     let n = robot.dof();

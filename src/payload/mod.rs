@@ -25,8 +25,11 @@
 //! | `status.json` | how it ended |
 
 pub mod align;
+pub mod chain;
 pub mod design;
 pub mod export;
+pub mod gains;
+pub mod gains_output;
 pub mod identify;
 
 pub use design::{PayloadDesign, PayloadExport, PayloadValues};
@@ -331,7 +334,7 @@ impl PayloadResult {
 }
 
 /// Pretty JSON of serialisable values (one helper for the folder's files).
-mod erased {
+pub(crate) mod erased {
     use crate::error::{Error, Result};
 
     pub trait Json {

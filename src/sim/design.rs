@@ -203,6 +203,15 @@ pub struct SimDesign {
     /// model (feedforward, gains) does not know it. Absent: no payload.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub payload: Option<crate::robot::payload::PayloadSpec>,
+    /// The logged drive input (torques, currents) lags the logged positions
+    /// by this time (s, a whole number of controller periods): each row logs
+    /// the controller's torque of `drive_delay` earlier (a sensor chain's delay).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub drive_delay: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// What a simulated run logs of the drive input (design key `record`).
@@ -291,6 +300,14 @@ impl SimDesign {
         }
         if self.decimate == 0 {
             return Err(Error::invalid(ctx, "decimate", "expected ≥ 1"));
+        }
+        let k = self.drive_delay * self.rate;
+        if !(k.is_finite() && k >= 0.0 && (k - k.round()).abs() < 1e-6 && k <= 1000.0) {
+            return Err(Error::invalid(
+                ctx,
+                "drive_delay",
+                format!("{} s: expected 0 … 1000 whole controller periods of {} s", self.drive_delay, 1.0 / self.rate),
+            ));
         }
         if self.repetitions == 0 || self.repetitions > 10_000 {
             return Err(Error::invalid(ctx, "repetitions", "expected 1..=10000"));

@@ -88,6 +88,8 @@ pub struct SimSetup {
     pub repetitions: usize,
     /// Seed.
     pub seed: u64,
+    /// Controller periods by which the logged torques lag the positions (design key `drive_delay`).
+    pub drive_delay: usize,
 }
 
 /// Controller periods between two polls of the run control inside a
@@ -314,6 +316,7 @@ impl SimSetup {
             quantum,
             repetitions: d.repetitions,
             seed: d.seed,
+            drive_delay: (d.drive_delay * d.rate).round() as usize,
         })
     }
 }
@@ -334,6 +337,8 @@ struct Loop {
     v_filt: Vec<f64>,
     integral: Vec<f64>,
     first: bool,
+    /// The last `drive_delay + 1` controller torques, newest last.
+    past: std::collections::VecDeque<Vec<f64>>,
 }
 
 impl SimSetup {
@@ -348,6 +353,7 @@ impl SimSetup {
             q,
             qd,
             first: true,
+            past: std::collections::VecDeque::new(),
         }
     }
 
@@ -413,11 +419,16 @@ impl SimSetup {
                 lp.integral[j] += e * dt;
                 tau[j] = ff[j] + self.kp[j] * e + self.kd[j] * (rd[j] - lp.v_filt[j]) + self.ki[j] * lp.integral[j];
             }
+            if lp.past.len() > self.drive_delay {
+                lp.past.pop_front();
+            }
+            lp.past.push_back(tau.clone());
             if s % self.decimate == 0 {
                 if let Some(rep) = rec.as_deref_mut() {
                     rep.t.push(t - t_rec0);
                     rep.q.push(qm.clone());
-                    rep.tau.push((0..n).map(|j| tau[j] + self.torque_noise[j] * unit.sample(rng)).collect());
+                    let logged = &lp.past[0]; // drive_delay periods ago (the oldest kept, at the start)
+                    rep.tau.push((0..n).map(|j| logged[j] + self.torque_noise[j] * unit.sample(rng)).collect());
                     if let Some(rr) = rep.r.as_mut() {
                         rr.push(r.clone());
                     }

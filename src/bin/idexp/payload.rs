@@ -24,7 +24,8 @@ pub struct PayloadArgs {
 pub enum PayloadCmd {
     /// Design a payload excitation: an excite design with a [payload] and objective.columns = "payload".
     Excite(ExciteArgs),
-    /// Identify a payload from loaded (and unloaded) runs and write it for URScript, Franka, KUKA, URDF, MJCF.
+    /// Identify a payload from loaded (and unloaded) runs and write it for URScript, Franka, KUKA, URDF, MJCF;
+    /// with a [gains] table: calibrate the drive gains with a known mass instead.
     Identify(IdentifyArgs),
 }
 
@@ -64,6 +65,18 @@ fn identify(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     let dir = a.design.parent().map(Path::to_path_buf).unwrap_or_default();
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&design.name));
     idexp::io::folder::check_out_dir(&out)?;
+    if design.gains.is_some() {
+        let g = idexp::payload::gains::calibrate(&design, &dir, ctl)?;
+        return crate::write_folder(
+            &out,
+            "payload identify",
+            &fingerprint_of(&design)?,
+            || g.write(&design, &out, Some(started)),
+            a.json.then_some(&g),
+            &g.text(),
+            g.unusable_reason(),
+        );
+    }
     let res = idexp::payload::run(&design, &dir, ctl)?;
     crate::write_folder(
         &out,

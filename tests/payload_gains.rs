@@ -1,0 +1,244 @@
+//! Drive gains calibrated with a known mass (`[gains]` of a payload design,
+//! `idexp::payload::gains`): a simulated UR5 logging currents whose robot
+//! file's gains are ±15 % off the simulated drives, with friction, noise, a
+//! 4 ms delay of the currents and one wrong current sign; checked against the
+//! simulated truth (gains, delay, the robot's masses) and by weighing a
+//! second, unknown payload with the calibrated gains. A joint that stands
+//! still is named and keeps its gain.
+
+mod ident_util;
+
+use ident_util::{design, root, simulate};
+use idexp::optim::Control;
+use idexp::payload::gains::{calibrate, GainsEstimate};
+use idexp::payload::PayloadDesign;
+use std::path::{Path, PathBuf};
+
+/// The simulated drives' gains (joint side, s·k_t·N, N·m/A).
+const TRUE_KT: [f64; 6] = [0.125, 0.125, 0.125, 0.092, 0.092, 0.092];
+const N: f64 = 101.0;
+/// The robot file's k_t: ±15 % off.
+const FILE_FACTOR: [f64; 6] = [1.15, 0.85, 1.15, 0.85, 1.15, 0.85];
+
+/// The UR5 robot file with torque constants `kt` and current signs `sign`, written to `dir/name`.
+fn ur5_with_gains(dir: &Path, name: &str, kt: &[f64], sign: &[f64]) -> PathBuf {
+    let src = std::fs::read_to_string(root("designs/robots/ur5.toml")).unwrap();
+    let robots = root("designs/robots");
+    let mut out = String::new();
+    let mut j = 0;
+    for line in src.lines() {
+        if line.starts_with("urdf =") {
+            out.push_str(&format!("urdf = \"{}\"\n", robots.join("ur5.urdf").display()));
+        } else if line.starts_with("mesh_path") {
+            out.push_str(&format!("mesh_path = [\"{}\"]\n", robots.join("meshes/ur5").display()));
+        } else if line.starts_with("gear_ratio") {
+            out.push_str(&format!("{line}\ntorque_constant = {}\ncurrent_sign = {}\n", kt[j], sign[j]));
+            j += 1;
+        } else {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    assert_eq!(j, 6);
+    let p = dir.join(name);
+    std::fs::write(&p, out).unwrap();
+    p
+}
+
+const MASS: f64 = 2.0;
+const KNOWN: &str = "[payload]\nframe = \"tool0\"\nmass = 2.0\ncom = [0.05, -0.04, 0.06]\ninertia = [0.004, 0.0, 0.0, 0.004, 0.0, 0.003]\n";
+const UNKNOWN: &str = "[payload]\nframe = \"tool0\"\nmass = 1.3\ncom = [-0.015, 0.01, 0.07]\ninertia = [0.003, 0.0002, 0.0, 0.0035, 0.0, 0.002]\n";
+
+/// A 50 s current-logging run at 100 Hz (5 periods of 10 s, 1 kHz control) of the
+/// true robot (its model 10 % off the file's, seed 7), the currents 4 ms behind.
+fn run(dir: &Path, robot: &Path, name: &str, payload: &str, traj_seed: u64, seed: u64, reference: Option<&Path>) -> PathBuf {
+    let reference = match reference {
+        Some(f) => format!("[reference]\nkind = \"fourier\"\nfile = \"{}\"\n", f.display()),
+        None => format!("[reference]\nkind = \"random_fourier\"\nn_h = 4\nfrequency = 0.1\namplitude = 0.6\nseed = {traj_seed}\n"),
+    };
+    let text = format!(
+        "name = \"{name}\"\nrobot = \"{}\"\nrate = 1000.0\ndecimate = 10\nrepetitions = 5\nseed = {seed}\nrecord = \"current\"\ndrive_delay = 0.004\n[truth]\nperturbation = 0.1\nseed = 7\n[controller]\nbandwidth = 10.0\n[noise]\ntorque = 0.2\nposition = 1e-5\n{reference}{payload}",
+        robot.display()
+    );
+    let d = design(&text);
+    let res = simulate(&d);
+    let out = dir.join(name);
+    res.write(&out, &d).unwrap();
+    out
+}
+
+fn gains_design(dir: &Path, robot: &Path, loaded: &str, unloaded: &str, extra: &str) -> PayloadDesign {
+    let text = format!(
+        "name = \"g\"\nrobot = \"{}\"\nframe = \"tool0\"\n[gains]\nmass = {MASS}\n{extra}\n[[loaded]]\nname = \"{loaded}\"\nfiles = [\"{loaded}\"]\nharmonics = 4\n[[unloaded]]\nname = \"{unloaded}\"\nfiles = [\"{unloaded}\"]\nharmonics = 4\n",
+        robot.display()
+    );
+    let p = dir.join(format!("gains_{loaded}.toml"));
+    std::fs::write(&p, text).unwrap();
+    PayloadDesign::read(&p).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn truth_base(run: &Path) -> (Vec<String>, Vec<f64>) {
+    let t: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(run.join("truth.json")).unwrap()).unwrap();
+    let names = t["base_names"].as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_string()).collect();
+    let vals = t["base"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    (names, vals)
+}
+
+#[test]
+fn gains_off_by_15_percent_a_4ms_delay_and_a_wrong_sign_are_calibrated_and_weigh_an_unknown_payload() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let true_kt: Vec<f64> = TRUE_KT.to_vec();
+    let file_kt: Vec<f64> = TRUE_KT.iter().zip(FILE_FACTOR).map(|(k, f)| k * f).collect();
+    let sim_robot = ur5_with_gains(d, "true.toml", &true_kt, &[1.0; 6]);
+    // the file also has wrist_1's current sign wrong
+    let file_robot = ur5_with_gains(d, "file.toml", &file_kt, &[1.0, 1.0, 1.0, -1.0, 1.0, 1.0]);
+    run(d, &sim_robot, "loaded", KNOWN, 5, 11, None);
+    run(d, &sim_robot, "unloaded", "", 6, 12, None);
+    let design = gains_design(d, &file_robot, "loaded", "unloaded", "");
+    let g: GainsEstimate = calibrate(&design, d, &Control::new()).unwrap_or_else(|e| panic!("{e}"));
+    eprintln!("{}", g.text());
+    let text = g.text();
+    for (j, jg) in g.joints.iter().enumerate() {
+        let truth = TRUE_KT[j] * N;
+        // the joints the mass's gravity loads (shoulder lift, elbow, wrists 1 and 2) must be determined
+        if (1..=4).contains(&j) {
+            assert!(jg.determined, "joint {j} not determined: {:?}", jg.reason);
+        }
+        if jg.determined {
+            let err = (jg.gain.abs() - truth) / truth;
+            eprintln!("joint {j}: gain {:.4} ± {:.4}, true {truth:.4}: {:+.3} %", jg.gain, jg.std, 100.0 * err);
+            assert!(err.abs() < 0.01, "joint {j}: |gain| {} vs true {truth}: {:.3} %", jg.gain, 100.0 * err);
+            assert!(
+                (jg.gain.abs() - truth).abs() < 3.0 * jg.std,
+                "joint {j}: error {} > 3σ = {}",
+                jg.gain.abs() - truth,
+                3.0 * jg.std
+            );
+        } else {
+            assert_eq!(jg.gain, file_kt[j] * N, "joint {j} keeps the file's gain");
+            assert!(text.contains(&format!("  {}: ", jg.joint)), "joint {j} named: {text}");
+        }
+        assert_eq!(jg.sign_flipped, j == 3, "joint {j}'s sign");
+    }
+    // the unloaded robot's base parameters (on the UR5 no link mass is one: the
+    // masses enter as first moments m·c) against the simulated truth
+    let (tn, tv) = truth_base(&d.join("unloaded")); // the robot without the weight
+    let mut within = 0;
+    for (name, v, sd) in &g.base {
+        let i = tn.iter().position(|x| x == name).unwrap_or_else(|| panic!("{name} not in the truth"));
+        assert!((v - tv[i]).abs() < 3.0 * sd, "{name}: {v} vs true {} (σ {sd})", tv[i]);
+        within += usize::from((v - tv[i]).abs() < *sd);
+    }
+    eprintln!("base parameters within 1σ of the truth: {within} of {}", g.base.len());
+    // robot.toml with the calibrated gains (and the sign corrected) loads and carries them
+    let out = d.join("out_g");
+    g.write(&design, &out, None).unwrap();
+    let cal = idexp::robot::load(&out.join("robot.toml")).unwrap();
+    for (j, dr) in cal.drives.iter().enumerate() {
+        let k = dr.torque_per_ampere().unwrap();
+        let want = if g.joints[j].determined { TRUE_KT[j] * N } else { file_kt[j] * N };
+        assert!(((k - want) / want).abs() < 0.01, "robot.toml joint {j}: {k} vs {want}");
+    }
+    // step 2: an unknown payload weighed with the calibrated gains (and, for contrast, the file's)
+    run(d, &sim_robot, "p2", UNKNOWN, 5, 21, None);
+    run(d, &sim_robot, "p2_unloaded", "", 5, 22, None);
+    let weigh = |robot: &Path| -> f64 {
+        let text = format!(
+            "name = \"p\"\nrobot = \"{}\"\nframe = \"tool0\"\n[[loaded]]\nname = \"p2\"\nfiles = [\"p2\"]\nharmonics = 4\n[[unloaded]]\nname = \"p2_unloaded\"\nfiles = [\"p2_unloaded\"]\nharmonics = 4\n",
+            robot.display()
+        );
+        let p = d.join("p2.toml");
+        std::fs::write(&p, text).unwrap();
+        let pd = PayloadDesign::read(&p).unwrap();
+        let e = idexp::payload::identify(&pd, d, &Control::new()).unwrap_or_else(|e| panic!("{e}"));
+        e.payload.unwrap().mass
+    };
+    let m_cal = weigh(&out.join("robot.toml"));
+    // the file's gains with the sign corrected: only the magnitudes' ±15 % remain
+    let m_file = weigh(&ur5_with_gains(d, "file_signed.toml", &file_kt, &[1.0; 6]));
+    eprintln!("unknown payload 1.3 kg: {m_cal:.4} kg with the calibrated gains, {m_file:.4} kg with the file's");
+    assert!(((m_cal - 1.3) / 1.3).abs() < 0.01, "calibrated: {m_cal}");
+}
+
+/// A simulation whose reference is a random Fourier trajectory (seed `seed`), only to take its coefficients.
+fn design_text_reference(robot: &Path, seed: u64) -> idexp::sim::SimDesign {
+    design(&format!(
+        "name = \"r\"\nrobot = \"{}\"\nrate = 1000.0\nrepetitions = 1\n[controller]\nbandwidth = 5.0\n[reference]\nkind = \"random_fourier\"\nn_h = 4\nfrequency = 0.1\namplitude = 0.6\nseed = {seed}\n",
+        robot.display()
+    ))
+}
+
+#[test]
+fn a_joint_the_mass_does_not_load_is_named_and_keeps_its_gain() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let true_kt: Vec<f64> = TRUE_KT.to_vec();
+    let file_kt: Vec<f64> = TRUE_KT.iter().zip(FILE_FACTOR).map(|(k, f)| k * f).collect();
+    let sim_robot = ur5_with_gains(d, "true.toml", &true_kt, &[1.0; 6]);
+    let file_robot = ur5_with_gains(d, "file.toml", &file_kt, &[1.0; 6]);
+    // the trajectories without the vertical first axis's rotation
+    let mut paths = Vec::new();
+    for (name, seed) in [("fixed_loaded", 5), ("fixed_unloaded", 6)] {
+        let r = simulate(&design_text_reference(&sim_robot, seed));
+        let mut t = r.setup.reference.fourier().unwrap().clone();
+        t.a[0].iter_mut().for_each(|v| *v = 0.0);
+        t.b[0].iter_mut().for_each(|v| *v = 0.0);
+        let p = d.join(format!("{name}.json"));
+        std::fs::write(&p, serde_json::to_string(&t).unwrap()).unwrap();
+        paths.push(p);
+    }
+    run(d, &sim_robot, "fixed_loaded", KNOWN, 0, 11, Some(&paths[0]));
+    run(d, &sim_robot, "fixed_unloaded", "", 0, 12, Some(&paths[1]));
+    let design = gains_design(d, &file_robot, "fixed_loaded", "fixed_unloaded", "");
+    let g = calibrate(&design, d, &Control::new()).unwrap_or_else(|e| panic!("{e}"));
+    let text = g.text();
+    eprintln!("{text}");
+    let j1 = &g.joints[0];
+    assert!(!j1.determined, "joint 1 should not be determined: {j1:?}");
+    assert_eq!(j1.gain, file_kt[0] * N, "joint 1 keeps the file's gain");
+    assert!(text.contains("Not determined") && text.contains("shoulder_pan_joint:"), "{text}");
+    for (j, jg) in g.joints.iter().enumerate().skip(1) {
+        if jg.determined {
+            let truth = TRUE_KT[j] * N;
+            assert!((jg.gain - truth).abs() < 3.0 * jg.std, "joint {j}: {} vs {truth} (σ {})", jg.gain, jg.std);
+        }
+    }
+    let out = d.join("out_fixed");
+    g.write(&design, &out, None).unwrap();
+    let cal = idexp::robot::load(&out.join("robot.toml")).unwrap();
+    assert_eq!(cal.drives[0].torque_per_ampere().unwrap(), file_kt[0] * N);
+}
+
+#[test]
+fn bad_gains_tables_are_errors_naming_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("bad.toml");
+    for (extra, field) in [
+        ("mass = -1.0", "gains.mass"),
+        ("mass = 2.0\nmax_std = 0.0", "gains.max_std"),
+        ("mass = 2.0\nbogus = 1", "bogus"),
+        ("mass = 2.0\n[[gains.compare]]\nname = \"x\"", "gains.compare[0]"),
+    ] {
+        std::fs::write(
+            &p,
+            format!(
+                "robot = \"{}\"\n[gains]\n{extra}\n[[loaded]]\nfiles = [\"a\"]\n[[unloaded]]\nfiles = [\"b\"]\n",
+                root("designs/robots/ur5.toml").display()
+            ),
+        )
+        .unwrap();
+        let e = PayloadDesign::read(&p).unwrap_err().to_string();
+        assert!(e.contains(field) && e.contains("bad.toml"), "{extra}: {e}");
+    }
+    std::fs::write(
+        &p,
+        format!(
+            "robot = \"{}\"\n[gains]\nmass = 2.0\n[[loaded]]\nfiles = [\"a\"]\n",
+            root("designs/robots/ur5.toml").display()
+        ),
+    )
+    .unwrap();
+    let e = PayloadDesign::read(&p).unwrap_err().to_string();
+    assert!(e.contains("unloaded"), "{e}");
+}
