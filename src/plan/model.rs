@@ -58,8 +58,10 @@ pub struct Candidate {
     pub cost: f64,
     /// Largest repetitions.
     pub max_repetitions: usize,
-    /// σ_τ per joint (N·m).
+    /// σ per joint of one repetition's torque rows (N·m): the equation error the study sees.
     pub sigma: Vec<f64>,
+    /// Where σ comes from: `given`, or the residuals of one simulated repetition.
+    pub noise_source: String,
     /// Duration of one recorded repetition (s).
     pub duration: f64,
     /// Samples per joint of one repetition as recorded.
@@ -148,6 +150,8 @@ pub struct Model {
     pub prior: Option<DVector<f64>>,
     /// Notes for the report.
     pub notes: Vec<String>,
+    /// Targets are planned at bound / (1 + margin).
+    pub margin: f64,
 }
 
 impl Model {
@@ -206,6 +210,27 @@ pub fn simulate(
     Ok((setup.run(ctl)?, d))
 }
 
+/// The effective noise per joint of one repetition: the study's own
+/// residual σ (per joint, [`crate::ident::study::ExperimentReport::sigma`])
+/// when it identifies one simulated repetition (the design's seed and truth,
+/// with its noise). It holds the sensor noise and everything else the
+/// filtered regressor does not explain — above all the controller's torque
+/// reaction to position noise (k_d times the differentiated noise), often
+/// far above the torque sensor's σ.
+fn effective_sigma(robot: &Robot, design: &PlanDesign, c: &CandidateSpec, path: &Path, dir: &Path, ctl: &Control) -> Result<Vec<f64>> {
+    let (sim, _) = simulate(path, 1, false, None, None, ctl)?;
+    let mut study = crate::ident::study::StudyDesign::one_experiment("noise", design.robot.clone(), spec_of(c));
+    study.weights = crate::ident::study::WeightSource::Residuals;
+    let mut inputs = crate::ident::study::Inputs {
+        robot: Some(robot.clone()),
+        ..Default::default()
+    };
+    inputs.entries.insert(c.name.clone(), given_of(&sim)?);
+    let quiet = Control::new().with_stop(ctl.stop_flag().clone());
+    let r = crate::ident::study::run_study_with(&study, dir, &inputs, &quiet)?;
+    Ok(r.estimate.experiments[0].sigma.clone())
+}
+
 /// The study's in-memory form of a simulated run.
 pub fn given_of(sim: &SimResult) -> Result<Given> {
     Ok(Given {
@@ -246,20 +271,13 @@ pub fn build(design: &PlanDesign, dir: &Path, ctl: &Control) -> Result<Model> {
         let at = format!("plan: experiment {} ({})", i + 1, c.name);
         let path = crate::io::path_in(&at, dir, "simulate", &c.simulate)?;
         let d = SimDesign::read(&path)?;
-        let sigma = match &c.noise {
-            Some(p) => p.resolve(n, &at, "noise")?,
-            None => d.noise.torque.resolve(n, &path.display().to_string(), "noise.torque")?,
+        let (sigma, noise_source) = match &c.noise {
+            Some(p) => (p.resolve(n, &at, "noise")?, "given".to_string()),
+            None => (
+                effective_sigma(&robot, design, c, &path, dir, ctl).map_err(|e| Error::invalid(&at, "noise", format!("cannot estimate the effective noise from one simulated repetition: {e}")))?,
+                "the residuals of one simulated repetition".to_string(),
+            ),
         };
-        if let Some(j) = sigma.iter().position(|&s| s <= 0.0) {
-            return Err(Error::invalid(
-                &at,
-                "noise",
-                format!(
-                    "σ_τ of joint {} is 0: an experiment without torque noise would carry infinite information; give noise = σ (N·m) per joint",
-                    j + 1
-                ),
-            ));
-        }
         if d.robot.file_name() != design.robot.file_name() {
             notes.push(format!("experiment {}: its simulate design's robot {} is not the plan's robot file {} (the motion is simulated with the former, identified with the latter)", c.name, d.robot.display(), design.robot.display()));
         }
@@ -268,6 +286,13 @@ pub fn build(design: &PlanDesign, dir: &Path, ctl: &Control) -> Result<Model> {
         let prep = processed(&robot, &base, &spec, &sim, dir)
             .map_err(|e| Error::invalid(&at, "identify", format!("the study cannot process its simulated run: {e}")))?;
         let ds = &prep.full;
+        if let Some(j) = (0..n).find(|&j| ds.joint.contains(&j) && !(sigma[j].is_finite() && sigma[j] > 0.0)) {
+            return Err(Error::invalid(
+                &at,
+                "noise",
+                format!("σ of joint {} is {} ({}): an experiment without noise would carry infinite information; give noise = σ (N·m) per joint", j + 1, sigma[j], noise_source),
+            ));
+        }
         let mut info = DMatrix::zeros(nb, nb);
         for (r, &j) in ds.joint.iter().enumerate() {
             let row = ds.c.row(r);
@@ -280,6 +305,7 @@ pub fn build(design: &PlanDesign, dir: &Path, ctl: &Control) -> Result<Model> {
             cost: c.cost,
             max_repetitions: c.max_repetitions.unwrap_or(design.max_repetitions),
             sigma,
+            noise_source,
             duration: t.last().copied().unwrap_or(0.0) - t.first().copied().unwrap_or(0.0),
             samples: t.len(),
             rows: ds.c.nrows(),
@@ -335,6 +361,7 @@ pub fn build(design: &PlanDesign, dir: &Path, ctl: &Control) -> Result<Model> {
         targets,
         prior,
         notes,
+        margin: design.margin,
     })
 }
 

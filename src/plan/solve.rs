@@ -13,9 +13,15 @@
 //!                            0 ≤ r_e ≤ r_max,e
 //! ```
 //!
-//! exact for real r (Z ⪰ BᵀΦ⁻¹B, so each bound holds iff some Z meets it).
-//! The coordinates are scaled so that Φ(r_max) has a unit diagonal.
-//! Its optimal cost is a lower bound on every integer plan's.
+//! exact for real r (Z ⪰ BᵀΦ⁻¹B, so each bound holds iff some Z meets it):
+//! [`relax_sdp`]. Clarabel's PSD block is dense in the svec dimension, so
+//! [`relax`] solves the same convex problem by **supporting hyperplanes**:
+//! each g_i(r) = value_i²/t_i² is convex in r (a matrix-fractional function
+//! of the affine Φ(r)), with ∂g_i/∂r_e = −tr(B_iᵀΦ⁻¹M_eΦ⁻¹B_i)/t_i²; its tangent
+//! planes bound the feasible set from outside, an LP over them (Clarabel)
+//! gives a lower bound, and the boundary point toward r_max a feasible upper
+//! bound (tests: both agree with the SDP). The lower bound is a lower bound
+//! on every integer plan's cost.
 //!
 //! **Rounding.** ⌈r*⌉ is feasible (Φ grows with every r_e). Every integer
 //! vector within ±`window` of r* (clipped to [0, r_max]) is then evaluated by
@@ -50,7 +56,7 @@ pub struct Prepared {
     pub b: Vec<DMatrix<f64>>,
     /// Whether each target is a task (its value is an RMS: √tr(UᵀΦ⁻¹U)).
     pub is_task: Vec<bool>,
-    /// The bounds.
+    /// The bounds planned for: each target's bound / (1 + margin).
     pub bound: Vec<f64>,
     /// Costs.
     pub cost: Vec<f64>,
@@ -94,7 +100,7 @@ impl Prepared {
             lambda,
             b,
             is_task,
-            bound: model.targets.iter().map(|t| t.bound).collect(),
+            bound: model.targets.iter().map(|t| t.bound / (1.0 + model.margin)).collect(),
             cost: model.candidates.iter().map(|c| c.cost).collect(),
             rmax: model.candidates.iter().map(|c| c.max_repetitions).collect(),
         }
@@ -154,8 +160,10 @@ pub struct Solution {
     pub status: PlanStatus,
     /// Relaxed repetitions r*.
     pub relaxed: Vec<f64>,
-    /// Relaxed cost Σ cost_e r*_e (s): a lower bound.
+    /// Lower bound on the relaxed cost (s): a lower bound on every plan's.
     pub relaxed_cost: f64,
+    /// Cost of the relaxed r* (s): the relaxation solved to `relaxed_upper − relaxed_cost`.
+    pub relaxed_upper: f64,
     /// Clarabel's status of the relaxation.
     pub solver_status: String,
     /// Interior-point iterations.
@@ -218,6 +226,7 @@ pub fn plan(model: &Model, window: usize, ctl: &Control) -> Result<Solution> {
         status: PlanStatus::Planned,
         relaxed: vec![0.0; ne],
         relaxed_cost: 0.0,
+        relaxed_upper: 0.0,
         solver_status: String::new(),
         iterations: 0,
         repetitions: pre.rmax.clone(),
@@ -234,16 +243,17 @@ pub fn plan(model: &Model, window: usize, ctl: &Control) -> Result<Solution> {
         sol.status = PlanStatus::Unreachable;
         return Ok(sol);
     }
-    let (r, status, iters) = relax(&pre, ctl);
-    sol.solver_status = status.to_string();
-    sol.iterations = iters;
-    if !status.is_solved() {
+    let rel = relax(&pre, ctl);
+    sol.solver_status = rel.status.to_string();
+    sol.iterations = rel.iterations;
+    if !rel.status.is_solved() {
         sol.status = if ctl.interrupted() { PlanStatus::Interrupted } else { PlanStatus::Failed };
         return Ok(sol);
     }
-    let r: Vec<f64> = r.iter().zip(&rmax_f).map(|(x, m)| x.clamp(0.0, *m)).collect();
-    sol.relaxed_cost = r.iter().zip(&pre.cost).map(|(x, c)| x * c).sum();
-    sol.relaxed = r.clone();
+    sol.relaxed_cost = rel.lower;
+    sol.relaxed_upper = rel.upper;
+    sol.relaxed = rel.r.clone();
+    let r = rel.r;
     let (reps, how, n_eval) = round(&pre, &r, window);
     sol.cost = pre.cost_of(&reps);
     sol.gap = sol.cost - sol.relaxed_cost;
@@ -266,7 +276,7 @@ fn refusals(model: &Model, pre: &Prepared, best: &[f64]) -> Vec<Refusal> {
     let rank = super::model::rank_of(&data_only);
     let mut out = Vec::new();
     for (i, t) in model.targets.iter().enumerate() {
-        if best[i] <= t.bound * (1.0 + 1e-9) {
+        if best[i] <= pre.bound[i] * (1.0 + 1e-9) {
             continue;
         }
         let reason = match &t.kind {
@@ -279,12 +289,12 @@ fn refusals(model: &Model, pre: &Prepared, best: &[f64]) -> Vec<Refusal> {
                 model.base.n_base()
             ),
             TargetKind::Parameter { .. } => format!(
-                "below what the noise allows: with every experiment at its largest repetitions σ = {:.4e} > {:.4e}; allow more repetitions or add a quieter or richer experiment",
-                best[i], t.bound
+                "below what the noise allows: with every experiment at its largest repetitions σ = {:.4e} > {:.4e} (the bound {:.4e} / (1 + margin {})); allow more repetitions or add a quieter or richer experiment",
+                best[i], pre.bound[i], t.bound, model.margin
             ),
             TargetKind::Task { .. } => format!(
-                "below what the noise allows: with every experiment at its largest repetitions the RMS prediction error is {:.4e} N·m > {:.4e}",
-                best[i], t.bound
+                "below what the noise allows: with every experiment at its largest repetitions the RMS prediction error is {:.4e} N·m > {:.4e} (the bound {:.4e} / (1 + margin {}))",
+                best[i], pre.bound[i], t.bound, model.margin
             ),
         };
         out.push(Refusal {
@@ -298,8 +308,11 @@ fn refusals(model: &Model, pre: &Prepared, best: &[f64]) -> Vec<Refusal> {
     out
 }
 
-/// The semidefinite relaxation (module docs); returns r*, the status and the iterations.
-pub fn relax(pre: &Prepared, ctl: &Control) -> (Vec<f64>, ConicStatus, u32) {
+/// The relaxation as one semidefinite program (module docs): r*, the status
+/// and the iterations. Exact, but Clarabel's PSD block is dense in the
+/// svec dimension ((m + p)(m + p + 1)/2 rows): for checks on small problems;
+/// [`relax`] solves the same problem by supporting hyperplanes.
+pub fn relax_sdp(pre: &Prepared, ctl: &Control) -> (Vec<f64>, ConicStatus, u32) {
     let ne = pre.cost.len();
     let p = pre.lambda.nrows();
     // scaling: Φ(r_max) with a unit diagonal
@@ -391,6 +404,146 @@ pub fn relax(pre: &Prepared, ctl: &Control) -> (Vec<f64>, ConicStatus, u32) {
     let s = bridge::solve(prog, &set, ctl);
     let r = if s.x.len() >= ne { s.x[..ne].to_vec() } else { vec![0.0; ne] };
     (r, s.status, s.iterations)
+}
+
+/// The relaxation's result.
+#[derive(Debug, Clone)]
+pub struct Relaxed {
+    /// The best feasible real r found (its cost is `upper`).
+    pub r: Vec<f64>,
+    /// A lower bound on the relaxed (and so on every integer plan's) cost (s).
+    pub lower: f64,
+    /// The cost of `r` (s).
+    pub upper: f64,
+    /// The last LP's status (`Solved` when the bounds met).
+    pub status: ConicStatus,
+    /// Outer iterations (LPs solved).
+    pub iterations: u32,
+    /// Cuts added.
+    pub cuts: usize,
+}
+
+/// Every target's g_i = value²/bound² and its gradient in r, at `r` (None: Φ singular).
+fn ratios_and_gradients(pre: &Prepared, r: &[f64]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
+    let phi = pre.phi(r);
+    let p = phi.nrows();
+    let dmax = phi.diagonal().iter().cloned().fold(0.0, f64::max);
+    let chol = phi.cholesky().filter(|c| (0..p).all(|i| c.l_dirty()[(i, i)].powi(2) > 1e-13 * dmax))?;
+    let mut g = Vec::with_capacity(pre.b.len());
+    let mut grad = Vec::with_capacity(pre.b.len());
+    for (i, bi) in pre.b.iter().enumerate() {
+        let w = chol.solve(bi); // Φ⁻¹ B_i
+        let t2 = pre.bound[i] * pre.bound[i];
+        g.push(bi.iter().zip(w.iter()).map(|(a, b)| a * b).sum::<f64>() / t2);
+        grad.push(pre.m.iter().map(|me| -(w.transpose() * me * &w).trace() / t2).collect());
+    }
+    Some((g, grad))
+}
+
+/// The relaxation by supporting hyperplanes (Veinott): g_i(r) ≤ 1 are
+/// convex, so their tangent planes at any point bound the feasible set from
+/// outside. Each LP (Clarabel) over the planes gives a lower bound and a
+/// point r_k; the boundary point on the segment from the interior point
+/// r_max to r_k (bisection on max_i g_i = 1) is feasible (an upper bound)
+/// and adds the tangent planes of the targets near their bound there.
+/// Stops when the bounds agree to 1e-7 (relative) or after 400 LPs.
+pub fn relax(pre: &Prepared, ctl: &Control) -> Relaxed {
+    let ne = pre.cost.len();
+    let rmax: Vec<f64> = pre.rmax.iter().map(|&x| x as f64).collect();
+    let cost = |r: &[f64]| r.iter().zip(&pre.cost).map(|(a, c)| a * c).sum::<f64>();
+    let worst = |r: &[f64]| ratios_and_gradients(pre, r).map_or(f64::INFINITY, |(g, _)| g.iter().cloned().fold(0.0, f64::max));
+    let mut cuts: Vec<(Vec<f64>, f64)> = Vec::new(); // a·r ≤ b
+    let add_cuts = |at: &[f64], cuts: &mut Vec<(Vec<f64>, f64)>| {
+        if let Some((g, grad)) = ratios_and_gradients(pre, at) {
+            let top = g.iter().cloned().fold(0.0, f64::max);
+            for (gi, di) in g.iter().zip(&grad) {
+                if *gi >= 0.9 * top {
+                    let rhs = 1.0 - gi + di.iter().zip(at).map(|(a, b)| a * b).sum::<f64>();
+                    cuts.push((di.clone(), rhs));
+                }
+            }
+        }
+    };
+    let mut best = rmax.clone();
+    let mut upper = cost(&best);
+    add_cuts(&best, &mut cuts);
+    let cmax = pre.cost.iter().cloned().fold(0.0, f64::max);
+    let mut lower = 0.0;
+    let mut status = ConicStatus::Solver(bridge::SolverStatus::Unsolved);
+    let mut iterations = 0;
+    while iterations < 400 {
+        if ctl.interrupted() {
+            status = ConicStatus::Solver(bridge::SolverStatus::CallbackTerminated);
+            break;
+        }
+        // the LP: min cost·r over the cuts and the box
+        let mut a = Entries::new();
+        let mut b = Vec::new();
+        let nrow = 2 * ne + cuts.len();
+        let r0 = a.rows(nrow);
+        for e in 0..ne {
+            a.push(r0 + e, e, -1.0);
+            b.push(0.0);
+            a.push(r0 + ne + e, e, 1.0);
+        }
+        b.extend_from_slice(&rmax);
+        for (k, (d, rhs)) in cuts.iter().enumerate() {
+            // scale each row to a unit gradient
+            let nrm = d.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-300);
+            for e in 0..ne {
+                a.push(r0 + 2 * ne + k, e, d[e] / nrm);
+            }
+            b.push(rhs / nrm);
+        }
+        let prog = Program {
+            n_var: ne,
+            p: None,
+            q: pre.cost.iter().map(|c| c / cmax).collect(),
+            a,
+            b,
+            cones: vec![Cone::Nonnegative(nrow)],
+        };
+        let s = bridge::solve(prog, &Settings { tol: Some(1e-10), ..Default::default() }, ctl);
+        iterations += 1;
+        status = s.status.clone();
+        if !s.status.is_solved() || s.x.len() < ne {
+            break;
+        }
+        let rk: Vec<f64> = s.x.iter().zip(&rmax).map(|(x, m)| x.clamp(0.0, *m)).collect();
+        lower = cost(&rk).max(lower);
+        // the boundary point between r_max (feasible) and r_k
+        let (mut lo, mut hi) = (0.0f64, 1.0f64); // fraction toward r_max
+        let at = |f: f64| -> Vec<f64> { rk.iter().zip(&rmax).map(|(a, m)| a + f * (m - a)).collect() };
+        if worst(&rk) > 1.0 {
+            for _ in 0..60 {
+                let mid = 0.5 * (lo + hi);
+                if worst(&at(mid)) <= 1.0 {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+        } else {
+            hi = 0.0;
+        }
+        let pk = at(hi);
+        if cost(&pk) < upper {
+            upper = cost(&pk);
+            best = pk.clone();
+        }
+        if upper - lower <= 1e-7 * upper.max(1e-300) {
+            break;
+        }
+        add_cuts(&pk, &mut cuts);
+    }
+    Relaxed {
+        r: best,
+        lower,
+        upper,
+        status,
+        iterations,
+        cuts: cuts.len(),
+    }
 }
 
 /// Rounds r* (module docs): the plan, how, and the vectors evaluated.
