@@ -62,6 +62,10 @@ pub struct Candidate {
     pub sigma: Vec<f64>,
     /// Where σ comes from: `given`, or the residuals of one simulated repetition.
     pub noise_source: String,
+    /// Per joint, the RMS residual of the noise-free run's least-squares fit
+    /// (N·m): what the model does not explain even without noise, the same in
+    /// every repetition — averaging cannot lower it (a bias, not a spread).
+    pub repeatable: Vec<f64>,
     /// Duration of one recorded repetition (s).
     pub duration: f64,
     /// Samples per joint of one repetition as recorded.
@@ -180,7 +184,7 @@ impl Model {
 }
 
 /// Runs a simulate design with `repetitions` repetitions; `noise_free` zeroes
-/// its noise and perturbation (the plan's model); `seed` replaces its seed
+/// its noise (the plan's model; the truth stays); `seed` replaces its seed
 /// (the noise) and `truth` its true parameters (by default the design's
 /// truth, kept when the seed changes).
 pub fn simulate(
@@ -198,7 +202,7 @@ pub fn simulate(
     }
     if noise_free {
         d.noise = NoiseSpec::default();
-        d.truth.perturbation = 0.0;
+
     }
     if let Some(s) = seed {
         d.truth.seed = Some(d.truth.seed.unwrap_or(d.seed));
@@ -299,6 +303,7 @@ pub fn build(design: &PlanDesign, dir: &Path, ctl: &Control) -> Result<Model> {
             info.ger(1.0 / (sigma[j] * sigma[j]), &row.transpose(), &row.transpose(), 1.0);
         }
         let rank = rank_of(&info);
+        let repeatable = repeatable_residual(ds, n);
         let t = &sim.reps[0].t;
         candidates.push(Candidate {
             name: c.name.clone(),
@@ -306,6 +311,7 @@ pub fn build(design: &PlanDesign, dir: &Path, ctl: &Control) -> Result<Model> {
             max_repetitions: c.max_repetitions.unwrap_or(design.max_repetitions),
             sigma,
             noise_source,
+            repeatable,
             duration: t.last().copied().unwrap_or(0.0) - t.first().copied().unwrap_or(0.0),
             samples: t.len(),
             rows: ds.c.nrows(),
@@ -479,6 +485,22 @@ fn resolve_target(
         bound,
         c,
     })
+}
+
+/// Per joint, the RMS residual of the least-squares fit of the rows (0 for a joint without rows).
+fn repeatable_residual(ds: &crate::ident::Dataset, n: usize) -> Vec<f64> {
+    let svd = ds.c.clone().svd(true, true);
+    let theta = match svd.solve(&ds.y, 1e-12) {
+        Ok(t) => t,
+        Err(_) => return vec![f64::NAN; n],
+    };
+    let res = &ds.y - &ds.c * theta;
+    let (mut sq, mut cnt) = (vec![0.0; n], vec![0usize; n]);
+    for (i, &j) in ds.joint.iter().enumerate() {
+        sq[j] += res[i] * res[i];
+        cnt[j] += 1;
+    }
+    (0..n).map(|j| if cnt[j] > 0 { (sq[j] / cnt[j] as f64).sqrt() } else { 0.0 }).collect()
 }
 
 /// Rank of a symmetric positive semidefinite matrix (eigenvalues above 1e-10 of the largest).

@@ -276,7 +276,8 @@ fn refusals(model: &Model, pre: &Prepared, best: &[f64]) -> Vec<Refusal> {
     let rank = super::model::rank_of(&data_only);
     let mut out = Vec::new();
     for (i, t) in model.targets.iter().enumerate() {
-        if best[i] <= pre.bound[i] * (1.0 + 1e-9) {
+        let never = model.space == Space::Base && matches!(t.kind, TargetKind::Parameter { identifiable: false, .. });
+        if !never && best[i] <= pre.bound[i] * (1.0 + 1e-9) {
             continue;
         }
         let reason = match &t.kind {
@@ -301,7 +302,7 @@ fn refusals(model: &Model, pre: &Prepared, best: &[f64]) -> Vec<Refusal> {
             target: i,
             label: t.label.clone(),
             reason,
-            best: best[i],
+            best: if never { f64::INFINITY } else { best[i] },
             bound: t.bound,
         });
     }
