@@ -41,7 +41,11 @@ fn scenario(max_reps: usize, consistent: bool, targets: &str) -> (tempfile::Temp
             .join("\n");
         std::fs::write(dir.path().join(format!("{f}.toml")), text).unwrap();
     }
-    let prior = if consistent { "[consistent]\nmetric = \"euclidean\"\nweight = 1.0\nscale = 0.5\n" } else { "" };
+    let prior = if consistent {
+        "[consistent]\nmetric = \"euclidean\"\nweight = 1.0\nscale = 0.5\n"
+    } else {
+        ""
+    };
     let plan = format!(
         r#"name = "scenario"
 robot = "{robot}"
@@ -120,7 +124,13 @@ fn brute_force_enumeration_confirms_the_optimum_and_the_relaxed_bound() {
         }
     }
     let (bc, br) = best.expect("a feasible vector in the box");
-    assert!((sol.cost - bc).abs() < 1e-9, "planned {:?} ({} s), brute force {:?} ({bc} s)", sol.repetitions, sol.cost, br);
+    assert!(
+        (sol.cost - bc).abs() < 1e-9,
+        "planned {:?} ({} s), brute force {:?} ({bc} s)",
+        sol.repetitions,
+        sol.cost,
+        br
+    );
     assert!(sol.relaxed_cost <= bc + 1e-6, "relaxed bound {} above the optimum {bc}", sol.relaxed_cost);
     assert!(sol.relaxed_upper >= sol.relaxed_cost - 1e-9);
     // the supporting-hyperplane relaxation against the one semidefinite program
@@ -145,10 +155,18 @@ fn unreachable_targets_are_refused_with_the_reason_and_the_best_value() {
     let (_d, path) = scenario(10, false, "[[target]]\nparameter = \"ZZ1\"\nsigma = 0.01\n");
     let run = planned(&path);
     assert_eq!(run.solution.status, PlanStatus::Unreachable);
-    assert!(run.solution.refused[0].reason.contains("structurally unidentifiable"), "{}", run.solution.refused[0].reason);
+    assert!(
+        run.solution.refused[0].reason.contains("structurally unidentifiable"),
+        "{}",
+        run.solution.refused[0].reason
+    );
     assert!(run.solution.refused[0].best.is_infinite());
     // below the noise floor: the best value is σ with every experiment at 10
-    let (_d2, path2) = scenario(10, true, "[[target]]\nparameter = \"Fv3\"\nrelative = 0.0001\n[[target]]\nparameter = \"MX3R\"\nrelative = 0.5\n");
+    let (_d2, path2) = scenario(
+        10,
+        true,
+        "[[target]]\nparameter = \"Fv3\"\nrelative = 0.0001\n[[target]]\nparameter = \"MX3R\"\nrelative = 0.5\n",
+    );
     let run2 = planned(&path2);
     assert_eq!(run2.solution.status, PlanStatus::Unreachable);
     assert_eq!(run2.solution.refused.len(), 1, "only Fv3 is refused");
@@ -156,17 +174,33 @@ fn unreachable_targets_are_refused_with_the_reason_and_the_best_value() {
     assert!(r.reason.contains("below what the noise allows"), "{}", r.reason);
     let pre = solve::Prepared::new(&run2.model);
     let at_max = sigmas_by_inverse(&pre, &[10, 10, 10])[0];
-    assert!((r.best - at_max).abs() <= 1e-9 * at_max, "best {} vs σ at the largest repetitions {at_max}", r.best);
+    assert!(
+        (r.best - at_max).abs() <= 1e-9 * at_max,
+        "best {} vs σ at the largest repetitions {at_max}",
+        r.best
+    );
     // the command: exit 3, status.json `infeasible`, the reason on the report
     let out = path2.parent().unwrap().join("out");
-    let o = Command::new(env!("CARGO_BIN_EXE_idexp")).arg("plan").arg(&path2).arg("--out").arg(&out).output().unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .arg("plan")
+        .arg(&path2)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
     assert_eq!(o.status.code(), Some(3), "{}", String::from_utf8_lossy(&o.stderr));
     let status = std::fs::read_to_string(out.join("status.json")).unwrap();
     assert!(status.contains("\"infeasible\""), "{status}");
     assert!(String::from_utf8_lossy(&o.stdout).contains("best reachable"));
     // an input error (a parameter the robot does not have): exit 1, naming it
     let (_d3, path3) = scenario(10, true, "[[target]]\nparameter = \"ZZ9\"\nsigma = 0.01\n");
-    let o = Command::new(env!("CARGO_BIN_EXE_idexp")).arg("plan").arg(&path3).arg("--out").arg(&out).output().unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .arg("plan")
+        .arg(&path3)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("ZZ9"));
 }
@@ -181,12 +215,20 @@ fn acceptance(seeds: usize, tol: f64) {
     let r = rehearse(&run, None, seeds, &dir, &Control::new()).unwrap();
     let mut text = String::new();
     for t in &r.targets {
-        text += &format!("{}: predicted {:.4e}, study σ {:.4e}, met {}/{}, empirical {:.4e} (ratio {:.3})\n", t.label, t.predicted, t.achieved_mean, t.met, seeds, t.empirical, t.ratio);
+        text += &format!(
+            "{}: predicted {:.4e}, study σ {:.4e}, met {}/{}, empirical {:.4e} (ratio {:.3})\n",
+            t.label, t.predicted, t.achieved_mean, t.met, seeds, t.empirical, t.ratio
+        );
     }
     eprintln!("plan {reps:?}: every target met in {}/{seeds}\n{text}", r.all_met);
     assert!(r.all_met as f64 >= 0.9 * seeds as f64 - 1e-9, "{text}");
     for t in r.targets.iter().filter(|t| t.label.starts_with('σ')) {
-        assert!((t.ratio - 1.0).abs() <= tol, "{}: empirical spread / predicted = {:.3}\n{text}", t.label, t.ratio);
+        assert!(
+            (t.ratio - 1.0).abs() <= tol,
+            "{}: empirical spread / predicted = {:.3}\n{text}",
+            t.label,
+            t.ratio
+        );
     }
     // one fewer repetition of the binding experiment misses a target in most seeds
     let pre = solve::Prepared::new(&run.model);
@@ -201,8 +243,16 @@ fn acceptance(seeds: usize, tol: f64) {
     let mut fewer = reps.clone();
     fewer[e] -= 1;
     let r2 = rehearse(&run, Some(&fewer), seeds, &dir, &Control::new()).unwrap();
-    eprintln!("one fewer of {}: {fewer:?}: every target met in {}/{seeds}", run.model.candidates[e].name, r2.all_met);
-    assert!((r2.all_met as f64) < 0.5 * seeds as f64, "one fewer repetition of {} still meets every target in {}/{seeds} seeds", run.model.candidates[e].name, r2.all_met);
+    eprintln!(
+        "one fewer of {}: {fewer:?}: every target met in {}/{seeds}",
+        run.model.candidates[e].name, r2.all_met
+    );
+    assert!(
+        (r2.all_met as f64) < 0.5 * seeds as f64,
+        "one fewer repetition of {} still meets every target in {}/{seeds} seeds",
+        run.model.candidates[e].name,
+        r2.all_met
+    );
 }
 
 #[test]

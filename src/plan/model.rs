@@ -202,7 +202,6 @@ pub fn simulate(
     }
     if noise_free {
         d.noise = NoiseSpec::default();
-
     }
     if let Some(s) = seed {
         d.truth.seed = Some(d.truth.seed.unwrap_or(d.seed));
@@ -278,7 +277,8 @@ pub fn build(design: &PlanDesign, dir: &Path, ctl: &Control) -> Result<Model> {
         let (sigma, noise_source) = match &c.noise {
             Some(p) => (p.resolve(n, &at, "noise")?, "given".to_string()),
             None => (
-                effective_sigma(&robot, design, c, &path, dir, ctl).map_err(|e| Error::invalid(&at, "noise", format!("cannot estimate the effective noise from one simulated repetition: {e}")))?,
+                effective_sigma(&robot, design, c, &path, dir, ctl)
+                    .map_err(|e| Error::invalid(&at, "noise", format!("cannot estimate the effective noise from one simulated repetition: {e}")))?,
                 "the residuals of one simulated repetition".to_string(),
             ),
         };
@@ -294,7 +294,12 @@ pub fn build(design: &PlanDesign, dir: &Path, ctl: &Control) -> Result<Model> {
             return Err(Error::invalid(
                 &at,
                 "noise",
-                format!("σ of joint {} is {} ({}): an experiment without noise would carry infinite information; give noise = σ (N·m) per joint", j + 1, sigma[j], noise_source),
+                format!(
+                    "σ of joint {} is {} ({}): an experiment without noise would carry infinite information; give noise = σ (N·m) per joint",
+                    j + 1,
+                    sigma[j],
+                    noise_source
+                ),
             ));
         }
         let mut info = DMatrix::zeros(nb, nb);

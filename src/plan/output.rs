@@ -250,14 +250,23 @@ pub fn report_text(run: &PlanRun) -> String {
     }
     for c in &model.candidates {
         let rep: Vec<String> = c.repeatable.iter().map(|v| format!("{v:.3}")).collect();
-        let worst = c.repeatable.iter().zip(&c.sigma).map(|(s, n)| if *n > 0.0 { s / n } else { 0.0 }).fold(0.0, f64::max);
+        let worst = c
+            .repeatable
+            .iter()
+            .zip(&c.sigma)
+            .map(|(s, n)| if *n > 0.0 { s / n } else { 0.0 })
+            .fold(0.0, f64::max);
         let _ = writeln!(
             s,
             "  {}: repeatable residual (noise-free run) [{}] N·m{}",
             c.name,
             rep.join(", "),
             if worst > 0.1 {
-                format!(": {:.0} % of σ — averaging more than ~{:.0} repetitions cannot lower it (a model or filter error, a bias the study reports as noise)", 100.0 * worst, (1.0 / (worst * worst)).ceil())
+                format!(
+                    ": {:.0} % of σ — averaging more than ~{:.0} repetitions cannot lower it (a model or filter error, a bias the study reports as noise)",
+                    100.0 * worst,
+                    (1.0 / (worst * worst)).ceil()
+                )
             } else {
                 String::new()
             }

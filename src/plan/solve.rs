@@ -504,7 +504,14 @@ pub fn relax(pre: &Prepared, ctl: &Control) -> Relaxed {
             b,
             cones: vec![Cone::Nonnegative(nrow)],
         };
-        let s = bridge::solve(prog, &Settings { tol: Some(1e-10), ..Default::default() }, ctl);
+        let s = bridge::solve(
+            prog,
+            &Settings {
+                tol: Some(1e-10),
+                ..Default::default()
+            },
+            ctl,
+        );
         iterations += 1;
         status = s.status.clone();
         if !s.status.is_solved() || s.x.len() < ne {
