@@ -19,7 +19,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 repo=$(pwd)
-DOCS="README.md docs/robots.md docs/excitation.md docs/collision.md docs/identification.md docs/payload.md docs/elastic.md docs/positions.md docs/library.md docs/testing.md docs/performance.md docs/python.md"
+DOCS="README.md docs/robots.md docs/excitation.md docs/collision.md docs/identification.md docs/payload.md docs/elastic.md docs/positions.md docs/plan.md docs/library.md docs/testing.md docs/performance.md docs/python.md"
 for f in docs/*.md; do
   case " $DOCS " in *" $f "*) ;; *) echo "readme-commands: $f is not in DOCS: add it" >&2; exit 1 ;; esac
 done

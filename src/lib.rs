@@ -68,6 +68,7 @@ pub mod linalg;
 pub mod optim;
 pub mod params;
 pub mod payload;
+pub mod plan;
 pub mod positions;
 pub mod preview;
 pub mod rng;

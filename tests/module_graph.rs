@@ -11,7 +11,7 @@
 //! | 2     | `params` `trajectory` `data`              | base parameters, motions and line sets, run formats |
 //! | 3     | `sim` `elastic`                           | closed-loop simulation, elastic gray-box model    |
 //! | 4     | `excitation` `ident` `frf` `positions`    | the four problems                                |
-//! | 5     | `preview` `payload`                       | the 3D preview page; payload identification and exports |
+//! | 5     | `preview` `payload` `plan`                | the 3D preview page; payload identification and exports; campaign planning |
 //!
 //! The front end (`src/bin/`, `src/main.rs`) sits above everything and is not
 //! scanned; `src/lib.rs` only declares the modules.
@@ -58,6 +58,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("positions", 4),
     ("preview", 5),
     ("payload", 5),
+    ("plan", 5),
 ];
 
 /// Names that may follow `crate::` without being a module (re-exports at the

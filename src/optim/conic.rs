@@ -173,6 +173,21 @@ impl serde::Serialize for ConicStatus {
     }
 }
 
+/// Index of (i, j) (either order) in svec of an n×n symmetric matrix (upper triangle by columns, [`Cone::PsdTriangle`]).
+pub fn svec_index(i: usize, j: usize) -> usize {
+    let (i, j) = if i <= j { (i, j) } else { (j, i) };
+    j * (j + 1) / 2 + i
+}
+
+/// svec scaling of entry (i, j): 1 on the diagonal, √2 off it.
+pub fn svec_scale(i: usize, j: usize) -> f64 {
+    if i == j {
+        1.0
+    } else {
+        std::f64::consts::SQRT_2
+    }
+}
+
 /// A sparse matrix being assembled: (row, column, value) entries, rows
 /// reserved in blocks.
 #[derive(Debug, Clone, Default)]

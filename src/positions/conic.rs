@@ -39,7 +39,7 @@
 
 use super::problem::Problem;
 use super::relax::SolverOptions;
-use crate::optim::conic::{self as bridge, Cone, Entries as Triplets, Program, Settings};
+use crate::optim::conic::{self as bridge, svec_index, svec_scale, Cone, Entries as Triplets, Program, Settings};
 use crate::optim::Control;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
@@ -74,21 +74,6 @@ pub struct ConicResult {
     pub size: (usize, usize),
     /// For E: the dual matrix of the PSD constraint (p×p, not normalised).
     pub dual: Option<DMatrix<f64>>,
-}
-
-/// Index of (i, j), i ≤ j, in svec of an n×n matrix (upper triangle by columns).
-fn svec_index(i: usize, j: usize) -> usize {
-    let (i, j) = if i <= j { (i, j) } else { (j, i) };
-    j * (j + 1) / 2 + i
-}
-
-/// svec scaling of entry (i, j): 1 on the diagonal, √2 off it.
-fn svec_scale(i: usize, j: usize) -> f64 {
-    if i == j {
-        1.0
-    } else {
-        std::f64::consts::SQRT_2
-    }
 }
 
 /// Appends the simplex on the weights w (columns `w0..w0 + k`): Σ w = 1 (zero

@@ -17,6 +17,7 @@ mod export;
 mod identify;
 mod log;
 mod payload;
+mod plan;
 mod positions;
 mod progress;
 mod robot;
@@ -54,6 +55,8 @@ enum Cmd {
     Fit(elastic::FitArgs),
     /// Merge multistart shard logs into the single-run result.
     Merge(elastic::MergeArgs),
+    /// The cheapest repetitions of candidate experiments meeting accuracy targets (SDP relaxation + rounding; --rehearse).
+    Plan(plan::PlanArgs),
     /// Optimal measurement positions by convex relaxed experiment design (D/A/E, Clarabel).
     Positions(positions::PositionsArgs),
     /// Design an optimal excitation trajectory (GA + gradient refinement) from a design file.
@@ -187,6 +190,7 @@ fn run(cli: Cli) -> anyhow::Result<Outcome> {
         Cmd::Frf(a) => elastic::run_frf(a, &ctl),
         Cmd::Fit(a) => elastic::run_fit(a, &ctl),
         Cmd::Merge(a) => elastic::run_merge(a, &ctl),
+        Cmd::Plan(a) => plan::run(a, &ctl),
         Cmd::Positions(a) => positions::run(a, &ctl),
         Cmd::Excite(a) => excite::run_excite(a, &ctl),
         Cmd::Payload(a) => payload::run(a, &ctl),

@@ -1,0 +1,284 @@
+//! `idexp plan`: the planner against brute force, its refusals, and its
+//! prediction against rehearsal (simulated studies with many noise seeds).
+//!
+//! The scenario (docs/plan.md, "Acceptance"): the RPR test arm, three
+//! experiments of different kinds and noise — a 10 s Fourier excitation
+//! (σ_τ = 0.05), a 5 s one with three times the noise (0.15) and slow
+//! gravity slopes of the wrist (0.05) — the study's Euclidean prior, and
+//! targets on σ(MX3R), σ(Fv3) and the RMS prediction error on a validation
+//! trajectory. The simulate designs are the shipped ones with the position
+//! noise set to 0 (with it, the controller's reaction to encoder noise is the
+//! dominant, slide-heavy equation error the plan estimates; the scenario
+//! keeps the noise levels 3× apart).
+
+use idexp::optim::Control;
+use idexp::plan::{build, plan, rehearse, solve, PlanDesign, PlanRun, PlanStatus};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A folder with the scenario's simulate designs and `plan.toml` (targets replaced by `targets`).
+fn scenario(max_reps: usize, consistent: bool, targets: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let r = root();
+    for f in ["sim_rpr_fourier", "sim_rpr_study_b", "sim_rpr_study_gravity", "sim_rpr_fourier_validate"] {
+        let text = std::fs::read_to_string(r.join("designs").join(format!("{f}.toml"))).unwrap();
+        let text: String = text
+            .lines()
+            .map(|l| {
+                if l.starts_with("robot = ") {
+                    format!("robot = \"{}\"", r.join("tests/data/ident/rpr_drives.toml").display())
+                } else if l.starts_with("position = ") {
+                    "position = 0.0".to_string()
+                } else {
+                    l.to_string()
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+        std::fs::write(dir.path().join(format!("{f}.toml")), text).unwrap();
+    }
+    let prior = if consistent {
+        "[consistent]\nmetric = \"euclidean\"\nweight = 1.0\nscale = 0.5\n"
+    } else {
+        ""
+    };
+    let plan = format!(
+        r#"name = "scenario"
+robot = "{robot}"
+max_repetitions = {max_reps}
+[[experiment]]
+name = "fourier_a"
+simulate = "sim_rpr_fourier.toml"
+cost = 14.0
+identify = {{ harmonics = 20 }}
+[[experiment]]
+name = "fourier_b"
+simulate = "sim_rpr_study_b.toml"
+cost = 8.0
+identify = {{ harmonics = 16 }}
+[[experiment]]
+name = "gravity_wrist"
+simulate = "sim_rpr_study_gravity.toml"
+cost = 30.0
+identify = {{ kind = "gravity" }}
+{prior}
+{targets}
+"#,
+        robot = r.join("tests/data/ident/rpr_drives.toml").display()
+    );
+    let path = dir.path().join("plan.toml");
+    std::fs::write(&path, plan).unwrap();
+    (dir, path)
+}
+
+const TARGETS: &str = r#"
+[[target]]
+parameter = "MX3R"
+relative = 0.0003
+[[target]]
+parameter = "Fv3"
+relative = 0.02
+[[target]]
+task = "sim_rpr_fourier_validate.toml"
+rms = 0.003
+"#;
+
+fn planned(path: &Path) -> PlanRun {
+    let design = PlanDesign::read(path).unwrap();
+    idexp::plan::run_design(&design, path.parent().unwrap(), &Control::new()).unwrap()
+}
+
+/// σ of every target from Φ by an explicit inverse (not the planner's Cholesky path).
+fn sigmas_by_inverse(pre: &solve::Prepared, r: &[usize]) -> Vec<f64> {
+    let phi = pre.phi(&r.iter().map(|&x| x as f64).collect::<Vec<_>>());
+    match phi.clone().try_inverse() {
+        Some(inv) if phi.clone().cholesky().is_some() => pre.b.iter().map(|b| (b.transpose() * &inv * b).trace().max(0.0).sqrt()).collect(),
+        _ => vec![f64::INFINITY; pre.b.len()],
+    }
+}
+
+#[test]
+fn brute_force_enumeration_confirms_the_optimum_and_the_relaxed_bound() {
+    let targets = "[[target]]\nparameter = \"MX3R\"\nrelative = 0.0006\n[[target]]\nparameter = \"Fv3\"\nrelative = 0.05\n[[target]]\ntask = \"sim_rpr_fourier_validate.toml\"\nrms = 0.004\n";
+    let (_d, path) = scenario(8, true, targets);
+    let run = planned(&path);
+    let sol = &run.solution;
+    assert_eq!(sol.status, PlanStatus::Planned, "{}", idexp::plan::output::report_text(&run));
+    let pre = solve::Prepared::new(&run.model);
+    // every vector of the box [0, 8]³
+    let mut best: Option<(f64, Vec<usize>)> = None;
+    for a in 0..=8 {
+        for b in 0..=8 {
+            for c in 0..=8 {
+                let r = vec![a, b, c];
+                let ok = sigmas_by_inverse(&pre, &r).iter().zip(&pre.bound).all(|(s, t)| *s <= t * (1.0 + 1e-9));
+                let cost = 14.0 * a as f64 + 8.0 * b as f64 + 30.0 * c as f64;
+                if ok && best.as_ref().is_none_or(|(bc, _)| cost < *bc) {
+                    best = Some((cost, r));
+                }
+            }
+        }
+    }
+    let (bc, br) = best.expect("a feasible vector in the box");
+    assert!(
+        (sol.cost - bc).abs() < 1e-9,
+        "planned {:?} ({} s), brute force {:?} ({bc} s)",
+        sol.repetitions,
+        sol.cost,
+        br
+    );
+    assert!(sol.relaxed_cost <= bc + 1e-6, "relaxed bound {} above the optimum {bc}", sol.relaxed_cost);
+    assert!(sol.relaxed_upper >= sol.relaxed_cost - 1e-9);
+    // the supporting-hyperplane relaxation against the one semidefinite program
+    let (r_sdp, st, _) = solve::relax_sdp(&pre, &Control::new());
+    assert!(st.is_solved(), "SDP: {st}");
+    let sdp_cost: f64 = r_sdp.iter().zip(&pre.cost).map(|(x, c)| x * c).sum();
+    assert!(
+        (sdp_cost - sol.relaxed_cost).abs() <= 1e-4 * sdp_cost,
+        "relaxed cost: hyperplanes {} vs SDP {sdp_cost}",
+        sol.relaxed_cost
+    );
+    // the plan meets every target by the independent inverse too
+    let s = sigmas_by_inverse(&pre, &sol.repetitions);
+    for (i, v) in s.iter().enumerate() {
+        assert!((v - sol.values[i]).abs() <= 1e-9 * v, "target {i}: {v} vs {}", sol.values[i]);
+    }
+}
+
+#[test]
+fn unreachable_targets_are_refused_with_the_reason_and_the_best_value() {
+    // structurally unidentifiable (no prior): ZZ1 never reaches the torques
+    let (_d, path) = scenario(10, false, "[[target]]\nparameter = \"ZZ1\"\nsigma = 0.01\n");
+    let run = planned(&path);
+    assert_eq!(run.solution.status, PlanStatus::Unreachable);
+    assert!(
+        run.solution.refused[0].reason.contains("structurally unidentifiable"),
+        "{}",
+        run.solution.refused[0].reason
+    );
+    assert!(run.solution.refused[0].best.is_infinite());
+    // below the noise floor: the best value is σ with every experiment at 10
+    let (_d2, path2) = scenario(
+        10,
+        true,
+        "[[target]]\nparameter = \"Fv3\"\nrelative = 0.0001\n[[target]]\nparameter = \"MX3R\"\nrelative = 0.5\n",
+    );
+    let run2 = planned(&path2);
+    assert_eq!(run2.solution.status, PlanStatus::Unreachable);
+    assert_eq!(run2.solution.refused.len(), 1, "only Fv3 is refused");
+    let r = &run2.solution.refused[0];
+    assert!(r.reason.contains("below what the noise allows"), "{}", r.reason);
+    let pre = solve::Prepared::new(&run2.model);
+    let at_max = sigmas_by_inverse(&pre, &[10, 10, 10])[0];
+    assert!(
+        (r.best - at_max).abs() <= 1e-9 * at_max,
+        "best {} vs σ at the largest repetitions {at_max}",
+        r.best
+    );
+    // the command: exit 3, status.json `infeasible`, the reason on the report
+    let out = path2.parent().unwrap().join("out");
+    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .arg("plan")
+        .arg(&path2)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(3), "{}", String::from_utf8_lossy(&o.stderr));
+    let status = std::fs::read_to_string(out.join("status.json")).unwrap();
+    assert!(status.contains("\"infeasible\""), "{status}");
+    assert!(String::from_utf8_lossy(&o.stdout).contains("best reachable"));
+    // an input error (a parameter the robot does not have): exit 1, naming it
+    let (_d3, path3) = scenario(10, true, "[[target]]\nparameter = \"ZZ9\"\nsigma = 0.01\n");
+    let o = Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .arg("plan")
+        .arg(&path3)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("ZZ9"));
+}
+
+/// The acceptance test with `seeds` seeds; `tol` on |empirical/predicted − 1|.
+fn acceptance(seeds: usize, tol: f64) {
+    let (_d, path) = scenario(40, true, TARGETS);
+    let dir = path.parent().unwrap().to_path_buf();
+    let run = planned(&path);
+    assert_eq!(run.solution.status, PlanStatus::Planned);
+    let reps = run.solution.repetitions.clone();
+    let r = rehearse(&run, None, seeds, &dir, &Control::new()).unwrap();
+    let mut text = String::new();
+    for t in &r.targets {
+        text += &format!(
+            "{}: predicted {:.4e}, study σ {:.4e}, met {}/{}, empirical {:.4e} (ratio {:.3})\n",
+            t.label, t.predicted, t.achieved_mean, t.met, seeds, t.empirical, t.ratio
+        );
+    }
+    eprintln!("plan {reps:?}: every target met in {}/{seeds}\n{text}", r.all_met);
+    assert!(r.all_met as f64 >= 0.9 * seeds as f64 - 1e-9, "{text}");
+    for t in r.targets.iter().filter(|t| t.label.starts_with('σ')) {
+        assert!(
+            (t.ratio - 1.0).abs() <= tol,
+            "{}: empirical spread / predicted = {:.3}\n{text}",
+            t.label,
+            t.ratio
+        );
+    }
+    // one fewer repetition of the binding experiment misses a target in most seeds
+    let pre = solve::Prepared::new(&run.model);
+    let e = (0..reps.len())
+        .filter(|&e| reps[e] > 0)
+        .find(|&e| {
+            let mut f = reps.clone();
+            f[e] -= 1;
+            pre.worst_ratio(&f) > 1.0
+        })
+        .expect("a binding experiment");
+    let mut fewer = reps.clone();
+    fewer[e] -= 1;
+    let r2 = rehearse(&run, Some(&fewer), seeds, &dir, &Control::new()).unwrap();
+    eprintln!(
+        "one fewer of {}: {fewer:?}: every target met in {}/{seeds}",
+        run.model.candidates[e].name, r2.all_met
+    );
+    assert!(
+        (r2.all_met as f64) < 0.5 * seeds as f64,
+        "one fewer repetition of {} still meets every target in {}/{seeds} seeds",
+        run.model.candidates[e].name,
+        r2.all_met
+    );
+}
+
+#[test]
+fn the_plan_rehearsed_with_ten_seeds_meets_its_targets_and_one_fewer_repetition_does_not() {
+    // ten seeds: the spread's own sampling error is ~24 %, so the tolerance is 0.5 here; the 50-seed test below holds 15 %
+    acceptance(10, 0.5);
+}
+
+#[test]
+#[ignore = "50 noise seeds × two rehearsals: ~3 min on 2 cores; run with --ignored"]
+fn the_plan_rehearsed_with_fifty_seeds_meets_its_targets_and_the_spread_within_15_percent() {
+    acceptance(50, 0.15);
+}
+
+#[test]
+fn the_model_reads_the_scenario() {
+    let (_d, path) = scenario(40, true, TARGETS);
+    let design = PlanDesign::read(&path).unwrap();
+    let model = build(&design, path.parent().unwrap(), &Control::new()).unwrap();
+    // the effective noise from the study's residuals: the designs' σ_τ, 3× apart
+    let a = &model.candidates[0].sigma;
+    let b = &model.candidates[1].sigma;
+    for j in 0..3 {
+        assert!((a[j] / 0.05 - 1.0).abs() < 0.1, "fourier_a σ {a:?}");
+        assert!((b[j] / 0.15 - 1.0).abs() < 0.1, "fourier_b σ {b:?}");
+    }
+    let sol = plan(&model, 2, &Control::new()).unwrap();
+    assert_eq!(sol.status, PlanStatus::Planned);
+}
