@@ -21,6 +21,10 @@ The problems:
   a :class:`SimRun`);
 - :func:`payload` identifies a tool's or payload's mass, centre of mass and
   inertia from loaded (and unloaded) runs, as ``idexp payload identify``;
+  :func:`calibrate_gains` calibrates each joint's drive gain (current to
+  torque) with a known mass (a payload design with ``[gains]``);
+- :func:`plan` finds the cheapest repetitions of candidate experiments that
+  meet accuracy targets, as ``idexp plan`` (optionally rehearsed);
 - :func:`positions` selects optimal measurement positions (with a
   Kiefer-Wolfowitz certificate); :func:`fit` fits the elastic gray-box model
   to FRF data from many starts.
@@ -44,16 +48,19 @@ from ._idexp import (
     BaseParameters,
     ExciteResult,
     FitResult,
+    GainsFit,
     IdexpError,
     Identifiability,
     Identification,
     PayloadFit,
+    Plan,
     PositionsResult,
     Robot,
     SimRun,
     Study,
     __version__,
     assess,
+    calibrate_gains,
     excite,
     export_trajectory,
     fit,
@@ -63,6 +70,7 @@ from ._idexp import (
     mjcf,
     multisine,
     payload,
+    plan,
     positions,
     read_log,
     simulate,
@@ -76,16 +84,19 @@ __all__ = [
     "BaseParameters",
     "ExciteResult",
     "FitResult",
+    "GainsFit",
     "IdexpError",
     "Identifiability",
     "Identification",
     "PayloadFit",
+    "Plan",
     "PositionsResult",
     "Robot",
     "SimRun",
     "Study",
     "__version__",
     "assess",
+    "calibrate_gains",
     "excite",
     "export_trajectory",
     "fit",
@@ -95,6 +106,7 @@ __all__ = [
     "mjcf",
     "multisine",
     "payload",
+    "plan",
     "positions",
     "read_log",
     "simulate",

@@ -308,6 +308,58 @@ def study(
     """Runs an identification study from a study file or a dict with the file's keys
     (experiments and validation runs relative to the file's folder, or to base_dir for a dict)."""
 
+class GainsFit:
+    """A drive-gain calibration with a known mass (idexp.calibrate_gains)."""
+    joints: list[str]
+    gains: F64
+    """The gains written (N·m/A, joint side, signed): identified where determined, else the file's."""
+    std: F64
+    """σ of each gain (inf where not determined)."""
+    file_gains: F64
+    """The robot file's gains s·k_t·N (N·m/A)."""
+    determined: list[bool]
+    report: dict
+    """gains.json: per joint ratio, σ, reason, sign, offset; runs and delays; compared sets; notes."""
+    def text(self) -> str: ...
+    def write(self, folder: PathLike) -> str: ...
+
+def calibrate_gains(
+    design: Union[PathLike, dict],
+    base_dir: Optional[PathLike] = None,
+    time_limit: Optional[float] = None,
+    progress: Progress = None,
+) -> GainsFit:
+    """Calibrates each joint's drive gain with a known mass: a payload design with a [gains]
+    table (`idexp payload identify` of such a design); runs relative to the file's folder or base_dir."""
+
+class Plan:
+    """An accuracy plan (idexp.plan; `idexp plan plan.toml`)."""
+    status: str
+    """planned, unreachable, interrupted or failed."""
+    candidates: list[str]
+    repetitions: list[int]
+    cost: float
+    """The plan's robot time (s)."""
+    relaxed_cost: float
+    """The relaxation's lower bound on every plan's cost (s)."""
+    values: list[float]
+    """Every target's predicted value for the plan."""
+    refused: list[dict]
+    report: dict
+    rehearsal: Optional[dict]
+    def text(self) -> str: ...
+    def write(self, folder: PathLike) -> str: ...
+
+def plan(
+    design: Union[PathLike, dict],
+    base_dir: Optional[PathLike] = None,
+    rehearse: int = 0,
+    time_limit: Optional[float] = None,
+    progress: Progress = None,
+) -> Plan:
+    """Plans the cheapest repetitions of the design's candidate experiments that meet every target
+    (`idexp plan`); rehearse=N simulates and identifies the plan with N noise seeds."""
+
 class PayloadFit:
     """A payload identification (idexp.payload; `idexp payload identify payload.toml`)."""
     state: str

@@ -50,8 +50,15 @@ pub struct PayloadResult {
     pub estimate: PayloadEstimate,
 }
 
-/// Runs [`identify::identify`] and keeps the design.
+/// Runs [`identify::identify`] and keeps the design (a design with `[gains]` is refused: [`gains::calibrate`] runs it).
 pub fn run(design: &PayloadDesign, dir: &Path, ctl: &crate::optim::Control) -> Result<PayloadResult> {
+    if design.gains.is_some() {
+        return Err(Error::invalid(
+            format!("payload design `{}`", design.name),
+            "gains",
+            "a [gains] table calibrates the drive gains with the known mass (gains::calibrate) instead of identifying a payload",
+        ));
+    }
     Ok(PayloadResult {
         design: design.clone(),
         estimate: identify(design, dir, ctl)?,
