@@ -6,9 +6,10 @@
 //! 1. [`model`]: each candidate's information per repetition F_e (the rows
 //!    the study will keep, each an independent torque sample of σ²_j), the
 //!    study's prior Λ, the task's Gram matrix and the targets as vectors;
-//! 2. [`solve`]: the semidefinite relaxation (one Schur-complement LMI on
-//!    Clarabel's PSD cone), its rounding by enumeration, the refusal of
-//!    unreachable targets with the reason and the best value;
+//! 2. [`solve`]: the convex relaxation (a Schur-complement LMI, solved by
+//!    supporting hyperplanes as LPs on Clarabel), its rounding by
+//!    enumeration, the refusal of unreachable targets with the reason and
+//!    the best value;
 //! 3. [`rehearse`]: the plan simulated with many noise seeds and identified
 //!    by the study engine, the achieved σ and errors beside the prediction;
 //! 4. [`output`]: the folder (plan.json, report.txt, plan.csv, params.csv,
