@@ -154,6 +154,7 @@ pub fn run_fit(a: &FitArgs, ctl: &Control) -> anyhow::Result<Outcome> {
             "fit: run `idexp frf {}` (with the same --out) first, or pass --data",
             a.design.display()
         )),
+        idexp::Error::Invalid { ref field, .. } if field == "starts" && a.starts.is_some() => anyhow::Error::new(e).context("--starts"),
         e => e.into(),
     })?;
     match &r.report {
