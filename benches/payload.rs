@@ -8,6 +8,11 @@
 //! * `payload/identify_ur5`: `idexp::payload::identify` on two simulated UR5
 //!   runs (5 repetitions of 10 s at 200 Hz, loaded and unloaded: 2 × 10,000
 //!   samples × 6 joints read, filtered, differenced, stacked; WLS, consistent fit).
+//! * `payload/gains_ur5`: `idexp::payload::gains::calibrate` of
+//!   designs/gains_ur5.toml on its two shipped simulated runs (a 2 kg mass
+//!   and none, each 50 s at 100 Hz: 5 periods of 10 s, 6 joints; gains,
+//!   base parameters, the mass's 9 parameters and offsets in one weighted
+//!   least squares; issue goal ≤ 1 s on 2 cores).
 //!
 //! Run: `cargo bench --bench payload`.
 
@@ -63,6 +68,31 @@ fn bench(c: &mut Criterion) {
     g.measurement_time(Duration::from_secs(10));
     g.bench_function("identify_ur5", |b| {
         b.iter(|| black_box(idexp::payload::identify(&pd, dir.path(), &Control::new()).expect("identify").payload))
+    });
+    // the drive gains with a known mass: the shipped designs' runs, simulated once
+    let gdir = tempfile::tempdir().expect("tempdir");
+    for name in ["sim_ur5_gains_loaded", "sim_ur5_gains_unloaded"] {
+        let path = root(&format!("designs/{name}.toml"));
+        let d = idexp::sim::SimDesign::read(&path).expect("sim design");
+        let setup = SimSetup::from_design(&d, &root("designs"), &path.display().to_string()).expect("sim setup");
+        setup
+            .run(&Control::new())
+            .expect("sim run")
+            .write(&gdir.path().join(name), &d)
+            .expect("sim write");
+    }
+    let mut gd = PayloadDesign::read(&root("designs/gains_ur5.toml")).expect("gains design");
+    gd.loaded[0].files = vec![gdir.path().join("sim_ur5_gains_loaded")];
+    gd.unloaded[0].files = vec![gdir.path().join("sim_ur5_gains_unloaded")];
+    g.bench_function("gains_ur5", |b| {
+        b.iter(|| {
+            black_box(
+                idexp::payload::gains::calibrate(&gd, &root("designs"), &Control::new())
+                    .expect("calibrate")
+                    .joints
+                    .len(),
+            )
+        })
     });
     g.finish();
 }

@@ -394,6 +394,17 @@ fn elastic_non_psd_payload_inertia_is_refused() {
     );
 }
 
+/// A payload far outside the robot (a mutation the fuzz test found):
+/// refused naming the file and the field, not the robot's link.
+#[test]
+fn elastic_payload_com_overflowing_the_link_inertia_is_refused() {
+    fit_refused(
+        "com.toml",
+        &[("com = [0.0, 0.0, 0.2]", "com = [1e308, 0.0, 0.2]")],
+        &["payload.com", "overflows"],
+    );
+}
+
 #[test]
 fn arrays_longer_than_their_field_are_refused() {
     fit_refused(

@@ -197,7 +197,15 @@ fn add_payload(rigid: &mut Robot, payload: Option<&PayloadSpec>, rpath: &Path, c
         let ic = Matrix3::new(ii[0], ii[1], ii[2], ii[1], ii[3], ii[4], ii[2], ii[4], ii[5]);
         crate::robot::validate::check_com_inertia(ctxm, "payload.inertia", p.mass, &ic)?;
         let add = Inertial::from_com(p.mass, Vector3::new(c[0], c[1], c[2]), ic, Matrix3::identity());
-        rigid.links[i].inertial = rigid.links[i].inertial.add(&add);
+        let sum = rigid.links[i].inertial.add(&add);
+        if !(sum.mass.is_finite() && sum.first_moment.iter().chain(sum.inertia.iter()).all(|v| v.is_finite())) {
+            return Err(Error::invalid(
+                ctxm,
+                "payload.com",
+                format!("{c:?} m: the link's inertia about its origin with this payload overflows (expected a centre of mass within the robot's size)"),
+            ));
+        }
+        rigid.links[i].inertial = sum;
     }
     Ok(())
 }
