@@ -10,7 +10,7 @@
 //!    supporting hyperplanes as LPs on Clarabel), its rounding by
 //!    enumeration, the refusal of unreachable targets with the reason and
 //!    the best value;
-//! 3. [`rehearse`]: the plan simulated with many noise seeds and identified
+//! 3. [`rehearse`](mod@rehearse): the plan simulated with many noise seeds and identified
 //!    by the study engine, the achieved σ and errors beside the prediction;
 //! 4. [`output`]: the folder (plan.json, report.txt, plan.csv, params.csv,
 //!    targets.csv, σ-vs-repetitions plots, status.json).
