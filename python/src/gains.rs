@@ -3,7 +3,7 @@
 //! payload design with a `[gains]` table.
 
 use crate::arrays::out1;
-use crate::dicts::{design_and_dir, to_dict};
+use crate::dicts::to_dict;
 use crate::err::IntoPy;
 use crate::long::run_long;
 use idexp::payload::gains::{calibrate, GainsEstimate};
@@ -86,18 +86,7 @@ pub fn calibrate_gains(
     time_limit: Option<f64>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<GainsFit> {
-    let (d, dir) = design_and_dir(
-        design,
-        base_dir,
-        "payload design",
-        PayloadDesign::read,
-        |d| {
-            if d.name.is_empty() {
-                d.name = "gains".into();
-            }
-        },
-        PayloadDesign::validate,
-    )?;
+    let (d, dir) = crate::payload::payload_design(design, base_dir, "gains")?;
     if d.gains.is_none() {
         return Err(crate::err::value(
             "calibrate_gains: the design has no [gains] table (the known mass): idexp.payload identifies a payload",

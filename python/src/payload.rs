@@ -100,20 +100,26 @@ pub fn payload(
     time_limit: Option<f64>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<PayloadFit> {
-    let (d, dir) = design_and_dir(
+    let (d, dir) = payload_design(design, base_dir, "payload")?;
+    let res = run_long(py, time_limit, progress.as_ref(), |ctl| idexp::payload::run(&d, &dir, ctl))?;
+    Ok(PayloadFit { inner: Arc::new(res) })
+}
+
+/// A payload design from a file or a dict (paths relative to the file's
+/// folder or `base_dir`), named `default_name` when the dict has no name.
+pub(crate) fn payload_design(design: &Bound<'_, PyAny>, base_dir: Option<PathBuf>, default_name: &str) -> PyResult<(PayloadDesign, PathBuf)> {
+    design_and_dir(
         design,
         base_dir,
         "payload design",
         PayloadDesign::read,
         |d| {
             if d.name.is_empty() {
-                d.name = "payload".into();
+                d.name = default_name.into();
             }
         },
         PayloadDesign::validate,
-    )?;
-    let res = run_long(py, time_limit, progress.as_ref(), |ctl| idexp::payload::run(&d, &dir, ctl))?;
-    Ok(PayloadFit { inner: Arc::new(res) })
+    )
 }
 
 /// with_payload(robot, mass, com=(0, 0, 0), inertia=(0,)*6, frame=None) -> Robot
