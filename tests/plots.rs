@@ -224,7 +224,8 @@ fn identification_figures_name_parameters_e_tol_and_both_gravity_branches() {
         .collect();
     assert_eq!(boxes.len(), 1, "one legend");
     let [bx, by, bw, bh] = boxes[0];
-    let circles = elements(&svg, "circle");
+    // the data points (r = 2; the legend's dot glyph has r = 3)
+    let circles: Vec<_> = elements(&svg, "circle").into_iter().filter(|c| num(c, "r") == 2.0).collect();
     assert!(circles.len() > 1000, "{} points", circles.len());
     for c in &circles {
         let (cx, cy) = (num(c, "cx"), num(c, "cy"));

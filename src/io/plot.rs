@@ -482,8 +482,13 @@ mod draw {
                     };
                     if !s.label.is_empty() {
                         any_label = true;
-                        anno.label(s.label.clone())
-                            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], c.stroke_width(2)));
+                        let a = anno.label(s.label.clone());
+                        // the legend's glyph is the series' mark: a dot for points
+                        if s.mark == Mark::Points {
+                            a.legend(move |(x, y)| Circle::new((x + 7, y), 3, c.filled()));
+                        } else {
+                            a.legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], c.stroke_width(2)));
+                        }
                     }
                     if let Some(err) = &s.err {
                         chart
@@ -506,8 +511,12 @@ mod draw {
                         .map_err(perr(path))?;
                     if !label.is_empty() {
                         any_label = true;
-                        anno.label(label.clone())
-                            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], RED.stroke_width(2)));
+                        // dashed in the legend too: two strokes with a gap
+                        anno.label(label.clone()).legend(|(x, y)| {
+                            EmptyElement::at((x, y))
+                                + PathElement::new(vec![(0, 0), (5, 0)], RED.stroke_width(2))
+                                + PathElement::new(vec![(9, 0), (14, 0)], RED.stroke_width(2))
+                        });
                         // one legend entry per label is enough
                     }
                 }
