@@ -20,11 +20,8 @@ pub struct Plan {
 impl Plan {
     /// `planned`, `unreachable`, `interrupted` or `failed`.
     #[getter]
-    fn status(&self) -> PyResult<String> {
-        Ok(serde_json::to_value(self.inner.solution.status)
-            .ok()
-            .and_then(|v| v.as_str().map(String::from))
-            .unwrap_or_default())
+    fn status(&self) -> &'static str {
+        self.inner.solution.status.name()
     }
     /// Candidate names, in the design's order.
     #[getter]
@@ -80,7 +77,7 @@ impl Plan {
         let s = &self.inner.solution;
         format!(
             "Plan({}, repetitions={:?}, cost={:.1} s, relaxed bound {:.1} s)",
-            self.status().unwrap_or_default(),
+            self.status(),
             s.repetitions,
             s.cost,
             s.relaxed_cost

@@ -288,12 +288,7 @@ pub fn report_text(run: &PlanRun) -> String {
             return s;
         }
         PlanStatus::Interrupted | PlanStatus::Failed => {
-            let _ = writeln!(
-                s,
-                "\nthe relaxation ended {} ({}): no plan",
-                sol.solver_status,
-                if sol.status == PlanStatus::Interrupted { "interrupted" } else { "failed" }
-            );
+            let _ = writeln!(s, "\nthe relaxation ended {} ({}): no plan", sol.solver_status, sol.status.name());
             return s;
         }
         PlanStatus::Planned => {}

@@ -200,6 +200,18 @@ pub enum PlanStatus {
     Failed,
 }
 
+impl PlanStatus {
+    /// The name in plan.json (`planned`, `unreachable`, `interrupted`, `failed`).
+    pub fn name(self) -> &'static str {
+        match self {
+            PlanStatus::Planned => "planned",
+            PlanStatus::Unreachable => "unreachable",
+            PlanStatus::Interrupted => "interrupted",
+            PlanStatus::Failed => "failed",
+        }
+    }
+}
+
 /// A target no combination meets.
 #[derive(Debug, Clone, Serialize)]
 pub struct Refusal {
