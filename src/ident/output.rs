@@ -1,46 +1,83 @@
 //! The figures and tables of identification that the study's writer
 //! ([`super::study::StudyResult::write`]) draws (torques, parameters, the
-//! reduction, `params.csv`), and the output folders of the dedicated
-//! experiments of paper 002 §3.2 (`idexp identify --experiment
-//! gravity|friction`: the fit as JSON, a figure of the data with the fitted
-//! model, and `report.txt`; each writer returns the report text it wrote),
-//! with the panels and tables the study's writer shares.
+//! reduction, `params.csv`), and the files of a dedicated one-joint fit of
+//! paper 002 §3.2 ([`write_joint_fit`]: the fit as JSON, a figure of the data
+//! with the fitted model, and `report.txt`).
 
 use super::experiments::{FrictionFit, GravityFit};
+use super::study::dedicated::JointFit;
 use super::Processed;
 use crate::error::{Error, Result};
 use crate::io::plot::{write_svg, Panel, Series};
 use std::path::Path;
 
-/// Writes `gravity.json`, `gravity.svg` (measured torque of joint `joint`,
-/// 1-based, against q with the fitted model of both slopes, see
-/// [`gravity_panel`]) and `report.txt` into `out`.
-pub fn write_gravity(out: &Path, joint: usize, pr: &Processed, g: &GravityFit) -> Result<String> {
+/// Writes a dedicated fit's files into `out` (1-based `joint`, `pr` its
+/// processed run) and returns its report line:
+/// - gravity: `gravity.json`, `gravity.svg` (measured torque against q with
+///   the fitted model of both slopes, [`gravity_panel`]), `report.txt`;
+/// - friction: `friction.json`, `friction.svg` (τ − J q̈ − τ_g against q̇ for
+///   |q̇| > `min_speed`, with the fitted asymmetric Coulomb + viscous
+///   friction), `report.txt`.
+pub fn write_joint_fit(out: &Path, joint: usize, pr: &Processed, fit: &JointFit) -> Result<String> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let j = joint.saturating_sub(1);
-    crate::io::write_json(&out.join("gravity.json"), g)?;
-    let q: Vec<f64> = pr.q.iter().map(|v| v[j]).collect();
-    let tau: Vec<f64> = pr.tau.iter().map(|v| v[j]).collect();
-    let qd: Vec<f64> = pr.qd.iter().map(|v| v[j]).collect();
-    write_svg(
-        &out.join("gravity.svg"),
-        &format!("gravity experiment, joint {joint}"),
-        &[gravity_panel(&q, &qd, &tau, g)],
-        1,
-    )?;
-    let text = format!(
-        "gravity experiment, joint {joint}: k = {:.6} N·m, q_off = {:.6} rad ({:.3}°), c+ = {:.6}, c- = {:.6} N·m at {:.4} rad/s, {} samples, rms {:.4e} N·m\n",
-        g.k,
-        g.q_off,
-        g.q_off.to_degrees(),
-        g.offset_pos,
-        g.offset_neg,
-        g.speed,
-        g.samples,
-        g.rms
-    );
+    match fit {
+        JointFit::Gravity(g) => {
+            crate::io::write_json(&out.join("gravity.json"), g)?;
+            let q: Vec<f64> = pr.q.iter().map(|v| v[j]).collect();
+            let tau: Vec<f64> = pr.tau.iter().map(|v| v[j]).collect();
+            let qd: Vec<f64> = pr.qd.iter().map(|v| v[j]).collect();
+            write_svg(
+                &out.join("gravity.svg"),
+                &format!("gravity experiment, joint {joint}"),
+                &[gravity_panel(&q, &qd, &tau, g)],
+                1,
+            )?;
+        }
+        JointFit::Friction { fit: f, min_speed, .. } => {
+            crate::io::write_json(&out.join("friction.json"), f)?;
+            write_svg(
+                &out.join("friction.svg"),
+                &format!("friction experiment, joint {joint}"),
+                &[friction_panel(pr, j, f, *min_speed)],
+                1,
+            )?;
+        }
+    }
+    let text = fit_text(joint, fit);
     crate::io::write_atomic(&out.join("report.txt"), text.as_bytes())?;
     Ok(text)
+}
+
+/// A dedicated fit's report line.
+pub fn fit_text(joint: usize, fit: &JointFit) -> String {
+    match fit {
+        JointFit::Gravity(g) => format!(
+            "gravity experiment, joint {joint}: k = {:.6} N·m, q_off = {:.6} rad ({:.3}°), c+ = {:.6}, c- = {:.6} N·m at {:.4} rad/s, {} samples, rms {:.4e} N·m\n",
+            g.k,
+            g.q_off,
+            g.q_off.to_degrees(),
+            g.offset_pos,
+            g.offset_neg,
+            g.speed,
+            g.samples,
+            g.rms
+        ),
+        JointFit::Friction { fit: f, gravity_source, .. } => format!(
+            "friction experiment, joint {joint}: J = {:.6} kg·m², Fc+ = {:.6}, Fv+ = {:.6}, Fc- = {:.6}, Fv- = {:.6} (std {:?}), gravity k = {:.6}, q_off = {:.6} ({}), {} samples, rms {:.4e} N·m\n",
+            f.inertia,
+            f.fc_pos,
+            f.fv_pos,
+            f.fc_neg,
+            f.fv_neg,
+            f.std.iter().map(|s| format!("{s:.2e}")).collect::<Vec<_>>(),
+            f.gravity_k,
+            f.gravity_q_off,
+            gravity_source,
+            f.samples,
+            f.rms
+        ),
+    }
 }
 
 /// The gravity figure: measured torque against q, split by the direction of
@@ -166,14 +203,9 @@ pub fn reduction_panels(r: &super::reduce::Reduction) -> Vec<Panel> {
     ]
 }
 
-/// Writes `friction.json`, `friction.svg` (τ − J q̈ − τ_g of joint `joint`,
-/// 1-based, against q̇ for |q̇| > `min_speed`, with the fitted asymmetric
-/// Coulomb + viscous friction) and `report.txt` into `out`. `gravity_source`
-/// says where the gravity term came from (for the report).
-pub fn write_friction(out: &Path, joint: usize, pr: &Processed, f: &FrictionFit, min_speed: f64, gravity_source: &str) -> Result<String> {
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let j = joint.saturating_sub(1);
-    crate::io::write_json(&out.join("friction.json"), f)?;
+/// The friction figure: τ − J q̈ − τ_g of joint `j` (0-based) against q̇,
+/// and the fitted friction (eq. 2) where |q̇| > `min_speed`.
+fn friction_panel(pr: &Processed, j: usize, f: &FrictionFit, min_speed: f64) -> Panel {
     let v: Vec<f64> = pr.qd.iter().map(|s| s[j]).collect();
     let tf: Vec<f64> = (0..pr.len())
         .map(|p| pr.tau[p][j] - f.inertia * pr.qdd[p][j] - f.gravity_k * (pr.q[p][j] + f.gravity_q_off).sin())
@@ -184,34 +216,13 @@ pub fn write_friction(out: &Path, joint: usize, pr: &Processed, f: &FrictionFit,
         .iter()
         .map(|&x| if x > 0.0 { f.fc_pos + f.fv_pos * x } else { f.fc_neg + f.fv_neg * x })
         .collect();
-    write_svg(
-        &out.join("friction.svg"),
-        &format!("friction experiment, joint {joint}"),
-        &[Panel {
-            title: "τ − J q̈ − τ_g against q̇, and the fitted friction (eq. 2)".into(),
-            x_label: "q̇ (rad/s)".into(),
-            y_label: "torque (N·m)".into(),
-            series: vec![Series::points("measured", v, tf), Series::line("fit", vs, model)],
-            ..Default::default()
-        }],
-        1,
-    )?;
-    let text = format!(
-        "friction experiment, joint {joint}: J = {:.6} kg·m², Fc+ = {:.6}, Fv+ = {:.6}, Fc- = {:.6}, Fv- = {:.6} (std {:?}), gravity k = {:.6}, q_off = {:.6} ({}), {} samples, rms {:.4e} N·m\n",
-        f.inertia,
-        f.fc_pos,
-        f.fv_pos,
-        f.fc_neg,
-        f.fv_neg,
-        f.std.iter().map(|s| format!("{s:.2e}")).collect::<Vec<_>>(),
-        f.gravity_k,
-        f.gravity_q_off,
-        gravity_source,
-        f.samples,
-        f.rms
-    );
-    crate::io::write_atomic(&out.join("report.txt"), text.as_bytes())?;
-    Ok(text)
+    Panel {
+        title: "τ − J q̈ − τ_g against q̇, and the fitted friction (eq. 2)".into(),
+        x_label: "q̇ (rad/s)".into(),
+        y_label: "torque (N·m)".into(),
+        series: vec![Series::points("measured", v, tf), Series::line("fit", vs, model)],
+        ..Default::default()
+    }
 }
 
 /// `params.csv`: every base parameter (estimate, std, σ*, grouping; and the

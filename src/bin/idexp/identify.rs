@@ -1,13 +1,12 @@
 //! `idexp identify`: identification from measured (or simulated) runs, and the
-//! dedicated gravity and friction experiments (`--experiment`).
+//! dedicated gravity and friction experiments (`--experiment`): every form
+//! builds (or reads) a study design and runs the library's study engine.
 
 use crate::Outcome;
 use anyhow::{anyhow, bail, Context};
-use idexp::ident::experiments::{friction_experiment, gravity_experiment, FrictionFit, GravityFit, GravityTerm};
-use idexp::ident::output::{write_friction, write_gravity};
-use idexp::ident::study::{ConsistentSpec, EssentialRule, EssentialSpec, ExperimentSpec, ExportFormat, FilterName, ReduceSpec, StudyDesign};
-use idexp::ident::{Filter, Method, Run, Weights};
-use idexp::io::status::{fingerprint_of, write_status, RunState};
+use idexp::ident::study::{ConsistentSpec, EssentialRule, EssentialSpec, ExperimentKind, ExperimentSpec, ExportFormat, FilterName, ReduceSpec, StudyDesign};
+use idexp::ident::{Method, Weights};
+use idexp::io::status::fingerprint_of;
 use idexp::optim::Control;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -212,8 +211,28 @@ fn run_study(a: &IdentifyArgs, ctl: &Control, started: SystemTime) -> anyhow::Re
     run_design(a, &design, &dir, &out, ctl, started)
 }
 
+/// Runs a study of dedicated one-joint fits (every experiment names its
+/// `joint`) into `out`.
+fn run_dedicated(a: &IdentifyArgs, design: &StudyDesign, dir: &Path, out: &Path, ctl: &Control, started: SystemTime) -> anyhow::Result<Outcome> {
+    idexp::io::folder::check_out_dir(out)?;
+    let res = idexp::ident::study::run_dedicated(design, dir, &Default::default(), ctl)?;
+    let json = res.json();
+    crate::write_folder(
+        out,
+        "identify",
+        &fingerprint_of(design)?,
+        || res.write(out, Some(started)),
+        a.json.then_some(&json),
+        &res.text(),
+        None,
+    )
+}
+
 /// Runs the study engine on `design` (paths relative to `dir`) into `out`.
 fn run_design(a: &IdentifyArgs, design: &StudyDesign, dir: &Path, out: &Path, ctl: &Control, started: SystemTime) -> anyhow::Result<Outcome> {
+    if design.is_dedicated() {
+        return run_dedicated(a, design, dir, out, ctl, started);
+    }
     idexp::io::folder::check_out_dir(out)?;
     let res = idexp::ident::study::run_study(design, dir, ctl)?;
     crate::write_folder(
@@ -270,6 +289,29 @@ fn one_run_design(a: &IdentifyArgs) -> anyhow::Result<StudyDesign> {
     e.slow_ratio = a.slow_ratio;
     e.min_speed = a.min_speed.unwrap_or(0.01);
     e.log = log;
+    if let Some(x) = a.experiment {
+        let joint = a
+            .joint
+            .context("identify --experiment: --joint: name the joint (1-based) of the dedicated experiment")?;
+        e.joint = Some(joint);
+        e.kind = match x {
+            Experiment::Gravity => ExperimentKind::Gravity,
+            Experiment::Friction => ExperimentKind::Friction,
+        };
+        if x == Experiment::Friction {
+            // the stiction region of a friction fit (paper 002 §3.2.2)
+            e.min_speed = a.min_speed.unwrap_or(0.05);
+            e.gravity = match (&a.gravity_fit, a.no_gravity) {
+                (Some(_), true) => bail!("identify: --gravity-fit and --no-gravity contradict each other: give one"),
+                (Some(p), false) if p.extension().is_some_and(|x| x == "json") => Some(p.display().to_string()),
+                (Some(p), false) => bail!("identify --gravity-fit {}: expected the gravity.json of a gravity experiment", p.display()),
+                (None, true) => Some("none".into()),
+                (None, false) => None,
+            };
+        } else if a.gravity_fit.is_some() || a.no_gravity {
+            bail!("identify: --gravity-fit and --no-gravity are for --experiment friction");
+        }
+    }
     let mut d = StudyDesign::one_experiment(&default_name(&a.run), a.robot.clone(), e.clone()).repetition_weighted(a.weights);
     if !a.validate.is_empty() {
         let mut v = e.validation_like(a.validate.clone(), a.validate_trajectory.clone());
@@ -330,14 +372,9 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
             a.robot.display()
         );
     }
-    if let Some(exp) = a.experiment {
-        a.run.iter().try_for_each(|r| idexp::io::status::require_complete(r, a.allow_incomplete))?;
-        let robot = idexp::robot::load(&a.robot)?;
-        let (run, _) = Run::read_drives(&a.run, &robot, a.repetitions, a.torque_from, a.current_tolerance)?;
-        return run_experiment(a, exp, &run, started);
-    }
     let design = one_run_design(a)?;
-    let out = a.out.clone().unwrap_or_else(|| default_out(&a.run, ""));
+    let suffix = a.experiment.map_or_else(String::new, |x| format!("_{x:?}").to_lowercase());
+    let out = a.out.clone().unwrap_or_else(|| default_out(&a.run, &suffix));
     run_design(a, &design, Path::new(""), &out, ctl, started).map_err(|e| {
         // the engine speaks the study's keys: say the one-run form's way out
         match e.downcast_ref::<idexp::Error>() {
@@ -349,69 +386,3 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     })
 }
 
-fn run_experiment(a: &IdentifyArgs, exp: Experiment, run: &Run, started: SystemTime) -> anyhow::Result<Outcome> {
-    let joint = a
-        .joint
-        .context("identify --experiment: --joint: name the joint (1-based) of the dedicated experiment")?;
-    let pr = idexp::ident::process_with(run, &Filter::LowPass { cutoff: a.cutoff }, a.velocity_from)?;
-    let out = a.out.clone().unwrap_or_else(|| default_out(&a.run, &format!("_{exp:?}").to_lowercase()));
-    // the fit first: a refused experiment (wrong run, wrong joint) leaves no
-    // output folder behind and an earlier result where it was
-    enum Fit {
-        Gravity(GravityFit),
-        Friction(FrictionFit, f64, &'static str),
-    }
-    let fit = match exp {
-        Experiment::Gravity => Fit::Gravity(gravity_experiment(&pr, joint).with_context(|| {
-            let runs: Vec<String> = a.run.iter().map(|p| p.display().to_string()).collect();
-            format!("run {}", runs.join(", "))
-        })?),
-        Experiment::Friction => {
-            let grav: Option<GravityFit> = match &a.gravity_fit {
-                Some(p) => {
-                    let text = idexp::io::read_to_string(p)?;
-                    Some(serde_json::from_str(&text).map_err(|e| idexp::Error::parse(p, e.to_string()))?)
-                }
-                None => None,
-            };
-            let term = match (&grav, a.no_gravity) {
-                (Some(g), _) => GravityTerm::Given(g),
-                (None, true) => GravityTerm::Zero,
-                (None, false) => GravityTerm::Fit,
-            };
-            let min_speed = a.min_speed.unwrap_or(0.05);
-            let f: FrictionFit = friction_experiment(&pr, joint, term, min_speed)?;
-            let source = if f.gravity_given {
-                "from the gravity experiment"
-            } else if a.no_gravity {
-                "none"
-            } else {
-                "fitted alongside"
-            };
-            Fit::Friction(f, min_speed, source)
-        }
-    };
-    idexp::io::folder::begin(&out, "identify", "")?;
-    let (text, json) = match &fit {
-        Fit::Gravity(g) => (write_gravity(&out, joint, &pr, g)?, serde_json::to_value(g)?),
-        Fit::Friction(f, min_speed, source) => (write_friction(&out, joint, &pr, f, *min_speed, source)?, serde_json::to_value(f)?),
-    };
-    idexp::io::write_json(&out.join("options.json"), a)?;
-    let detail = format!("{} experiment, joint {joint}", if exp == Experiment::Gravity { "gravity" } else { "friction" });
-    write_status(
-        &out,
-        "identify",
-        RunState::Complete,
-        detail,
-        Some(started),
-        fingerprint_of(a)?,
-        serde_json::json!({ "experiment": exp, "joint": joint }),
-    )?;
-    if a.json {
-        crate::print_json(&json)?;
-    } else {
-        print!("{text}");
-        println!("written to {}", out.display());
-    }
-    Ok(Outcome::Done)
-}

@@ -47,6 +47,19 @@
 //! min_speed = 0.01
 //! log = { format = "bag", topic = "/joint_states" }   # the files are robot logs (rtde | csv | headerless | bag)
 //!
+//! # dedicated one-joint fits (paper 002 §3.2; docs/identification.md): a study whose
+//! # every [[experiment]] has `joint` fits each on its own (no base parameters)
+//! [[experiment]]
+//! kind = "gravity"                   # gravity (slopes of opposite sign) | friction (bang-bang)
+//! joint = 2                          # the joint that moved alone (1-based)
+//! files = ["runs/gravity_2"]
+//! [[experiment]]
+//! kind = "friction"
+//! joint = 2
+//! files = ["runs/friction_2"]
+//! gravity = "gravity_2"              # fit (default) | none (vertical axis) | a gravity entry of this joint | a gravity.json
+//! min_speed = 0.05                   # the stiction region left out (the command line's default for a friction fit)
+//!
 //! [[validation]]                     # any number; the same keys as an experiment
 //! name = "pose_1"
 //! files = ["val/pose_1.csv"]
@@ -63,15 +76,17 @@
 //! unknown = "zeros"                  # drive parameters without a known value, not pulled: "zeros" (those the prior gives as 0) | "none" | ["Ia1", "Fc2"]
 //! ```
 
-use crate::data::{Coordinates, TorqueFrom};
 use crate::error::{Error, Result};
 use crate::ident::estimate::Weights;
 use crate::ident::prior::PriorMetric;
 use crate::ident::reduce::Essential;
 use crate::ident::study::stack::WeightSource;
-use crate::ident::{Method, MlOptions, Standstill, VelocityFrom};
+use crate::ident::{Method, MlOptions};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+
+pub use super::entry::{ExperimentKind, ExperimentSpec, FilterName, GravityChoice};
+pub(crate) use super::entry::name_ok;
 
 /// Model reduction (`[reduce]`, paper 000 Algorithm 1): weighted least
 /// squares on one experiment, parameters removed while every joint's e*_j
@@ -247,123 +262,6 @@ fn ml_bound() -> f64 {
     MlOptions::default().bound
 }
 
-/// What an experiment is; sets the defaults of its processing.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum ExperimentKind {
-    /// A dynamic excitation (Fourier or any trajectory): the standstill rule of the model.
-    #[default]
-    Excitation,
-    /// Slow motions or poses for the gravity terms (low-pass filtered).
-    Gravity,
-    /// Constant-velocity or bang-bang runs for friction (low-pass filtered).
-    Friction,
-    /// Poses held at rest (low-pass filtered; joints with smooth friction keep their rows).
-    Static,
-}
-
-impl ExperimentKind {
-    /// The name in files.
-    pub fn name(self) -> &'static str {
-        match self {
-            ExperimentKind::Excitation => "excitation",
-            ExperimentKind::Gravity => "gravity",
-            ExperimentKind::Friction => "friction",
-            ExperimentKind::Static => "static",
-        }
-    }
-
-    /// The standstill rule used unless the entry gives one: the model's
-    /// (`auto`) for every kind but `static`. At rest a `sign` Coulomb term is
-    /// undefined (the drive holds anywhere within ±F_c), so the slow rows of
-    /// such joints are left out of moving experiments; joints with smooth
-    /// friction keep them. A `static` run has no speed rule (`keep`): every
-    /// row is a pose held at rest, its logged velocity is noise, and the
-    /// study's Coulomb dead band (`dead_band`) sets the Coulomb term to 0
-    /// there, in estimation and validation alike.
-    pub fn default_standstill(self) -> Standstill {
-        match self {
-            ExperimentKind::Static => Standstill::Keep,
-            _ => Standstill::Auto,
-        }
-    }
-}
-
-/// The position filter of an experiment.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum FilterName {
-    /// Fourier filtering when the experiment's Fourier trajectory is known, else low-pass.
-    #[default]
-    Auto,
-    /// Fourier filtering at the trajectory's harmonics (needs the trajectory).
-    Fourier,
-    /// Zero-phase low-pass at `cutoff`, central differences.
-    Lowpass,
-    /// Central differences only.
-    None,
-}
-
-/// One experiment (or validation run) of a study.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ExperimentSpec {
-    /// Name in reports and file names; default: the first file's (or folder's) stem.
-    #[serde(default)]
-    pub name: String,
-    /// Folders of repetition CSVs, or the files (relative to the study file).
-    pub files: Vec<PathBuf>,
-    /// What the experiment is.
-    #[serde(default)]
-    pub kind: ExperimentKind,
-    /// Position filter.
-    #[serde(default)]
-    pub filter: FilterName,
-    /// Low-pass cut-off (Hz).
-    #[serde(default = "ten")]
-    pub cutoff: f64,
-    /// Fourier trajectory (coefficients.json); default: trajectory.json beside the run.
-    #[serde(default)]
-    pub trajectory: Option<PathBuf>,
-    /// Harmonics kept by Fourier filtering.
-    #[serde(default)]
-    pub harmonics: Option<usize>,
-    /// Keep every k-th sample after filtering.
-    #[serde(default = "one")]
-    pub decimate: usize,
-    /// Uniform rate (Hz) for irregular time stamps; default: the inverse median step.
-    #[serde(default)]
-    pub resample: Option<f64>,
-    /// N_r of an averaged run.
-    #[serde(default)]
-    pub repetitions: Option<usize>,
-    /// Coordinates of the logged positions.
-    #[serde(default)]
-    pub coordinates: Coordinates,
-    /// Joint torques from torques or currents.
-    #[serde(default)]
-    pub torque_from: TorqueFrom,
-    /// Allowed disagreement between logged torques and currents.
-    #[serde(default = "current_tolerance")]
-    pub current_tolerance: f64,
-    /// Velocities from the logged `qd*` columns or the positions.
-    #[serde(default)]
-    pub velocity_from: VelocityFrom,
-    /// Which slow rows are left out (default by kind).
-    #[serde(default)]
-    pub standstill: Option<Standstill>,
-    /// Slow-row fraction of the joint's top speed.
-    #[serde(default = "slow_ratio")]
-    pub slow_ratio: f64,
-    /// Slow-row speed (rad/s or m/s).
-    #[serde(default = "min_speed")]
-    pub min_speed: f64,
-    /// The files are robot logs of this form (RTDE recorder CSV, a CSV with a
-    /// column map, a headerless CSV, a ROS 2 bag; [`crate::data::logs::LogSpec`]),
-    /// each one repetition; default: idexp's run CSVs.
-    #[serde(default)]
-    pub log: Option<crate::data::logs::LogSpec>,
-}
 
 /// How the prior's weight is set.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -485,16 +383,9 @@ pub enum ExportFormat {
 /// Parses a snake_case name of a unit enum (`"lowpass"`, `"mjcf"`): the
 /// names the study file uses, for the command line and Python; the error
 /// lists the allowed ones.
-fn parse_name<T: serde::de::DeserializeOwned>(field: &str, s: &str, allowed: &str) -> Result<T> {
+pub(super) fn parse_name<T: serde::de::DeserializeOwned>(field: &str, s: &str, allowed: &str) -> Result<T> {
     T::deserialize(serde::de::value::StrDeserializer::<serde::de::value::Error>::new(s))
         .map_err(|_| Error::invalid("identify", field, format!("expected {allowed}, found `{s}`")))
-}
-
-impl std::str::FromStr for FilterName {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<FilterName> {
-        parse_name("filter", s, "auto, fourier, lowpass or none")
-    }
 }
 
 impl std::str::FromStr for ExportFormat {
@@ -576,21 +467,6 @@ pub struct StudyDesign {
     pub dead_band: f64,
 }
 
-fn ten() -> f64 {
-    10.0
-}
-fn one() -> usize {
-    1
-}
-fn current_tolerance() -> f64 {
-    crate::data::CURRENT_TOLERANCE
-}
-fn slow_ratio() -> f64 {
-    0.1
-}
-fn min_speed() -> f64 {
-    0.01
-}
 fn dead_band() -> f64 {
     crate::ident::DEAD_BAND
 }
@@ -621,123 +497,6 @@ pub fn is_study_text(text: &str) -> bool {
     text.parse::<toml::Table>().is_ok_and(|t| t.contains_key("experiment"))
 }
 
-impl ExperimentSpec {
-    /// Checks the entry (`ctx` names it: `experiment 2 (fourier_a)`).
-    pub fn validate(&self, ctx: &str) -> Result<()> {
-        if self.files.is_empty() {
-            return Err(Error::invalid(ctx, "files", "expected at least one folder or CSV file"));
-        }
-        self.validate_given(ctx)
-    }
-
-    /// [`ExperimentSpec::validate`] but `files`: for an entry whose data are given in memory.
-    pub fn validate_given(&self, ctx: &str) -> Result<()> {
-        let bad = |field: &str, msg: String| Err(Error::invalid(ctx, field, msg));
-        if !(self.cutoff.is_finite() && self.cutoff > 0.0) {
-            return bad("cutoff", format!("expected a positive frequency in Hz, found {}", self.cutoff));
-        }
-        if self.decimate == 0 {
-            return bad("decimate", "expected ≥ 1".into());
-        }
-        if let Some(r) = self.resample {
-            if !(r.is_finite() && r > 0.0) {
-                return bad("resample", format!("expected a positive rate in Hz, found {r}"));
-            }
-        }
-        if let Some(r) = self.repetitions {
-            if r < 2 {
-                return bad("repetitions", format!("expected N_r ≥ 2 (the sample variance needs two), found {r}"));
-            }
-        }
-        if self.harmonics == Some(0) {
-            return bad("harmonics", "expected ≥ 1".into());
-        }
-        if !(self.current_tolerance.is_finite() && self.current_tolerance > 0.0) {
-            return bad(
-                "current_tolerance",
-                format!("expected a positive relative tolerance, found {}", self.current_tolerance),
-            );
-        }
-        if !(self.slow_ratio.is_finite() && (0.0..1.0).contains(&self.slow_ratio)) {
-            return bad("slow_ratio", format!("expected a fraction in [0, 1), found {}", self.slow_ratio));
-        }
-        if !(self.min_speed.is_finite() && self.min_speed >= 0.0) {
-            return bad("min_speed", format!("expected a speed ≥ 0, found {}", self.min_speed));
-        }
-        if let Some(l) = &self.log {
-            l.validate(&format!("{ctx}: log"))?;
-            if self.repetitions.is_some() || self.torque_from != TorqueFrom::Auto {
-                return bad(
-                    "log",
-                    "`repetitions` and `torque_from` are for idexp's run CSVs; a log's torques are set in its spec (`torque`, `current`, `tau`)".into(),
-                );
-            }
-        }
-        if self.filter == FilterName::Fourier && self.trajectory.is_none() && self.kind != ExperimentKind::Excitation {
-            return bad("filter", format!("\"fourier\" for a {} experiment needs `trajectory`", self.kind.name()));
-        }
-        Ok(())
-    }
-
-    /// The name, defaulted to the first file's stem.
-    pub fn resolved_name(&self) -> String {
-        if !self.name.is_empty() {
-            return self.name.clone();
-        }
-        self.files
-            .first()
-            .and_then(|f| f.file_stem())
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "run".into())
-    }
-}
-
-/// Characters allowed in experiment names (they name output files).
-pub(crate) fn name_ok(s: &str) -> bool {
-    !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.')) && !s.starts_with('.')
-}
-
-impl ExperimentSpec {
-    /// An excitation experiment of these files with every default.
-    pub fn new(files: Vec<PathBuf>) -> ExperimentSpec {
-        ExperimentSpec {
-            name: String::new(),
-            files,
-            kind: ExperimentKind::default(),
-            filter: FilterName::default(),
-            cutoff: ten(),
-            trajectory: None,
-            harmonics: None,
-            decimate: one(),
-            resample: None,
-            repetitions: None,
-            coordinates: Coordinates::default(),
-            torque_from: TorqueFrom::default(),
-            current_tolerance: current_tolerance(),
-            velocity_from: VelocityFrom::default(),
-            standstill: None,
-            slow_ratio: slow_ratio(),
-            min_speed: min_speed(),
-            log: None,
-        }
-    }
-
-    /// A validation entry processed as this experiment is: the same filter
-    /// rule, harmonics, decimation, speed rule and readers, with its own
-    /// files and Fourier reference (default: trajectory.json beside it).
-    pub fn validation_like(&self, files: Vec<PathBuf>, trajectory: Option<PathBuf>) -> ExperimentSpec {
-        ExperimentSpec {
-            name: String::new(),
-            files,
-            trajectory,
-            filter: match self.filter {
-                FilterName::Fourier => FilterName::Auto,
-                f => f,
-            },
-            ..self.clone()
-        }
-    }
-}
 
 impl ConsistentSpec {
     /// The closest-to-nominal consistent fit: a Euclidean pull toward the
@@ -1019,6 +778,68 @@ impl StudyDesign {
                 "export",
                 "\"urdf\" and \"toml\" write the physically consistent model: add a [consistent] table",
             ));
+        }
+        self.validate_dedicated(ctx)
+    }
+
+    /// True when the study's experiments are dedicated one-joint fits
+    /// (every `[[experiment]]` has `joint`; [`super::dedicated`]).
+    pub fn is_dedicated(&self) -> bool {
+        self.experiment.iter().any(|e| e.joint.is_some())
+    }
+
+    /// A study is either dedicated one-joint fits or a model identification
+    /// from stacked experiments: what the model's keys would mean for the
+    /// former is refused, and a friction fit's `gravity` must name a gravity
+    /// fit of its joint.
+    fn validate_dedicated(&self, ctx: &str) -> Result<()> {
+        if !self.is_dedicated() {
+            return Ok(());
+        }
+        for (i, e) in self.experiment.iter().enumerate() {
+            let entry = format!("{ctx}: experiment {} ({})", i + 1, e.resolved_name());
+            if e.joint.is_none() {
+                return Err(Error::invalid(
+                    &entry,
+                    "joint",
+                    "missing: a study either fits dedicated one-joint experiments (every [[experiment]] with `joint`, paper 002 §3.2) or identifies the model from stacked experiments; move this entry to a study of its own",
+                ));
+            }
+            if let GravityChoice::Entry(g) = e.gravity_choice() {
+                let ok = self
+                    .experiment
+                    .iter()
+                    .any(|o| o.resolved_name() == g && o.kind == ExperimentKind::Gravity && o.joint == e.joint);
+                if !ok {
+                    return Err(Error::invalid(
+                        &entry,
+                        "gravity",
+                        format!(
+                            "`{g}`: expected \"fit\", \"none\", a gravity.json file, or the name of this study's dedicated gravity experiment of joint {}",
+                            e.joint.unwrap_or(0)
+                        ),
+                    ));
+                }
+            }
+        }
+        let refuse = |field: &str, what: &str| Err(Error::invalid(ctx, field, format!("{what}: a study of dedicated one-joint fits (`joint`) fits each joint's gravity or friction model on its own, without base parameters")));
+        if !self.validation.is_empty() {
+            return refuse("validation", "validation runs predict torques from base parameters");
+        }
+        if self.consistent.is_some() {
+            return refuse("consistent", "the consistent estimate needs base parameters");
+        }
+        if !self.export.is_empty() {
+            return refuse("export", "a model export needs the identified model");
+        }
+        if self.reduce.is_some() {
+            return refuse("reduce", "model reduction removes base parameters");
+        }
+        if self.method != Method::Wls {
+            return refuse("method", "the estimator of base parameters does not apply");
+        }
+        if self.truth.is_some() || !self.base_columns.is_empty() {
+            return refuse(if self.truth.is_some() { "truth" } else { "base_columns" }, "this compares or fixes base parameters");
         }
         Ok(())
     }

@@ -84,7 +84,57 @@ pub fn load_entry(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, dir: 
 
 /// [`load_entry`] with the study's settings `o`.
 pub fn load_entry_with(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, dir: &Path, o: &EntryOptions<'_>) -> Result<Loaded> {
-    let (method, sample_limit, dead_band) = (o.method, o.sample_limit, o.dead_band);
+    let (method, dead_band) = (o.method, o.dead_band);
+    let Read {
+        name,
+        run,
+        torque_source,
+        sampling,
+        filter,
+        notes,
+    } = read_entry(robot, spec, dir, o)?;
+    let prep = prepare(robot, base, &run, filter, spec, method, dead_band).map_err(|e| match e {
+        Error::Invalid { context, field, msg } => Error::Invalid {
+            context: format!("experiment `{name}` ({context})"),
+            field,
+            msg,
+        },
+        e => e,
+    })?;
+    Ok(Loaded {
+        name,
+        spec: spec.clone(),
+        files: run.files.clone(),
+        n_reps: run.n_reps(),
+        torque_source,
+        sampling,
+        prep,
+        notes,
+        run: (method == Method::Projection).then_some(run),
+    })
+}
+
+/// An entry's data read, in joint coordinates, with the filter its entry
+/// says ([`read_entry`]).
+pub(super) struct Read {
+    /// The entry's name.
+    pub name: String,
+    /// The run (its repetitions) in joint coordinates.
+    pub run: Run,
+    /// How the torques were obtained.
+    pub torque_source: TorqueSource,
+    /// What was done with the time stamps.
+    pub sampling: Sampling,
+    /// The position filter.
+    pub filter: Filter,
+    /// What was chosen for the entry that it did not say.
+    pub notes: Vec<String>,
+}
+
+/// Reads one entry's files (or its data given in memory) and chooses its
+/// filter: what every estimator of the study shares before its own rows.
+pub(super) fn read_entry(robot: &Robot, spec: &ExperimentSpec, dir: &Path, o: &EntryOptions<'_>) -> Result<Read> {
+    let sample_limit = o.sample_limit;
     let name = spec.resolved_name();
     let paths: Vec<PathBuf> = spec.files.iter().map(|f| dir.join(f)).collect();
     for p in &paths {
@@ -165,24 +215,13 @@ pub fn load_entry_with(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, 
         }
         (FilterName::None, _) => Filter::None,
     };
-    let prep = prepare(robot, base, &run, filter, spec, method, dead_band).map_err(|e| match e {
-        Error::Invalid { context, field, msg } => Error::Invalid {
-            context: format!("experiment `{name}` ({context})"),
-            field,
-            msg,
-        },
-        e => e,
-    })?;
-    Ok(Loaded {
+    Ok(Read {
         name,
-        spec: spec.clone(),
-        files: run.files.clone(),
-        n_reps: run.n_reps(),
+        run,
         torque_source,
         sampling,
-        prep,
+        filter,
         notes,
-        run: (method == Method::Projection).then_some(run),
     })
 }
 

@@ -23,7 +23,9 @@
 //! folder). Their items are re-exported here.
 
 mod consistent;
+pub mod dedicated;
 pub mod design;
+mod entry;
 mod load;
 pub mod output;
 pub mod report;
@@ -31,8 +33,9 @@ mod result;
 mod single;
 pub mod stack;
 
+pub use dedicated::{run_dedicated, DedicatedEntry, DedicatedResult, JointFit};
 pub use design::{
-    ConsistentSpec, EssentialRule, EssentialSpec, ExperimentKind, ExperimentSpec, ExportFormat, FilterName, MlSpec, Prior, ProjectionSpec, ReduceSpec,
+    ConsistentSpec, GravityChoice, EssentialRule, EssentialSpec, ExperimentKind, ExperimentSpec, ExportFormat, FilterName, MlSpec, Prior, ProjectionSpec, ReduceSpec,
     StudyDesign, UnknownRule, UnknownSpec, WeightRule, WeightSpec,
 };
 pub use load::{load_entry, load_entry_with, EntryOptions, Given, Loaded};
