@@ -107,3 +107,70 @@ fn bang_bang_recovers_friction_and_inertia() {
     // a joint number out of range is an input error
     assert!(friction_experiment(&pr, 7, GravityTerm::Zero, 0.05).is_err());
 }
+
+/// The dedicated fits as a study (every `[[experiment]]` with `joint`, the
+/// friction entry taking its gravity from the gravity entry): the same
+/// numbers as the fits called on the runs filtered by hand, to the bit; and
+/// what such a study cannot mean is refused, naming the entry and the key.
+#[test]
+fn a_dedicated_study_is_the_fits_of_its_entries() {
+    use idexp::ident::study::{run_dedicated, Given, Inputs, JointFit, StudyDesign};
+    let res_g = simulate(&puma(
+        "kind = \"gravity_slopes\"\njoint = 2\nfrom = -1.2\nto = 0.8\nvelocity = 0.4\nacceleration = 2.0",
+    ));
+    let res_f = simulate(&puma("kind = \"bang_bang\"\njoint = 2\nacceleration = 3.0\nvelocities = [0.3, 0.6, 1.0]"));
+    let text = r#"
+robot = "designs/robots/puma560.toml"
+[[experiment]]
+name = "friction_2"
+kind = "friction"
+joint = 2
+files = []
+gravity = "gravity_2"
+min_speed = 0.05
+[[experiment]]
+name = "gravity_2"
+kind = "gravity"
+joint = 2
+files = []
+"#;
+    let design: StudyDesign = toml::from_str(text).unwrap();
+    let given = |res: &idexp::sim::SimResult| Given {
+        run: run_of(res),
+        trajectory: None,
+        torque_source: idexp::data::TorqueSource::logged_torques(),
+    };
+    let inputs = Inputs {
+        entries: [("gravity_2".to_string(), given(&res_g)), ("friction_2".to_string(), given(&res_f))].into(),
+        ..Default::default()
+    };
+    let r = run_dedicated(&design, std::path::Path::new(""), &inputs, &idexp::optim::Control::new()).unwrap();
+    let lowpass = Filter::LowPass { cutoff: 10.0 };
+    let g = gravity_experiment(&process(&run_of(&res_g), &lowpass).unwrap(), 2).unwrap();
+    let f = friction_experiment(&process(&run_of(&res_f), &lowpass).unwrap(), 2, GravityTerm::Given(&g), 0.05).unwrap();
+    // the design's order, the gravity fitted first all the same
+    assert_eq!(r.entries.iter().map(|e| e.name.as_str()).collect::<Vec<_>>(), ["friction_2", "gravity_2"]);
+    match (&r.entries[0].fit, &r.entries[1].fit) {
+        (JointFit::Friction { fit, gravity_source, .. }, JointFit::Gravity(gs)) => {
+            assert_eq!(gs, &g);
+            assert_eq!(fit, &f);
+            assert!(gravity_source.contains("gravity_2"), "{gravity_source}");
+        }
+        other => panic!("{other:?}"),
+    }
+    // refusals, each naming the key
+    let refused = |edit: &dyn Fn(&mut StudyDesign), key: &str| {
+        let mut d: StudyDesign = toml::from_str(text).unwrap();
+        edit(&mut d);
+        let e = run_dedicated(&d, std::path::Path::new(""), &inputs, &idexp::optim::Control::new()).unwrap_err();
+        let msg = e.to_string();
+        assert!(msg.contains(&format!("`{key}`")) || msg.contains(&format!("{key}:")), "{key}: {msg}");
+    };
+    refused(&|d| d.experiment[1].kind = idexp::ident::study::ExperimentKind::Excitation, "joint");
+    refused(&|d| d.experiment[0].gravity = Some("gravity_3".into()), "gravity");
+    refused(&|d| d.experiment.iter_mut().for_each(|e| e.joint = Some(7)), "joint");
+    refused(&|d| d.experiment[1].joint = Some(3), "gravity");
+    refused(&|d| d.experiment[1].joint = None, "joint");
+    refused(&|d| d.method = idexp::ident::Method::Ols, "method");
+    refused(&|d| d.export = vec![idexp::ident::study::ExportFormat::Csv], "export");
+}

@@ -6,6 +6,7 @@ from ._idexp import (
     Identifiability as Identifiability,
     Identification as Identification,
     GainsFit as GainsFit,
+    JointFits as JointFits,
     PayloadFit as PayloadFit,
     Plan as Plan,
     PositionsResult as PositionsResult,

@@ -304,9 +304,17 @@ def study(
     base_dir: Optional[PathLike] = None,
     time_limit: Optional[float] = None,
     progress: Progress = None,
-) -> Study:
+) -> Union[Study, JointFits]:
     """Runs an identification study from a study file or a dict with the file's keys
-    (experiments and validation runs relative to the file's folder, or to base_dir for a dict)."""
+    (experiments and validation runs relative to the file's folder, or to base_dir for a dict);
+    a design whose every experiment names its `joint` gives its dedicated one-joint fits (JointFits)."""
+
+class JointFits:
+    """The dedicated one-joint fits of paper 002 §3.2 (idexp.study of a design whose
+    every [[experiment]] names its `joint`)."""
+    fits: dict[str, dict[str, Any]]
+    report: str
+    def write(self, folder: PathLike) -> PathLike: ...
 
 class GainsFit:
     """A drive-gain calibration with a known mass (idexp.calibrate_gains)."""

@@ -54,6 +54,7 @@ fn _idexp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<positions::PositionsResult>()?;
     m.add_class::<elastic::FitResult>()?;
     m.add_class::<study::Study>()?;
+    m.add_class::<study::JointFits>()?;
     m.add_function(wrap_pyfunction!(study::study, m)?)?;
     m.add_class::<payload::PayloadFit>()?;
     m.add_function(wrap_pyfunction!(payload::payload, m)?)?;

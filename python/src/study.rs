@@ -6,7 +6,7 @@ use crate::dicts::{design_and_dir, to_dict};
 use crate::err::{value, IdexpError, IntoPy};
 use crate::long::run_long;
 use crate::robot::Robot;
-use idexp::ident::study::{run_study, StudyDesign, StudyResult};
+use idexp::ident::study::{run_dedicated, run_study, DedicatedResult, JointFit, StudyDesign, StudyResult};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use std::path::PathBuf;
@@ -178,7 +178,52 @@ impl Study {
     }
 }
 
-/// study(design, base_dir=None, time_limit=None, progress=None) -> Study
+/// The dedicated one-joint fits of a study whose every experiment names its
+/// `joint` (paper 002 §3.2; `idexp.study` of such a design).
+#[pyclass(module = "idexp", frozen)]
+pub struct JointFits {
+    inner: Arc<DedicatedResult>,
+}
+
+#[pymethods]
+impl JointFits {
+    /// Per entry name: its fit (gravity.json's or friction.json's keys) with
+    /// `kind` ("gravity" | "friction"), and for a friction fit `min_speed`
+    /// and `gravity_source`.
+    #[getter]
+    fn fits<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let mut all = serde_json::Map::new();
+        for e in &self.inner.entries {
+            let mut v = e.json();
+            if let Some(m) = v.as_object_mut() {
+                m.insert("kind".into(), e.kind_name().into());
+                if let JointFit::Friction { min_speed, gravity_source, .. } = &e.fit {
+                    m.insert("min_speed".into(), (*min_speed).into());
+                    m.insert("gravity_source".into(), gravity_source.clone().into());
+                }
+            }
+            all.insert(e.name.clone(), v);
+        }
+        to_dict(py, &all)
+    }
+    /// The report (a line per entry, as report.txt).
+    #[getter]
+    fn report(&self) -> String {
+        self.inner.text()
+    }
+    /// write(folder) -> folder: the folder `idexp identify` writes for this study.
+    fn write(&self, py: Python<'_>, folder: PathBuf) -> PyResult<PathBuf> {
+        py.detach(|| self.inner.write(&folder, None)).py()?;
+        Ok(folder)
+    }
+    fn __repr__(&self) -> String {
+        let what: Vec<String> = self.inner.entries.iter().map(|e| format!("{} joint {}", e.kind_name(), e.joint)).collect();
+        format!("JointFits({}, {})", self.inner.design.name, what.join(", "))
+    }
+}
+
+/// study(design, base_dir=None, time_limit=None, progress=None) -> Study,
+/// or JointFits for a design of dedicated one-joint fits
 #[pyfunction]
 #[pyo3(signature = (design, base_dir = None, time_limit = None, progress = None))]
 pub fn study(
@@ -187,7 +232,7 @@ pub fn study(
     base_dir: Option<PathBuf>,
     time_limit: Option<f64>,
     progress: Option<Bound<'_, PyAny>>,
-) -> PyResult<Study> {
+) -> PyResult<Py<PyAny>> {
     let (d, dir) = design_and_dir(
         design,
         base_dir,
@@ -200,6 +245,10 @@ pub fn study(
         },
         StudyDesign::validate,
     )?;
+    if d.is_dedicated() {
+        let res = run_long(py, time_limit, progress.as_ref(), |ctl| run_dedicated(&d, &dir, &Default::default(), ctl))?;
+        return Ok(Py::new(py, JointFits { inner: Arc::new(res) })?.into_any());
+    }
     let res = run_long(py, time_limit, progress.as_ref(), |ctl| run_study(&d, &dir, ctl))?;
-    Ok(Study { inner: Arc::new(res) })
+    Ok(Py::new(py, Study { inner: Arc::new(res) })?.into_any())
 }

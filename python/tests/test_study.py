@@ -145,3 +145,41 @@ def test_dead_band_and_unknown_drives_are_study_keys(runs):
     d["consistent"]["unknown"] = ["M1"]
     with pytest.raises(idexp.IdexpError, match="unknown"):
         idexp.study(d, base_dir=str(runs))
+
+
+def test_dedicated_fits_from_a_dict_equal_the_one_run_command_line(tmp_path):
+    """A study whose experiments name their `joint` gives the dedicated fits of paper 002 §3.2
+    (JointFits), the same numbers as `idexp identify ROBOT RUN --experiment … --joint 2`."""
+    g = simulate("sim_puma_gravity.toml", tmp_path / "g")
+    f = simulate("sim_puma_friction.toml", tmp_path / "f")
+    d = {
+        "name": "puma_dedicated",
+        "robot": str(ROOT / "designs/robots/puma560.toml"),
+        "experiment": [
+            {"name": "gravity_2", "kind": "gravity", "joint": 2, "files": ["g"]},
+            {"name": "friction_2", "kind": "friction", "joint": 2, "files": ["f"], "gravity": "gravity_2", "min_speed": 0.05},
+        ],
+    }
+    s = idexp.study(d, base_dir=str(tmp_path))
+    assert isinstance(s, idexp.JointFits)
+    assert s.fits["gravity_2"]["kind"] == "gravity" and s.fits["friction_2"]["gravity_given"]
+    env = {"IDEXP_NO_PROGRESS": "1", "PATH": "/usr/bin:/bin"}
+    robot = str(ROOT / "designs/robots/puma560.toml")
+    p = subprocess.run([str(BIN), "identify", robot, str(g), "--experiment", "gravity", "--joint", "2", "--out", str(tmp_path / "cg")],
+                       capture_output=True, text=True, env=env)
+    assert p.returncode == 0, p.stderr
+    p = subprocess.run([str(BIN), "identify", robot, str(f), "--experiment", "friction", "--joint", "2",
+                        "--gravity-fit", str(tmp_path / "cg" / "gravity.json"), "--out", str(tmp_path / "cf")],
+                       capture_output=True, text=True, env=env)
+    assert p.returncode == 0, p.stderr
+    cg = json.loads((tmp_path / "cg" / "gravity.json").read_text())
+    cf = json.loads((tmp_path / "cf" / "friction.json").read_text())
+    for k, v in cg.items():
+        assert s.fits["gravity_2"][k] == v, k
+    for k, v in cf.items():
+        assert s.fits["friction_2"][k] == v, k
+    w = s.write(str(tmp_path / "py"))
+    assert json.loads((tmp_path / "py" / "friction_2" / "friction.json").read_text()) == cf
+    # a key that has no meaning for such a study is refused, naming it
+    with pytest.raises(ValueError, match="export"):
+        idexp.study(dict(d, export=["csv"]), base_dir=str(tmp_path))

@@ -16,8 +16,9 @@
 //! covariances and relative standard deviations (eq. 13–14), prediction
 //! errors e_j, e*_j (eq. 11–12), condition numbers, plausibility flags and
 //! the physically consistent estimate with a prior ([`consistent`],
-//! [`prior`]). The dedicated gravity and friction experiments of paper 002
-//! §3.2 are in [`experiments`].
+//! [`prior`]). The dedicated gravity and friction fits of paper 002 §3.2
+//! ([`experiments`]) are a study too: one whose every experiment names its
+//! joint ([`study::run_dedicated`]).
 //!
 //! Files: `options.rs` ([`Method`], [`Standstill`]), `prepare.rs` (one
 //! entry made ready for estimation as its study entry says), `outcome.rs` ([`EstimateStatus`], rows used, flags),

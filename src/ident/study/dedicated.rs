@@ -105,9 +105,10 @@ pub fn run_dedicated(design: &StudyDesign, dir: &Path, inputs: &Inputs, ctl: &Co
         };
         let Read { name, run, filter, .. } = read_entry(&robot, spec, dir, &o)?;
         let pr = process_with(&run, &filter, spec.velocity_from)?.decimated(spec.decimate);
+        let files: Vec<String> = run.files.iter().map(|f| f.display().to_string()).collect();
         let in_entry = |e: Error| match e {
             Error::Invalid { context, field, msg } => Error::Invalid {
-                context: format!("experiment `{name}` ({context})"),
+                context: format!("{} (experiment `{name}`, {context})", files.join(", ")),
                 field,
                 msg,
             },

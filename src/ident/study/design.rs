@@ -796,15 +796,16 @@ impl StudyDesign {
         if !self.is_dedicated() {
             return Ok(());
         }
+        let entry = |i: usize| format!("{ctx}: experiment {} ({})", i + 1, self.experiment[i].resolved_name());
+        if let Some(i) = self.experiment.iter().position(|e| e.joint.is_none()) {
+            return Err(Error::invalid(
+                entry(i),
+                "joint",
+                "missing: a study either fits dedicated one-joint experiments (every [[experiment]] with `joint`, paper 002 §3.2) or identifies the model from stacked experiments; move this entry to a study of its own",
+            ));
+        }
         for (i, e) in self.experiment.iter().enumerate() {
-            let entry = format!("{ctx}: experiment {} ({})", i + 1, e.resolved_name());
-            if e.joint.is_none() {
-                return Err(Error::invalid(
-                    &entry,
-                    "joint",
-                    "missing: a study either fits dedicated one-joint experiments (every [[experiment]] with `joint`, paper 002 §3.2) or identifies the model from stacked experiments; move this entry to a study of its own",
-                ));
-            }
+            let entry = entry(i);
             if let GravityChoice::Entry(g) = e.gravity_choice() {
                 let ok = self
                     .experiment

@@ -16,7 +16,10 @@
 //! per link beside the prior, with implausible values flagged and the
 //! directions the prior decided.
 //!
-//! Files: `load.rs` (one entry read and processed: [`load_entry`]),
+//! Files: [`design`] (the study file), `entry.rs` (one `[[experiment]]` or
+//! `[[validation]]` entry and its checks), `load.rs` (one entry read and
+//! processed: [`load_entry`]), [`dedicated`] (a study of dedicated one-joint
+//! fits, paper 002 §3.2: [`run_dedicated`]),
 //! [`stack`] (the weighted stack), this file (the study [`run_study`]),
 //! `consistent.rs` (the consistent estimate with a prior), `result.rs`
 //! (the records of [`StudyResult`]), [`report`] (its text), [`output`] (its
