@@ -228,6 +228,9 @@ struct RunData {
     n_reps: usize,
 }
 
+/// q, q̇, q̈ per sample.
+type Kinematics = (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>);
+
 /// A run's columns at one delay: fixed columns F = base | payload' |
 /// offsets (rows × pf) and y0 = −m·A_M (loaded) or 0.
 type RunColumns = (DMatrix<f64>, DVector<f64>);
@@ -303,7 +306,7 @@ impl Columns<'_> {
 
 impl RunData {
     /// q, q̇, q̈ at t_s − δ for every sample s.
-    fn kinematics(&self, delay: f64) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    fn kinematics(&self, delay: f64) -> Kinematics {
         if delay == 0.0 {
             return (self.q.clone(), self.qd.clone(), self.qdd.clone());
         }
