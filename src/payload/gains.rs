@@ -7,24 +7,25 @@
 //! row (run r, joint j, sample s) of every run gives
 //!
 //! ```text
-//! Y_b(x) θ_b + A'(x) φ' + u_j − ρ_j τ_file,j(t_s + δ_r) = −m A_M(x)     (loaded runs)
-//! Y_b(x) θ_b             + u_j − ρ_j τ_file,j(t_s + δ_r) = 0              (unloaded runs)
+//! Y_b(x) θ_b + A'(x) φ' + u_j − ρ_j τ_file,j(t_s) = −m A_M(x)     (loaded runs)
+//! Y_b(x) θ_b             + u_j − ρ_j τ_file,j(t_s) = 0              (unloaded runs)
 //! ```
 //!
-//! Y_b the robot's base regressor (inertial and drive parameters θ_b),
+//! x = (q, q̇, q̈) at t_s − δ_r, δ_r the delay of run r's currents behind
+//! its positions; Y_b the robot's base regressor (inertial and drive parameters θ_b),
 //! A = Y_L T the payload's columns on the frame it is mounted to
 //! ([`crate::robot::payload`]), split into the known mass's column A_M
 //! (its coefficient m, known: the right-hand side) and the rest A' (φ': the
 //! mass's first moments and inertia, unknown); u_j = ρ_j·o_j a constant per
 //! joint (o_j the current offset as a torque, unless the friction model
-//! already has an offset F0); δ_r the delay of run r's currents behind its
-//! positions. Without the known mass the problem is homogeneous in
+//! already has an offset F0). Without the known mass the problem is homogeneous in
 //! (θ_b, φ', u, ρ) — scaling a joint's gain and the torques it explains
 //! leaves the equations unchanged —; the mass fixes the scale of every joint
 //! its torques load. For given delays the problem is linear: weighted least
 //! squares stacked over the runs with weights per run and joint
 //! ([`crate::ident::study::stack`]). The delays minimise its weighted
-//! residual (τ_file read at t_s + δ_r by cubic interpolation, [`super::chain`]).
+//! residual; a trial δ_r moves the model, not the currents: every column of
+//! run r is rebuilt from its kinematics at t_s − δ_r ([`Columns::at`]).
 //!
 //! A gain is determined when its profile σ (the σ of ρ_j with every other
 //! unknown free: 1/‖P⊥ r_j‖ of its column of the weighted triangular factor
@@ -84,8 +85,8 @@ pub struct GainsSpec {
     #[serde(default = "max_std")]
     pub max_std: f64,
     /// Estimate one delay of the currents behind the positions per run
-    /// (default off: on the shipped rehearsal it is not determined well
-    /// enough, see docs/payload.md).
+    /// (default off: on the shipped rehearsal its σ is 0.65–0.75 ms per
+    /// 50 s run, see docs/payload.md).
     #[serde(default)]
     pub delay: bool,
     /// The delays searched: −max_delay … max_delay (s).
@@ -204,79 +205,162 @@ pub struct GainsEstimate {
     pub notes: Vec<String>,
 }
 
-/// One run prepared: the columns that do not depend on the delay.
+/// One run prepared: its rows, torques and kinematics; its columns at a
+/// delay come from [`Columns::at`].
 struct RunData {
     name: String,
     loaded: bool,
     files: Vec<PathBuf>,
     samples: usize,
-    /// Fixed columns: base | payload' | offsets (rows × pf).
-    f: DMatrix<f64>,
-    /// −m·A_M (loaded) or 0.
-    y0: DVector<f64>,
     joint: Vec<usize>,
     sample: Vec<usize>,
     var: Option<DVector<f64>>,
     tau: Vec<Vec<f64>>,
+    /// The processed run's times and kinematics (the model side of the delay).
+    t: Vec<f64>,
+    q: Vec<Vec<f64>>,
+    qd: Vec<Vec<f64>>,
+    qdd: Vec<Vec<f64>>,
+    /// The positions' Fourier fit when q̇ and q̈ are its derivatives.
+    fourier: Option<crate::trajectory::FourierTrajectory>,
     /// Sample step (s).
     h: f64,
     n_reps: usize,
 }
 
+/// q, q̇, q̈ per sample.
+type Kinematics = (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>);
+
+/// A run's columns at one delay: fixed columns F = base | payload' |
+/// offsets (rows × pf) and y0 = −m·A_M (loaded) or 0.
+type RunColumns = (DMatrix<f64>, DVector<f64>);
+
+/// What the fixed columns are made of (shared by the runs).
+struct Columns<'a> {
+    robot: &'a crate::robot::Robot,
+    base: &'a BaseParams,
+    mount: &'a Mount,
+    /// The payload's base-column map K (θ_pb = K φ) and the mass's column in it.
+    k: &'a DMatrix<f64>,
+    im: usize,
+    mass: f64,
+    off_joints: &'a [usize],
+    dead_band: f64,
+}
+
+impl Columns<'_> {
+    /// Run `r`'s columns with its currents `delay` behind its positions: the
+    /// model is evaluated at t_s − δ (the logged current of sample s is the
+    /// torque the dynamics needed δ earlier). The kinematics are smooth (the
+    /// Fourier fit evaluated there, else the filtered q, q̇, q̈ phase-shifted,
+    /// [`chain::shifted`]), so no interpolation touches the currents: these
+    /// are sampled without an anti-alias filter and carry the Coulomb
+    /// friction's steps, and shifting them by a fraction of a sample rings
+    /// (measured: a 3.5 ms delay at 100 Hz came out 1.7–2.0 ms noise-free).
+    fn at(&self, r: &RunData, delay: f64) -> RunColumns {
+        let (q, qd, qdd) = r.kinematics(delay);
+        let n = self.robot.dof();
+        let p = self.robot.n_params();
+        let m = q.len();
+        let pb = self.base.names.len();
+        let kb = self.k.nrows();
+        let pf = pb + kb - 1 + self.off_joints.len();
+        let c = crate::ident::estimate::base_design_dead_band(self.robot, self.base, &q, &qd, &qdd, self.dead_band);
+        let rows = r.joint.len();
+        let mut f = DMatrix::zeros(rows, pf);
+        let mut y0 = DVector::zeros(rows);
+        let mut ws = Workspace::new(self.robot);
+        let mut yrow = vec![0.0; n * p];
+        let mut cols = vec![0.0; n * 10];
+        let mut last = usize::MAX;
+        for i in 0..rows {
+            let (j, s) = (r.joint[i], r.sample[i]);
+            for b in 0..pb {
+                f[(i, b)] = c[(j * m + s, b)];
+            }
+            if r.loaded {
+                if s != last {
+                    regressor_rows(self.robot, &mut ws, &q[s], &qd[s], &qdd[s], &mut yrow);
+                    self.mount.columns(self.robot, &yrow, &mut cols);
+                    last = s;
+                }
+                let mut col = pb;
+                for bi in 0..kb {
+                    // the payload's base column bi (θ_pb = K φ, K's row of M pure: checked)
+                    let v: f64 = (0..10).map(|x| cols[j * 10 + x] * self.k[(bi, x)]).sum::<f64>();
+                    if bi == self.im {
+                        y0[i] = -self.mass * v;
+                    } else {
+                        f[(i, col)] = v;
+                        col += 1;
+                    }
+                }
+            }
+            if let Some(o) = self.off_joints.iter().position(|&x| x == j) {
+                f[(i, pb + kb - 1 + o)] = 1.0;
+            }
+        }
+        (f, y0)
+    }
+}
+
 impl RunData {
-    /// Per joint, the torques read `delay` later (τ_file(t + δ), [`chain::shifted`]).
-    fn taus(&self, delay: f64) -> Vec<Vec<f64>> {
-        let n = self.tau.first().map_or(0, |r| r.len());
-        (0..n)
-            .map(|j| {
-                let col: Vec<f64> = self.tau.iter().map(|r| r[j]).collect();
-                chain::shifted(&col, delay / self.h)
-            })
-            .collect()
+    /// q, q̇, q̈ at t_s − δ for every sample s.
+    fn kinematics(&self, delay: f64) -> Kinematics {
+        if delay == 0.0 {
+            return (self.q.clone(), self.qd.clone(), self.qdd.clone());
+        }
+        if let Some(f) = &self.fourier {
+            let times: Vec<f64> = self.t.iter().map(|t| t - delay).collect();
+            let s = f.sample_at(&times);
+            return (s.q, s.qd, s.qdd);
+        }
+        let shift = |x: &[Vec<f64>]| -> Vec<Vec<f64>> {
+            let n = x.first().map_or(0, |v| v.len());
+            let cols: Vec<Vec<f64>> = (0..n)
+                .map(|j| chain::shifted(&x.iter().map(|v| v[j]).collect::<Vec<f64>>(), -delay / self.h))
+                .collect();
+            (0..x.len()).map(|s| cols.iter().map(|c| c[s]).collect()).collect()
+        };
+        (shift(&self.q), shift(&self.qd), shift(&self.qdd))
     }
 
-    /// The run's rows of the Gauss–Newton step at `p` (see [`calibrate`]):
-    /// columns [γ_j F | F x − y0 on the free joints' rows], target
-    /// t = τ(δ) + γ_j F x (free joints) or τ(δ) + y0 (fixed, γ = 1); also t
-    /// without the delay-dependent part (c = t − τ(δ)).
-    fn linearised(&self, delay: f64, p: &Point, cal: &[Option<usize>], names: &[String]) -> (Dataset, DVector<f64>) {
-        let (rows, pf) = (self.f.nrows(), self.f.ncols());
+    /// The run's rows of the Gauss–Newton step at `p` (see [`calibrate`]) with
+    /// its columns `fc`: columns [γ_j F | F x − y0 on the free joints' rows],
+    /// target t = τ + γ_j F x (free joints) or τ + y0 (fixed, γ = 1).
+    fn linearised(&self, fc: &RunColumns, p: &Point, cal: &[Option<usize>], names: &[String]) -> Dataset {
+        let (f, y0) = fc;
+        let (rows, pf) = (f.nrows(), f.ncols());
         let nc = cal.iter().flatten().count();
         let mut c = DMatrix::zeros(rows, pf + nc);
         let mut y = DVector::zeros(rows);
-        let mut off = DVector::zeros(rows);
         let x = DVector::from_column_slice(&p.x);
-        let fx = &self.f * &x;
-        let taus = self.taus(delay);
+        let fx = f * &x;
         for i in 0..rows {
             let j = self.joint[i];
             let g = p.gamma[j];
             for k in 0..pf {
-                c[(i, k)] = g * self.f[(i, k)];
+                c[(i, k)] = g * f[(i, k)];
             }
-            let t = taus[j][self.sample[i]];
-            match cal[j] {
+            let off = match cal[j] {
                 Some(k) => {
-                    c[(i, pf + k)] = fx[i] - self.y0[i];
-                    off[i] = g * fx[i];
+                    c[(i, pf + k)] = fx[i] - y0[i];
+                    g * fx[i]
                 }
-                None => off[i] = self.y0[i],
-            }
-            y[i] = t + off[i];
+                None => y0[i],
+            };
+            y[i] = self.tau[self.sample[i]][j] + off;
         }
-        (
-            Dataset {
-                n: cal.len(),
-                n_samples: self.samples,
-                c,
-                y,
-                var: self.var.clone(),
-                names: names.to_vec(),
-                joint: self.joint.clone(),
-                sample: self.sample.clone(),
-            },
-            off,
-        )
+        Dataset {
+            n: cal.len(),
+            n_samples: self.samples,
+            c,
+            y,
+            var: self.var.clone(),
+            names: names.to_vec(),
+            joint: self.joint.clone(),
+            sample: self.sample.clone(),
+        }
     }
 }
 
@@ -420,7 +504,22 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
     let obs = ctl.observer();
     obs.phase("gains read", Some((design.loaded.len() + design.unloaded.len()) as u64));
     let mut runs: Vec<RunData> = Vec::new();
-    let p = robot.n_params();
+    let maker = Columns {
+        robot: &robot,
+        base: &base,
+        mount: &mount,
+        k: &st.k,
+        im,
+        mass: spec.mass,
+        off_joints: &off_joints,
+        dead_band: if design.method == crate::ident::Method::Projection {
+            0.0
+        } else {
+            crate::ident::DEAD_BAND
+        },
+    };
+    // each run's columns at its current delay
+    let mut cols: Vec<RunColumns> = Vec::new();
     for (loaded, list) in [(true, &design.loaded), (false, &design.unloaded)] {
         for spec_e in list {
             if ctl.interrupted() {
@@ -436,63 +535,35 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
             let edge = if spec.delay { (spec.max_delay / h).ceil() as usize + 2 } else { 0 };
             let full = &l.prep.full;
             let keep: Vec<usize> = (0..full.joint.len()).filter(|&r| full.sample[r] >= edge && full.sample[r] + edge < m).collect();
-            let mut f = DMatrix::zeros(keep.len(), pf);
-            let mut y0 = DVector::zeros(keep.len());
-            let mut ws = Workspace::new(&robot);
-            let mut yrow = vec![0.0; n * p];
-            let mut cols = vec![0.0; n * 10];
-            let mut last = usize::MAX;
-            for (i, &r) in keep.iter().enumerate() {
-                let (j, s) = (full.joint[r], full.sample[r]);
-                for c in 0..pb {
-                    f[(i, c)] = full.c[(r, c)];
-                }
-                if loaded {
-                    if s != last {
-                        regressor_rows(&robot, &mut ws, &pr.q[s], &pr.qd[s], &pr.qdd[s], &mut yrow);
-                        mount.columns(&robot, &yrow, &mut cols);
-                        last = s;
-                    }
-                    let mut c = pb;
-                    for bi in 0..kb {
-                        // the payload's base column bi (θ_pb = K φ, K's row of M pure: checked)
-                        let v: f64 = (0..10).map(|q| cols[j * 10 + q] * st.k[(bi, q)]).sum::<f64>();
-                        if bi == im {
-                            y0[i] = -spec.mass * v;
-                        } else {
-                            f[(i, c)] = v;
-                            c += 1;
-                        }
-                    }
-                }
-                if let Some(o) = off_joints.iter().position(|&x| x == j) {
-                    f[(i, pb + kb - 1 + o)] = 1.0;
-                }
-            }
             let var = full.var.as_ref().map(|v| DVector::from_iterator(keep.len(), keep.iter().map(|&r| v[r])));
-            runs.push(RunData {
+            let run = RunData {
                 name: l.name.clone(),
                 loaded,
                 files: l.files.clone(),
                 samples: m,
-                f,
-                y0,
                 joint: keep.iter().map(|&r| full.joint[r]).collect(),
                 sample: keep.iter().map(|&r| full.sample[r]).collect(),
                 var,
                 tau: pr.tau.clone(),
+                t: pr.t.clone(),
+                q: pr.q.clone(),
+                qd: pr.qd.clone(),
+                qdd: pr.qdd.clone(),
+                fourier: pr.fourier.clone().filter(|_| pr.velocity == crate::ident::VelocitySource::Positions),
                 h,
                 n_reps: l.n_reps,
-            });
+            };
+            cols.push(maker.at(&run, 0.0));
+            runs.push(run);
             obs.progress(runs.len() as u64, &l.name);
         }
     }
     obs.phase_done();
     // the known mass's torque per joint (loaded runs)
     let mut mass_torque = vec![(0.0, 0usize); n];
-    for r in runs.iter().filter(|r| r.loaded) {
+    for (r, (_, y0)) in runs.iter().zip(&cols).filter(|(r, _)| r.loaded) {
         for (i, &j) in r.joint.iter().enumerate() {
-            mass_torque[j].0 += r.y0[i] * r.y0[i];
+            mass_torque[j].0 += y0[i] * y0[i];
             mass_torque[j].1 += 1;
         }
     }
@@ -528,8 +599,8 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
     };
     let mut names_all = col_names.clone();
     names_all.extend((0..n).filter(|&j| cal[j].is_some()).map(|j| format!("1/gain ratio {}", names[j])));
-    let fit = |delays: &[f64], p: &Point| -> Result<stack::Stacked> {
-        let ds: Vec<Dataset> = runs.iter().zip(delays).map(|(r, &d)| r.linearised(d, p, &cal, &names_all).0).collect();
+    let fit = |cols: &[RunColumns], p: &Point| -> Result<stack::Stacked> {
+        let ds: Vec<Dataset> = runs.iter().zip(cols).map(|(r, fc)| r.linearised(fc, p, &cal, &names_all)).collect();
         let rows: Vec<Rows> = ds
             .iter()
             .zip(&runs)
@@ -543,14 +614,14 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
     };
     // Gauss–Newton on the output-error form τ_file = γ_j (F x − y0), γ = 1/ρ,
     // from γ = 1, x = 0; each step a stacked weighted least squares
-    let gauss_newton = |delays: &[f64], start: Point| -> Result<(Point, stack::Stacked)> {
+    let gauss_newton = |cols: &[RunColumns], start: Point| -> Result<(Point, stack::Stacked)> {
         let mut p = start;
         let mut last = None;
         for _ in 0..GN_ITERATIONS {
             if ctl.interrupted() {
                 return Err(Error::Interrupted);
             }
-            let stk = fit(delays, &p)?;
+            let stk = fit(cols, &p)?;
             let x: Vec<f64> = stk.theta.iter().take(pf).copied().collect();
             let mut gamma = p.gamma.clone();
             let mut change = 0.0_f64;
@@ -572,7 +643,7 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
         x: vec![0.0; pf],
         gamma: vec![1.0; n],
     };
-    let (mut point, mut stk) = gauss_newton(&delays, start)?;
+    let (mut point, mut stk) = gauss_newton(&cols, start)?;
     if spec.delay {
         obs.phase("gains delay", Some(2 * runs.len() as u64));
         for sweep in 0..2 {
@@ -588,33 +659,25 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
                         .collect()
                 })
                 .collect();
-            let mut ne = Normal::new(&runs, &w, &delays, &point, &cal, &names_all);
+            let mut ne = Normal::new(&runs, &cols, &w, &point, &cal, &names_all);
             for e in 0..runs.len() {
                 if ctl.interrupted() {
                     return Err(Error::Interrupted);
                 }
-                let (d, _) = chain::minimise(
-                    |x| {
-                        ne.set(&runs, e, x);
-                        ne.rss()
-                    },
-                    -spec.max_delay,
-                    spec.max_delay,
-                    if sweep == 0 { 17 } else { 7 },
-                    1e-3 * runs[e].h,
-                );
-                let hh = 0.05 * runs[e].h;
                 let mut at = |x: f64| {
-                    ne.set(&runs, e, x);
+                    ne.set(&runs[e], e, &maker.at(&runs[e], x), &point, &cal, &names_all);
                     ne.rss()
                 };
+                let (d, _) = chain::minimise(&mut at, -spec.max_delay, spec.max_delay, if sweep == 0 { 17 } else { 7 }, 1e-3 * runs[e].h);
+                let hh = 0.05 * runs[e].h;
                 let (a, b, c) = (at(d - hh), at(d), at(d + hh));
                 delay_std[e] = chain::sigma_from_curvature(a, b, c, hh);
                 delays[e] = d;
-                ne.set(&runs, e, d);
+                cols[e] = maker.at(&runs[e], d);
+                ne.set(&runs[e], e, &cols[e], &point, &cal, &names_all);
                 obs.progress((sweep * runs.len() + e + 1) as u64, &runs[e].name);
             }
-            (point, stk) = gauss_newton(&delays, point)?;
+            (point, stk) = gauss_newton(&cols, point)?;
         }
         obs.phase_done();
     }
@@ -716,68 +779,59 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
     })
 }
 
-/// The delay search's weighted least squares at a fixed linearisation: the
-/// design J (of [`RunData::linearised`]) does not depend on the delays, only
-/// the targets do, so G = JᵀWJ is factored once and each run keeps its part
-/// of h = JᵀWt and of tᵀWt.
+/// The delay search's weighted least squares at a fixed linearisation point
+/// (x, γ) and fixed weights: each run keeps its part of G = JᵀWJ, h = JᵀWt
+/// and tᵀWt; a trial delay of one run rebuilds that run's columns
+/// ([`Columns::at`]) and part, and the residual is tᵀWt − hᵀG⁺h.
 struct Normal {
-    /// (JᵀWJ)⁺.
-    ginv: DMatrix<f64>,
-    /// Per run: √W J, √W, t − τ(δ), h_e, (tᵀWt)_e.
-    runs: Vec<RunPart>,
+    /// Weights per run and joint.
+    w: Vec<Vec<f64>>,
+    /// Per run: G_e, h_e, (tᵀWt)_e.
+    runs: Vec<(DMatrix<f64>, DVector<f64>, f64)>,
 }
 
-/// One run's part of [`Normal`]: √W J, √W, t − τ(δ), h_e, (tᵀWt)_e.
-type RunPart = (DMatrix<f64>, DVector<f64>, DVector<f64>, DVector<f64>, f64);
-
 impl Normal {
-    fn new(runs: &[RunData], w: &[Vec<f64>], delays: &[f64], p: &Point, cal: &[Option<usize>], names: &[String]) -> Normal {
-        let mut parts = Vec::new();
-        let mut g: Option<DMatrix<f64>> = None;
+    fn new(runs: &[RunData], cols: &[RunColumns], w: &[Vec<f64>], p: &Point, cal: &[Option<usize>], names: &[String]) -> Normal {
+        let mut ne = Normal {
+            w: w.to_vec(),
+            runs: Vec::new(),
+        };
         for (e, r) in runs.iter().enumerate() {
-            let (ds, off) = r.linearised(delays[e], p, cal, names);
-            let sw = DVector::from_iterator(r.joint.len(), r.joint.iter().map(|&j| w[e][j].sqrt()));
-            let mut jw = ds.c;
-            for i in 0..jw.nrows() {
-                jw.row_mut(i).scale_mut(sw[i]);
-            }
-            let gg = jw.tr_mul(&jw);
-            g = Some(match g {
-                Some(a) => a + gg,
-                None => gg,
-            });
-            let k = jw.ncols();
-            parts.push((jw, sw, off, DVector::zeros(k), 0.0));
-        }
-        let g = g.expect("at least one run");
-        let svd = g.svd(true, true);
-        let tol = 1e-12 * svd.singular_values.max();
-        let ginv = svd.pseudo_inverse(tol).unwrap_or_else(|_| DMatrix::zeros(0, 0));
-        let mut ne = Normal { ginv, runs: parts };
-        for (e, &d) in delays.iter().enumerate() {
-            ne.set(runs, e, d);
+            ne.runs.push((DMatrix::zeros(0, 0), DVector::zeros(0), 0.0));
+            ne.set(r, e, &cols[e], p, cal, names);
         }
         ne
     }
 
-    /// Run `e`'s part at delay `d`.
-    fn set(&mut self, runs: &[RunData], e: usize, d: f64) {
-        let r = &runs[e];
-        let (jw, sw, off, h, tt) = &mut self.runs[e];
-        let taus = r.taus(d);
-        let t = DVector::from_iterator(r.joint.len(), (0..r.joint.len()).map(|i| sw[i] * (taus[r.joint[i]][r.sample[i]] + off[i])));
-        *h = jw.tr_mul(&t);
-        *tt = t.dot(&t);
+    /// Run `e`'s part with its columns `fc`.
+    fn set(&mut self, r: &RunData, e: usize, fc: &RunColumns, p: &Point, cal: &[Option<usize>], names: &[String]) {
+        let ds = r.linearised(fc, p, cal, names);
+        let mut jw = ds.c;
+        let mut t = ds.y;
+        for i in 0..jw.nrows() {
+            let sw = self.w[e][r.joint[i]].sqrt();
+            jw.row_mut(i).scale_mut(sw);
+            t[i] *= sw;
+        }
+        self.runs[e] = (jw.tr_mul(&jw), jw.tr_mul(&t), t.dot(&t));
     }
 
     /// The weighted residual sum of squares at the least-squares solution.
     fn rss(&self) -> f64 {
-        let mut h = DVector::zeros(self.ginv.nrows());
+        let k = self.runs[0].1.len();
+        let mut g = DMatrix::zeros(k, k);
+        let mut h = DVector::zeros(k);
         let mut tt = 0.0;
-        for (_, _, _, hp, t) in &self.runs {
+        for (gp, hp, t) in &self.runs {
+            g += gp;
             h += hp;
             tt += t;
         }
-        tt - h.dot(&(&self.ginv * &h))
+        let svd = g.svd(true, true);
+        let tol = 1e-12 * svd.singular_values.max();
+        match svd.solve(&h, tol) {
+            Ok(x) => tt - h.dot(&x),
+            Err(_) => f64::INFINITY,
+        }
     }
 }

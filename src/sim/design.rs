@@ -208,6 +208,11 @@ pub struct SimDesign {
     /// the controller's torque of `drive_delay` earlier (a sensor chain's delay).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub drive_delay: f64,
+    /// A constant offset per joint of the logged currents (A, logged minus
+    /// true; `record = "current"` or `"both"`, whose torque columns carry it
+    /// too): a drive's current-sensor offset. Absent: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub current_offset: Option<Vec<f64>>,
 }
 
 fn is_zero(v: &f64) -> bool {
@@ -308,6 +313,18 @@ impl SimDesign {
                 "drive_delay",
                 format!("{} s: expected 0 … 1000 whole controller periods of {} s", self.drive_delay, 1.0 / self.rate),
             ));
+        }
+        if let Some(v) = &self.current_offset {
+            if self.record == Record::Torque {
+                return Err(Error::invalid(
+                    ctx,
+                    "current_offset",
+                    "offsets of the logged currents need record = \"current\" or \"both\"",
+                ));
+            }
+            if let Some(x) = v.iter().find(|x| !x.is_finite()) {
+                return Err(Error::invalid(ctx, "current_offset", format!("expected finite offsets in A, found {x}")));
+            }
         }
         if self.repetitions == 0 || self.repetitions > 10_000 {
             return Err(Error::invalid(ctx, "repetitions", "expected 1..=10000"));

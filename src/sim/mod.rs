@@ -90,6 +90,9 @@ pub struct SimSetup {
     pub seed: u64,
     /// Controller periods by which the logged torques lag the positions (design key `drive_delay`).
     pub drive_delay: usize,
+    /// Per joint, the logged currents' offset as a torque (N·m): design key
+    /// `current_offset` (A) times the robot file's s·k_t·N; zeros without it.
+    pub torque_offset: Vec<f64>,
 }
 
 /// Controller periods between two polls of the run control inside a
@@ -293,7 +296,20 @@ impl SimSetup {
                 return Err(Error::invalid(ctx, "decimate", "the period must be a whole number of recorded samples"));
             }
         }
+        let torque_offset = match &d.current_offset {
+            None => vec![0.0; n],
+            Some(v) if v.len() != n => {
+                return Err(Error::invalid(
+                    ctx,
+                    "current_offset",
+                    format!("{} offsets for the {n} joints of {}", v.len(), nominal.name),
+                ));
+            }
+            // record ≠ torque (validated): every drive has its torque constant (checked above)
+            Some(v) => v.iter().zip(&nominal.drives).map(|(o, dr)| o * dr.torque_per_ampere().unwrap_or(0.0)).collect(),
+        };
         Ok(SimSetup {
+            torque_offset,
             torque_noise: d.noise.torque.resolve(n, ctx, "noise.torque")?,
             position_noise: d.noise.position.resolve(n, ctx, "noise.position")?,
             disturbance: d.noise.disturbance.resolve(n, ctx, "noise.disturbance")?,
@@ -428,7 +444,11 @@ impl SimSetup {
                     rep.t.push(t - t_rec0);
                     rep.q.push(qm.clone());
                     let logged = &lp.past[0]; // drive_delay periods ago (the oldest kept, at the start)
-                    rep.tau.push((0..n).map(|j| logged[j] + self.torque_noise[j] * unit.sample(rng)).collect());
+                    rep.tau.push(
+                        (0..n)
+                            .map(|j| logged[j] + self.torque_noise[j] * unit.sample(rng) + self.torque_offset[j])
+                            .collect(),
+                    );
                     if let Some(rr) = rep.r.as_mut() {
                         rr.push(r.clone());
                     }
