@@ -416,7 +416,7 @@ fn patience_ends_a_refinement_where_it_stopped_improving() {
         refine::refine(&p.objective, &p.constraints, &x0, &spec, &p.lower, &p.upper, &ctl)
     };
     let full = plain(300);
-    assert!(!full.status.stalled && full.evaluations == 300, "{full:?}");
+    assert!(!full.status.stalled, "{full:?}");
     let mut stalled = 0;
     for k in [10, 20, 40] {
         let mut s = spec.clone();
@@ -492,4 +492,30 @@ fn the_search_fields_are_checked_with_their_names() {
         e.contains("bench.toml") && e.contains("refine.perturb_joints") && e.contains("1..=6") && e.contains('7'),
         "{e}"
     );
+}
+
+#[test]
+fn adaptive_perturbation_changes_the_restarts_after_their_first_round() {
+    // `perturb_adapt = a`: the first round perturbs by `perturb` (the same
+    // starts as without it); after it the size is `perturb`·a or /a, so
+    // the second round's starts differ; whatever the size, the search stays
+    // one sequence that more evaluations only extend
+    let with = |a: f64, budget: u64| {
+        let mut p = budget_problem(Some(budget), 1);
+        p.design.refine.perturb_adapt = a;
+        run(&p, &Control::new()).unwrap()
+    };
+    let plain = with(1.0, 900);
+    let adapt = with(2.0, 900);
+    for k in 0..4 {
+        assert_eq!(plain.refinements[k].end.to_bits(), adapt.refinements[k].end.to_bits(), "refinement {}", k + 1);
+    }
+    assert!(adapt.refinements.len() > 5);
+    assert_ne!(plain.refinements[4].start.to_bits(), adapt.refinements[4].start.to_bits());
+    let long = with(2.0, 1800);
+    let whole = adapt.refinements.len() - 1;
+    for (a, b) in adapt.refinements[..whole].iter().zip(&long.refinements) {
+        assert_eq!(a.end.to_bits(), b.end.to_bits());
+    }
+    assert!(long.criterion <= adapt.criterion);
 }

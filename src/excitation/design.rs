@@ -658,7 +658,8 @@ pub struct RefineSpec {
     pub patience: u32,
     /// A restart perturbs the coefficients of this many joints only
     /// ([`crate::trajectory::TrajectoryShape::joint_vars`]), drawn by the
-    /// restart's seed (0: every variable).
+    /// restart's seed (0: every variable). Variables outside every joint's
+    /// range (a free centre's) do not move.
     #[serde(skip_serializing_if = "is_zero_usize")]
     pub perturb_joints: usize,
     /// Adaptive perturbation size (1: off, always `perturb`): every refined
