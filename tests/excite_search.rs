@@ -399,3 +399,123 @@ fn the_report_records_the_progress_and_draws_it() {
     let txt = std::fs::read_to_string(dir.path().join("report.txt")).unwrap();
     assert!(txt.contains("search progress"), "{txt}");
 }
+
+#[test]
+fn patience_ends_a_refinement_where_it_stopped_improving() {
+    // `refine.patience = k`: a stage ends once its best feasible value has
+    // not fallen by 1e-4 (relative) in k evaluations. Ending early does not
+    // change the path before: the result is, bit for bit, that of the run
+    // without patience cut by an evaluation budget at the same count, and
+    // the same run cut k evaluations earlier was within 1e-4 of it
+    let p = bench_problem(|_| {});
+    let x0 = ga_point();
+    let mut spec = p.design.refine.clone();
+    spec.max_evals = 300;
+    let plain = |budget: u64| {
+        let ctl = Control::new().with_max_evals(Some(budget));
+        refine::refine(&p.objective, &p.constraints, &x0, &spec, &p.lower, &p.upper, &ctl)
+    };
+    let full = plain(300);
+    assert!(!full.status.stalled, "{full:?}");
+    let mut stalled = 0;
+    for k in [10, 20, 40] {
+        let mut s = spec.clone();
+        s.patience = k;
+        let r = refine::refine(&p.objective, &p.constraints, &x0, &s, &p.lower, &p.upper, &Control::new());
+        if !r.status.stalled {
+            assert_eq!(r.f.to_bits(), full.f.to_bits(), "patience {k}: {r:?}");
+            continue;
+        }
+        stalled += 1;
+        assert!(r.status.to_string().contains("(stalled)"), "{}", r.status);
+        let n = r.evaluations;
+        assert!(n < 300 && n > k as u64, "patience {k}: {n} evaluations");
+        let cut = plain(n);
+        assert_eq!((cut.f.to_bits(), cut.x.clone()), (r.f.to_bits(), r.x.clone()), "patience {k}");
+        let before = plain(n - k as u64);
+        assert!(before.f <= r.f * (1.0 + 1e-4) / (1.0 - 1e-4), "patience {k}: {} then {}", before.f, r.f);
+        assert!(full.f <= r.f);
+    }
+    assert!(stalled > 0, "no patience in 10, 20, 40 ended the refinement early");
+}
+
+#[test]
+fn restarts_can_perturb_a_few_joints_only() {
+    // the Fourier coefficients of k joints move, the others stay
+    let p = bench_problem(|_| {});
+    let x = ga_point();
+    let n = p.robot.dof();
+    let ranges: Vec<std::ops::Range<usize>> = (0..n).map(|j| idexp::trajectory::TrajectoryShape::joint_vars(&p.shape, j)).collect();
+    for k in 1..n {
+        for seed in 0..20u64 {
+            let y = refine::perturb_joints(&x, &p.lower, &p.upper, 0.2, seed, k, &ranges);
+            assert_eq!(y, refine::perturb_joints(&x, &p.lower, &p.upper, 0.2, seed, k, &ranges));
+            let all = refine::perturb(&x, &p.lower, &p.upper, 0.2, seed);
+            let moved: Vec<usize> = (0..n).filter(|&j| ranges[j].clone().any(|v| y[v] != x[v])).collect();
+            assert_eq!(moved.len(), k, "k {k}, seed {seed}: joints {moved:?}");
+            for (v, (&a, &b)) in y.iter().zip(&x).enumerate() {
+                let mine = moved.iter().any(|&j| ranges[j].contains(&v));
+                assert_eq!(a, if mine { all[v] } else { b }, "k {k}, seed {seed}, variable {v}");
+            }
+        }
+    }
+    for k in [0, n] {
+        assert_eq!(
+            refine::perturb_joints(&x, &p.lower, &p.upper, 0.2, 5, k, &ranges),
+            refine::perturb(&x, &p.lower, &p.upper, 0.2, 5)
+        );
+    }
+}
+
+#[test]
+fn the_search_fields_are_checked_with_their_names() {
+    let load = || ExciteDesign::load(&root("designs/excite_ur5_bench_pi.toml")).unwrap();
+    type Edit = Box<dyn Fn(&mut ExciteDesign)>;
+    let cases: Vec<(&str, &str, Edit)> = vec![
+        ("refine.patience", "2000000", Box::new(|d| d.refine.patience = 2_000_000)),
+        ("refine.perturb_adapt", "0.5", Box::new(|d| d.refine.perturb_adapt = 0.5)),
+        ("refine.perturb_adapt", "NaN", Box::new(|d| d.refine.perturb_adapt = f64::NAN)),
+        ("refine.perturb_joints", "2000", Box::new(|d| d.refine.perturb_joints = 2000)),
+    ];
+    for (field, value, edit) in cases {
+        let mut d = load();
+        edit(&mut d);
+        let e = d.validate("bench.toml").unwrap_err().to_string();
+        assert!(e.contains("bench.toml") && e.contains(field) && e.contains(value), "{e}");
+    }
+    // more joints than the robot has: known once the robot is loaded
+    let mut d = load();
+    d.refine.perturb_joints = 7;
+    let robot = robot::load(&d.robot).unwrap();
+    let e = Problem::new(d, robot, "bench.toml").err().unwrap().to_string();
+    assert!(
+        e.contains("bench.toml") && e.contains("refine.perturb_joints") && e.contains("1..=6") && e.contains('7'),
+        "{e}"
+    );
+}
+
+#[test]
+fn adaptive_perturbation_changes_the_restarts_after_their_first_round() {
+    // `perturb_adapt = a`: the first round perturbs by `perturb` (the same
+    // starts as without it); after it the size is `perturb`·a or /a, so
+    // the second round's starts differ; whatever the size, the search stays
+    // one sequence that more evaluations only extend
+    let with = |a: f64, budget: u64| {
+        let mut p = budget_problem(Some(budget), 1);
+        p.design.refine.perturb_adapt = a;
+        run(&p, &Control::new()).unwrap()
+    };
+    let plain = with(1.0, 900);
+    let adapt = with(2.0, 900);
+    for k in 0..4 {
+        assert_eq!(plain.refinements[k].end.to_bits(), adapt.refinements[k].end.to_bits(), "refinement {}", k + 1);
+    }
+    assert!(adapt.refinements.len() > 5);
+    assert_ne!(plain.refinements[4].start.to_bits(), adapt.refinements[4].start.to_bits());
+    let long = with(2.0, 1800);
+    let whole = adapt.refinements.len() - 1;
+    for (a, b) in adapt.refinements[..whole].iter().zip(&long.refinements) {
+        assert_eq!(a.end.to_bits(), b.end.to_bits());
+    }
+    assert!(long.criterion <= adapt.criterion);
+}

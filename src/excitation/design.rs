@@ -103,6 +103,12 @@
 //!                                   # refined points in turn (1: always the best point so far)
 //! polish = 0                        # > 0: after each SLSQP stage, MMA for at most this many evaluations
 //!                                   # from SLSQP's last iterate (feasible iterates; the better point is kept)
+//! patience = 0                      # > 0: a stage ends once its best feasible criterion has not fallen by
+//!                                   # 1e-4 (relative) in this many evaluations (0: only max_evals ends it)
+//! perturb_joints = 0                # > 0: a restart moves the coefficients of this many joints only,
+//!                                   # drawn by the restart's seed (0: every variable)
+//! perturb_adapt = 1.0               # > 1: each perturbed point's own size, times this after a round from it
+//!                                   # found a better point, divided by it otherwise (1: always `perturb`)
 //! ```
 
 use super::objective::{Columns, Criterion, Scaling};
@@ -645,6 +651,33 @@ pub struct RefineSpec {
     /// best point so far, as before this field).
     #[serde(skip_serializing_if = "is_one")]
     pub elites: usize,
+    /// A stage of a refinement ends once its best feasible criterion has not
+    /// fallen by more than 1e-4 (relative) in this many evaluations (0: off;
+    /// only `max_evals` and the tolerances end it).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub patience: u32,
+    /// A restart perturbs the coefficients of this many joints only
+    /// ([`crate::trajectory::TrajectoryShape::joint_vars`]), drawn by the
+    /// restart's seed (0: every variable). Variables outside every joint's
+    /// range (a free centre's) do not move.
+    #[serde(skip_serializing_if = "is_zero_usize")]
+    pub perturb_joints: usize,
+    /// Adaptive perturbation size (1: off, always `perturb`): every refined
+    /// point a round of restarts perturbs carries its own size, `perturb` at
+    /// first; after a round from it, the size is multiplied by this factor if
+    /// the round found a better point than it (and the better point inherits
+    /// the grown size) and divided by it otherwise, within [`perturb`/10,
+    /// min(1, 4·`perturb`)].
+    #[serde(skip_serializing_if = "is_one_f64")]
+    pub perturb_adapt: f64,
+}
+
+fn is_zero_usize(v: &usize) -> bool {
+    *v == 0
+}
+
+fn is_one_f64(v: &f64) -> bool {
+    *v == 1.0
 }
 
 fn is_zero(v: &u32) -> bool {
@@ -672,6 +705,9 @@ impl Default for RefineSpec {
             stall: 0,
             polish: 0,
             elites: 1,
+            patience: 0,
+            perturb_joints: 0,
+            perturb_adapt: 1.0,
         }
     }
 }
@@ -863,6 +899,27 @@ impl ExciteDesign {
                     "expected 1 (the best point) to 1000 distinct refined points perturbed in turn, got {}",
                     r.elites
                 ),
+            );
+        }
+        if r.patience > 1_000_000 {
+            return bad(
+                "refine.patience",
+                format!("expected 0 (off) or at most 1000000 evaluations, got {}", r.patience),
+            );
+        }
+        if r.perturb_joints > 1000 {
+            return bad(
+                "refine.perturb_joints",
+                format!(
+                    "expected 0 (every variable) or a number of joints (at most the robot's), got {}",
+                    r.perturb_joints
+                ),
+            );
+        }
+        if !(r.perturb_adapt >= 1.0 && r.perturb_adapt <= 10.0) {
+            return bad(
+                "refine.perturb_adapt",
+                format!("expected a factor in [1, 10] (1: a fixed size), got {}", r.perturb_adapt),
             );
         }
         if r.parallel == 0 || r.parallel > 64 {

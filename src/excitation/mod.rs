@@ -386,6 +386,16 @@ impl Problem {
                 .collect(),
         };
         let shape = tr.shape(q0)?;
+        if design.refine.perturb_joints > n {
+            return Err(crate::Error::invalid(
+                ctx,
+                "refine.perturb_joints",
+                format!(
+                    "expected 0 (every variable) or 1..={n} joints of the robot, got {}",
+                    design.refine.perturb_joints
+                ),
+            ));
+        }
         let times = period_grid(tr.motion_duration(), design.objective.sample_rate)?;
         let robot = Arc::new(robot);
         let noise = design.objective.noise.clone().unwrap_or_else(|| vec![1.0; n]);
@@ -527,6 +537,54 @@ fn finalise(p: &Problem, x: &[f64]) -> Result<Finalised> {
 /// Restarts of the refinement perturbed from the same best point (`refine.restarts`).
 const RESTART_ROUND: usize = 2;
 
+/// The perturbation size of each refined point the restarts perturb
+/// (`refine.perturb_adapt`; points known by their criterion's bits): a
+/// round from a point that found a better one grows its size and hands the
+/// grown size to the better point, a round that did not shrinks it.
+struct PerturbSizes {
+    base: f64,
+    factor: f64,
+    sizes: Vec<(u64, f64)>,
+}
+
+impl PerturbSizes {
+    fn new(r: &design::RefineSpec) -> Self {
+        PerturbSizes {
+            base: r.perturb,
+            factor: r.perturb_adapt,
+            sizes: Vec::new(),
+        }
+    }
+
+    /// The size to perturb the point of criterion `f` with.
+    fn get(&self, f: f64) -> f64 {
+        self.sizes.iter().find(|s| s.0 == f.to_bits()).map_or(self.base, |s| s.1)
+    }
+
+    fn set(&mut self, f: f64, size: f64) {
+        let size = size.clamp(self.base / 10.0, (4.0 * self.base).min(1.0));
+        match self.sizes.iter_mut().find(|s| s.0 == f.to_bits()) {
+            Some(s) => s.1 = size,
+            None => self.sizes.push((f.to_bits(), size)),
+        }
+    }
+
+    /// After a round from the point of criterion `from` whose best point has
+    /// criterion `to` (`better`: it is better than the start's point).
+    fn after_round(&mut self, from: f64, to: f64, better: bool) {
+        if self.factor == 1.0 {
+            return;
+        }
+        let s = self.get(from);
+        if better {
+            self.set(from, s * self.factor);
+            self.set(to, s * self.factor);
+        } else {
+            self.set(from, s / self.factor);
+        }
+    }
+}
+
 /// Runs the design: GA, refinement, verification (see the module docs).
 ///
 /// `ctl` stops the run (stop request, deadline, evaluation budget); the
@@ -638,6 +696,8 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
             violation: r.violation,
         };
         let mut next_ga = first;
+        let mut sizes = PerturbSizes::new(&d.refine);
+        let joint_vars: Vec<std::ops::Range<usize>> = (0..p.shape.n_joints()).map(|j| p.shape.joint_vars(j)).collect();
         let mut centre = refinements.iter().map(fitness).min_by(|a, b| a.cmp_fitness(b));
         let mut stalled = 0;
         let mut k = 0;
@@ -652,9 +712,11 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
                 None
             };
             let around = from_elite.as_ref().unwrap_or(c);
+            let scale = sizes.get(around.f);
             let xs: Vec<Vec<f64>> = (k..(k + RESTART_ROUND).min(d.refine.restarts))
                 .map(|i| {
-                    let mut x = refine::perturb(&around.x, &p.lower, &p.upper, d.refine.perturb, crate::rng::mix(d.seed, i as u64, 7));
+                    let seed = crate::rng::mix(d.seed, i as u64, 7);
+                    let mut x = refine::perturb_joints(&around.x, &p.lower, &p.upper, scale, seed, d.refine.perturb_joints, &joint_vars);
                     p.constraints.repair_joints(&mut x, &p.limits, 1e-6);
                     x
                 })
@@ -669,6 +731,10 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
                 stamp(&mut ended, refinements.len());
             }
             let round = refinements[from..].iter().map(fitness).min_by(|a, b| a.cmp_fitness(b));
+            if let Some(r) = &round {
+                let better = r.cmp_fitness(around) == std::cmp::Ordering::Less;
+                sizes.after_round(around.f, r.f, better);
+            }
             match round {
                 Some(r) if r.cmp_fitness(c) == std::cmp::Ordering::Less => {
                     centre = Some(r);

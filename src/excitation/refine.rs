@@ -17,13 +17,13 @@ use super::objective::Objective;
 use crate::optim::nlopt::{Algorithm, Problem};
 use crate::optim::Control;
 use serde::Serialize;
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::time::Instant;
 
 /// The nlopt problem of a refinement stage over the box [lower, upper]:
 /// the spec's algorithm, evaluation budget and relative tolerances (when
 /// positive), stopped by `ctl` (the bridge hands its deadline to nlopt).
-fn problem<'c>(s: &RefineSpec, lower: Vec<f64>, upper: Vec<f64>, max_evals: u32, ctl: &'c Control) -> Problem<'c> {
+fn problem<'c>(s: &RefineSpec, lower: Vec<f64>, upper: Vec<f64>, max_evals: u32, ctl: &'c Control, halt: &'c Cell<bool>) -> Problem<'c> {
     let alg = match s.algorithm {
         RefineAlgorithm::Mma => Algorithm::Mma,
         _ => Algorithm::Slsqp,
@@ -32,6 +32,7 @@ fn problem<'c>(s: &RefineSpec, lower: Vec<f64>, upper: Vec<f64>, max_evals: u32,
         .max_evals(max_evals)
         .xtol_rel(s.xtol_rel)
         .ftol_rel(s.ftol_rel)
+        .halt_on(halt)
 }
 
 /// Feasibility tolerance of nlopt on the scaled constraints; the
@@ -54,6 +55,8 @@ pub struct RefineStatus {
     pub main: NloptWord,
     /// The control stopped the run (Ctrl-C).
     pub interrupted: bool,
+    /// A stage ended for want of progress (`refine.patience`).
+    pub stalled: bool,
 }
 
 impl std::fmt::Display for RefineStatus {
@@ -62,6 +65,9 @@ impl std::fmt::Display for RefineStatus {
             write!(f, "{s} (smooth stage), ")?;
         }
         f.write_str(self.main.as_str())?;
+        if self.stalled {
+            f.write_str(" (stalled)")?;
+        }
         if self.interrupted {
             f.write_str(" (interrupted)")?;
         }
@@ -98,6 +104,45 @@ struct Tracker {
     last_x: Vec<f64>,
     last_f: f64,
     best: Option<(Vec<f64>, f64)>,
+    /// Evaluations since the best feasible value last fell below `mark`.
+    stale: u32,
+    /// The best feasible value when `stale` was last reset.
+    mark: f64,
+}
+
+/// Relative fall of the best feasible value that counts as progress for
+/// `refine.patience`.
+const PROGRESS: f64 = 1e-4;
+
+impl Tracker {
+    fn new() -> Self {
+        Tracker {
+            last_x: Vec::new(),
+            last_f: f64::INFINITY,
+            best: None,
+            stale: 0,
+            mark: f64::INFINITY,
+        }
+    }
+
+    /// Keeps (x, f) if it is the best feasible point so far.
+    fn offer(&mut self, x: &[f64], f: f64) {
+        if f.is_finite() && self.best.as_ref().is_none_or(|b| f < b.1) {
+            self.best = Some((x.to_vec(), f));
+            if f < self.mark - PROGRESS * self.mark.abs() || !self.mark.is_finite() {
+                self.mark = f;
+                self.stale = 0;
+            }
+        }
+    }
+
+    /// Sets `halt` once `patience` (> 0) evaluations passed without
+    /// progress (each evaluation counted before its point is offered).
+    fn check(&self, patience: u32, halt: &Cell<bool>) {
+        if patience > 0 && self.stale >= patience {
+            halt.set(true);
+        }
+    }
 }
 
 /// The settings of a refinement as the stages see them.
@@ -108,8 +153,9 @@ struct Bounds<'a> {
     ctl: &'a Control,
 }
 
-/// (last iterate, best feasible point and its value, nlopt status, evaluations).
-type StageResult = (Vec<f64>, Option<(Vec<f64>, f64)>, NloptWord, u64);
+/// (last iterate, best feasible point and its value, nlopt status,
+/// evaluations, ended for want of progress).
+type StageResult = (Vec<f64>, Option<(Vec<f64>, f64)>, NloptWord, u64, bool);
 
 /// One nlopt run from x0 on the plain form `form` of the criterion:
 /// returns (last iterate, best feasible point met with its tracked value,
@@ -120,11 +166,9 @@ type StageResult = (Vec<f64>, Option<(Vec<f64>, f64)>, NloptWord, u64);
 fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, form: Plain, max_evals: u32) -> StageResult {
     let nv = x0.len();
     let m = cons.len();
-    let tracker = RefCell::new(Tracker {
-        last_x: Vec::new(),
-        last_f: f64::INFINITY,
-        best: None,
-    });
+    let tracker = RefCell::new(Tracker::new());
+    let halt = Cell::new(false);
+    let patience = b.spec.patience;
     // SLSQP asks for the objective and then the constraints at the same
     // point, both with gradients: the objective's callback computes the
     // constraints beside it (rayon::join: the two parallel workloads share
@@ -156,12 +200,14 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, form: Plai
         t.last_x.clear();
         t.last_x.extend_from_slice(x);
         t.last_f = j;
-        if m == 0 && j.is_finite() && t.best.as_ref().is_none_or(|b| j < b.1) {
-            t.best = Some((x.to_vec(), j));
+        t.stale = t.stale.saturating_add(1);
+        if m == 0 {
+            t.offer(x, j);
+            t.check(patience, &halt);
         }
         v
     };
-    let pb = problem(b.spec, b.lower.to_vec(), b.upper.to_vec(), max_evals, b.ctl);
+    let pb = problem(b.spec, b.lower.to_vec(), b.upper.to_vec(), max_evals, b.ctl, &halt);
     let mut x = x0.to_vec();
     let run = if m > 0 {
         let c_cb = |res: &mut [f64], x: &[f64], grad: Option<&mut [f64]>, cw: &mut super::constraints::ConstraintWorkspace| {
@@ -179,19 +225,18 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, form: Plai
             res.iter_mut().for_each(|v| *v += 2.0 * TOL);
             let feasible = res.iter().all(|v| *v <= TOL);
             let mut t = tracker.borrow_mut();
-            if feasible && t.last_x.as_slice() == x && t.last_f.is_finite() {
+            if feasible && t.last_x.as_slice() == x {
                 let f = t.last_f;
-                if t.best.as_ref().is_none_or(|b| f < b.1) {
-                    t.best = Some((x.to_vec(), f));
-                }
+                t.offer(x, f);
             }
+            t.check(patience, &halt);
         };
         pb.minimise_constrained(&mut x, f_cb, obj.workspace(), m, TOL, c_cb, cons.workspace())
     } else {
         pb.minimise(&mut x, f_cb, obj.workspace())
     };
     let t = tracker.into_inner();
-    (x, t.best, run.status, run.evaluations)
+    (x, t.best, run.status, run.evaluations, halt.get())
 }
 
 /// The constraints computed beside the objective at its last point
@@ -235,17 +280,15 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, e
     };
     let j0 = e.bundle(obj, x0, &mut buf.ow, &mut buf.vals, None);
     ctl.count(1);
-    let tracker = RefCell::new(Tracker {
-        last_x: Vec::new(),
-        last_f: f64::INFINITY,
-        best: None,
-    });
+    let tracker = RefCell::new(Tracker::new());
+    let halt = Cell::new(false);
+    let patience = b.spec.patience;
     if !j0.is_finite() {
-        return (x0.to_vec(), None, NloptWord::Failure, 1);
+        return (x0.to_vec(), None, NloptWord::Failure, 1, false);
     }
     cons.eval(x0, &mut buf.cw, &mut buf.c, None);
     if buf.c.iter().all(|v| *v + 2.0 * TOL <= TOL) {
-        tracker.borrow_mut().best = Some((x0.to_vec(), j0));
+        tracker.borrow_mut().offer(x0, j0);
     }
     let mut z = x0.to_vec();
     z.extend(e.start(&buf.vals));
@@ -266,7 +309,7 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, e
     lower.extend(lo);
     upper.extend(hi);
     // the constraints evaluate the criterion: their calls are the evaluations
-    let pb = problem(b.spec, lower, upper, max_evals, ctl).count_constraint_calls();
+    let pb = problem(b.spec, lower, upper, max_evals, ctl, &halt).count_constraint_calls();
     let c_cb = |res: &mut [f64], z: &[f64], grad: Option<&mut [f64]>, eb: &mut EpiBuffers| {
         let x = &z[..nv];
         let want = grad.is_some();
@@ -302,15 +345,17 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, e
         t.last_x.clear();
         t.last_x.extend_from_slice(x);
         t.last_f = j;
-        if feasible && j.is_finite() && t.best.as_ref().is_none_or(|b| j < b.1) {
-            t.best = Some((x.to_vec(), j));
+        t.stale = t.stale.saturating_add(1);
+        if feasible {
+            t.offer(x, j);
         }
+        t.check(patience, &halt);
     };
     let run = pb.minimise_constrained(&mut z, f_cb, (), mc + nt, TOL, c_cb, buf);
     let t = tracker.into_inner();
     z.truncate(nv);
     // the start's evaluation and the constraint calls
-    (z, t.best, run.status, 1 + run.evaluations)
+    (z, t.best, run.status, 1 + run.evaluations, halt.get())
 }
 
 /// Refines `x0` (see the module docs) on the objective's forms
@@ -337,19 +382,22 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], spec: &RefineSpec
     let mut evals = 0;
     let mut x_start = x0.to_vec();
     let mut status_soft = None;
+    let mut stalled = false;
     if let Some(first) = forms.first {
         let budget = (s.max_evals as f64 * 0.6) as u32;
-        let (last, best, st, ev) = stage(obj, cons, x0, &b, first, budget);
+        let (last, best, st, ev, halted) = stage(obj, cons, x0, &b, first, budget);
         evals += ev;
+        stalled |= halted;
         status_soft = Some(st);
         x_start = best.map(|b| b.0).unwrap_or(last);
     }
     let left = s.max_evals.saturating_sub(evals as u32).max(1);
-    let (mut x, mut best, status, ev) = match &forms.main {
+    let (mut x, mut best, status, ev, halted) = match &forms.main {
         Form::Epigraph(e) => stage_epigraph(obj, cons, &x_start, &b, e, left),
         Form::Plain(p) => stage(obj, cons, &x_start, &b, *p, left),
     };
     evals += ev;
+    stalled |= halted;
     if s.polish > 0 && s.algorithm == RefineAlgorithm::Slsqp && !ctl.should_stop() {
         // MMA from where SLSQP ended (module docs of RefineSpec::polish)
         let mma = RefineSpec {
@@ -357,7 +405,7 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], spec: &RefineSpec
             ..s.clone()
         };
         let bm = Bounds { spec: &mma, lower, upper, ctl };
-        let (xm, bestm, _, evm) = stage(obj, cons, &x, &bm, Plain::Direct, s.polish);
+        let (xm, bestm, _, evm, _) = stage(obj, cons, &x, &bm, Plain::Direct, s.polish);
         evals += evm;
         if let Some((bx, bf)) = bestm {
             if best.as_ref().is_none_or(|b| bf < b.1) {
@@ -371,6 +419,7 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], spec: &RefineSpec
         smooth: status_soft,
         main: status,
         interrupted: ctl.interrupted(),
+        stalled,
     };
     // final candidate: the best feasible point met, else the last iterate
     let mut cw = cons.workspace();
@@ -408,4 +457,33 @@ pub fn perturb(x: &[f64], lower: &[f64], upper: &[f64], scale: f64, seed: u64) -
             (v + r * scale * 0.5 * (hi - lo)).clamp(lo, hi)
         })
         .collect()
+}
+
+/// As [`perturb`], but only the variables of `k` joints move (`k` > 0 and
+/// less than the number of joints): the joints are drawn without
+/// replacement by ChaCha8 seeded with `seed`, each variable in
+/// `joint_vars(j)` of a drawn joint moved as in [`perturb`] (its own stream
+/// seeded with `seed`), the others kept. `k` = 0 or ≥ the number of joints:
+/// [`perturb`] itself.
+pub fn perturb_joints(x: &[f64], lower: &[f64], upper: &[f64], scale: f64, seed: u64, k: usize, joint_vars: &[std::ops::Range<usize>]) -> Vec<f64> {
+    use rand::{RngExt, SeedableRng};
+    let n = joint_vars.len();
+    if k == 0 || k >= n {
+        return perturb(x, lower, upper, scale, seed);
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x9e37_79b9_7f4a_7c15);
+    // a partial Fisher-Yates shuffle: the first k of `order` are the drawn joints
+    let mut order: Vec<usize> = (0..n).collect();
+    for i in 0..k {
+        let j = rng.random_range(i..n);
+        order.swap(i, j);
+    }
+    let moved = perturb(x, lower, upper, scale, seed);
+    let mut y = x.to_vec();
+    for &j in &order[..k] {
+        for v in joint_vars[j].clone() {
+            y[v] = moved[v];
+        }
+    }
+    y
 }

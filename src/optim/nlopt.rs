@@ -90,6 +90,7 @@ pub struct Problem<'c> {
     ftol_rel: Option<f64>,
     counted: Counted,
     ctl: &'c Control,
+    halt: Option<&'c Cell<bool>>,
 }
 
 /// How one nlopt run ended.
@@ -115,6 +116,7 @@ impl<'c> Problem<'c> {
             ftol_rel: None,
             counted: Counted::Objective,
             ctl,
+            halt: None,
         }
     }
     /// nlopt's own evaluation budget (`maxeval`, at least 1).
@@ -130,6 +132,13 @@ impl<'c> Problem<'c> {
     /// Relative tolerance on the objective (`ftol_rel`; ignored unless positive).
     pub fn ftol_rel(mut self, tol: f64) -> Self {
         self.ftol_rel = (tol > 0.0).then_some(tol);
+        self
+    }
+    /// Ends the run as a stop request of the control does (flat callbacks,
+    /// nothing more evaluated or counted) once `flag` is set, e.g. by the
+    /// callbacks themselves when the run stopped making progress.
+    pub fn halt_on(mut self, flag: &'c Cell<bool>) -> Self {
+        self.halt = Some(flag);
         self
     }
     /// Counts the constraint callback's calls as the evaluations instead of
@@ -168,6 +177,8 @@ impl<'c> Problem<'c> {
         C: Fn(&mut [f64], &[f64], Option<&mut [f64]>, &mut V),
     {
         let ctl = self.ctl;
+        let halt = self.halt;
+        let stop = move || ctl.should_stop() || halt.is_some_and(Cell::get);
         let evals = Cell::new(0u64);
         let last = Cell::new(STOPPED_F);
         let count = |which: Counted| {
@@ -178,13 +189,13 @@ impl<'c> Problem<'c> {
         };
         let f_cb = |x: &[f64], grad: Option<&mut [f64]>, u: &mut U| -> f64 {
             let mut grad = grad;
-            if ctl.should_stop() {
+            if stop() {
                 zero(grad);
                 return last.get();
             }
             let v = f(x, grad.as_deref_mut(), u);
             count(Counted::Objective);
-            if ctl.should_stop() {
+            if stop() {
                 zero(grad);
             }
             last.set(v);
@@ -208,14 +219,14 @@ impl<'c> Problem<'c> {
         if let Some((m, tol, c, cdata)) = cons {
             let c_cb = move |res: &mut [f64], x: &[f64], grad: Option<&mut [f64]>, v: &mut V| {
                 let mut grad = grad;
-                if ctl.should_stop() {
+                if stop() {
                     res.iter_mut().for_each(|r| *r = -1.0);
                     zero(grad);
                     return;
                 }
                 c(res, x, grad.as_deref_mut(), v);
                 count(Counted::Constraints);
-                if ctl.should_stop() {
+                if stop() {
                     zero(grad);
                 }
             };
