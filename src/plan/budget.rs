@@ -24,7 +24,7 @@
 //! integer vectors within ±window of the relaxed r* there and within the
 //! budget (⌊r*⌋ always is) are enumerated and the smallest worst ratio kept.
 
-use super::solve::{relax, round, Prepared, Relaxed, ENUMERATION_LIMIT};
+use super::solve::{next_in_box, relax, round, Prepared, Relaxed, ENUMERATION_LIMIT};
 use crate::error::{Error, Result};
 use crate::optim::conic::ConicStatus;
 use crate::optim::Control;
@@ -277,17 +277,8 @@ fn best_integer_within(p: &Prepared, r: &[f64], budget: f64, window: usize) -> (
                         best = (cur.clone(), ratio);
                     }
                 }
-                let mut k = 0;
-                loop {
-                    if k == ne {
-                        return (best.0, best.1, evaluated);
-                    }
-                    if cur[k] < hi[k] {
-                        cur[k] += 1;
-                        break;
-                    }
-                    cur[k] = lo[k];
-                    k += 1;
+                if !next_in_box(&mut cur, &lo, &hi) {
+                    return (best.0, best.1, evaluated);
                 }
             }
         }

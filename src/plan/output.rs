@@ -371,14 +371,19 @@ pub fn report_text(run: &PlanRun) -> String {
     if let Some(w) = &sol.within_budget {
         let _ = writeln!(
             s,
-            "\nOVER BUDGET: the cheapest plan meeting every target needs {:.1} s, the budget is {:.1} s (the relaxed bound {:.1} s is above it too: {}).",
+            "\nOVER BUDGET: the cheapest plan meeting every target needs {:.1} s, the budget is {:.1} s; {}.",
             sol.cost,
             sol.budget.unwrap_or(f64::NAN),
-            sol.relaxed_cost,
             if sol.relaxed_cost > sol.budget.unwrap_or(f64::INFINITY) {
-                "certain"
+                format!(
+                    "no plan meeting every target fits (the relaxed bound, {:.1} s, is above the budget too)",
+                    sol.relaxed_cost
+                )
             } else {
-                "no, only the integer plan exceeds it"
+                format!(
+                    "the relaxed bound, {:.1} s, is within it, but no whole-repetition plan found fits",
+                    sol.relaxed_cost
+                )
             }
         );
         let _ = writeln!(

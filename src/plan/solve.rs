@@ -702,18 +702,8 @@ pub fn round(pre: &Prepared, r: &[f64], window: usize) -> (Vec<usize>, String, u
                         best_ratio = ratio;
                     }
                 }
-                // next vector
-                let mut k = 0;
-                loop {
-                    if k == ne {
-                        return (best, format!("every integer vector within ±{window} of r* ({c} vectors)"), evaluated);
-                    }
-                    if cur[k] < hi[k] {
-                        cur[k] += 1;
-                        break;
-                    }
-                    cur[k] = lo[k];
-                    k += 1;
+                if !next_in_box(&mut cur, &lo, &hi) {
+                    return (best, format!("every integer vector within ±{window} of r* ({c} vectors)"), evaluated);
                 }
             }
         }
@@ -739,6 +729,19 @@ pub fn round(pre: &Prepared, r: &[f64], window: usize) -> (Vec<usize>, String, u
             }
         }
     }
+}
+
+/// Steps `cur` to the next integer vector of the box [lo, hi] (the first
+/// coordinate fastest); false after the last.
+pub fn next_in_box(cur: &mut [usize], lo: &[usize], hi: &[usize]) -> bool {
+    for k in 0..cur.len() {
+        if cur[k] < hi[k] {
+            cur[k] += 1;
+            return true;
+        }
+        cur[k] = lo[k];
+    }
+    false
 }
 
 /// σ of every coordinate of the plan's space, and of every base parameter, for repetitions `r`.
