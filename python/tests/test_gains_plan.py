@@ -98,7 +98,7 @@ def test_plan_setup_budget_and_noise_from_a_study_from_python(tmp_path):
     d = {"robot": str(ROOT / "tests/data/ident/rpr_drives.toml"),
          "experiment": [{"name": "a", "simulate": str(DESIGNS / "sim_rpr_fourier.toml"), "cost": 14.0,
                          "setup": 30.0, "identify": {"harmonics": 20}, "noise": {"from": str(est)}}],
-         "target": [{"parameter": "MX3R", "relative": 0.0005}]}
+         "target": [{"parameter": "MX3R", "relative": 0.002}]}
     pl = idexp.plan(d, base_dir=str(DESIGNS))
     assert pl.status == "planned", pl.text()
     sigma, source = pl.sigma[0]
