@@ -408,6 +408,12 @@ impl BaseParams {
         DMatrix::from_fn(w.nrows(), self.n_base(), |i, j| w[(i, self.independent[j])])
     }
 
+    /// The SI unit of base parameter `k`: its kept standard parameter's
+    /// ([`unit`]; a grouping adds only terms of the same unit).
+    pub fn unit(&self, robot: &Robot, k: usize) -> &'static str {
+        unit(robot, self.independent[k])
+    }
+
     /// One standard parameter vector that has the given base values (the
     /// minimum-norm one on the dependent parameters: they are set to zero).
     pub fn standard_from_base(&self, base: &[f64]) -> DVector<f64> {
@@ -458,4 +464,36 @@ fn fmt_coef(a: f64) -> String {
     } else {
         s
     }
+}
+
+/// The SI unit of a parameter of kind `kind` on a joint of kind `joint`:
+/// kg·m² (inertias), kg·m (first moments), kg (mass); the drive's rotor
+/// inertia, friction and offsets in kg·m², N·m, N·m·s/rad on a revolute joint
+/// and kg, N, N·s/m on a prismatic one.
+pub fn unit_of(kind: ParamKind, joint: crate::robot::JointKind) -> &'static str {
+    use ParamKind::*;
+    let prismatic = joint == crate::robot::JointKind::Prismatic;
+    match kind {
+        XX | XY | XZ | YY | YZ | ZZ => "kg·m²",
+        MX | MY | MZ => "kg·m",
+        M => "kg",
+        Ia if prismatic => "kg",
+        Ia => "kg·m²",
+        Fv | FvPos | FvNeg if prismatic => "N·s/m",
+        Fv | FvPos | FvNeg => "N·m·s/rad",
+        Fc | F0 | FcPos | FcNeg | Fs | FsPos | FsNeg if prismatic => "N",
+        Fc | F0 | FcPos | FcNeg | Fs | FsPos | FsNeg => "N·m",
+    }
+}
+
+/// The SI unit of standard parameter `j` of `robot` ([`unit_of`]; a drive
+/// parameter takes its joint's kind).
+pub fn unit(robot: &Robot, j: usize) -> &'static str {
+    let p = &robot.params()[j];
+    let joint = if p.kind.is_inertial() {
+        crate::robot::JointKind::Revolute
+    } else {
+        robot.joints[p.joint].kind
+    };
+    unit_of(p.kind, joint)
 }

@@ -18,7 +18,7 @@ pub struct Plan {
 
 #[pymethods]
 impl Plan {
-    /// `planned`, `unreachable`, `interrupted` or `failed`.
+    /// `planned`, `unreachable`, `over_budget`, `interrupted` or `failed`.
     #[getter]
     fn status(&self) -> &'static str {
         self.inner.solution.status.name()
@@ -47,6 +47,22 @@ impl Plan {
     #[getter]
     fn values(&self) -> Vec<f64> {
         self.inner.solution.values.clone()
+    }
+    /// σ per joint of one repetition of each candidate (N·m), and where it comes from.
+    #[getter]
+    fn sigma(&self) -> Vec<(Vec<f64>, String)> {
+        self.inner.model.candidates.iter().map(|c| (c.sigma.clone(), c.noise_source.clone())).collect()
+    }
+    /// The total robot time available (s), or None.
+    #[getter]
+    fn budget(&self) -> Option<f64> {
+        self.inner.solution.budget
+    }
+    /// `over_budget`: the best plan within the budget (repetitions, cost,
+    /// values, worst_ratio, lower_bound, missed targets), else None.
+    #[getter]
+    fn within_budget<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_dict(py, &self.inner.solution.within_budget)
     }
     /// The unreachable targets (label, reason, best reachable value, bound).
     #[getter]

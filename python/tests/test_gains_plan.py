@@ -88,3 +88,32 @@ def test_plan_from_python_equals_the_command_line(tmp_path):
          "target": [{"parameter": "MX3R", "relative": 1e-9}]}
     bad = idexp.plan(d, base_dir=str(DESIGNS))
     assert bad.status == "unreachable" and bad.refused and bad.refused[0]["reason"]
+
+
+def test_plan_setup_budget_and_noise_from_a_study_from_python(tmp_path):
+    # σ from a (hand-written) study estimate: σ·√n_reps per joint
+    est = tmp_path / "estimate.json"
+    est.write_text(json.dumps({"experiments": [
+        {"name": "a", "n_reps": 4, "sigma": [0.5, 3.5, 0.04], "weights": ["residual"] * 3}]}))
+    d = {"robot": str(ROOT / "tests/data/ident/rpr_drives.toml"),
+         "experiment": [{"name": "a", "simulate": str(DESIGNS / "sim_rpr_fourier.toml"), "cost": 14.0,
+                         "setup": 30.0, "identify": {"harmonics": 20}, "noise": {"from": str(est)}}],
+         "target": [{"parameter": "MX3R", "relative": 0.002}]}
+    pl = idexp.plan(d, base_dir=str(DESIGNS))
+    assert pl.status == "planned", pl.text()
+    sigma, source = pl.sigma[0]
+    assert sigma == [1.0, 7.0, 0.08] and "estimate.json" in source
+    # the setup is paid once
+    assert pl.cost == 14.0 * pl.repetitions[0] + 30.0 and pl.repetitions[0] >= 2
+    # a budget below it: over_budget, the best plan within it, the target it misses
+    d["budget"] = pl.cost - 14.0
+    over = idexp.plan(d, base_dir=str(DESIGNS))
+    assert over.status == "over_budget" and over.budget == pl.cost - 14.0
+    w = over.within_budget
+    assert w["repetitions"] == [pl.repetitions[0] - 1] and w["cost"] <= over.budget
+    assert w["missed"][0]["label"] == "σ(MX3R)" and w["missed"][0]["ratio"] > 1.0
+    assert "OVER BUDGET" in over.text()
+    # a bad file names the file and the field
+    est.write_text(json.dumps({"experiments": [{"name": "a", "n_reps": 1, "sigma": [0.5, 3.5]}]}))
+    with pytest.raises(Exception, match=r"estimate\.json.*experiments\[0\]\.sigma"):
+        idexp.plan(d, base_dir=str(DESIGNS))

@@ -6,13 +6,16 @@
 //! robot = "robots/rpr.toml"                # relative to this file
 //! max_repetitions = 100                    # per experiment, unless the experiment says otherwise
 //! margin = 0.03                           # plan every target at bound / (1 + margin) (the study's σ has its own sampling error)
+//! # budget = 28800                         # optional: total robot time available (s); a cheapest plan above it ends `over_budget` with the best plan within it
 //!
 //! [[experiment]]                           # candidates: any number (at least one)
 //! name = "fourier_a"
 //! simulate = "sim_rpr_fourier.toml"        # a simulate design: the motion, its rate, controller and noise
 //! cost = 14.0                              # s per repetition: the motion plus lead-in/out and settling
+//! # setup = 600                            # s paid once if the experiment is used at all (mounting a payload, recalibration); default 0
 //! max_repetitions = 40
 //! # noise = 0.05                           # σ per joint of one repetition's torque rows (N·m; one value or a list); default: the study's residual σ on one simulated repetition
+//! # noise = { from = "../out/study_rpr/estimate.json", experiment = "fourier" }   # … or a finished study's residual σ per joint (× √its repetitions)
 //! identify = { harmonics = 20 }            # how the study will process it: the study's [[experiment]] keys (kind, filter, cutoff, harmonics, decimate, standstill, …) without files
 //!
 //! [consistent]                             # optional: the study's prior (its [consistent] table); metric euclidean, a numeric weight
@@ -56,6 +59,11 @@ pub struct PlanDesign {
     /// a bound meets it in about half of the rehearsal seeds.
     #[serde(default = "three_percent")]
     pub margin: f64,
+    /// Total robot time available (s): when the cheapest plan meeting every
+    /// target costs more, the plan ends `over_budget` with the best plan
+    /// within it (the smallest worst value/bound ratio).
+    #[serde(default)]
+    pub budget: Option<f64>,
     /// The candidate experiments.
     pub experiment: Vec<CandidateSpec>,
     /// The study's prior (its `[consistent]` table).
@@ -76,17 +84,59 @@ pub struct CandidateSpec {
     pub simulate: PathBuf,
     /// Seconds of robot time per repetition (lead-in/out and settling included).
     pub cost: f64,
+    /// Seconds paid once if the experiment is used at all (mounting a
+    /// payload, recalibration, moving the robot to the test rig).
+    #[serde(default)]
+    pub setup: f64,
     /// Largest repetitions (default: the plan's `max_repetitions`).
     #[serde(default)]
     pub max_repetitions: Option<usize>,
-    /// σ per joint of one repetition's torque rows (N·m); default: the
-    /// study's residual σ on one simulated repetition (sensor noise plus the
-    /// controller's reaction to position noise).
-    #[serde(default)]
-    pub noise: Option<PerJoint>,
+    /// σ per joint of one repetition's torque rows (N·m), given or read
+    /// from a finished study; default: the study's residual σ on one
+    /// simulated repetition (sensor noise plus the controller's reaction to
+    /// position noise).
+    #[serde(default, deserialize_with = "noise_keys")]
+    pub noise: Option<CandidateNoise>,
     /// How the study processes it: the study's `[[experiment]]` keys without `files`.
     #[serde(default, deserialize_with = "experiment_keys")]
     pub identify: Option<ExperimentSpec>,
+}
+
+/// A candidate's noise: σ per joint, or a finished study's estimate.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum CandidateNoise {
+    /// σ (N·m) for every joint, or one per joint.
+    Given(PerJoint),
+    /// The residual σ per joint of a finished study.
+    From(NoiseFrom),
+}
+
+/// `noise = { from = "…/estimate.json", experiment = "…" }`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NoiseFrom {
+    /// A study's estimate.json (relative to the plan file).
+    pub from: PathBuf,
+    /// Which of its experiments (default: the one named as the candidate, else its only one).
+    #[serde(default)]
+    pub experiment: Option<String>,
+}
+
+fn noise_keys<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Option<CandidateNoise>, D::Error> {
+    use serde::de::Error as _;
+    let v = toml::Value::deserialize(d)?;
+    match v {
+        toml::Value::Table(t) => t.try_into::<NoiseFrom>().map(|f| Some(CandidateNoise::From(f))).map_err(|e| {
+            D::Error::custom(format!(
+                "expected {{ from = \"<a study's estimate.json>\", experiment = \"<its name>\" (optional) }}: {e}"
+            ))
+        }),
+        other => other
+            .try_into::<PerJoint>()
+            .map(|p| Some(CandidateNoise::Given(p)))
+            .map_err(|_| D::Error::custom("expected σ (N·m): one number, a list of one per joint, or { from = \"<a study's estimate.json>\" }")),
+    }
 }
 
 /// One target.
@@ -109,6 +159,9 @@ pub struct TargetSpec {
     #[serde(default)]
     pub rms: Option<f64>,
 }
+
+/// Most candidates when any has a setup cost (2^n subsets are relaxed).
+pub const MAX_CANDIDATES_WITH_SETUP: usize = 12;
 
 fn hundred() -> usize {
     100
@@ -152,6 +205,25 @@ impl PlanDesign {
         if self.max_repetitions == 0 {
             return Err(Error::invalid(ctx, "max_repetitions", "expected at least 1"));
         }
+        if let Some(b) = self.budget {
+            if !(b.is_finite() && b > 0.0) {
+                return Err(Error::invalid(
+                    ctx,
+                    "budget",
+                    format!("expected a positive number of seconds of robot time, got {b}"),
+                ));
+            }
+        }
+        if self.experiment.len() > MAX_CANDIDATES_WITH_SETUP && self.experiment.iter().any(|e| e.setup != 0.0) {
+            return Err(Error::invalid(
+                ctx,
+                "setup",
+                format!(
+                    "setup costs make the plan enumerate the subsets of used experiments: at most {MAX_CANDIDATES_WITH_SETUP} candidates with setup costs, got {}",
+                    self.experiment.len()
+                ),
+            ));
+        }
         for (i, e) in self.experiment.iter().enumerate() {
             let at = format!("{ctx}: experiment {} ({})", i + 1, e.name);
             if e.name.is_empty() {
@@ -167,10 +239,17 @@ impl PlanDesign {
                     format!("expected a positive number of seconds per repetition, got {}", e.cost),
                 ));
             }
+            if !(e.setup.is_finite() && e.setup >= 0.0) {
+                return Err(Error::invalid(
+                    &at,
+                    "setup",
+                    format!("expected seconds ≥ 0 paid once if the experiment is used, got {}", e.setup),
+                ));
+            }
             if e.max_repetitions == Some(0) {
                 return Err(Error::invalid(&at, "max_repetitions", "expected at least 1"));
             }
-            if let Some(n) = &e.noise {
+            if let Some(CandidateNoise::Given(n)) = &e.noise {
                 n.check(&at, "noise")?;
             }
         }

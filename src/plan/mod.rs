@@ -9,7 +9,8 @@
 //! 2. [`solve`]: the convex relaxation (a Schur-complement LMI, solved by
 //!    supporting hyperplanes as LPs on Clarabel), its rounding by
 //!    enumeration, the refusal of unreachable targets with the reason and
-//!    the best value;
+//!    the best value; with setup costs over the subsets of used experiments, and the best
+//!    plan within a total-time budget ([`budget`]);
 //! 3. [`rehearse`](mod@rehearse): the plan simulated with many noise seeds and identified
 //!    by the study engine, the achieved σ and errors beside the prediction;
 //! 4. [`output`]: the folder (plan.json, report.txt, plan.csv, params.csv,
@@ -17,13 +18,15 @@
 //!
 //! The formulas and a worked example: docs/plan.md.
 
+pub mod budget;
 pub mod design;
 pub mod model;
 pub mod output;
 pub mod rehearse;
 pub mod solve;
 
-pub use design::{CandidateSpec, PlanDesign, TargetSpec};
+pub use budget::{Miss, WithinBudget};
+pub use design::{CandidateNoise, CandidateSpec, NoiseFrom, PlanDesign, TargetSpec};
 pub use model::{build, Candidate, Model, Space, Target, TargetKind, Task};
 pub use rehearse::{rehearse, Rehearsal};
 pub use solve::{plan, PlanStatus, Prepared, Refusal, Solution};

@@ -27,7 +27,7 @@
 //! else 1): Φ(r) = Kᵀ(Σ r_e F_e)K + Λ, Λ = diag(w u_j / s_j²), the posterior
 //! information (active consistency constraints are not modelled).
 
-use super::design::{CandidateSpec, PlanDesign, TargetSpec};
+use super::design::{CandidateNoise, CandidateSpec, PlanDesign, TargetSpec};
 use crate::error::{Error, Result};
 use crate::ident::study::{load_entry_with, EntryOptions, ExperimentSpec, Given, Prior, UnknownRule, UnknownSpec, WeightSpec};
 use crate::ident::{Method, Run};
@@ -56,6 +56,8 @@ pub struct Candidate {
     pub name: String,
     /// Seconds per repetition.
     pub cost: f64,
+    /// Seconds paid once if it is used at all.
+    pub setup: f64,
     /// Largest repetitions.
     pub max_repetitions: usize,
     /// σ per joint of one repetition's torque rows (N·m): the equation error the study sees.
@@ -156,6 +158,8 @@ pub struct Model {
     pub notes: Vec<String>,
     /// Targets are planned at bound / (1 + margin).
     pub margin: f64,
+    /// Total robot time available (s), if any.
+    pub budget: Option<f64>,
 }
 
 impl Model {
@@ -213,6 +217,9 @@ pub fn simulate(
     Ok((setup.run(ctl)?, d))
 }
 
+/// [`Candidate::noise_source`] of the default: σ from the study's residuals on one simulated repetition.
+pub const SIMULATED_NOISE: &str = "the residuals of one simulated repetition";
+
 /// The effective noise per joint of one repetition: the study's own
 /// residual σ (per joint, [`crate::ident::study::ExperimentReport::sigma`])
 /// when it identifies one simulated repetition (the design's seed and truth,
@@ -232,6 +239,101 @@ fn effective_sigma(robot: &Robot, design: &PlanDesign, c: &CandidateSpec, path: 
     let quiet = Control::new().with_stop(ctl.stop_flag().clone());
     let r = crate::ident::study::run_study_with(&study, dir, &inputs, &quiet)?;
     Ok(r.estimate.experiments[0].sigma.clone())
+}
+
+/// σ per joint of one repetition from a finished study's estimate.json:
+/// `experiments[k].sigma` (the residual σ per joint of its averaged rows,
+/// the torque noise its weights stand for) × √`experiments[k].n_reps` (the
+/// study averages its repetitions sample by sample). Experiment k is
+/// `experiment`, else the one named `candidate`, else the only one. A joint
+/// without rows there (`weights` `no_rows`) keeps σ = 0 (an error later if
+/// the candidate has rows on it); every other σ must be positive. Also
+/// returns where σ comes from, for the report.
+pub fn sigma_from_estimate(file: &Path, experiment: Option<&str>, candidate: &str, n: usize) -> Result<(Vec<f64>, String)> {
+    let ctx = file.display().to_string();
+    let v: serde_json::Value = serde_json::from_str(&crate::io::read_to_string(file)?)
+        .map_err(|e| Error::invalid(&ctx, "", format!("not JSON ({e}): expected a study's estimate.json (`idexp study` writes it)")))?;
+    let exps = v.get("experiments").and_then(|x| x.as_array()).ok_or_else(|| {
+        Error::invalid(
+            &ctx,
+            "experiments",
+            "missing: expected a study's estimate.json (`idexp study` writes it), with an `experiments` list",
+        )
+    })?;
+    let name_of = |e: &serde_json::Value| e.get("name").and_then(|x| x.as_str()).unwrap_or("").to_string();
+    let names: Vec<String> = exps.iter().map(name_of).collect();
+    let k = match experiment {
+        Some(want) => names
+            .iter()
+            .position(|x| x == want)
+            .ok_or_else(|| Error::invalid(&ctx, "experiments", format!("no experiment named `{want}` (it has: {})", names.join(", "))))?,
+        None => match names.iter().position(|x| x == candidate) {
+            Some(k) => k,
+            None if names.len() == 1 => 0,
+            None => {
+                return Err(Error::invalid(
+                    &ctx,
+                    "experiments",
+                    format!(
+                        "{} experiments ({}) and none named `{candidate}`: say which, noise = {{ from = \"…\", experiment = \"<name>\" }}",
+                        names.len(),
+                        names.join(", ")
+                    ),
+                ))
+            }
+        },
+    };
+    let e = &exps[k];
+    let field = |f: &str| format!("experiments[{k}].{f}");
+    let sigma: Vec<f64> = e
+        .get("sigma")
+        .and_then(|x| x.as_array())
+        .ok_or_else(|| Error::invalid(&ctx, field("sigma"), "missing: expected the residual σ per joint (N·m)"))?
+        .iter()
+        .map(|x| x.as_f64().unwrap_or(f64::NAN))
+        .collect();
+    if sigma.len() != n {
+        return Err(Error::invalid(
+            &ctx,
+            field("sigma"),
+            format!("has {} values, the plan's robot has {n} joints: a study of another robot?", sigma.len()),
+        ));
+    }
+    let weights: Vec<String> = e
+        .get("weights")
+        .and_then(|x| x.as_array())
+        .map(|a| a.iter().map(|w| w.as_str().unwrap_or("").to_string()).collect())
+        .unwrap_or_default();
+    if let Some(j) = weights.iter().position(|w| w == "unit") {
+        return Err(Error::invalid(
+            &ctx,
+            field(&format!("weights[{j}]")),
+            "`unit`: the study used ordinary least squares, its σ is not a noise estimate; plan from a weighted study (weights = \"auto\" or \"residuals\")",
+        ));
+    }
+    let reps = e
+        .get("n_reps")
+        .and_then(|x| x.as_u64())
+        .filter(|&r| r >= 1)
+        .ok_or_else(|| Error::invalid(&ctx, field("n_reps"), "missing or below 1: expected the study's number of averaged repetitions"))?;
+    for (j, &s) in sigma.iter().enumerate() {
+        let no_rows = weights.get(j).is_some_and(|w| w == "no_rows");
+        if !(s.is_finite() && (s > 0.0 || (no_rows && s == 0.0))) {
+            return Err(Error::invalid(
+                &ctx,
+                field(&format!("sigma[{j}]")),
+                format!("σ of joint {} is {s}: expected a positive number of N·m", j + 1),
+            ));
+        }
+    }
+    let f = (reps as f64).sqrt();
+    Ok((
+        sigma.iter().map(|s| s * f).collect(),
+        format!(
+            "{ctx} experiments[{k}] (`{}`): the study's residual σ of {reps} averaged repetition(s) × √{reps}",
+            names[k]
+        ),
+    ))
 }
 
 /// The study's in-memory form of a simulated run.
@@ -275,11 +377,15 @@ pub fn build(design: &PlanDesign, dir: &Path, ctl: &Control) -> Result<Model> {
         let path = crate::io::path_in(&at, dir, "simulate", &c.simulate)?;
         let d = SimDesign::read(&path)?;
         let (sigma, noise_source) = match &c.noise {
-            Some(p) => (p.resolve(n, &at, "noise")?, "given".to_string()),
+            Some(CandidateNoise::Given(p)) => (p.resolve(n, &at, "noise")?, "given".to_string()),
+            Some(CandidateNoise::From(f)) => {
+                let file = crate::io::path_in(&at, dir, "noise.from", &f.from)?;
+                sigma_from_estimate(&file, f.experiment.as_deref(), &c.name, n)?
+            }
             None => (
                 effective_sigma(&robot, design, c, &path, dir, ctl)
                     .map_err(|e| Error::invalid(&at, "noise", format!("cannot estimate the effective noise from one simulated repetition: {e}")))?,
-                "the residuals of one simulated repetition".to_string(),
+                SIMULATED_NOISE.to_string(),
             ),
         };
         if d.robot.file_name() != design.robot.file_name() {
@@ -313,6 +419,7 @@ pub fn build(design: &PlanDesign, dir: &Path, ctl: &Control) -> Result<Model> {
         candidates.push(Candidate {
             name: c.name.clone(),
             cost: c.cost,
+            setup: c.setup,
             max_repetitions: c.max_repetitions.unwrap_or(design.max_repetitions),
             sigma,
             noise_source,
@@ -373,6 +480,7 @@ pub fn build(design: &PlanDesign, dir: &Path, ctl: &Control) -> Result<Model> {
         prior,
         notes,
         margin: design.margin,
+        budget: design.budget,
     })
 }
 

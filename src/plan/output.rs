@@ -36,6 +36,10 @@ fn state_of(run: &PlanRun) -> (RunState, &'static str) {
     match run.solution.status {
         PlanStatus::Planned => (RunState::Complete, "every target met"),
         PlanStatus::Unreachable => (RunState::Infeasible, "some targets cannot be met by any combination (report.txt says why)"),
+        PlanStatus::OverBudget => (
+            RunState::Infeasible,
+            "every target can be met, but not within the budget (report.txt gives the best plan within it and the targets it misses)",
+        ),
         PlanStatus::Interrupted => (RunState::Interrupted, "stopped before the relaxation finished"),
         PlanStatus::Failed => (RunState::Failed, "the relaxation failed"),
     }
@@ -67,18 +71,20 @@ pub fn write_outputs(run: &PlanRun, out: &Path, started: Option<SystemTime>) -> 
     crate::io::write_json(&out.join("plan.json"), &j)?;
     crate::io::write_atomic(&out.join("report.txt"), report_text(run).as_bytes())?;
     // plan.csv
-    let mut s = String::from("experiment,repetitions,relaxed,cost_per_repetition,cost,max_repetitions,rows_per_repetition\n");
+    let mut s = String::from("experiment,repetitions,relaxed,cost_per_repetition,setup,cost,max_repetitions,rows_per_repetition,within_budget_repetitions\n");
     for (e, c) in model.candidates.iter().enumerate() {
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{}",
             c.name,
             sol.repetitions[e],
             crate::io::format_f64(sol.relaxed[e]),
             crate::io::format_f64(c.cost),
-            crate::io::format_f64(c.cost * sol.repetitions[e] as f64),
+            crate::io::format_f64(c.setup),
+            crate::io::format_f64(time_of(c, sol.repetitions[e])),
             c.max_repetitions,
-            c.rows
+            c.rows,
+            sol.within_budget.as_ref().map_or(String::new(), |w| w.repetitions[e].to_string())
         );
     }
     crate::io::write_atomic(&out.join("plan.csv"), s.as_bytes())?;
@@ -128,7 +134,7 @@ pub fn write_outputs(run: &PlanRun, out: &Path, started: Option<SystemTime>) -> 
         );
     }
     crate::io::write_atomic(&out.join("targets.csv"), s.as_bytes())?;
-    if sol.status == PlanStatus::Planned {
+    if matches!(sol.status, PlanStatus::Planned | PlanStatus::OverBudget) {
         write_curves(run, &pre, &out.join("sigma_vs_repetitions"))?;
     }
     let (state, words) = state_of(run);
@@ -139,7 +145,7 @@ pub fn write_outputs(run: &PlanRun, out: &Path, started: Option<SystemTime>) -> 
         words,
         started,
         fp,
-        serde_json::json!({ "cost": sol.cost, "relaxed_cost": sol.relaxed_cost, "repetitions": sol.repetitions, "refused": sol.refused.len() }),
+        serde_json::json!({ "cost": sol.cost, "relaxed_cost": sol.relaxed_cost, "repetitions": sol.repetitions, "refused": sol.refused.len(), "budget": sol.budget }),
     )
 }
 
@@ -167,7 +173,7 @@ fn write_curves(run: &PlanRun, pre: &Prepared, dir: &Path) -> Result<()> {
         series.push(Series::points("the plan", px, py));
         let unit = match t.kind {
             TargetKind::Task { .. } => "RMS prediction error (N·m)".to_string(),
-            TargetKind::Parameter { .. } => format!("predicted {} (SI)", t.label),
+            TargetKind::Parameter { ref name, ref of, .. } => format!("predicted {} ({})", t.label, target_unit(model, name, of)),
         };
         let panel = Panel {
             title: t.label.clone(),
@@ -187,6 +193,29 @@ fn write_curves(run: &PlanRun, pre: &Prepared, dir: &Path) -> Result<()> {
         )?;
     }
     Ok(())
+}
+
+/// The unit of a parameter target (`of`: `base` or `standard`).
+pub fn target_unit(model: &super::Model, name: &str, of: &str) -> &'static str {
+    let found = match of {
+        "base" => model.base.names.iter().position(|x| x == name).map(|k| model.base.unit(&model.robot, k)),
+        _ => model
+            .robot
+            .params()
+            .iter()
+            .position(|p| p.name == name)
+            .map(|j| crate::params::unit(&model.robot, j)),
+    };
+    found.unwrap_or("SI")
+}
+
+/// Robot time of `r` repetitions of candidate `c`: its repetitions and, if used, its setup (s).
+fn time_of(c: &super::Candidate, r: usize) -> f64 {
+    if r > 0 {
+        c.cost * r as f64 + c.setup
+    } else {
+        0.0
+    }
 }
 
 fn sanitize(s: &str) -> String {
@@ -231,16 +260,17 @@ pub fn report_text(run: &PlanRun) -> String {
     );
     let _ = writeln!(
         s,
-        "  {:<18} {:>9} {:>8} {:>10} {:>6} {:>5}  σ per joint (N·m)",
-        "experiment", "cost (s)", "max", "rows/rep", "rank", "T (s)"
+        "  {:<18} {:>9} {:>9} {:>8} {:>10} {:>6} {:>5}  σ per joint (N·m)",
+        "experiment", "cost (s)", "setup (s)", "max", "rows/rep", "rank", "T (s)"
     );
     for c in &model.candidates {
         let sig: Vec<String> = c.sigma.iter().map(|v| format!("{v:.3}")).collect();
         let _ = writeln!(
             s,
-            "  {:<18} {:>9.2} {:>8} {:>10} {:>6} {:>5.1}  [{}]",
+            "  {:<18} {:>9.2} {:>9.1} {:>8} {:>10} {:>6} {:>5.1}  [{}]",
             c.name,
             c.cost,
+            c.setup,
             c.max_repetitions,
             c.rows,
             c.rank,
@@ -272,6 +302,9 @@ pub fn report_text(run: &PlanRun) -> String {
             }
         );
     }
+    for c in model.candidates.iter().filter(|c| c.noise_source != super::model::SIMULATED_NOISE) {
+        let _ = writeln!(s, "  {}: σ from {}", c.name, c.noise_source);
+    }
     for n in &model.notes {
         let _ = writeln!(s, "  note: {n}");
     }
@@ -291,12 +324,19 @@ pub fn report_text(run: &PlanRun) -> String {
             let _ = writeln!(s, "\nthe relaxation ended {} ({}): no plan", sol.solver_status, sol.status.name());
             return s;
         }
-        PlanStatus::Planned => {}
+        PlanStatus::Planned | PlanStatus::OverBudget => {}
     }
     let _ = writeln!(
         s,
-        "\nplan (relaxation by supporting hyperplanes: {1} LPs, the last {0}; rounding: {2}):",
-        sol.solver_status, sol.iterations, sol.rounding
+        "\n{3} (relaxation by supporting hyperplanes: {1} LPs, the last {0}; rounding: {2}):",
+        sol.solver_status,
+        sol.iterations,
+        sol.rounding,
+        if sol.status == PlanStatus::OverBudget {
+            "the cheapest plan meeting every target, OVER THE BUDGET"
+        } else {
+            "plan"
+        }
     );
     let _ = writeln!(s, "  {:<18} {:>11} {:>9} {:>10}", "experiment", "repetitions", "relaxed", "time (s)");
     for (e, c) in model.candidates.iter().enumerate() {
@@ -306,7 +346,7 @@ pub fn report_text(run: &PlanRun) -> String {
             c.name,
             sol.repetitions[e],
             sol.relaxed[e],
-            c.cost * sol.repetitions[e] as f64
+            time_of(c, sol.repetitions[e])
         );
     }
     let gap_pct = if sol.relaxed_cost > 0.0 { 100.0 * sol.gap / sol.relaxed_cost } else { 0.0 };
@@ -319,6 +359,53 @@ pub fn report_text(run: &PlanRun) -> String {
         sol.relaxed_upper - sol.relaxed_cost,
         sol.gap
     );
+    if let Some(b) = sol.budget {
+        let _ = writeln!(
+            s,
+            "  budget {b:.1} s ({:.2} h): the plan uses {:.1} % of it{}",
+            b / 3600.0,
+            100.0 * sol.cost / b,
+            if sol.status == PlanStatus::OverBudget { " — OVER BUDGET" } else { "" }
+        );
+    }
+    if let Some(w) = &sol.within_budget {
+        let _ = writeln!(
+            s,
+            "\nOVER BUDGET: the cheapest plan meeting every target needs {:.1} s, the budget is {:.1} s; {}.",
+            sol.cost,
+            sol.budget.unwrap_or(f64::NAN),
+            if sol.relaxed_cost > sol.budget.unwrap_or(f64::INFINITY) {
+                format!(
+                    "no plan meeting every target fits (the relaxed bound, {:.1} s, is above the budget too)",
+                    sol.relaxed_cost
+                )
+            } else {
+                format!(
+                    "the relaxed bound, {:.1} s, is within it, but no whole-repetition plan found fits",
+                    sol.relaxed_cost
+                )
+            }
+        );
+        let _ = writeln!(
+            s,
+            "the best plan within the budget (smallest worst value/target ratio {:.3}; no plan within the budget does better than {:.3}):",
+            w.worst_ratio, w.lower_bound
+        );
+        let _ = writeln!(s, "  {:<18} {:>11} {:>10}", "experiment", "repetitions", "time (s)");
+        for (e, c) in model.candidates.iter().enumerate() {
+            let _ = writeln!(s, "  {:<18} {:>11} {:>10.1}", c.name, w.repetitions[e], time_of(c, w.repetitions[e]));
+        }
+        let _ = writeln!(
+            s,
+            "  robot time {:.1} s ({:.1} % of the budget)",
+            w.cost,
+            100.0 * w.cost / sol.budget.unwrap_or(f64::NAN)
+        );
+        let _ = writeln!(s, "  it misses {} target(s):", w.missed.len());
+        for m in &w.missed {
+            let _ = writeln!(s, "    {}: asked {}, reaches {} ({:.2}× the target)", m.label, g(m.bound), g(m.value), m.ratio);
+        }
+    }
     let _ = writeln!(s, "\ntargets:");
     let _ = writeln!(s, "  {:<24} {:>11} {:>11} {:>11}", "target", "asked", "predicted", "best");
     for (i, t) in model.targets.iter().enumerate() {

@@ -58,8 +58,10 @@ pub struct Prepared {
     pub is_task: Vec<bool>,
     /// The bounds planned for: each target's bound / (1 + margin).
     pub bound: Vec<f64>,
-    /// Costs.
+    /// Costs per repetition (s).
     pub cost: Vec<f64>,
+    /// Setup costs (s), paid once by an experiment with at least one repetition.
+    pub setup: Vec<f64>,
     /// Largest repetitions.
     pub rmax: Vec<usize>,
 }
@@ -102,6 +104,7 @@ impl Prepared {
             is_task,
             bound: model.targets.iter().map(|t| t.bound / (1.0 + model.margin)).collect(),
             cost: model.candidates.iter().map(|c| c.cost).collect(),
+            setup: model.candidates.iter().map(|c| c.setup).collect(),
             rmax: model.candidates.iter().map(|c| c.max_repetitions).collect(),
         }
     }
@@ -122,9 +125,37 @@ impl Prepared {
         values_of(&self.phi(r), &self.b)
     }
 
-    /// Cost of `r` (s).
+    /// Cost of `r` (s): the repetitions' and the setups of the experiments used.
     pub fn cost_of(&self, r: &[usize]) -> f64 {
-        r.iter().zip(&self.cost).map(|(&x, c)| x as f64 * c).sum()
+        r.iter()
+            .zip(self.cost.iter().zip(&self.setup))
+            .map(|(&x, (c, su))| if x > 0 { x as f64 * c + su } else { 0.0 })
+            .sum()
+    }
+
+    /// The same problem with only the experiments in `used` (a bit mask) allowed.
+    pub fn restricted(&self, used: u32) -> Prepared {
+        let mut p = self.clone();
+        for (e, m) in p.rmax.iter_mut().enumerate() {
+            if used & (1 << e) == 0 {
+                *m = 0;
+            }
+        }
+        p
+    }
+
+    /// The same problem with every bound multiplied by `s`.
+    pub fn scaled(&self, s: f64) -> Prepared {
+        let mut p = self.clone();
+        for b in &mut p.bound {
+            *b *= s;
+        }
+        p
+    }
+
+    /// The setup paid when every experiment in `used` is used (s).
+    pub fn setup_of(&self, used: u32) -> f64 {
+        (0..self.setup.len()).filter(|e| used & (1 << e) != 0).map(|e| self.setup[e]).sum()
     }
 
     /// Largest value/bound ratio (≤ 1: every target met).
@@ -156,11 +187,11 @@ pub fn values_of(phi: &DMatrix<f64>, b: &[DMatrix<f64>]) -> Vec<f64> {
 /// How the plan was found.
 #[derive(Debug, Clone, Serialize)]
 pub struct Solution {
-    /// `planned`, `unreachable` or `interrupted`.
+    /// `planned`, `unreachable`, `over_budget`, `interrupted` or `failed`.
     pub status: PlanStatus,
     /// Relaxed repetitions r*.
     pub relaxed: Vec<f64>,
-    /// Lower bound on the relaxed cost (s): a lower bound on every plan's.
+    /// Lower bound on the relaxed cost (s, setups included): a lower bound on every plan's.
     pub relaxed_cost: f64,
     /// Cost of the relaxed r* (s): the relaxation solved to `relaxed_upper − relaxed_cost`.
     pub relaxed_upper: f64,
@@ -170,7 +201,7 @@ pub struct Solution {
     pub iterations: u32,
     /// The integer plan.
     pub repetitions: Vec<usize>,
-    /// Its cost (s).
+    /// Its cost (s): repetitions and the setups of the experiments used.
     pub cost: f64,
     /// cost − relaxed_cost (s).
     pub gap: f64,
@@ -178,12 +209,16 @@ pub struct Solution {
     pub rounding: String,
     /// Integer vectors evaluated.
     pub evaluated: usize,
-    /// Every target's value for the plan.
+    /// Every target's value for the plan (the cheapest meeting every target, also when over the budget).
     pub values: Vec<f64>,
     /// Every target's value with every experiment at its largest repetitions.
     pub best: Vec<f64>,
     /// The unreachable targets and why.
     pub refused: Vec<Refusal>,
+    /// The total robot time available (s), if the design sets one.
+    pub budget: Option<f64>,
+    /// `over_budget`: the best plan within the budget and the targets it misses.
+    pub within_budget: Option<super::budget::WithinBudget>,
 }
 
 /// How planning ended.
@@ -194,6 +229,8 @@ pub enum PlanStatus {
     Planned,
     /// Some target cannot be met by any combination.
     Unreachable,
+    /// Every target can be met, but not within the budget (`within_budget` has the best plan that fits).
+    OverBudget,
     /// Ctrl-C stopped the relaxation.
     Interrupted,
     /// The relaxation failed (its status says how).
@@ -201,11 +238,12 @@ pub enum PlanStatus {
 }
 
 impl PlanStatus {
-    /// The name in plan.json (`planned`, `unreachable`, `interrupted`, `failed`).
+    /// The name in plan.json (`planned`, `unreachable`, `over_budget`, `interrupted`, `failed`).
     pub fn name(self) -> &'static str {
         match self {
             PlanStatus::Planned => "planned",
             PlanStatus::Unreachable => "unreachable",
+            PlanStatus::OverBudget => "over_budget",
             PlanStatus::Interrupted => "interrupted",
             PlanStatus::Failed => "failed",
         }
@@ -227,8 +265,8 @@ pub struct Refusal {
     pub bound: f64,
 }
 
-/// Plans `model` (see the module documentation); `window` is the
-/// enumeration's half-width around the relaxed solution.
+/// Plans `model` (see the module documentation and [`super::budget`]);
+/// `window` is the enumeration's half-width around the relaxed solution.
 pub fn plan(model: &Model, window: usize, ctl: &Control) -> Result<Solution> {
     let pre = Prepared::new(model);
     let ne = pre.cost.len();
@@ -249,31 +287,81 @@ pub fn plan(model: &Model, window: usize, ctl: &Control) -> Result<Solution> {
         values: best.clone(),
         best: best.clone(),
         refused: Vec::new(),
+        budget: model.budget,
+        within_budget: None,
     };
     sol.refused = refusals(model, &pre, &best);
     if !sol.refused.is_empty() {
         sol.status = PlanStatus::Unreachable;
         return Ok(sol);
     }
-    let rel = relax(&pre, ctl);
-    sol.solver_status = rel.status.to_string();
-    sol.iterations = rel.iterations;
-    if !rel.status.is_solved() {
+    let found = super::budget::cheapest(&pre, window, ctl);
+    sol.solver_status = found.status.to_string();
+    sol.iterations = found.iterations;
+    if !found.status.is_solved() {
         sol.status = if ctl.interrupted() { PlanStatus::Interrupted } else { PlanStatus::Failed };
         return Ok(sol);
     }
-    sol.relaxed_cost = rel.lower;
-    sol.relaxed_upper = rel.upper;
-    sol.relaxed = rel.r.clone();
-    let r = rel.r;
-    let (reps, how, n_eval) = round(&pre, &r, window);
-    sol.cost = pre.cost_of(&reps);
-    sol.gap = sol.cost - sol.relaxed_cost;
-    sol.values = pre.values(&reps.iter().map(|&x| x as f64).collect::<Vec<_>>());
-    sol.repetitions = reps;
-    sol.rounding = how;
-    sol.evaluated = n_eval;
+    sol.relaxed_cost = found.lower;
+    sol.relaxed_upper = found.upper;
+    sol.relaxed = found.r;
+    sol.repetitions = found.repetitions;
+    sol.rounding = found.rounding;
+    sol.evaluated = found.evaluated;
+    set_plan(&mut sol, &pre);
+    if let Some(budget) = model.budget {
+        if sol.cost > budget + 1e-9 {
+            let (r, ratio, lower, n) = match super::budget::within(&pre, budget, window, ctl) {
+                Ok(x) => x,
+                Err(crate::error::Error::Interrupted) => {
+                    sol.status = PlanStatus::Interrupted;
+                    return Ok(sol);
+                }
+                Err(e) => return Err(e),
+            };
+            sol.evaluated += n;
+            if ratio <= 1.0 + 1e-9 {
+                // the rounding missed a cheaper plan that the budget's search found
+                sol.repetitions = r;
+                sol.rounding += "; a cheaper plan within the budget found by the budget's search";
+                set_plan(&mut sol, &pre);
+            } else {
+                let k = 1.0 + model.margin;
+                let values = pre.values(&r.iter().map(|&x| x as f64).collect::<Vec<_>>());
+                let missed = model
+                    .targets
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, t)| values[*i] > t.bound * (1.0 + 1e-9))
+                    .map(|(i, t)| super::budget::Miss {
+                        target: i,
+                        label: t.label.clone(),
+                        bound: t.bound,
+                        value: values[i],
+                        ratio: values[i] / t.bound,
+                    })
+                    .collect();
+                sol.within_budget = Some(super::budget::WithinBudget {
+                    cost: pre.cost_of(&r),
+                    repetitions: r,
+                    values,
+                    worst_ratio: ratio / k,
+                    lower_bound: lower / k,
+                    missed,
+                    evaluated: n,
+                });
+                sol.status = PlanStatus::OverBudget;
+            }
+        }
+    }
     Ok(sol)
+}
+
+/// Cost, gap and values of `sol.repetitions`.
+fn set_plan(sol: &mut Solution, pre: &Prepared) {
+    sol.cost = pre.cost_of(&sol.repetitions);
+    sol.gap = sol.cost - sol.relaxed_cost;
+    sol.values = pre.values(&sol.repetitions.iter().map(|&x| x as f64).collect::<Vec<_>>());
 }
 
 /// The targets missed with every experiment at its largest repetitions, and why.
@@ -614,18 +702,8 @@ pub fn round(pre: &Prepared, r: &[f64], window: usize) -> (Vec<usize>, String, u
                         best_ratio = ratio;
                     }
                 }
-                // next vector
-                let mut k = 0;
-                loop {
-                    if k == ne {
-                        return (best, format!("every integer vector within ±{window} of r* ({c} vectors)"), evaluated);
-                    }
-                    if cur[k] < hi[k] {
-                        cur[k] += 1;
-                        break;
-                    }
-                    cur[k] = lo[k];
-                    k += 1;
+                if !next_in_box(&mut cur, &lo, &hi) {
+                    return (best, format!("every integer vector within ±{window} of r* ({c} vectors)"), evaluated);
                 }
             }
         }
@@ -651,6 +729,19 @@ pub fn round(pre: &Prepared, r: &[f64], window: usize) -> (Vec<usize>, String, u
             }
         }
     }
+}
+
+/// Steps `cur` to the next integer vector of the box [lo, hi] (the first
+/// coordinate fastest); false after the last.
+pub fn next_in_box(cur: &mut [usize], lo: &[usize], hi: &[usize]) -> bool {
+    for k in 0..cur.len() {
+        if cur[k] < hi[k] {
+            cur[k] += 1;
+            return true;
+        }
+        cur[k] = lo[k];
+    }
+    false
 }
 
 /// σ of every coordinate of the plan's space, and of every base parameter, for repetitions `r`.

@@ -55,6 +55,11 @@ pub fn run(args: &PlanArgs, ctl: &Control) -> anyhow::Result<Outcome> {
             "unreachable targets: {}",
             run.solution.refused.iter().map(|r| r.label.as_str()).collect::<Vec<_>>().join(", ")
         )),
+        PlanStatus::OverBudget => Outcome::Unusable(format!(
+            "over budget: the cheapest plan meeting every target needs {:.1} s, the budget is {:.1} s; report.txt gives the best plan within it",
+            run.solution.cost,
+            run.solution.budget.unwrap_or(f64::NAN)
+        )),
         PlanStatus::Failed => Outcome::Unusable(format!("the relaxation ended {}", run.solution.solver_status)),
     })
 }
