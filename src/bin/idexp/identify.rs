@@ -385,4 +385,3 @@ pub fn run(a: &IdentifyArgs, ctl: &Control) -> anyhow::Result<Outcome> {
         }
     })
 }
-

@@ -94,7 +94,11 @@ pub fn run_dedicated(design: &StudyDesign, dir: &Path, inputs: &Inputs, ctl: &Co
         let ctx = format!("experiment {} ({})", i + 1, spec.resolved_name());
         let joint = spec.joint.unwrap_or(0);
         if joint > robot.dof() {
-            return Err(Error::invalid(&ctx, "joint", format!("{joint}: robot `{}` has {} joints", robot.name, robot.dof())));
+            return Err(Error::invalid(
+                &ctx,
+                "joint",
+                format!("{joint}: robot `{}` has {} joints", robot.name, robot.dof()),
+            ));
         }
         let o = EntryOptions {
             method: Method::Wls,

@@ -85,8 +85,8 @@ use crate::ident::{Method, MlOptions};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-pub use super::entry::{ExperimentKind, ExperimentSpec, FilterName, GravityChoice};
 pub(crate) use super::entry::name_ok;
+pub use super::entry::{ExperimentKind, ExperimentSpec, FilterName, GravityChoice};
 
 /// Model reduction (`[reduce]`, paper 000 Algorithm 1): weighted least
 /// squares on one experiment, parameters removed while every joint's e*_j
@@ -261,7 +261,6 @@ fn ml_ftol_rel() -> f64 {
 fn ml_bound() -> f64 {
     MlOptions::default().bound
 }
-
 
 /// How the prior's weight is set.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -496,7 +495,6 @@ fn sample_limit() -> usize {
 pub fn is_study_text(text: &str) -> bool {
     text.parse::<toml::Table>().is_ok_and(|t| t.contains_key("experiment"))
 }
-
 
 impl ConsistentSpec {
     /// The closest-to-nominal consistent fit: a Euclidean pull toward the
@@ -823,7 +821,15 @@ impl StudyDesign {
                 }
             }
         }
-        let refuse = |field: &str, what: &str| Err(Error::invalid(ctx, field, format!("{what}: a study of dedicated one-joint fits (`joint`) fits each joint's gravity or friction model on its own, without base parameters")));
+        let refuse = |field: &str, what: &str| {
+            Err(Error::invalid(
+                ctx,
+                field,
+                format!(
+                    "{what}: a study of dedicated one-joint fits (`joint`) fits each joint's gravity or friction model on its own, without base parameters"
+                ),
+            ))
+        };
         if !self.validation.is_empty() {
             return refuse("validation", "validation runs predict torques from base parameters");
         }
@@ -840,7 +846,10 @@ impl StudyDesign {
             return refuse("method", "the estimator of base parameters does not apply");
         }
         if self.truth.is_some() || !self.base_columns.is_empty() {
-            return refuse(if self.truth.is_some() { "truth" } else { "base_columns" }, "this compares or fixes base parameters");
+            return refuse(
+                if self.truth.is_some() { "truth" } else { "base_columns" },
+                "this compares or fixes base parameters",
+            );
         }
         Ok(())
     }

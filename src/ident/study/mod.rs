@@ -38,8 +38,8 @@ pub mod stack;
 
 pub use dedicated::{run_dedicated, DedicatedEntry, DedicatedResult, JointFit};
 pub use design::{
-    ConsistentSpec, GravityChoice, EssentialRule, EssentialSpec, ExperimentKind, ExperimentSpec, ExportFormat, FilterName, MlSpec, Prior, ProjectionSpec, ReduceSpec,
-    StudyDesign, UnknownRule, UnknownSpec, WeightRule, WeightSpec,
+    ConsistentSpec, EssentialRule, EssentialSpec, ExperimentKind, ExperimentSpec, ExportFormat, FilterName, GravityChoice, MlSpec, Prior, ProjectionSpec,
+    ReduceSpec, StudyDesign, UnknownRule, UnknownSpec, WeightRule, WeightSpec,
 };
 pub use load::{load_entry, load_entry_with, EntryOptions, Given, Loaded};
 pub use result::{ConsistentReport, Direction, Estimate, ExperimentReport, Flag, LinkPrior, StudyResult, UnknownParam, ValidationReport, ValidationTotal};
