@@ -343,7 +343,7 @@ def calibrate_gains(
 class Plan:
     """An accuracy plan (idexp.plan; `idexp plan plan.toml`)."""
     status: str
-    """planned, unreachable, interrupted or failed."""
+    """planned, unreachable, over_budget, interrupted or failed."""
     candidates: list[str]
     repetitions: list[int]
     cost: float
@@ -355,6 +355,13 @@ class Plan:
     refused: list[dict]
     report: dict
     rehearsal: Optional[dict]
+    sigma: list[Tuple[list[float], str]]
+    """σ per joint of one repetition of each candidate (N·m), and where it comes from."""
+    budget: Optional[float]
+    """The total robot time available (s), or None."""
+    within_budget: Optional[dict]
+    """over_budget: the best plan within the budget (repetitions, cost, values, worst_ratio,
+    lower_bound, missed targets), else None."""
     def text(self) -> str: ...
     def write(self, folder: PathLike) -> str: ...
 
