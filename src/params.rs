@@ -409,7 +409,7 @@ impl BaseParams {
     }
 
     /// The SI unit of base parameter `k`: its kept standard parameter's
-    /// ([`unit`]; a grouping adds only terms of the same unit).
+    /// ([`unit()`]; a grouping adds only terms of the same unit).
     pub fn unit(&self, robot: &Robot, k: usize) -> &'static str {
         unit(robot, self.independent[k])
     }

@@ -25,7 +25,7 @@
 //! squares stacked over the runs with weights per run and joint
 //! ([`crate::ident::study::stack`]). The delays minimise its weighted
 //! residual; a trial δ_r moves the model, not the currents: every column of
-//! run r is rebuilt from its kinematics at t_s − δ_r ([`Columns::at`]).
+//! run r is rebuilt from its kinematics at t_s − δ_r (`Columns::at`).
 //!
 //! A gain is determined when its profile σ (the σ of ρ_j with every other
 //! unknown free: 1/‖P⊥ r_j‖ of its column of the weighted triangular factor
@@ -782,7 +782,7 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
 /// The delay search's weighted least squares at a fixed linearisation point
 /// (x, γ) and fixed weights: each run keeps its part of G = JᵀWJ, h = JᵀWt
 /// and tᵀWt; a trial delay of one run rebuilds that run's columns
-/// ([`Columns::at`]) and part, and the residual is tᵀWt − hᵀG⁺h.
+/// (`Columns::at`) and part, and the residual is tᵀWt − hᵀG⁺h.
 struct Normal {
     /// Weights per run and joint.
     w: Vec<Vec<f64>>,

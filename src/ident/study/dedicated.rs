@@ -2,7 +2,7 @@
 //! every `[[experiment]]` names its `joint` (kind `gravity` or `friction`)
 //! fits each entry on its own ([`crate::ident::experiments`]) instead of
 //! stacking base-parameter rows. The entries are read and filtered as every
-//! study entry is ([`super::load`]: files or logs, coordinates, filter,
+//! study entry is (`load.rs`: files or logs, coordinates, filter,
 //! velocities); the gravity fits come first, so that a friction entry can
 //! take its joint's gravity from one of them (`gravity = "<entry>"`), from a
 //! gravity.json (`gravity = "….json"`), fit it alongside (`"fit"`) or leave
