@@ -538,6 +538,7 @@ fn the_noise_from_a_finished_study_is_its_residual_sigma_times_the_root_of_its_r
     bad(&exp("[0.1, -0.2, 0.3]"), &["bad.json", "experiments[0].sigma[1]", "-0.2"]);
     bad(&exp("[0.1, 0.0, 0.3]"), &["bad.json", "experiments[0].sigma[1]"]);
     bad("{\"name\": \"x\"}", &["bad.json", "experiments"]);
+    bad("not json", &["bad.json", "not JSON", "idexp identify"]);
     std::fs::remove_file(dir.join("bad.json")).unwrap();
     let e = build(&PlanDesign::read(&path).unwrap(), dir, &Control::new()).unwrap_err().to_string();
     assert!(e.contains("bad.json") && e.contains("noise.from"), "{e}");

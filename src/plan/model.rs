@@ -252,12 +252,12 @@ fn effective_sigma(robot: &Robot, design: &PlanDesign, c: &CandidateSpec, path: 
 pub fn sigma_from_estimate(file: &Path, experiment: Option<&str>, candidate: &str, n: usize) -> Result<(Vec<f64>, String)> {
     let ctx = file.display().to_string();
     let v: serde_json::Value = serde_json::from_str(&crate::io::read_to_string(file)?)
-        .map_err(|e| Error::invalid(&ctx, "", format!("not JSON ({e}): expected a study's estimate.json (`idexp study` writes it)")))?;
+        .map_err(|e| Error::parse(file, format!("not JSON ({e}): expected a study's estimate.json (`idexp identify` writes it)")))?;
     let exps = v.get("experiments").and_then(|x| x.as_array()).ok_or_else(|| {
         Error::invalid(
             &ctx,
             "experiments",
-            "missing: expected a study's estimate.json (`idexp study` writes it), with an `experiments` list",
+            "missing: expected a study's estimate.json (`idexp identify` writes it), with an `experiments` list",
         )
     })?;
     let name_of = |e: &serde_json::Value| e.get("name").and_then(|x| x.as_str()).unwrap_or("").to_string();
