@@ -80,6 +80,18 @@ impl Error {
             msg: msg.into(),
         }
     }
+    /// An [`Error::Invalid`] with its context rewritten by `f` (e.g. the
+    /// entry or file it came from put in front); any other error as it is.
+    pub fn map_context(self, f: impl FnOnce(String) -> String) -> Self {
+        match self {
+            Error::Invalid { context, field, msg } => Error::Invalid {
+                context: f(context),
+                field,
+                msg,
+            },
+            e => e,
+        }
+    }
     /// Shorthand for [`Error::Parse`].
     pub fn parse(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
         Error::Parse {

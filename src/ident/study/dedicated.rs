@@ -110,14 +110,7 @@ pub fn run_dedicated(design: &StudyDesign, dir: &Path, inputs: &Inputs, ctl: &Co
         let Read { name, run, filter, .. } = read_entry(&robot, spec, dir, &o)?;
         let pr = process_with(&run, &filter, spec.velocity_from)?.decimated(spec.decimate);
         let files: Vec<String> = run.files.iter().map(|f| f.display().to_string()).collect();
-        let in_entry = |e: Error| match e {
-            Error::Invalid { context, field, msg } => Error::Invalid {
-                context: format!("{} (experiment `{name}`, {context})", files.join(", ")),
-                field,
-                msg,
-            },
-            e => e,
-        };
+        let in_entry = |e: Error| e.map_context(|c| format!("{} (experiment `{name}`, {c})", files.join(", ")));
         let fit = match spec.kind {
             ExperimentKind::Gravity => JointFit::Gravity(gravity_experiment(&pr, joint).map_err(in_entry)?),
             _ => {
@@ -187,6 +180,19 @@ impl DedicatedEntry {
     fn write(&self, dir: &Path) -> Result<String> {
         crate::ident::output::write_joint_fit(dir, self.joint, &self.pr, &self.fit)
     }
+
+    /// "gravity" or "friction".
+    pub fn kind_name(&self) -> &'static str {
+        match self.fit {
+            JointFit::Gravity(_) => "gravity",
+            JointFit::Friction { .. } => "friction",
+        }
+    }
+
+    /// The entry's report line (what its report.txt says).
+    pub fn text(&self) -> String {
+        crate::ident::output::fit_text(self.joint, &self.fit)
+    }
 }
 
 impl DedicatedResult {
@@ -216,7 +222,7 @@ impl DedicatedResult {
         for e in &self.entries {
             let sub = if one { dir.to_path_buf() } else { dir.join(&e.name) };
             text.push_str(&e.write(&sub)?);
-            let stem = if matches!(e.fit, JointFit::Gravity(_)) { "gravity" } else { "friction" };
+            let stem = e.kind_name();
             files.extend([sub.join(format!("{stem}.json")), sub.join(format!("{stem}.svg")), sub.join("report.txt")]);
         }
         if !one {
@@ -236,20 +242,5 @@ impl DedicatedResult {
         crate::io::status::write_status(dir, "identify", RunState::Complete, detail, started, fp, summary)?;
         files.push(dir.join("status.json"));
         Ok((files, RunState::Complete))
-    }
-}
-
-impl DedicatedEntry {
-    /// "gravity" or "friction".
-    pub fn kind_name(&self) -> &'static str {
-        match self.fit {
-            JointFit::Gravity(_) => "gravity",
-            JointFit::Friction { .. } => "friction",
-        }
-    }
-
-    /// The entry's report line (what its report.txt says).
-    pub fn text(&self) -> String {
-        crate::ident::output::fit_text(self.joint, &self.fit)
     }
 }

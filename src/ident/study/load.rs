@@ -93,14 +93,7 @@ pub fn load_entry_with(robot: &Robot, base: &BaseParams, spec: &ExperimentSpec, 
         filter,
         notes,
     } = read_entry(robot, spec, dir, o)?;
-    let prep = prepare(robot, base, &run, filter, spec, method, dead_band).map_err(|e| match e {
-        Error::Invalid { context, field, msg } => Error::Invalid {
-            context: format!("experiment `{name}` ({context})"),
-            field,
-            msg,
-        },
-        e => e,
-    })?;
+    let prep = prepare(robot, base, &run, filter, spec, method, dead_band).map_err(|e| e.map_context(|c| format!("experiment `{name}` ({c})")))?;
     Ok(Loaded {
         name,
         spec: spec.clone(),
