@@ -22,7 +22,7 @@
 //!
 //! Files: `options.rs` ([`Method`], [`Standstill`]), `prepare.rs` (one
 //! entry made ready for estimation as its study entry says), `outcome.rs` ([`EstimateStatus`], rows used, flags),
-//! `text.rs` (report blocks), [`output`] (plots and tables); the estimators
+//! [`output`] (plots and tables); the estimators
 //! in [`estimate`], [`closed_loop`], [`reduce`], [`consistent`], [`prior`],
 //! [`study`]. Their items are re-exported here: `idexp::ident::X` is the path
 //! to use.
@@ -36,16 +36,15 @@ mod outcome;
 pub mod output;
 mod prepare;
 pub mod prior;
-pub mod process;
+
 pub mod reduce;
 pub mod study;
-mod text;
 
+pub use crate::data::process::{self, process, process_with, Filter, Processed, VelocityFrom, VelocitySource};
 pub use crate::data::{Coordinates, Repetition, Run, TorqueFrom, TorqueSource, CURRENT_TOLERANCE};
 pub use closed_loop::{MlOptions, ProjectionOptions};
 pub use consistent::ConsistentStatus;
 pub use estimate::{Dataset, Errors, LsFit, Weights, DEAD_BAND};
-pub use process::{process, process_with, Filter, Processed, VelocityFrom, VelocitySource};
 pub use reduce::{Essential, ReduceOptions, Reduction};
 
 pub use options::{Method, Standstill};
@@ -53,4 +52,3 @@ pub use outcome::{EstimateStatus, Implausible, RowsUsed, TruthRow};
 pub(crate) use prepare::filter_warnings;
 pub use prepare::{fourier_filter, in_joint_coordinates, prepare, run_trajectory, Prepared};
 pub use study::Estimate;
-pub(crate) use text::{parameter_table, plausibility_and_truth_text};

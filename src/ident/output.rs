@@ -231,30 +231,6 @@ fn friction_panel(pr: &Processed, j: usize, f: &FrictionFit, min_speed: f64) -> 
 /// when the data only determine it in combination with others).
 pub fn params_csv(est: &super::Estimate) -> String {
     let cons = est.consistent.as_ref().map(|c| (c.base.as_slice(), c.standard.as_slice()));
-    params_table(&est.params_table(), cons)
-}
-
-/// The columns of `params.csv` ([`params_table`]).
-#[derive(Debug, Clone, Copy)]
-pub struct ParamsTable<'a> {
-    /// Base parameter names.
-    pub names: &'a [String],
-    /// Their groupings.
-    pub groupings: &'a [String],
-    /// Estimates.
-    pub theta: &'a [f64],
-    /// Standard deviations.
-    pub std: &'a [f64],
-    /// Relative standard deviations.
-    pub rel_std: &'a [f64],
-    /// Standard parameter names.
-    pub standard_names: &'a [String],
-    /// K (rows: base parameters).
-    pub base_k: &'a [Vec<f64>],
-}
-
-/// `params.csv` of an estimate and its consistent (base, standard) values, if any.
-pub fn params_table(est: &ParamsTable, cons: Option<(&[f64], &[f64])>) -> String {
     let q = |s: &str| format!("\"{}\"", s.replace('"', "\"\""));
     let mut s = String::from("kind,name,value,std,rel_std,consistent,grouping\n");
     for i in 0..est.names.len() {

@@ -26,8 +26,8 @@
 //! twins whose aligned positions still differ by more than [`MAX_DIFFERENCE`]
 //! of a joint's motion (RMS): not the same trajectory.
 
+use crate::data::process::Processed;
 use crate::error::{Error, Result};
-use crate::ident::process::Processed;
 use serde::Serialize;
 
 /// Smallest overlap, as a fraction of the shorter run.
@@ -329,8 +329,8 @@ mod tests {
             r: None,
             joint_cov: None,
             n_reps: 1,
-            filter: crate::ident::process::Filter::None,
-            velocity: crate::ident::process::VelocitySource::Positions,
+            filter: crate::data::process::Filter::None,
+            velocity: crate::data::process::VelocitySource::Positions,
             fourier: None,
             filter_residual: vec![],
         };

@@ -130,13 +130,11 @@ impl Estimate {
                 m.status, m.evaluations, m.cost_start, m.cost_end
             );
         }
-        s.push_str(&crate::ident::parameter_table(
-            &self.names,
-            &self.theta,
-            &self.std,
-            &self.rel_std,
-            &self.groupings,
-        ));
+        let _ = writeln!(s, "\n{:>3} {:<10} {:>14} {:>12} {:>9}  grouping", "i", "parameter", "estimate", "std", "σ* (%)");
+        for (i, name) in self.names.iter().enumerate() {
+            let (t, sd, rs) = (self.theta[i], self.std[i], 100.0 * self.rel_std[i]);
+            let _ = writeln!(s, "{:>3} {name:<10} {t:>14.6} {sd:>12.4e} {rs:>9.3}  {}", i + 1, self.groupings[i]);
+        }
         if !self.validation.is_empty() {
             let _ = writeln!(
                 s,
@@ -161,7 +159,23 @@ impl Estimate {
         if let Some(c) = &self.consistent {
             s.push_str(&consistent_text(c, self));
         }
-        s.push_str(&crate::ident::plausibility_and_truth_text(&self.implausible, self.truth.as_deref()));
+        if self.implausible.is_empty() {
+            let _ = writeln!(s, "\nphysical plausibility: every base parameter that must be positive is positive");
+        } else {
+            let _ = writeln!(s, "\nphysical plausibility: NEGATIVE estimates of parameters that must be positive:");
+            for p in &self.implausible {
+                let _ = writeln!(s, "  {} = {:.6} (σ {:.3e}): {}", p.name, p.value, p.std, p.grouping);
+            }
+        }
+        if let Some(t) = &self.truth {
+            let _ = writeln!(s, "\ncomparison with the true base parameters");
+            let _ = writeln!(s, "{:<10} {:>14} {:>14} {:>8}", "parameter", "truth", "estimate", "z");
+            for r in t {
+                let _ = writeln!(s, "{:<10} {:>14.6} {:>14.6} {:>8.2}", r.name, r.truth, r.estimate, r.z);
+            }
+            let zmax = t.iter().map(|r| r.z.abs()).fold(0.0, f64::max);
+            let _ = writeln!(s, "max |z| = {zmax:.2}");
+        }
         if let Some(r) = &self.reduction {
             let _ = writeln!(s);
             s.push_str(&r.text());

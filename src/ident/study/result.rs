@@ -273,19 +273,6 @@ pub struct Estimate {
 }
 
 impl Estimate {
-    /// The parameter table of `params.csv` ([`crate::ident::output::params_table`]).
-    pub fn params_table(&self) -> crate::ident::output::ParamsTable<'_> {
-        crate::ident::output::ParamsTable {
-            names: &self.names,
-            groupings: &self.groupings,
-            theta: &self.theta,
-            std: &self.std,
-            rel_std: &self.rel_std,
-            standard_names: &self.standard_names,
-            base_k: &self.base_k,
-        }
-    }
-
     /// True when the estimate stacks the experiments by weighted (or
     /// ordinary) least squares; false for the one-experiment estimators
     /// (projection, maximum likelihood, model reduction), whose condition

@@ -9,7 +9,7 @@
 //! sample covariance of the filtered states and torques per time step (used by
 //! the maximum-likelihood estimator and reported as the position noise floor).
 
-use crate::data::{Repetition, Run};
+use super::{Repetition, Run};
 use crate::error::{Error, Result};
 use crate::trajectory::differentiate;
 use crate::trajectory::FourierTrajectory;
