@@ -119,6 +119,7 @@ class ExciteResult:
     violated: list[dict]
     seconds: float
     base_names: list[str]
+    column_names: list[str]
     robot: str
     trajectory: dict[str, F64]
     report: dict
