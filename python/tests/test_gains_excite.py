@@ -74,3 +74,23 @@ def test_gains_criterion_equals_pinocchios(tmp_path):
     sv = np.linalg.svd(c_mat, compute_uv=False)
     assert r.cond == pytest.approx(sv[0] / sv[-1], rel=1e-6)
     np.testing.assert_allclose(r.singular_values, sv, rtol=1e-6)
+
+
+def test_rtde_gains_equal_the_recordings_ratio(tmp_path):
+    """idexp.rtde_gains on an RTDE recording written here (space separated, as
+    record.py writes it) = numpy's least-squares ratio of target torque to
+    target current per joint, with noise on the torques so the ratio is not exact."""
+    g = np.random.default_rng(4)
+    n_rows = 300
+    ratio = np.array([12.1, 12.4, -12.0, 9.0, 9.1, 9.2])
+    cur = g.normal(0.0, 0.8, (n_rows, 6))
+    tau = cur * ratio + g.normal(0.0, 0.05, (n_rows, 6))
+    cols = ["timestamp"] + [f"{w}_{j}" for w in ("actual_q", "actual_qd", "target_moment", "target_current") for j in range(6)]
+    data = np.column_stack([8123.456 + 0.008 * np.arange(n_rows), g.normal(0, 1, (n_rows, 6)), np.zeros((n_rows, 6)), tau, cur])
+    path = tmp_path / "rtde.csv"
+    path.write_text(" ".join(cols) + "\n" + "\n".join(" ".join(repr(float(x)) for x in row) for row in data) + "\n")
+    robot = idexp.Robot.load(DESIGNS / "gains_ur5_robot.toml")
+    got = idexp.rtde_gains(robot, path)
+    want = (tau * cur).sum(axis=0) / (cur * cur).sum(axis=0)
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+    assert np.all(np.abs(got - ratio) < 0.01 * np.abs(ratio))
