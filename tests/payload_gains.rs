@@ -272,6 +272,10 @@ fn bad_gains_tables_are_errors_naming_the_field() {
         ("mass = 2.0\nmax_std = 0.0", "gains.max_std"),
         ("mass = 2.0\nbogus = 1", "bogus"),
         ("mass = 2.0\n[[gains.compare]]\nname = \"x\"", "gains.compare[0]"),
+        (
+            "mass = 2.0\n[[gains.compare]]\nname = \"x\"\nvalues = [1.0]\nrtde = \"r.csv\"",
+            "gains.compare[0]",
+        ),
     ] {
         std::fs::write(
             &p,
@@ -315,4 +319,60 @@ fn bad_current_offsets_are_errors_naming_the_field() {
             .to_string();
         assert!(e.contains("current_offset") && e.contains("bad_sim.toml") && e.contains(want), "{extra}: {e}");
     }
+}
+
+/// An RTDE recording as Universal Robots' `record.py` writes it (space
+/// separated, `timestamp` the controller's uptime), with target torques
+/// `ratio[j]` × target currents (+ `zero`: a joint whose target current is 0).
+fn rtde_csv(path: &Path, ratio: &[f64], zero: Option<usize>) {
+    let mut h = vec!["timestamp".to_string()];
+    for what in ["actual_q", "actual_qd", "target_moment", "target_current", "actual_current"] {
+        h.extend((0..6).map(|j| format!("{what}_{j}")));
+    }
+    let mut text = h.join(" ") + "\n";
+    for k in 0..200 {
+        let t = 8123.456 + 0.008 * k as f64;
+        let cur: Vec<f64> = (0..6)
+            .map(|j| {
+                if zero == Some(j) {
+                    0.0
+                } else {
+                    0.8 * (0.3 * k as f64 + j as f64).sin() + 0.05 * j as f64
+                }
+            })
+            .collect();
+        let mut row = vec![format!("{t:.3}")];
+        row.extend((0..6).map(|j| format!("{}", 0.1 * j as f64 + 0.001 * k as f64)));
+        row.extend((0..6).map(|_| "0.01".to_string()));
+        row.extend((0..6).map(|j| format!("{:e}", ratio[j] * cur[j])));
+        row.extend(cur.iter().map(|c| format!("{c:e}")));
+        row.extend(cur.iter().map(|c| format!("{:e}", 1.01 * c)));
+        text += &(row.join(" ") + "\n");
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+#[test]
+fn the_controllers_ratio_in_an_rtde_recording_is_a_compared_set() {
+    let dir = tempfile::tempdir().unwrap();
+    let robot = idexp::robot::load(&root("designs/gains_ur5_robot.toml")).unwrap();
+    let ratio = [12.1, 12.4, -12.0, 9.0, 9.1, 9.2];
+    let f = dir.path().join("rtde.csv");
+    rtde_csv(&f, &ratio, None);
+    let g = idexp::payload::gains::rtde_gains(&robot, &f).unwrap();
+    for j in 0..6 {
+        assert!((g[j] - ratio[j]).abs() < 1e-12 * ratio[j].abs(), "joint {j}: {} vs {}", g[j], ratio[j]);
+    }
+    // a joint without current: an error naming the file and the column
+    let z = dir.path().join("rtde_zero.csv");
+    rtde_csv(&z, &ratio, Some(2));
+    let e = idexp::payload::gains::rtde_gains(&robot, &z).unwrap_err().to_string();
+    assert!(
+        e.contains("rtde_zero.csv") && e.contains("target_current_2") && e.contains("elbow_joint"),
+        "{e}"
+    );
+    // a missing column: the reader's error naming it
+    std::fs::write(&z, "timestamp actual_q_0\n0.0 0.1\n").unwrap();
+    let e = idexp::payload::gains::rtde_gains(&robot, &z).unwrap_err().to_string();
+    assert!(e.contains("rtde_zero.csv"), "{e}");
 }

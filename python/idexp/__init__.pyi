@@ -22,6 +22,7 @@ from ._idexp import (
     mjcf as mjcf,
     multisine as multisine,
     calibrate_gains as calibrate_gains,
+    rtde_gains as rtde_gains,
     payload as payload,
     plan as plan,
     identify as identify,

@@ -119,6 +119,7 @@ class ExciteResult:
     violated: list[dict]
     seconds: float
     base_names: list[str]
+    column_names: list[str]
     robot: str
     trajectory: dict[str, F64]
     report: dict
@@ -339,6 +340,10 @@ def calibrate_gains(
 ) -> GainsFit:
     """Calibrates each joint's drive gain with a known mass: a payload design with a [gains]
     table (`idexp payload identify` of such a design); runs relative to the file's folder or base_dir."""
+
+def rtde_gains(robot: Robot, path: PathLike) -> F64:
+    """Per joint the controller's target torque / target current ratio (N·m/A) in an RTDE
+    recording (least squares through the origin), as [[gains.compare]] rtde = "..." compares it."""
 
 class Plan:
     """An accuracy plan (idexp.plan; `idexp plan plan.toml`)."""

@@ -134,6 +134,13 @@ impl ExciteResult {
     fn base_names(&self) -> Vec<String> {
         self.problem.base.names.clone()
     }
+    /// The names of the criterion's columns: the base parameters, or with
+    /// `objective.columns = "gains"` one gain per joint ("gain <joint>") and
+    /// the known mass's nine unknown parameters ("payload XX", …).
+    #[getter]
+    fn column_names(&self) -> Vec<String> {
+        self.problem.objective.column_names.clone()
+    }
     /// The robot file of the design.
     #[getter]
     fn robot(&self) -> PathBuf {

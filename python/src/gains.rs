@@ -1,6 +1,7 @@
 //! `idexp.calibrate_gains`: each joint's drive gain (current → joint torque)
 //! calibrated with a known mass, as `idexp payload identify` does for a
-//! payload design with a `[gains]` table.
+//! payload design with a `[gains]` table; `idexp.rtde_gains`: the
+//! controller's target torque / target current ratio of an RTDE recording.
 
 use crate::arrays::out1;
 use crate::dicts::to_dict;
@@ -97,4 +98,14 @@ pub fn calibrate_gains(
         inner: Arc::new(g),
         design: Arc::new(d),
     })
+}
+
+/// rtde_gains(robot, path) -> numpy array (n,): per joint the controller's
+/// ratio of target torque to target current in an RTDE recording
+/// (`target_moment_j` / `target_current_j`, least squares through the
+/// origin; N·m/A), as `[[gains.compare]] rtde = "…"` compares it.
+#[pyfunction]
+pub fn rtde_gains<'py>(py: Python<'py>, robot: &crate::robot::Robot, path: PathBuf) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let g = idexp::payload::gains::rtde_gains(&robot.inner, &path).py()?;
+    Ok(out1(py, g))
 }

@@ -61,6 +61,7 @@ fn _idexp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(payload::with_payload, m)?)?;
     m.add_class::<gains::GainsFit>()?;
     m.add_function(wrap_pyfunction!(gains::calibrate_gains, m)?)?;
+    m.add_function(wrap_pyfunction!(gains::rtde_gains, m)?)?;
     m.add_class::<plan::Plan>()?;
     m.add_function(wrap_pyfunction!(plan::plan, m)?)?;
     m.add_function(wrap_pyfunction!(excite::excite, m)?)?;

@@ -31,7 +31,7 @@
 //! [objective]
 //! criterion = "cond"                # cond | log_det | inv_sigma_min
 //! scaling = "unit_column"           # unit_column | nominal | none
-//! columns = "base"                  # base (with drive/friction) | inertial | payload
+//! columns = "base"                  # base (with drive/friction) | inertial | payload | gains
 //! sample_rate = 10.0                # regressor samples per second over one period
 //! noise = [1.0, ...]                # torque noise std per joint (N·m): weights W and predicted std devs
 //!
@@ -739,11 +739,11 @@ impl ExciteDesign {
     /// Checks every value; `ctx` names the file in messages.
     pub fn validate(&self, ctx: &str) -> Result<()> {
         let bad = |field: &str, msg: String| Err(Error::invalid(ctx, field, msg));
-        if self.objective.columns == Columns::Payload {
+        if matches!(self.objective.columns, Columns::Payload | Columns::Gains) {
             if self.payload.is_none() {
                 return bad(
                     "objective.columns",
-                    "\"payload\" excites a payload's parameters: add a [payload] section (frame, mass, com, inertia)".into(),
+                    "\"payload\" and \"gains\" excite a payload's (or a known mass's) parameters: add a [payload] section (frame, mass, com, inertia)".into(),
                 );
             }
             if self.objective.base_columns.is_some() {

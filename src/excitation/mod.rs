@@ -350,18 +350,18 @@ impl Problem {
         design.validate_for(&robot, ctx)?;
         let n = robot.dof();
         let opts = BaseOptions {
-            inertial_only: matches!(design.objective.columns, Columns::Inertial | Columns::Payload),
+            inertial_only: matches!(design.objective.columns, Columns::Inertial | Columns::Payload | Columns::Gains),
             ..BaseOptions::default()
         };
         let (robot, mount) = match &design.payload {
             Some(spec) => {
                 let (mount, payload) = crate::robot::payload::resolve(&robot, spec, ctx, "payload")?;
-                (mount.attach(&robot, &payload.params())?, Some(mount))
+                (mount.attach(&robot, &payload.params())?, Some((mount, payload)))
             }
             None => (robot, None),
         };
         let base = match (&design.objective.base_columns, &mount) {
-            (_, Some(m)) if design.objective.columns == Columns::Payload => {
+            (_, Some((m, _))) if matches!(design.objective.columns, Columns::Payload | Columns::Gains) => {
                 let o = robot.link_param_offset(m.link);
                 let cols: Vec<usize> = (o..o + 10).collect();
                 // the report lists the independent ones when fewer than ten are (a planar robot)
@@ -399,21 +399,28 @@ impl Problem {
         let times = period_grid(tr.motion_duration(), design.objective.sample_rate)?;
         let robot = Arc::new(robot);
         let noise = design.objective.noise.clone().unwrap_or_else(|| vec![1.0; n]);
-        let objective = Objective::new(
-            Arc::clone(&robot),
-            shape.clone(),
-            BaseColumns {
-                indices: base.independent.clone(),
-                names: base.names.clone(),
-                nominal: nominal_base.clone(),
-            },
-            times,
-            Scoring {
-                criterion: design.objective.criterion,
-                scaling: design.objective.scaling,
-                noise: noise.clone(),
-            },
-        )?;
+        let scoring = Scoring {
+            criterion: design.objective.criterion,
+            scaling: design.objective.scaling,
+            noise: noise.clone(),
+        };
+        let objective = match &mount {
+            Some((m, payload)) if design.objective.columns == Columns::Gains => {
+                let (mixes, names, nominal) = objective::gains_columns(&robot, m, payload);
+                Objective::mixed(Arc::clone(&robot), shape.clone(), mixes, names, nominal, times, scoring)?
+            }
+            _ => Objective::new(
+                Arc::clone(&robot),
+                shape.clone(),
+                BaseColumns {
+                    indices: base.independent.clone(),
+                    names: base.names.clone(),
+                    nominal: nominal_base.clone(),
+                },
+                times,
+                scoring,
+            )?,
+        };
         let mut constraints = Constraints::new(Arc::clone(&robot), shape.clone(), &limits, &design.workspace, design.limits.grid_rate, ctx)?;
         if let Some(scene) = crate::robot::collision::CollisionScene::new(&robot, &design.collision, std::path::Path::new(""), ctx)? {
             if !scene.is_empty() {

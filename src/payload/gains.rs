@@ -58,7 +58,8 @@ fn max_delay() -> f64 {
     0.02
 }
 
-/// Another set of gains to compare with (`[[gains.compare]]`): given values or a robot file's.
+/// Another set of gains to compare with (`[[gains.compare]]`): given values,
+/// a robot file's, or the controller's ratio in an RTDE recording.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GainSet {
@@ -70,6 +71,47 @@ pub struct GainSet {
     /// Or a robot file whose drives give them (relative to the design file).
     #[serde(default)]
     pub robot: Option<PathBuf>,
+    /// Or an RTDE recording (relative to the design file) with
+    /// `target_moment_j` and `target_current_j`: the controller's own ratio
+    /// ([`rtde_gains`]).
+    #[serde(default)]
+    pub rtde: Option<PathBuf>,
+}
+
+/// The controller's gains in an RTDE recording (Universal Robots' `record.py`
+/// CSV: `timestamp`, `actual_q_0…`, `target_moment_0…` in N·m and
+/// `target_current_0…` in A, read by [`crate::data::logs::read_log`]): per
+/// joint the least-squares ratio of target torque to target current through
+/// the origin, g_j = Σ τ_j i_j / Σ i_j² over the rows (N·m/A, signed). An
+/// error names the file and a joint whose target current is zero throughout.
+pub fn rtde_gains(robot: &crate::robot::Robot, path: &Path) -> Result<Vec<f64>> {
+    use crate::data::logs::{read_log, LogFormat, LogSpec};
+    let read = |col: &str| -> Result<Vec<Vec<f64>>> {
+        let mut spec = LogSpec::new(LogFormat::Csv);
+        spec.t = Some("timestamp".into());
+        spec.index_base = Some(0);
+        spec.q = Some("actual_q_{j}".into());
+        spec.tau = Some(format!("{col}_{{j}}"));
+        Ok(read_log(path, robot, &spec)?.rep.tau)
+    };
+    let (tau, cur) = (read("target_moment")?, read("target_current")?);
+    (0..robot.dof())
+        .map(|j| {
+            let (ti, ii) = tau.iter().zip(&cur).fold((0.0, 0.0), |(a, b), (t, i)| (a + t[j] * i[j], b + i[j] * i[j]));
+            if ii > 0.0 {
+                Ok(ti / ii)
+            } else {
+                Err(Error::invalid(
+                    path.display().to_string(),
+                    format!("target_current_{j}"),
+                    format!(
+                        "joint `{}`'s target current is zero in every row: no ratio of torque to current",
+                        robot.joints[j].name
+                    ),
+                ))
+            }
+        })
+        .collect()
 }
 
 /// The `[gains]` table of a payload design: calibrate the drive gains with a known mass.
@@ -114,10 +156,13 @@ impl GainsSpec {
             return bad("max_delay", format!("expected a delay in (0, 1] s, found {}", self.max_delay));
         }
         for (i, c) in self.compare.iter().enumerate() {
-            if c.values.is_some() == c.robot.is_some() {
+            if [c.values.is_some(), c.robot.is_some(), c.rtde.is_some()].iter().filter(|&&x| x).count() != 1 {
                 return bad(
                     &format!("compare[{i}]"),
-                    format!("`{}`: give either values = [...] (N·m/A per joint) or robot = \"file\"", c.name),
+                    format!(
+                        "`{}`: give one of values = [...] (N·m/A per joint), robot = \"file\" or rtde = \"recording.csv\"",
+                        c.name
+                    ),
                 );
             }
             if let Some(v) = &c.values {
@@ -450,12 +495,13 @@ pub fn calibrate(design: &super::PayloadDesign, dir: &Path, ctl: &Control) -> Re
     }
     let mut compare = Vec::new();
     for (i, c) in spec.compare.iter().enumerate() {
-        let v = match (&c.values, &c.robot) {
-            (Some(v), _) => v.clone(),
-            (None, Some(p)) => {
+        let v = match (&c.values, &c.robot, &c.rtde) {
+            (Some(v), _, _) => v.clone(),
+            (None, Some(p), _) => {
                 let r = crate::robot::load(&dir.join(p))?;
                 r.drives.iter().map(|d| d.torque_per_ampere().unwrap_or(f64::NAN)).collect()
             }
+            (None, None, Some(p)) => rtde_gains(&robot, &dir.join(p))?,
             _ => unreachable!("validated"),
         };
         if v.len() != n {

@@ -47,9 +47,9 @@ pub fn run(a: &PayloadArgs, ctl: &Control) -> anyhow::Result<Outcome> {
     match &a.cmd {
         PayloadCmd::Excite(e) => {
             let d = ExciteDesign::load(&e.design)?;
-            if d.payload.is_none() || d.objective.columns != Columns::Payload {
+            if d.payload.is_none() || !matches!(d.objective.columns, Columns::Payload | Columns::Gains) {
                 bail!(
-                    "payload excite {}: a payload excitation needs a [payload] section (frame, nominal mass, com, inertia) and objective.columns = \"payload\"; for the robot's own parameters use idexp excite",
+                    "payload excite {}: a payload excitation needs a [payload] section (frame, nominal mass, com, inertia) and objective.columns = \"payload\" (or \"gains\": a drive-gain calibration with that known mass); for the robot's own parameters use idexp excite",
                     e.design.display()
                 );
             }

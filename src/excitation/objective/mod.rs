@@ -60,8 +60,11 @@
 //! and is summed in chunk order. An evaluation therefore does not depend on
 //! the thread count.
 
+mod gains;
 mod gradient;
 mod sample;
+
+pub use gains::gains_columns;
 
 use crate::error::{Error, Result};
 use crate::robot::{regressor_rows, Robot, Workspace};
@@ -124,6 +127,36 @@ pub enum Columns {
     /// A payload's ten parameters only (the design's `[payload]`), the robot's
     /// own parameters known: the columns of the link carrying the payload.
     Payload,
+    /// A drive-gain calibration with the design's `[payload]` as the known
+    /// mass ([`crate::excitation::gains_columns`]): per joint j the torque of
+    /// the nominal payload on joint j's rows only (the gain's column), and
+    /// the payload's nine unknown parameters (first moments and inertia
+    /// about its frame's origin), the robot's own parameters known.
+    Gains,
+}
+
+/// One column of C as a linear combination of regressor columns:
+/// c_(i,r) = Σ_(k, a) a·Y_(r,k)(x_i) on the rows r of `row` (every joint
+/// when `None`), zero on the others. A plain column k is `{row: None,
+/// terms: [(k, 1)]}`; a gain column of joint j is `{row: Some(j), terms:
+/// (k, θ_k) over the parameters of a torque}`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColumnMix {
+    /// The only joint whose rows are nonzero (`None`: every joint).
+    pub row: Option<usize>,
+    /// (standard-parameter index, coefficient) pairs.
+    pub terms: Vec<(usize, f64)>,
+}
+
+impl ColumnMix {
+    /// The column's entry on joint `r`'s row with regressor row `y` (p values).
+    #[inline]
+    pub(super) fn entry(&self, r: usize, y: impl Fn(usize) -> f64) -> f64 {
+        if self.row.is_some_and(|j| j != r) {
+            return 0.0;
+        }
+        self.terms.iter().map(|&(k, a)| a * y(k)).sum()
+    }
 }
 
 /// Velocities below this (rad/s or m/s) are taken as exactly zero in the
@@ -142,8 +175,11 @@ pub struct Objective {
     pub robot: Arc<Robot>,
     /// Design vector ↔ trajectory.
     pub shape: Shape,
-    /// Standard-parameter indices of C's columns.
+    /// Standard-parameter indices of C's columns (empty when `mixes` describes them).
     pub columns: Vec<usize>,
+    /// C's columns as combinations of regressor columns ([`Objective::mixed`]);
+    /// `None`: the plain columns of `columns`.
+    pub mixes: Option<Vec<ColumnMix>>,
     /// Names of the columns (base-parameter names).
     pub column_names: Vec<String>,
     /// Sample times (s) over one period.
@@ -302,12 +338,51 @@ impl Objective {
             criterion,
             scaling,
             fixed_scale,
+            mixes: None,
         })
+    }
+
+    /// [`Objective::new`] with columns that are linear combinations of
+    /// regressor columns, each possibly restricted to one joint's rows
+    /// ([`ColumnMix`]); `names` and `nominal` (the value of each column's
+    /// coefficient, for [`Scaling::Nominal`]) one per mix. The gradient is
+    /// the same analytic one: the row-wise contraction places
+    /// θ_r = Σ_j H_(r,j) a_j on the mixes' parameters.
+    pub fn mixed(
+        robot: impl Into<Arc<Robot>>,
+        shape: impl Into<Shape>,
+        mixes: Vec<ColumnMix>,
+        names: Vec<String>,
+        nominal: Vec<f64>,
+        times: Vec<f64>,
+        scoring: Scoring,
+    ) -> Result<Self> {
+        let robot = robot.into();
+        let (n, p) = (robot.dof(), robot.n_params());
+        for (j, mx) in mixes.iter().enumerate() {
+            if mx.terms.is_empty() || mx.terms.iter().any(|&(k, a)| k >= p || !a.is_finite()) || mx.row.is_some_and(|r| r >= n) {
+                return Err(Error::invalid(
+                    "objective",
+                    format!("columns[{j}]"),
+                    format!("expected finite coefficients of parameters 0..{p} on joint 0..{n} rows"),
+                ));
+            }
+        }
+        // the plain constructor checks sizes and the scaling with one stand-in index per mix
+        let stand_in = BaseColumns {
+            indices: mixes.iter().map(|mx| mx.terms[0].0).collect(),
+            names,
+            nominal,
+        };
+        let mut o = Objective::new(robot, shape, stand_in, times, scoring)?;
+        o.columns.clear();
+        o.mixes = Some(mixes);
+        Ok(o)
     }
 
     /// Number of columns m of C.
     pub fn n_cols(&self) -> usize {
-        self.columns.len()
+        self.mixes.as_ref().map_or(self.columns.len(), |m| m.len())
     }
 
     /// Number of rows N·n of C.
@@ -364,8 +439,17 @@ impl Objective {
             for r in 0..n {
                 let wr = self.row_weight[r];
                 let yr = &w.y[r * p..(r + 1) * p];
-                for (j, &c) in self.columns.iter().enumerate() {
-                    w.c[j * rows + i * n + r] = wr * yr[c];
+                match &self.mixes {
+                    None => {
+                        for (j, &c) in self.columns.iter().enumerate() {
+                            w.c[j * rows + i * n + r] = wr * yr[c];
+                        }
+                    }
+                    Some(mixes) => {
+                        for (j, mx) in mixes.iter().enumerate() {
+                            w.c[j * rows + i * n + r] = wr * mx.entry(r, |k| yr[k]);
+                        }
+                    }
                 }
             }
         }

@@ -94,8 +94,25 @@ impl Objective {
             for r in 0..n {
                 let wr = self.row_weight[r];
                 let theta = &mut b.thetas[r * p..(r + 1) * p];
-                for (j, &c) in self.columns.iter().enumerate() {
-                    theta[c] = h[j * rows + i * n + r] * wr;
+                match &self.mixes {
+                    None => {
+                        for (j, &c) in self.columns.iter().enumerate() {
+                            theta[c] = h[j * rows + i * n + r] * wr;
+                        }
+                    }
+                    // θ_r = Σ_j H_(r,j) a_j over the mixes that reach row r
+                    Some(mixes) => {
+                        theta.iter_mut().for_each(|v| *v = 0.0);
+                        for (j, mx) in mixes.iter().enumerate() {
+                            if mx.row.is_some_and(|x| x != r) {
+                                continue;
+                            }
+                            let hv = h[j * rows + i * n + r] * wr;
+                            for &(k, a) in &mx.terms {
+                                theta[k] += hv * a;
+                            }
+                        }
+                    }
                 }
             }
             id_derivative_rows(&self.robot, &mut b.ws, &b.thetas, q, qd, qdd, &mut b.rq, &mut b.rqd, &mut b.rqdd);
@@ -115,7 +132,7 @@ impl Objective {
         let n = self.robot.dof();
         let p = self.robot.n_params();
         let [q, qd, qdd] = state;
-        let m = self.columns.len();
+        let m = self.n_cols();
         // this sample's rows of every W½-weighted H_t, gathered contiguously
         // (r major, j minor: the order of the sums below)
         let nt = hs.len();
@@ -137,7 +154,6 @@ impl Objective {
             b.qd_[a] = Dual64::from(qd[a]);
             b.qdd_[a] = Dual64::from(qdd[a]);
         }
-        let columns = &self.columns;
         let (hloc, ycol) = (&b.hloc, &mut b.ycol);
         regressor_dual_directions(
             &self.robot,
@@ -146,11 +162,7 @@ impl Objective {
             [&mut b.q_, &mut b.qd_, &mut b.qdd_],
             &mut b.yd,
             |which, k, yd| {
-                for r in 0..n {
-                    for (j, &c) in columns.iter().enumerate() {
-                        ycol[r * m + j] = yd[r * p + c].eps;
-                    }
-                }
+                self.gather(n, p, |i| yd[i].eps, ycol);
                 contract_sample(hloc, ycol, n, which * n + k, g);
             },
         );
@@ -160,12 +172,30 @@ impl Objective {
             b.unit.iter_mut().for_each(|v| *v = 0.0);
             b.unit[k] = 1.0;
             regressor_generic(&self.robot, q, &b.zeros, &b.unit, no_grav, &mut b.kin, &mut b.yk);
-            for r in 0..n {
-                for (j, &c) in self.columns.iter().enumerate() {
-                    b.ycol[r * m + j] = b.yk[r * p + c] - b.y0[r * p + c];
+            let (yk, y0) = (&b.yk, &b.y0);
+            self.gather(n, p, |i| yk[i] - y0[i], &mut b.ycol);
+            contract_sample(&b.hloc, &b.ycol, n, 2 * n + k, g);
+        }
+    }
+
+    /// C's entries of one sample (n × m, row major) from a row-major n × p
+    /// regressor given entry by entry (`y(r·p + k)`): the selected columns,
+    /// or the mixes' combinations.
+    fn gather(&self, n: usize, p: usize, y: impl Fn(usize) -> f64, ycol: &mut [f64]) {
+        let m = self.n_cols();
+        for r in 0..n {
+            match &self.mixes {
+                None => {
+                    for (j, &c) in self.columns.iter().enumerate() {
+                        ycol[r * m + j] = y(r * p + c);
+                    }
+                }
+                Some(mixes) => {
+                    for (j, mx) in mixes.iter().enumerate() {
+                        ycol[r * m + j] = mx.entry(r, |k| y(r * p + k));
+                    }
                 }
             }
-            contract_sample(&b.hloc, &b.ycol, n, 2 * n + k, g);
         }
     }
 }

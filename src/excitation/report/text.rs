@@ -194,10 +194,23 @@ fn design_section(s: &mut String, p: &Problem) {
             Scaling::None => "none (D = I)",
         }
     );
+    if d.objective.columns == crate::excitation::Columns::Gains {
+        let _ = writeln!(
+            s,
+            "  columns (a drive-gain calibration with the [payload] as the known mass): per joint j the nominal payload's torque \
+             on joint j's rows only, then the payload's nine unknown parameters about its frame's origin (docs/payload.md): {}",
+            p.objective.column_names.join(", ")
+        );
+    }
     let _ = writeln!(
         s,
-        "  columns: the regressor column of each of these standard parameters (base parameters and their groupings in \
+        "  {}columns: the regressor column of each of these standard parameters (base parameters and their groupings in \
          criterion.json; Coulomb column sign(q̇_j), 0 for |q̇_j| < {:e}; viscous q̇_j): {}",
+        if d.objective.columns == crate::excitation::Columns::Gains {
+            "identifiability figures' "
+        } else {
+            ""
+        },
         crate::excitation::objective::ZERO_VELOCITY,
         column_parameters(&p.robot, &p.base).join(" ")
     );
