@@ -53,8 +53,10 @@ impl GainsEstimate {
             "  {:<22} {:>12} {:>12} {:>10} {:>9} {:>12}",
             "joint", "file", "identified", "σ", "ratio", "mass τ RMS"
         );
+        // each compared set's column as wide as its name (at least 12)
+        let width = |name: &str| name.chars().count().max(12);
         for (name, _) in &self.compare {
-            let _ = write!(head, " {:>12}", trunc(name, 12));
+            let _ = write!(head, " {name:>w$}", w = width(name));
         }
         let _ = writeln!(s, "{head}");
         for (j, g) in self.joints.iter().enumerate() {
@@ -72,8 +74,8 @@ impl GainsEstimate {
                 ratio,
                 g.mass_torque_rms
             );
-            for (_, v) in &self.compare {
-                let _ = write!(line, " {:>12.5}", v[j]);
+            for (name, v) in &self.compare {
+                let _ = write!(line, " {:>w$.5}", v[j], w = width(name));
             }
             let _ = writeln!(s, "{line}");
         }
