@@ -534,6 +534,7 @@ fn repair_near_turns_slsqps_infeasible_progress_into_a_feasible_better_point() {
     let x0 = ga_point();
     let mut spec = p.design.refine.clone();
     spec.max_evals = 60;
+    spec.bundle = 0;
     let (mut repaired, mut tried) = (0, 0);
     for seed in 0..6 {
         let mut x = refine::perturb(&x0, &p.lower, &p.upper, 0.2, seed);
