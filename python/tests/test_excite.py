@@ -276,3 +276,26 @@ def test_progress_and_an_evaluation_budget_from_a_dict(tmp_path):
     spec["refine"]["elites"] = 0
     with pytest.raises(idexp.IdexpError, match="elites"):
         idexp.excite(spec)
+
+
+def test_repair_from_a_dict():
+    """refine.repair passes through a dict design (the like-for-like bench,
+    small GA, short refinements): the refinements SLSQP ended on its
+    infeasible path end on their repaired near-feasible point (status
+    "(repaired)", feasible), none without the key, and a value that is not a
+    boolean is refused naming the field."""
+    spec = tomllib.loads((DESIGNS / "excite_ur5_bench_pi.toml").read_text())
+    spec["robot"] = str(ROBOTS / "ur5.toml")
+    del spec["time_limit"]
+    spec["ga"].update(population=12, generations=3)
+    spec["refine"].update(max_evals=60, restarts=6, perturb=0.2, bundle=0, repair=True)
+    refs = idexp.excite(spec, seed=3).report["refinements"]
+    repaired = [r for r in refs if "(repaired)" in r["status"]]
+    assert repaired, [r["status"] for r in refs]
+    assert all(r["violation"] == 0.0 for r in repaired)
+    spec["refine"]["repair"] = False
+    plain = idexp.excite(spec, seed=3).report["refinements"]
+    assert not any("(repaired)" in r["status"] for r in plain)
+    spec["refine"]["repair"] = "yes"
+    with pytest.raises(idexp.IdexpError, match="repair"):
+        idexp.excite(spec)

@@ -109,6 +109,7 @@
 //!                                   # drawn by the restart's seed (0: every variable)
 //! perturb_adapt = 1.0               # > 1: each perturbed point's own size, times this after a round from it
 //!                                   # found a better point, divided by it otherwise (1: always `perturb`)
+//! repair = false                   # true: repair and try the best near-feasible iterate SLSQP met
 //! ```
 
 use super::objective::{Columns, Criterion, Scaling};
@@ -670,6 +671,9 @@ pub struct RefineSpec {
     /// min(1, 4·`perturb`)].
     #[serde(skip_serializing_if = "is_one_f64")]
     pub perturb_adapt: f64,
+    /// Repair the best near-feasible infeasible iterate of each refinement into the joint limits and keep it if better ([`super::refine::repair_near`]).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub repair: bool,
 }
 
 fn is_zero_usize(v: &usize) -> bool {
@@ -708,6 +712,7 @@ impl Default for RefineSpec {
             patience: 0,
             perturb_joints: 0,
             perturb_adapt: 1.0,
+            repair: false,
         }
     }
 }

@@ -670,7 +670,13 @@ pub fn run(p: &Problem, ctl: &Control) -> Result<ExciteResult> {
         // on how many run beside it
         let batch = d.refine.parallel.max(1);
         let refine_batch = |xs: &[Vec<f64>]| -> Vec<refine::RefineOutcome> {
-            let one = |x: &Vec<f64>| refine::refine(&p.objective, &p.constraints, x, &d.refine, &p.lower, &p.upper, &ctl_all);
+            let one = |x: &Vec<f64>| {
+                let mut r = refine::refine(&p.objective, &p.constraints, x, &d.refine, &p.lower, &p.upper, &ctl_all);
+                if d.refine.repair {
+                    refine::repair_near(&mut r, &p.objective, &p.constraints, &p.limits, &ctl_all);
+                }
+                r
+            };
             if xs.len() == 1 {
                 vec![one(&xs[0])]
             } else {

@@ -10,7 +10,7 @@
 //! gradient so the solver ends at once (both through the nlopt bridge,
 //! [`crate::optim::nlopt`]).
 
-use super::constraints::Constraints;
+use super::constraints::{Constraints, JointLimitSpec};
 use super::design::{RefineAlgorithm, RefineSpec};
 use super::forms::{Epigraph, Form, Plain};
 use super::objective::Objective;
@@ -57,6 +57,8 @@ pub struct RefineStatus {
     pub interrupted: bool,
     /// A stage ended for want of progress (`refine.patience`).
     pub stalled: bool,
+    /// The result is the repaired near-feasible point ([`repair_near`]).
+    pub repaired: bool,
 }
 
 impl std::fmt::Display for RefineStatus {
@@ -67,6 +69,9 @@ impl std::fmt::Display for RefineStatus {
         f.write_str(self.main.as_str())?;
         if self.stalled {
             f.write_str(" (stalled)")?;
+        }
+        if self.repaired {
+            f.write_str(" (repaired)")?;
         }
         if self.interrupted {
             f.write_str(" (interrupted)")?;
@@ -98,12 +103,24 @@ pub struct RefineOutcome {
     pub evaluations: u64,
     /// Wall time (s).
     pub seconds: f64,
+    /// The infeasible point with the lowest criterion met, among those
+    /// within [`NEAR`] of every constraint, if its criterion is below `f`:
+    /// what [`repair_near`] repairs.
+    #[serde(skip)]
+    pub near: Option<(Vec<f64>, f64)>,
 }
+
+/// Largest scaled violation c_i (a fraction of the constraint's scale: the
+/// half range of a position, the limit of a velocity) of a point kept for
+/// [`repair_near`].
+pub const NEAR: f64 = 0.05;
 
 struct Tracker {
     last_x: Vec<f64>,
     last_f: f64,
     best: Option<(Vec<f64>, f64)>,
+    /// The lowest-criterion infeasible point within [`NEAR`] of feasibility.
+    near: Option<(Vec<f64>, f64)>,
     /// Evaluations since the best feasible value last fell below `mark`.
     stale: u32,
     /// The best feasible value when `stale` was last reset.
@@ -120,6 +137,7 @@ impl Tracker {
             last_x: Vec::new(),
             last_f: f64::INFINITY,
             best: None,
+            near: None,
             stale: 0,
             mark: f64::INFINITY,
         }
@@ -133,6 +151,14 @@ impl Tracker {
                 self.mark = f;
                 self.stale = 0;
             }
+        }
+    }
+
+    /// Keeps (x, f) if x is infeasible, its worst scaled constraint at
+    /// most [`NEAR`], and f the lowest of such points so far.
+    fn offer_near(&mut self, x: &[f64], f: f64, worst: f64) {
+        if f.is_finite() && worst <= NEAR && self.near.as_ref().is_none_or(|b| f < b.1) {
+            self.near = Some((x.to_vec(), f));
         }
     }
 
@@ -153,9 +179,40 @@ struct Bounds<'a> {
     ctl: &'a Control,
 }
 
-/// (last iterate, best feasible point and its value, nlopt status,
-/// evaluations, ended for want of progress).
-type StageResult = (Vec<f64>, Option<(Vec<f64>, f64)>, NloptWord, u64, bool);
+/// What a stage ended with.
+struct StageResult {
+    /// The last iterate.
+    last: Vec<f64>,
+    /// The best feasible point met and its criterion.
+    best: Option<(Vec<f64>, f64)>,
+    /// The best near-feasible infeasible point met ([`Tracker::offer_near`]).
+    near: Option<(Vec<f64>, f64)>,
+    status: NloptWord,
+    evaluations: u64,
+    /// Ended for want of progress (`refine.patience`).
+    halted: bool,
+}
+
+impl StageResult {
+    fn new(last: Vec<f64>, t: Tracker, status: NloptWord, evaluations: u64, halted: bool) -> Self {
+        StageResult {
+            last,
+            best: t.best,
+            near: t.near,
+            status,
+            evaluations,
+            halted,
+        }
+    }
+}
+
+/// The point of lower criterion of two optional (point, criterion) pairs.
+fn lower_of(a: Option<(Vec<f64>, f64)>, b: Option<(Vec<f64>, f64)>) -> Option<(Vec<f64>, f64)> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(if b.1 < a.1 { b } else { a }),
+        (a, b) => a.or(b),
+    }
+}
 
 /// One nlopt run from x0 on the plain form `form` of the criterion:
 /// returns (last iterate, best feasible point met with its tracked value,
@@ -225,9 +282,13 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, form: Plai
             res.iter_mut().for_each(|v| *v += 2.0 * TOL);
             let feasible = res.iter().all(|v| *v <= TOL);
             let mut t = tracker.borrow_mut();
-            if feasible && t.last_x.as_slice() == x {
+            if t.last_x.as_slice() == x {
                 let f = t.last_f;
-                t.offer(x, f);
+                if feasible {
+                    t.offer(x, f);
+                } else {
+                    t.offer_near(x, f, res.iter().fold(f64::NEG_INFINITY, |a, v| a.max(*v)));
+                }
             }
             t.check(patience, &halt);
         };
@@ -235,8 +296,7 @@ fn stage(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, form: Plai
     } else {
         pb.minimise(&mut x, f_cb, obj.workspace())
     };
-    let t = tracker.into_inner();
-    (x, t.best, run.status, run.evaluations, halt.get())
+    StageResult::new(x, tracker.into_inner(), run.status, run.evaluations, halt.get())
 }
 
 /// The constraints computed beside the objective at its last point
@@ -284,7 +344,7 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, e
     let halt = Cell::new(false);
     let patience = b.spec.patience;
     if !j0.is_finite() {
-        return (x0.to_vec(), None, NloptWord::Failure, 1, false);
+        return StageResult::new(x0.to_vec(), Tracker::new(), NloptWord::Failure, 1, false);
     }
     cons.eval(x0, &mut buf.cw, &mut buf.c, None);
     if buf.c.iter().all(|v| *v + 2.0 * TOL <= TOL) {
@@ -348,14 +408,15 @@ fn stage_epigraph(obj: &Objective, cons: &Constraints, x0: &[f64], b: &Bounds, e
         t.stale = t.stale.saturating_add(1);
         if feasible {
             t.offer(x, j);
+        } else {
+            t.offer_near(x, j, res_c.iter().fold(f64::NEG_INFINITY, |a, v| a.max(*v)));
         }
         t.check(patience, &halt);
     };
     let run = pb.minimise_constrained(&mut z, f_cb, (), mc + nt, TOL, c_cb, buf);
-    let t = tracker.into_inner();
     z.truncate(nv);
     // the start's evaluation and the constraint calls
-    (z, t.best, run.status, 1 + run.evaluations, halt.get())
+    StageResult::new(z, tracker.into_inner(), run.status, 1 + run.evaluations, halt.get())
 }
 
 /// Refines `x0` (see the module docs) on the objective's forms
@@ -383,21 +444,25 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], spec: &RefineSpec
     let mut x_start = x0.to_vec();
     let mut status_soft = None;
     let mut stalled = false;
+    let mut near = None;
     if let Some(first) = forms.first {
         let budget = (s.max_evals as f64 * 0.6) as u32;
-        let (last, best, st, ev, halted) = stage(obj, cons, x0, &b, first, budget);
-        evals += ev;
-        stalled |= halted;
-        status_soft = Some(st);
-        x_start = best.map(|b| b.0).unwrap_or(last);
+        let r = stage(obj, cons, x0, &b, first, budget);
+        evals += r.evaluations;
+        stalled |= r.halted;
+        status_soft = Some(r.status);
+        near = r.near;
+        x_start = r.best.map(|b| b.0).unwrap_or(r.last);
     }
     let left = s.max_evals.saturating_sub(evals as u32).max(1);
-    let (mut x, mut best, status, ev, halted) = match &forms.main {
+    let r = match &forms.main {
         Form::Epigraph(e) => stage_epigraph(obj, cons, &x_start, &b, e, left),
         Form::Plain(p) => stage(obj, cons, &x_start, &b, *p, left),
     };
-    evals += ev;
-    stalled |= halted;
+    let (mut x, mut best, status) = (r.last, r.best, r.status);
+    evals += r.evaluations;
+    stalled |= r.halted;
+    near = lower_of(near, r.near);
     if s.polish > 0 && s.algorithm == RefineAlgorithm::Slsqp && !ctl.should_stop() {
         // MMA from where SLSQP ended (module docs of RefineSpec::polish)
         let mma = RefineSpec {
@@ -405,8 +470,10 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], spec: &RefineSpec
             ..s.clone()
         };
         let bm = Bounds { spec: &mma, lower, upper, ctl };
-        let (xm, bestm, _, evm, _) = stage(obj, cons, &x, &bm, Plain::Direct, s.polish);
-        evals += evm;
+        let rm = stage(obj, cons, &x, &bm, Plain::Direct, s.polish);
+        let (xm, bestm) = (rm.last, rm.best);
+        evals += rm.evaluations;
+        near = lower_of(near, rm.near);
         if let Some((bx, bf)) = bestm {
             if best.as_ref().is_none_or(|b| bf < b.1) {
                 best = Some((bx, bf));
@@ -420,6 +487,7 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], spec: &RefineSpec
         main: status,
         interrupted: ctl.interrupted(),
         stalled,
+        repaired: false,
     };
     // final candidate: the best feasible point met, else the last iterate
     let mut cw = cons.workspace();
@@ -434,6 +502,7 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], spec: &RefineSpec
     cons.eval(&xf, &mut cw, &mut c, None);
     let violation = Constraints::violation(&c);
     RefineOutcome {
+        near: near.filter(|n| n.1 < ff || violation > 0.0),
         x: xf,
         f: ff,
         violation,
@@ -442,6 +511,38 @@ pub fn refine(obj: &Objective, cons: &Constraints, x0: &[f64], spec: &RefineSpec
         evaluations: evals,
         seconds: t0.elapsed().as_secs_f64(),
     }
+}
+
+/// `refine.repair`: SLSQP crosses infeasible regions and may spend its
+/// whole budget there, ending where it started (the best feasible point met)
+/// although it met near-feasible points of a much lower criterion. The
+/// lowest of them (`out.near`) is repaired by [`Constraints::repair_joints`]
+/// (each joint's motion scaled about its centre into its position, velocity
+/// and acceleration limits, as the GA repairs), evaluated (one criterion
+/// evaluation, counted on `ctl`) and taken if it is feasible and better than
+/// the refinement's result. Nothing is done once `ctl` says stop.
+pub fn repair_near(out: &mut RefineOutcome, obj: &Objective, cons: &Constraints, limits: &JointLimitSpec, ctl: &Control) {
+    let Some((mut y, _)) = out.near.take() else {
+        return;
+    };
+    if ctl.should_stop() {
+        return;
+    }
+    cons.repair_joints(&mut y, limits, 1e-6);
+    let t0 = Instant::now();
+    let f = obj.value(&y, &mut obj.workspace());
+    ctl.count(1);
+    out.evaluations += 1;
+    let mut c = vec![0.0; cons.len()];
+    cons.eval(&y, &mut cons.workspace(), &mut c, None);
+    // as the stages accept a point: c + 2·tol ≤ tol
+    if f.is_finite() && c.iter().all(|v| *v + TOL <= 0.0) && (f < out.f || out.violation > 0.0) {
+        out.x = y;
+        out.f = f;
+        out.violation = 0.0;
+        out.status.repaired = true;
+    }
+    out.seconds += t0.elapsed().as_secs_f64();
 }
 
 /// A perturbed copy of x: each variable moved by a uniform draw in
