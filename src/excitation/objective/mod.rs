@@ -128,7 +128,7 @@ pub enum Columns {
     /// own parameters known: the columns of the link carrying the payload.
     Payload,
     /// A drive-gain calibration with the design's `[payload]` as the known
-    /// mass ([`crate::excitation::gains_columns`]): per joint j the torque of
+    /// mass ([`gains_columns`]): per joint j the torque of
     /// the nominal payload on joint j's rows only (the gain's column), and
     /// the payload's nine unknown parameters (first moments and inertia
     /// about its frame's origin), the robot's own parameters known.
