@@ -180,6 +180,25 @@ fn gains_off_by_15_percent_a_4ms_delay_and_a_wrong_sign_are_calibrated_and_weigh
     assert!(((m_cal - 1.3) / 1.3).abs() < 0.01, "calibrated: {m_cal}");
 }
 
+/// In `d`: the true and the file's robot (gains ±15 % off, signs right)
+/// and the shipped gains excitation designed by the command line
+/// (`idexp payload excite designs/gains_ur5_excite.toml`): its coefficients.json.
+fn with_the_gains_excitation(d: &Path) -> (PathBuf, PathBuf, PathBuf) {
+    let file_kt: Vec<f64> = TRUE_KT.iter().zip(FILE_FACTOR).map(|(k, f)| k * f).collect();
+    let sim_robot = ur5_with_gains(d, "true.toml", &TRUE_KT, &[1.0; 6]);
+    let file_robot = ur5_with_gains(d, "file.toml", &file_kt, &[1.0; 6]);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_idexp"))
+        .args(["payload", "excite"])
+        .arg(root("designs/gains_ur5_excite.toml"))
+        .arg("--out")
+        .arg(d.join("excite"))
+        .env("IDEXP_NO_PROGRESS", "1")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    (sim_robot, file_robot, d.join("excite/coefficients.json"))
+}
+
 /// The unknown payload's mass from the runs `p2` (with it) and `p2_unloaded` in `d`, with the drives of `robot`.
 fn weigh(d: &Path, robot: &Path) -> f64 {
     let text = format!(
@@ -211,21 +230,10 @@ fn weigh(d: &Path, robot: &Path) -> f64 {
 fn the_acceptance_case_at_the_rtde_rate_with_the_designed_excitation_holds_the_delay() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let file_kt: Vec<f64> = TRUE_KT.iter().zip(FILE_FACTOR).map(|(k, f)| k * f).collect();
-    let sim_robot = ur5_with_gains(d, "true.toml", &TRUE_KT, &[1.0; 6]);
-    let file_robot = ur5_with_gains(d, "file.toml", &file_kt, &[1.0; 6]);
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_idexp"))
-        .args(["payload", "excite"])
-        .arg(root("designs/gains_ur5_excite.toml"))
-        .arg("--out")
-        .arg(d.join("excite"))
-        .env("IDEXP_NO_PROGRESS", "1")
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (sim_robot, file_robot, coefficients) = with_the_gains_excitation(d);
     let offsets = [0.05, -0.08, 0.03, 0.1, -0.06, 0.04];
     let noise = format!("{NOISE}\n#top\ncurrent_offset = {offsets:?}");
-    run_at(d, &sim_robot, "loaded", KNOWN, 0, 11, Some(&d.join("excite/coefficients.json")), &noise, 2);
+    run_at(d, &sim_robot, "loaded", KNOWN, 0, 11, Some(&coefficients), &noise, 2);
     run_at(d, &sim_robot, "unloaded", "", 6, 12, None, &noise, 2);
     let design = gains_design_h(d, &file_robot, "loaded", "unloaded", "delay = true", 20);
     let g = calibrate(&design, d, &Control::new()).unwrap_or_else(|e| panic!("{e}"));
@@ -310,20 +318,9 @@ fn the_currents_delay_is_estimated_within_half_a_millisecond() {
 fn the_designed_runs_closed_loop_harmonics_must_pass_the_filter() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let file_kt: Vec<f64> = TRUE_KT.iter().zip(FILE_FACTOR).map(|(k, f)| k * f).collect();
-    let sim_robot = ur5_with_gains(d, "true.toml", &TRUE_KT, &[1.0; 6]);
-    let file_robot = ur5_with_gains(d, "file.toml", &file_kt, &[1.0; 6]);
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_idexp"))
-        .args(["payload", "excite"])
-        .arg(root("designs/gains_ur5_excite.toml"))
-        .arg("--out")
-        .arg(d.join("excite"))
-        .env("IDEXP_NO_PROGRESS", "1")
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (sim_robot, file_robot, coefficients) = with_the_gains_excitation(d);
     let quiet = "torque = 0.01\nposition = 0.0";
-    run_with_noise(d, &sim_robot, "designed", KNOWN, 0, 11, Some(&d.join("excite/coefficients.json")), quiet);
+    run_with_noise(d, &sim_robot, "designed", KNOWN, 0, 11, Some(&coefficients), quiet);
     run_with_noise(d, &sim_robot, "random", "", 6, 12, None, quiet);
     let mut worst = Vec::new();
     for h in [4, 20] {
