@@ -21,11 +21,12 @@
 //! joint ([`study::run_dedicated`]).
 //!
 //! Files: `options.rs` ([`Method`], [`Standstill`]), `prepare.rs` (one
-//! entry made ready for estimation as its study entry says), `outcome.rs` ([`EstimateStatus`], rows used, flags),
-//! [`output`] (plots and tables); the estimators
-//! in [`estimate`], [`closed_loop`], [`reduce`], [`consistent`], [`prior`],
-//! [`study`]. Their items are re-exported here: `idexp::ident::X` is the path
-//! to use.
+//! entry made ready for estimation as its study entry says), `outcome.rs`
+//! ([`EstimateStatus`], rows used, flags), [`output`] (plots and tables);
+//! the estimators in [`estimate`], [`closed_loop`], [`reduce`],
+//! [`consistent`], [`prior`], [`study`]. The signal processing they start
+//! from is the data layer's ([`process()`], `src/data/process.rs`). Their
+//! items are re-exported here: `idexp::ident::X` is the path to use.
 
 pub mod closed_loop;
 pub mod consistent;
@@ -36,7 +37,6 @@ mod outcome;
 pub mod output;
 mod prepare;
 pub mod prior;
-
 pub mod reduce;
 pub mod study;
 
