@@ -170,7 +170,8 @@ impl Objective {
     /// (when given) (top + bottom) × n_vars (one gradient after the other),
     /// through `Objective::contract` (row by row for up to 6 of them,
     /// else the dual passes shared by all); without `grads` only the values
-    /// (the same bits: the same decomposition).
+    /// (the same bits: faer's eigenvalues do not depend on whether it also
+    /// accumulates the vectors).
     /// Returns the criterion J(x) (+∞, zero gradients and values +∞ when C̃
     /// is not finite). Used by the refinement's epigraph form
     /// (`refine.bundle`). σ_i below σ_1/[`COND_CAP`] count as that floor.
@@ -183,7 +184,7 @@ impl Objective {
         w.evaluations += 1;
         let tr = self.shape.motion(x);
         self.fill(&tr, w);
-        if !self.decompose(w, true) {
+        if !self.decompose(w, grads.is_some()) {
             if let Some(g) = grads {
                 g.iter_mut().for_each(|g| *g = 0.0);
             }
