@@ -91,6 +91,34 @@ impl TrigGrid {
         v
     }
 
+    /// [`TrigGrid::derivative`] at every grid point into `out` (the same
+    /// bits: the same products summed in the same order, with the factors
+    /// (kω)^(m−1) and the quarter-turn signs taken out of the loop).
+    pub fn series(&self, tr: &FourierTrajectory, j: usize, m: usize, out: &mut Vec<f64>) {
+        let nh = self.n_h;
+        let start = if m == 0 { tr.q0[j] } else { 0.0 };
+        let (aj, bj) = (&tr.a[j], &tr.b[j]);
+        // per harmonic: v += f_k (a_k sm − b_k cm), (sm, cm) = (sin, cos)(θ + mπ/2)
+        // = (ps·s or ps·c, pc·c or pc·s) by the quarter turn
+        let swap = m % 2 == 1;
+        let (ps, pc) = match m % 4 {
+            0 => (1.0, 1.0),
+            1 => (1.0, -1.0),
+            2 => (-1.0, -1.0),
+            _ => (-1.0, 1.0),
+        };
+        let f: Vec<f64> = (0..nh).map(|k| ((k + 1) as f64 * self.omega).powi(m as i32 - 1)).collect();
+        out.clear();
+        out.extend(self.sin.chunks_exact(nh).zip(self.cos.chunks_exact(nh)).map(|(s, c)| {
+            let mut v = start;
+            for k in 0..nh {
+                let (sm, cm) = if swap { (ps * c[k], pc * s[k]) } else { (ps * s[k], pc * c[k]) };
+                v += f[k] * (aj[k] * sm - bj[k] * cm);
+            }
+            v
+        }));
+    }
+
     /// The coefficient basis at grid point i (as [`FourierTrajectory::basis`]).
     pub fn basis(&self, i: usize, out: &mut Basis) {
         let nh = self.n_h;
@@ -196,6 +224,10 @@ impl TrajectoryShape for FourierLayout {
 
     fn grid_derivative(&self, grid: &TrigGrid, m: &FourierTrajectory, j: usize, order: usize, i: usize) -> f64 {
         grid.derivative(m, j, order, i)
+    }
+
+    fn grid_series(&self, grid: &TrigGrid, m: &FourierTrajectory, j: usize, order: usize, out: &mut Vec<f64>) {
+        grid.series(m, j, order, out)
     }
 
     /// Per joint the gradient with respect to (q0_j, a_1j..a_nj, b_1j..b_nj).

@@ -197,6 +197,13 @@ pub trait TrajectoryShape {
     fn grid_derivative(&self, grid: &Self::Grid, m: &Self::Motion, j: usize, order: usize, i: usize) -> f64 {
         m.derivatives(j, order, grid.times()[i])[0]
     }
+    /// [`TrajectoryShape::grid_derivative`] at every grid time into `out`
+    /// (resized to the grid's length): the same values, for a shape that
+    /// can share work between the times.
+    fn grid_series(&self, grid: &Self::Grid, m: &Self::Motion, j: usize, order: usize, out: &mut Vec<f64>) {
+        out.clear();
+        out.extend((0..grid.times().len()).map(|i| self.grid_derivative(grid, m, j, order, i)));
+    }
     /// Length of the per-gradient accumulator of [`TrajectoryShape::grid_accumulate`].
     fn acc_len(&self) -> usize {
         self.n_vars()

@@ -268,6 +268,13 @@ impl TrajectoryShape for Shape {
             _ => mismatch(),
         }
     }
+    fn grid_series(&self, grid: &ShapeGrid, m: &ShapeMotion, j: usize, order: usize, out: &mut Vec<f64>) {
+        match (self, grid, m) {
+            (Shape::Fourier(s), ShapeGrid::Fourier(g), ShapeMotion::Fourier(m)) => s.grid_series(g, m, j, order, out),
+            (Shape::BSpline(s), ShapeGrid::BSpline(g), ShapeMotion::BSpline(m)) => s.grid_series(g, m, j, order, out),
+            _ => mismatch(),
+        }
+    }
     fn acc_len(&self) -> usize {
         each!(self, s => s.acc_len())
     }

@@ -1,7 +1,7 @@
 //! Evaluation of the constraints and their Jacobian: the grids, one value
 //! function per constraint kind, and the pull-back of the state gradient to x.
 
-use super::{frame_point, joint_extremum, ConstraintInfo, ConstraintWorkspace, Constraints, Item, DISTANCE_SCALE};
+use super::{frame_point, joint_extremum_scanned, ConstraintInfo, ConstraintWorkspace, Constraints, Item, DISTANCE_SCALE};
 use crate::robot::collision::DistanceSeries;
 use crate::robot::kinematics::forward_kinematics;
 use crate::robot::{frame_jacobian, id_derivatives, inverse_dynamics, motor_inertia};
@@ -27,6 +27,7 @@ impl Constraints {
         self.distance_grid(tr, cw);
         let mut last_cart = usize::MAX;
         let want_grad = jac.is_some();
+        cw.scanned.iter_mut().for_each(|v| *v = false);
         for (i, item) in self.items.iter().enumerate() {
             let inf = &self.info[i];
             if want_grad {
@@ -113,7 +114,12 @@ impl Constraints {
     /// Returns (value, t* when the gradient was set).
     fn joint_value(&self, tr: &ShapeMotion, inf: &ConstraintInfo, j: usize, order: usize, want_grad: bool, cw: &mut ConstraintWorkspace) -> (f64, Option<f64>) {
         let sgn = if inf.upper { 1.0 } else { -1.0 };
-        let (v, t) = joint_extremum(&self.shape, tr, &self.scan, j, order, inf.upper);
+        let k = 3 * j + order;
+        if !cw.scanned[k] {
+            self.shape.grid_series(&self.scan, tr, j, order, &mut cw.scan_raw[k]);
+            cw.scanned[k] = true;
+        }
+        let (v, t) = joint_extremum_scanned(tr, &self.scan, &cw.scan_raw[k], j, order, inf.upper);
         if !want_grad {
             return (sgn * (v - inf.limit) / inf.scale, None);
         }

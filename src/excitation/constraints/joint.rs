@@ -21,26 +21,36 @@ pub fn series_derivatives<M: Motion + ?Sized>(tr: &M, j: usize, m: usize, t: f64
 /// rest-to-rest motion ends where it starts): the best two grid local
 /// extrema are refined by Newton steps on d/dt q_j^(order) = 0.
 pub fn joint_extremum<S: TrajectoryShape>(shape: &S, tr: &S::Motion, scan: &S::Grid, j: usize, order: usize, upper: bool) -> (f64, f64) {
+    let mut raw = Vec::new();
+    shape.grid_series(scan, tr, j, order, &mut raw);
+    joint_extremum_scanned(tr, scan, &raw, j, order, upper)
+}
+
+/// [`joint_extremum`] from the scan's values of q_j^(order) (`raw`,
+/// [`TrajectoryShape::grid_series`]), which serve both the maximum and the
+/// minimum.
+pub fn joint_extremum_scanned<G: TimeGrid, M: Motion + ?Sized>(tr: &M, scan: &G, raw: &[f64], j: usize, order: usize, upper: bool) -> (f64, f64) {
     let sgn = if upper { 1.0 } else { -1.0 };
-    let ns = scan.len();
-    let vals: Vec<f64> = (0..ns).map(|i| sgn * shape.grid_derivative(scan, tr, j, order, i)).collect();
+    let ns = raw.len();
+    let val = |i: usize| sgn * raw[i];
     let scan = scan.times();
     let mut cand: [Option<usize>; 2] = [None, None];
     for i in 0..ns {
-        if vals[i] >= vals[(i + ns - 1) % ns] && vals[i] >= vals[(i + 1) % ns] {
+        let vi = val(i);
+        if vi >= val((i + ns - 1) % ns) && vi >= val((i + 1) % ns) {
             match cand {
                 [None, _] => cand[0] = Some(i),
                 [Some(a), None] => {
-                    if vals[i] > vals[a] {
+                    if vi > val(a) {
                         cand = [Some(i), Some(a)];
                     } else {
                         cand[1] = Some(i);
                     }
                 }
                 [Some(a), Some(b)] => {
-                    if vals[i] > vals[a] {
+                    if vi > val(a) {
                         cand = [Some(i), Some(a)];
-                    } else if vals[i] > vals[b] {
+                    } else if vi > val(b) {
                         cand[1] = Some(i);
                     }
                 }
@@ -48,12 +58,12 @@ pub fn joint_extremum<S: TrajectoryShape>(shape: &S, tr: &S::Motion, scan: &S::G
         }
     }
     if cand[0].is_none() {
-        return (sgn * vals[0], scan[0]);
+        return (sgn * val(0), scan[0]);
     }
     let h = if ns > 1 { scan[1] - scan[0] } else { 1.0 };
     let (mut best, mut tbest) = (f64::NEG_INFINITY, 0.0);
     for i in cand.iter().flatten().copied() {
-        let (mut t, mut fv) = (scan[i], vals[i]);
+        let (mut t, mut fv) = (scan[i], val(i));
         let t_grid = t;
         let mut d = series_derivatives(tr, j, order, t);
         for _ in 0..8 {

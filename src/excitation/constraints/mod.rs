@@ -29,7 +29,7 @@ mod evaluate;
 mod joint;
 mod verify;
 
-pub use joint::{joint_extremum, series_derivative, series_derivatives};
+pub use joint::{joint_extremum, joint_extremum_scanned, series_derivative, series_derivatives};
 
 use crate::error::{Error, Result};
 use crate::robot::cartesian::{CartesianConstraint, Shape};
@@ -154,6 +154,11 @@ pub struct ConstraintWorkspace {
     exhaustive: bool,
     /// Evaluation for the GA's selection ([`Constraints::eval_selection`]).
     selection: bool,
+    /// The scan's values of q_j^(order) of the evaluated motion, at
+    /// `j·3 + order` when `scanned` says so (shared by a joint's upper and
+    /// lower limit; cleared at each evaluation).
+    scan_raw: Vec<Vec<f64>>,
+    scanned: Vec<bool>,
 }
 
 impl ConstraintWorkspace {
@@ -463,6 +468,8 @@ impl Constraints {
             pull: Default::default(),
             exhaustive: false,
             selection: false,
+            scan_raw: vec![Vec::new(); 3 * n],
+            scanned: vec![false; 3 * n],
         }
     }
 
@@ -512,8 +519,10 @@ impl Constraints {
             let q0 = self.shape.centre(x, j);
             let mut s: f64 = 1.0;
             let [lo, hi] = limits.position[j];
-            let (mx, _) = joint_extremum(&self.shape, &tr, &self.scan, j, 0, true);
-            let (mn, _) = joint_extremum(&self.shape, &tr, &self.scan, j, 0, false);
+            let mut raw = Vec::new();
+            self.shape.grid_series(&self.scan, &tr, j, 0, &mut raw);
+            let (mx, _) = joint_extremum_scanned(&tr, &self.scan, &raw, j, 0, true);
+            let (mn, _) = joint_extremum_scanned(&tr, &self.scan, &raw, j, 0, false);
             if hi.is_finite() && mx - q0 > 0.0 {
                 s = s.min(((hi - q0) / (mx - q0)).max(0.0));
             }
@@ -524,8 +533,9 @@ impl Constraints {
                 if !lim.is_finite() {
                     continue;
                 }
-                let (vmax, _) = joint_extremum(&self.shape, &tr, &self.scan, j, order, true);
-                let (vmin, _) = joint_extremum(&self.shape, &tr, &self.scan, j, order, false);
+                self.shape.grid_series(&self.scan, &tr, j, order, &mut raw);
+                let (vmax, _) = joint_extremum_scanned(&tr, &self.scan, &raw, j, order, true);
+                let (vmin, _) = joint_extremum_scanned(&tr, &self.scan, &raw, j, order, false);
                 let amp = vmax.max(-vmin);
                 if amp > 0.0 {
                     s = s.min(lim / amp);
