@@ -83,17 +83,19 @@ impl Objective {
 
     /// [`Self::sample_gradient`] row by row: τ = Y(q, q̇, q̈) θ for every θ,
     /// so Σ_j H_rj ∂Y_rj/∂x = ∂τ_r(θ_r)/∂x with θ_r the sample's row r of
-    /// H_t (weighted) placed on the selected columns, zero elsewhere: one
-    /// call of the row kernel [`id_derivative_rows`] per H_t, whose rows
-    /// are summed.
+    /// H_t (weighted) placed on the selected columns, zero elsewhere: the
+    /// row kernel [`id_derivative_rows`] on one set of rows per H_t (one
+    /// call for all, sharing the motion pass), each set's rows summed.
     fn sample_gradient_rows(&self, i: usize, state: &[Vec<f64>; 3], hs: &[&[f64]], rows: usize, b: &mut SampleBuffers, g: &mut [f64]) {
         let n = self.robot.dof();
         let p = self.robot.n_params();
         let [q, qd, qdd] = state;
+        let nt = hs.len();
+        b.thetas.resize(nt * n * p, 0.0);
         for (t, h) in hs.iter().enumerate() {
             for r in 0..n {
                 let wr = self.row_weight[r];
-                let theta = &mut b.thetas[r * p..(r + 1) * p];
+                let theta = &mut b.thetas[(t * n + r) * p..(t * n + r + 1) * p];
                 match &self.mixes {
                     None => {
                         for (j, &c) in self.columns.iter().enumerate() {
@@ -115,10 +117,17 @@ impl Objective {
                     }
                 }
             }
-            id_derivative_rows(&self.robot, &mut b.ws, &b.thetas, q, qd, qdd, &mut b.rq, &mut b.rqd, &mut b.rqdd);
+        }
+        // every H_t's rows in one call: the motion pass is shared
+        for o in [&mut b.rq, &mut b.rqd, &mut b.rqdd] {
+            o.resize(nt * n * n, 0.0);
+        }
+        id_derivative_rows(&self.robot, &mut b.ws, &b.thetas, q, qd, qdd, &mut b.rq, &mut b.rqd, &mut b.rqdd);
+        for t in 0..nt {
             let gt = &mut g[t * 3 * n..(t + 1) * 3 * n];
+            let o = t * n * n;
             for k in 0..n {
-                let col = |o: &[f64]| (0..n).map(|r| o[r * n + k]).sum::<f64>();
+                let col = |x: &[f64]| (0..n).map(|r| x[o + r * n + k]).sum::<f64>();
                 gt[k] = col(&b.rq);
                 gt[n + k] = col(&b.rqd);
                 gt[2 * n + k] = col(&b.rqdd);

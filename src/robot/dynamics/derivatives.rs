@@ -329,7 +329,9 @@ fn deriv_inertial(robot: &Robot, theta: &[f64], dl: &mut [DerivLink], used: impl
 /// ∂τ_r(θ_r)/∂x_k). Since τ = Y θ, Σ_r of these rows is the derivative of
 /// ⟨H, Y⟩ for the matrix H with rows θ_r: the gradient of a function of
 /// the regressor without the regressor's derivatives (the excitation
-/// criterion's, `excitation::objective`).
+/// criterion's, `excitation::objective`). Several sets of n parameter
+/// vectors at once (`thetas` k·n·p values, the outputs k·n·n each, set after
+/// set) share the motion pass.
 ///
 /// The motion pass is shared by every row; per row only the links in the
 /// subtrees of the rigid-body rows that τ_r combines (r itself without
@@ -352,16 +354,24 @@ pub fn id_derivative_rows(
     check_state(robot, q, qd, qdd);
     let n = robot.dof();
     let p = robot.n_params();
-    assert_eq!(thetas.len(), n * p, "one parameter vector per row: n·p values");
-    assert!(dq.len() == n * n && dqd.len() == n * n && dqdd.len() == n * n, "row outputs must be n·n");
+    assert!(
+        n > 0 && p > 0 && !thetas.is_empty() && thetas.len() % (n * p) == 0,
+        "one parameter vector per row: n·p values per set"
+    );
+    let sets = thetas.len() / (n * p);
+    assert!(
+        dq.len() == sets * n * n && dqd.len() == sets * n * n && dqdd.len() == sets * n * n,
+        "row outputs must be n·n per set of parameter vectors"
+    );
     assert_eq!(ws.dl.len(), n, "workspace made for another robot");
     joint_transforms(robot, q, &mut ws.kin);
     deriv_motion(robot, &ws.kin, qd, qdd, &mut ws.dl);
     let w = &mut ws.kin.s2;
     couple(robot, qd, w);
     let sub = &robot.topology.sub;
-    for r in 0..n {
-        let theta = &thetas[r * p..(r + 1) * p];
+    for sr in 0..sets * n {
+        let r = sr % n;
+        let theta = &thetas[sr * p..(sr + 1) * p];
         // the rigid-body rows s (with weights x) that τ_r combines
         let coupled = robot.coupling.is_some();
         let rows = || {
@@ -371,7 +381,7 @@ pub fn id_derivative_rows(
         };
         deriv_inertial(robot, theta, &mut ws.dl, |i| rows().any(|(_, s, _)| sub[s * n + i]));
         let dl = &ws.dl;
-        let (oq, oqd, oqdd) = (&mut dq[r * n..(r + 1) * n], &mut dqd[r * n..(r + 1) * n], &mut dqdd[r * n..(r + 1) * n]);
+        let (oq, oqd, oqdd) = (&mut dq[sr * n..(sr + 1) * n], &mut dqd[sr * n..(sr + 1) * n], &mut dqdd[sr * n..(sr + 1) * n]);
         oq.fill(0.0);
         oqd.fill(0.0);
         oqdd.fill(0.0);
