@@ -70,9 +70,11 @@ fn eigenvalue_bundle_matches_the_spectrum_and_finite_differences() {
             assert!((vals[t] - want).abs() < 1e-10, "{scaling:?} λ_{i}: {} vs {want}", vals[t]);
         }
         assert_eq!(j, sp.cond);
-        // without gradients (the line search's evaluations): the same bits
+        // without gradients (the line search's evaluations, the GA's: the
+        // eigenvalues without the eigenvectors): the same bits
         let mut only = vec![0.0; nt];
         assert_eq!(o.log_eigen_bundle(&x, &mut w, top, bottom, &mut only, None).to_bits(), j.to_bits());
+        assert_eq!(o.value(&x, &mut w).to_bits(), j.to_bits());
         assert_eq!(
             only.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
             vals.iter().map(|v| v.to_bits()).collect::<Vec<_>>()

@@ -304,3 +304,32 @@ fn row_wise_derivatives_equal_the_regressor_derivatives_contracted_row_by_row() 
         }
     }
 }
+
+#[test]
+fn several_sets_of_rows_in_one_call_give_each_sets_own_rows_bit_for_bit() {
+    // the excitation gradient passes every eigenvalue's rows in one call
+    // (one motion pass); each set must be exactly what its own call gives
+    for r in all_robots() {
+        let (n, p) = (r.dof(), r.n_params());
+        let mut ws = Workspace::new(&r);
+        let mut g = rng(12);
+        let (q, qd, qdd) = random_state(&r, &mut g);
+        let sets = 3;
+        let thetas: Vec<f64> = (0..sets * n * p).map(|_| g.random_range(-2.0..2.0)).collect();
+        let out = || vec![0.0; sets * n * n];
+        let (mut aq, mut aqd, mut aqdd) = (out(), out(), out());
+        robot::id_derivative_rows(&r, &mut ws, &thetas, &q, &qd, &qdd, &mut aq, &mut aqd, &mut aqdd);
+        for s in 0..sets {
+            let (mut bq, mut bqd, mut bqdd) = (vec![0.0; n * n], vec![0.0; n * n], vec![0.0; n * n]);
+            robot::id_derivative_rows(&r, &mut ws, &thetas[s * n * p..(s + 1) * n * p], &q, &qd, &qdd, &mut bq, &mut bqd, &mut bqdd);
+            for (name, all, one) in [("q", &aq, &bq), ("qd", &aqd, &bqd), ("qdd", &aqdd, &bqdd)] {
+                let part = &all[s * n * n..(s + 1) * n * n];
+                assert!(
+                    part.iter().zip(one.iter()).all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{}: set {s}, d/d{name}: {part:?} in one call, {one:?} alone",
+                    r.name
+                );
+            }
+        }
+    }
+}

@@ -475,3 +475,36 @@ fn bspline_waypoints_are_validated() {
     assert_eq!(l().with_waypoints(7).unwrap().n_vars(), 2 * 5);
     assert_eq!(l().with_free_ends(true, true).with_waypoints(7).unwrap().n_vars(), 2 * 7);
 }
+
+#[test]
+fn grid_series_equals_grid_derivative_at_every_grid_time_bit_for_bit() {
+    // the joint-limit scan takes a joint's whole series at once
+    // (`grid_series`, the Fourier one with its factors out of the loop); its
+    // values must be the point-by-point ones exactly, for every order
+    // including those past the acceleration (quarter-turn signs 0..3)
+    let l = FourierLayout::new(vec![0.1, -0.4, 0.7], 5, std::f64::consts::TAU * 0.1, true, false).unwrap();
+    let x: Vec<f64> = values(TrajectoryShape::n_vars(&l), 2.0).iter().map(|v| 0.3 * v).collect();
+    let b = BSplineLayout::new(vec![0.1, -0.4, 0.7], 5, 11, 10.0).unwrap();
+    let xb: Vec<f64> = values(TrajectoryShape::n_vars(&b), 3.0).iter().map(|v| 0.3 * v).collect();
+    fn check<S: TrajectoryShape>(what: &str, s: &S, x: &[f64]) {
+        let grid = s.grid(s.scan_times());
+        let m = s.motion(x);
+        let mut out = Vec::new();
+        for j in 0..3 {
+            for order in 0..5 {
+                s.grid_series(&grid, &m, j, order, &mut out);
+                assert_eq!(out.len(), s.scan_times().len(), "{what}");
+                for (i, v) in out.iter().enumerate() {
+                    let one = s.grid_derivative(&grid, &m, j, order, i);
+                    assert_eq!(
+                        v.to_bits(),
+                        one.to_bits(),
+                        "{what}: joint {j}, order {order}, time {i}: {v} in the series, {one} alone"
+                    );
+                }
+            }
+        }
+    }
+    check("fourier", &l, &x);
+    check("bspline", &b, &xb);
+}
