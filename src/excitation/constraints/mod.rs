@@ -515,11 +515,11 @@ impl Constraints {
         let n = self.robot.dof();
         self.shape.clamp_centre(x, &limits.position);
         let tr = self.shape.motion(x);
+        let mut raw = Vec::new();
         for j in 0..n {
             let q0 = self.shape.centre(x, j);
             let mut s: f64 = 1.0;
             let [lo, hi] = limits.position[j];
-            let mut raw = Vec::new();
             self.shape.grid_series(&self.scan, &tr, j, 0, &mut raw);
             let (mx, _) = joint_extremum_scanned(&tr, &self.scan, &raw, j, 0, true);
             let (mn, _) = joint_extremum_scanned(&tr, &self.scan, &raw, j, 0, false);
